@@ -1,0 +1,42 @@
+// magcomp: compare a compensated signal with a reference, overall and per line.
+#pragma once
+
+#include <Eigen/Core>
+#include <string>
+#include <vector>
+
+#include "magcomp/core/flight_data.h"
+#include "magcomp/core/model.h"
+
+namespace magcomp {
+
+/// Error statistics of one flight line (nT). std removes the line's mean (as MagNav.jl reports).
+struct LineStats {
+  double line = 0.0;
+  Eigen::Index n = 0;  ///< finite samples
+  double rmse_nT = 0.0;
+  double std_nT = 0.0;
+};
+
+/// A model's error against a reference on a flight. error = compensated - truth, nT.
+struct Evaluation {
+  double rmse_nT = 0.0;  ///< raw RMS of the error over finite samples
+  double std_nT = 0.0;   ///< RMS after removing each line's mean
+  Eigen::Index n = 0;    ///< finite samples
+  Eigen::Index nan_samples = 0;
+  std::vector<LineStats> per_line;
+  Eigen::VectorXd compensated_nT;
+  Eigen::VectorXd error_nT;
+};
+
+/// Statistics of `error_nT` grouped by the flight's `line` column (one group if absent).
+Evaluation error_statistics(const FlightData& data, const Eigen::VectorXd& error_nT);
+
+/// Compensates the flight with the model and compares with the field `truth` (e.g. mag_1_c).
+/// Throws magcomp::Error naming the file and field when `truth` is missing or all NaN.
+Evaluation evaluate_model(const Model& model, const FlightData& data, const std::string& truth);
+
+/// Mean-removed RMS per group, pooled (the `std_nT` above) for any residual and grouping.
+double pooled_std(const Eigen::VectorXd& residual, const Eigen::VectorXd& groups);
+
+}  // namespace magcomp

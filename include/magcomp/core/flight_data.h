@@ -1,0 +1,81 @@
+// magcomp: a flight as named float64 columns sampled on one time base (MIT challenge schema).
+#pragma once
+
+#include <Eigen/Core>
+#include <string>
+#include <unordered_map>
+#include <utility>
+#include <vector>
+
+namespace magcomp {
+
+/// A time window [start_s, end_s] in seconds past midnight UTC (the `tt` base), both ends included.
+struct TimeWindow {
+  double start_s = 0.0;
+  double end_s = 0.0;
+};
+
+/// One flight: N samples of named float64 columns, one of which is `tt` (s past midnight UTC).
+/// Column names are the final MIT names (DATA.md); older names are renamed on read. NaN is kept.
+class FlightData {
+ public:
+  FlightData() = default;
+
+  /// Number of samples.
+  Eigen::Index size() const { return size_; }
+  /// Column names in insertion order.
+  const std::vector<std::string>& names() const { return names_; }
+  /// True if the column exists (final name, or an older alias of it).
+  bool has(const std::string& name) const;
+  /// Column by name (older aliases accepted). Throws magcomp::Error naming `source()` and the field.
+  const Eigen::VectorXd& column(const std::string& name) const;
+  /// Mutable column; same lookup rules.
+  Eigen::VectorXd& column(const std::string& name);
+  /// Adds or replaces a column; its length must equal size() (the first column fixes the size).
+  void set(const std::string& name, Eigen::VectorXd values);
+  /// Removes a column if present.
+  void remove(const std::string& name);
+
+  /// Time base `tt` in s past midnight UTC.
+  const Eigen::VectorXd& tt() const { return column("tt"); }
+  /// Sample period in s, the median of the positive tt differences (never the file's `dt`).
+  double dt_s() const;
+
+  /// Samples whose `line` equals one of `lines` (compared to 1e-6) or whose tt falls in one of
+  /// `windows`. Returns the sample indices, sorted. Empty lists select nothing.
+  std::vector<Eigen::Index> select(const std::vector<double>& lines,
+                                   const std::vector<TimeWindow>& windows) const;
+  /// A new flight holding only the given samples (indices into this one).
+  FlightData subset(const std::vector<Eigen::Index>& indices) const;
+  /// Splits sorted sample indices into runs of consecutive samples with no time gap over
+  /// `max_gap_s`. Each run is [first, last] inclusive.
+  std::vector<std::pair<Eigen::Index, Eigen::Index>> contiguous_runs(
+      const std::vector<Eigen::Index>& indices, double max_gap_s) const;
+
+  /// Where the data came from (a file path), used in error messages.
+  const std::string& source() const { return source_; }
+  void set_source(std::string source) { source_ = std::move(source); }
+
+  /// Final MIT name for an older one (`tie_line` -> `line`, ...); the name itself otherwise.
+  static std::string canonical_name(const std::string& name);
+
+ private:
+  Eigen::Index size_ = -1;
+  std::vector<std::string> names_;
+  std::vector<Eigen::VectorXd> columns_;
+  std::unordered_map<std::string, size_t> index_;
+  std::string source_ = "<memory>";
+};
+
+/// Reads an MIT challenge HDF5 flight file: every top-level 1-D float dataset of length N becomes
+/// a column, older names are renamed, scalar `N` / `dt` datasets are tolerated (dt is derived from
+/// tt), and samples are sorted by tt. Throws magcomp::Error naming the file and field on any
+/// problem: missing file, not HDF5, no `tt`, wrong rank or length.
+FlightData read_flight_h5(const std::string& path);
+
+/// Writes a flight in the same schema (one float64 1-D dataset per column, plus scalar `N` and
+/// `dt`). Writes to a temporary file beside `path` and renames it, so a reader never sees half a
+/// file. Throws magcomp::Error naming the file on failure.
+void write_flight_h5(const FlightData& data, const std::string& path);
+
+}  // namespace magcomp

@@ -1,0 +1,78 @@
+// magcomp: a compensation model (scalar sensor + vector sensor + terms + fit settings + coefficients).
+#pragma once
+
+#include <Eigen/Core>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "magcomp/core/flight_data.h"
+#include "magcomp/core/term.h"
+
+namespace magcomp {
+
+/// How the coefficients are fitted (the `fit:` block of the model YAML).
+struct FitSettings {
+  std::string method = "bandpass";   ///< "bandpass" (calibration segments) or "reference"
+  std::vector<double> lines;         ///< calibration segments by line number
+  std::vector<TimeWindow> windows;   ///< and/or by tt windows, s
+  double band_low_hz = 0.1;          ///< band-pass only
+  double band_high_hz = 0.9;
+  int order = 4;                     ///< Butterworth prototype order
+  int trim = 20;                     ///< samples dropped at each end of each filtered segment
+  double lambda = 0.025;             ///< ridge parameter (dimensionless, on the raw columns)
+  std::string reference;             ///< reference field name, reference method only
+};
+
+/// What a fit reports about its conditioning.
+struct FitReport {
+  Eigen::Index samples = 0;            ///< rows used in the regression
+  int segments = 0;                    ///< contiguous calibration segments used
+  double condition_number = 0.0;       ///< of the column-normalised design matrix
+  double residual_std_nT = 0.0;        ///< std of the fit residual (filtered for bandpass)
+  std::vector<std::string> warnings;   ///< e.g. terms the segments do not excite
+};
+
+/// A compensation model. Terms are held as specs; the model builds them on demand.
+struct Model {
+  std::string scalar = "mag_5_uc";       ///< field of the scalar magnetometer, nT
+  std::string vector = "flux_c";         ///< vector magnetometer prefix: <vector>_x/_y/_z, nT
+  std::vector<std::string> terms = {"permanent", "induced", "eddy"};
+  double bt_scale_nT = 50000.0;
+  FitSettings fit;
+  // Fitted state (empty until calibrated).
+  std::vector<std::string> column_names;
+  Eigen::VectorXd coefficients;
+  FitReport report;
+
+  bool fitted() const { return coefficients.size() > 0; }
+  /// The term objects, in order.
+  std::vector<std::unique_ptr<Term>> make_terms() const;
+  /// Names of all columns the terms build, in order.
+  std::vector<std::string> make_column_names() const;
+  /// Adds a term spec if not yet present (validated). Returns false if it was already there.
+  bool add_term(const std::string& spec);
+};
+
+/// Loads a model YAML (a plain or a fitted one). Throws magcomp::Error naming file and key.
+Model load_model_yaml(const std::string& path);
+/// Writes the model (and coefficients, when fitted) atomically: temporary file + rename.
+void save_model_yaml(const Model& model, const std::string& path);
+
+/// The N x P design matrix of the model's terms on a whole flight (rows may hold NaN where inputs
+/// are NaN). Throws magcomp::Error naming the file and the missing field.
+Eigen::MatrixXd design_matrix(const Model& model, const FlightData& data);
+
+/// Fits the model's coefficients on `flights` according to model.fit. Throws magcomp::Error when
+/// the selection is empty or too short. Stores coefficients, column names and the report.
+void fit_model(Model& model, const std::vector<const FlightData*>& flights);
+
+/// Ridge least squares (A'A + lambda I) c = A'y, as MagNav.jl's linreg.
+Eigen::VectorXd ridge_solve(const Eigen::MatrixXd& a, const Eigen::VectorXd& y, double lambda);
+
+/// Aircraft correction in nT at every sample: A c (compensated = scalar - correction).
+Eigen::VectorXd model_correction(const Model& model, const FlightData& data);
+/// Compensated scalar field in nT: scalar - A c.
+Eigen::VectorXd compensate(const Model& model, const FlightData& data);
+
+}  // namespace magcomp

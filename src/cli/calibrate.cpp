@@ -1,0 +1,47 @@
+// magcomp calibrate: fit a model's coefficients on calibration segments of one or more flights.
+#include <iomanip>
+#include <iostream>
+
+#include "common.h"
+#include "magcomp/core/error.h"
+#include "magcomp/core/model.h"
+#include "subcommands.h"
+
+namespace magcomp::cli {
+
+void add_calibrate(CLI::App& app) {
+  auto* cmd = app.add_subcommand("calibrate", "fit the model (TL + terms) on calibration segments");
+  auto data = std::make_shared<std::string>();
+  auto model_path = std::make_shared<std::string>();
+  auto out = std::make_shared<std::string>();
+  auto terms = std::make_shared<std::vector<std::string>>();
+  cmd->add_option("--data", *data, "flight HDF5 file(s), comma-separated")->required();
+  cmd->add_option("--model", *model_path, "model YAML (plain or fitted: refit)")->required();
+  cmd->add_option("--term", *terms, "add a term, e.g. current:cur_strb (repeatable)");
+  cmd->add_option("--out", *out, "fitted model YAML to write")->required();
+  cmd->callback([=] {
+    Model model = load_model_yaml(*model_path);
+    for (const std::string& t : *terms) {
+      try {
+        model.add_term(t);
+      } catch (const Error& e) {
+        throw Error(std::string("--term: ") + e.what());
+      }
+    }
+    const auto flights = read_flights(*data);
+    std::vector<const FlightData*> ptrs;
+    for (const auto& f : flights) ptrs.push_back(&f);
+    fit_model(model, ptrs);
+    save_model_yaml(model, *out);
+    const FitReport& r = model.report;
+    std::cout << "calibrated " << model.scalar << " with " << model.vector << ": "
+              << model.coefficients.size() << " coefficients, " << r.samples << " samples in "
+              << r.segments << " segment(s)\n"
+              << std::setprecision(4) << "condition number " << r.condition_number
+              << ", fit residual std " << r.residual_std_nT << " nT\n";
+    for (const auto& w : r.warnings) std::cout << "warning: " << w << "\n";
+    std::cout << "wrote " << *out << "\n";
+  });
+}
+
+}  // namespace magcomp::cli

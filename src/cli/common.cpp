@@ -1,0 +1,29 @@
+// magcomp CLI: helpers.
+#include "common.h"
+
+#include "magcomp/core/error.h"
+
+namespace magcomp::cli {
+
+std::vector<std::string> split_commas(const std::string& s) {
+  std::vector<std::string> out;
+  size_t start = 0;
+  while (start <= s.size()) {
+    const size_t comma = s.find(',', start);
+    const std::string item = s.substr(start, comma == std::string::npos ? std::string::npos
+                                                                         : comma - start);
+    if (!item.empty()) out.push_back(item);
+    if (comma == std::string::npos) break;
+    start = comma + 1;
+  }
+  return out;
+}
+
+std::vector<FlightData> read_flights(const std::string& comma_list) {
+  std::vector<FlightData> flights;
+  for (const std::string& path : split_commas(comma_list)) flights.push_back(read_flight_h5(path));
+  if (flights.empty()) throw Error("--data: no file given");
+  return flights;
+}
+
+}  // namespace magcomp::cli

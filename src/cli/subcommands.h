@@ -1,0 +1,11 @@
+// magcomp CLI: registration of each subcommand (one file per subcommand).
+#pragma once
+
+#include <CLI/CLI.hpp>
+
+namespace magcomp::cli {
+
+void add_calibrate(CLI::App& app);
+void add_evaluate(CLI::App& app);
+
+}  // namespace magcomp::cli

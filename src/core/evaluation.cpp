@@ -1,0 +1,85 @@
+// magcomp: error statistics.
+#include "magcomp/core/evaluation.h"
+
+#include <cmath>
+#include <map>
+
+#include "magcomp/core/error.h"
+
+namespace magcomp {
+
+Evaluation error_statistics(const FlightData& data, const Eigen::VectorXd& error_nT) {
+  Evaluation ev;
+  ev.error_nT = error_nT;
+  const bool has_line = data.has("line");
+  struct Acc {
+    Eigen::Index n = 0;
+    double sum = 0, sum_sq = 0;
+  };
+  std::map<double, Acc> groups;
+  for (Eigen::Index i = 0; i < error_nT.size(); ++i) {
+    const double e = error_nT[i];
+    if (!std::isfinite(e)) {
+      ev.nan_samples++;
+      continue;
+    }
+    double line = has_line ? data.column("line")[i] : 0.0;
+    if (!std::isfinite(line)) line = -1.0;
+    Acc& a = groups[line];
+    a.n++;
+    a.sum += e;
+    a.sum_sq += e * e;
+  }
+  double total_sq = 0, total_var = 0;
+  for (const auto& [line, a] : groups) {
+    LineStats s;
+    s.line = line;
+    s.n = a.n;
+    const double mean = a.sum / static_cast<double>(a.n);
+    const double ss_dev = std::max(0.0, a.sum_sq - a.n * mean * mean);
+    s.rmse_nT = std::sqrt(a.sum_sq / static_cast<double>(a.n));
+    s.std_nT = a.n > 1 ? std::sqrt(ss_dev / static_cast<double>(a.n - 1)) : 0.0;
+    ev.per_line.push_back(s);
+    ev.n += a.n;
+    total_sq += a.sum_sq;
+    total_var += ss_dev;
+  }
+  if (ev.n > 0) {
+    ev.rmse_nT = std::sqrt(total_sq / static_cast<double>(ev.n));
+    ev.std_nT = std::sqrt(total_var / static_cast<double>(ev.n));
+  }
+  return ev;
+}
+
+double pooled_std(const Eigen::VectorXd& residual, const Eigen::VectorXd& groups) {
+  std::map<double, std::pair<double, double>> acc;  // sum, count
+  for (Eigen::Index i = 0; i < residual.size(); ++i) {
+    if (!std::isfinite(residual[i])) continue;
+    auto& a = acc[groups.size() ? groups[i] : 0.0];
+    a.first += residual[i];
+    a.second += 1;
+  }
+  double ss = 0, n = 0;
+  for (Eigen::Index i = 0; i < residual.size(); ++i) {
+    if (!std::isfinite(residual[i])) continue;
+    const auto& a = acc[groups.size() ? groups[i] : 0.0];
+    const double d = residual[i] - a.first / a.second;
+    ss += d * d;
+    n += 1;
+  }
+  return n > 0 ? std::sqrt(ss / n) : 0.0;
+}
+
+Evaluation evaluate_model(const Model& model, const FlightData& data, const std::string& truth) {
+  if (!data.has(truth)) throw Error(data.source() + ": reference field '" + truth + "' not found");
+  const Eigen::VectorXd& ref = data.column(truth);
+  if (!ref.array().isFinite().any()) {
+    throw Error(data.source() + ": reference field '" + truth + "' holds no finite sample");
+  }
+  const Eigen::VectorXd comp = compensate(model, data);
+  Evaluation ev = error_statistics(data, comp - ref);
+  ev.compensated_nT = comp;
+  return ev;
+}
+
+}  // namespace magcomp

@@ -1,0 +1,141 @@
+// magcomp: FlightData columns, selection and subsets.
+#include "magcomp/core/flight_data.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "magcomp/core/error.h"
+
+namespace magcomp {
+
+std::string FlightData::canonical_name(const std::string& name) {
+  // Older (2020 first release) names -> final names, DATA.md.
+  static const std::unordered_map<std::string, std::string> kAliases = {
+      {"tie_line", "line"},   {"utmX", "utm_x"},          {"utmY", "utm_y"},
+      {"utmZ", "utm_z"},      {"alt", "msl"},             {"ins_azim", "ins_yaw"},
+      {"pitch_rt", "pitch_rate"}, {"roll_rt", "roll_rate"}, {"yaw_rt", "yaw_rate"},
+      {"lon_acc", "lgtl_acc"}, {"lat_acc", "ltrl_acc"},   {"alt_acc", "nrml_acc"},
+      {"true_as", "tas"},     {"vol_servo", "vol_srvo"}};
+  auto it = kAliases.find(name);
+  return it == kAliases.end() ? name : it->second;
+}
+
+bool FlightData::has(const std::string& name) const {
+  return index_.count(canonical_name(name)) > 0;
+}
+
+const Eigen::VectorXd& FlightData::column(const std::string& name) const {
+  auto it = index_.find(canonical_name(name));
+  if (it == index_.end()) {
+    throw Error(source_ + ": field '" + name + "' not found");
+  }
+  return columns_[it->second];
+}
+
+Eigen::VectorXd& FlightData::column(const std::string& name) {
+  return const_cast<Eigen::VectorXd&>(static_cast<const FlightData&>(*this).column(name));
+}
+
+void FlightData::set(const std::string& name, Eigen::VectorXd values) {
+  const std::string key = canonical_name(name);
+  if (size_ < 0 || names_.empty()) {
+    size_ = values.size();
+  } else if (values.size() != size_) {
+    throw Error(source_ + ": field '" + key + "' has " + std::to_string(values.size()) +
+                " samples, expected " + std::to_string(size_));
+  }
+  auto it = index_.find(key);
+  if (it != index_.end()) {
+    columns_[it->second] = std::move(values);
+    return;
+  }
+  index_[key] = names_.size();
+  names_.push_back(key);
+  columns_.push_back(std::move(values));
+}
+
+void FlightData::remove(const std::string& name) {
+  auto it = index_.find(canonical_name(name));
+  if (it == index_.end()) return;
+  const size_t pos = it->second;
+  names_.erase(names_.begin() + static_cast<std::ptrdiff_t>(pos));
+  columns_.erase(columns_.begin() + static_cast<std::ptrdiff_t>(pos));
+  index_.clear();
+  for (size_t i = 0; i < names_.size(); ++i) index_[names_[i]] = i;
+}
+
+double FlightData::dt_s() const {
+  const Eigen::VectorXd& t = tt();
+  std::vector<double> diffs;
+  diffs.reserve(static_cast<size_t>(std::max<Eigen::Index>(0, t.size() - 1)));
+  for (Eigen::Index i = 1; i < t.size(); ++i) {
+    const double d = t[i] - t[i - 1];
+    if (d > 0 && std::isfinite(d)) diffs.push_back(d);
+  }
+  if (diffs.empty()) throw Error(source_ + ": field 'tt' has no two increasing samples");
+  auto mid = diffs.begin() + static_cast<std::ptrdiff_t>(diffs.size() / 2);
+  std::nth_element(diffs.begin(), mid, diffs.end());
+  return *mid;
+}
+
+std::vector<Eigen::Index> FlightData::select(const std::vector<double>& lines,
+                                             const std::vector<TimeWindow>& windows) const {
+  std::vector<Eigen::Index> out;
+  const Eigen::VectorXd& t = tt();
+  const Eigen::VectorXd* line = (!lines.empty()) ? &column("line") : nullptr;
+  for (Eigen::Index i = 0; i < size_; ++i) {
+    bool take = false;
+    if (line) {
+      for (double l : lines) {
+        if (std::abs((*line)[i] - l) < 1e-6) {
+          take = true;
+          break;
+        }
+      }
+    }
+    if (!take) {
+      for (const TimeWindow& w : windows) {
+        if (t[i] >= w.start_s && t[i] <= w.end_s) {
+          take = true;
+          break;
+        }
+      }
+    }
+    if (take) out.push_back(i);
+  }
+  return out;
+}
+
+FlightData FlightData::subset(const std::vector<Eigen::Index>& indices) const {
+  FlightData out;
+  out.source_ = source_;
+  const Eigen::Index n = static_cast<Eigen::Index>(indices.size());
+  for (size_t c = 0; c < names_.size(); ++c) {
+    Eigen::VectorXd v(n);
+    for (Eigen::Index k = 0; k < n; ++k) v[k] = columns_[c][indices[static_cast<size_t>(k)]];
+    out.set(names_[c], std::move(v));
+  }
+  if (names_.empty()) out.size_ = 0;
+  return out;
+}
+
+std::vector<std::pair<Eigen::Index, Eigen::Index>> FlightData::contiguous_runs(
+    const std::vector<Eigen::Index>& indices, double max_gap_s) const {
+  std::vector<std::pair<Eigen::Index, Eigen::Index>> runs;
+  if (indices.empty()) return runs;
+  const Eigen::VectorXd& t = tt();
+  Eigen::Index first = indices[0];
+  Eigen::Index prev = indices[0];
+  for (size_t k = 1; k < indices.size(); ++k) {
+    const Eigen::Index i = indices[k];
+    if (i != prev + 1 || !(t[i] - t[prev] <= max_gap_s)) {
+      runs.emplace_back(first, prev);
+      first = i;
+    }
+    prev = i;
+  }
+  runs.emplace_back(first, prev);
+  return runs;
+}
+
+}  // namespace magcomp

@@ -1,0 +1,228 @@
+// magcomp: design matrix, band-pass / reference fit, compensation.
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+
+#include "magcomp/core/butterworth.h"
+#include "magcomp/core/error.h"
+#include "magcomp/core/model.h"
+
+namespace magcomp {
+
+std::vector<std::unique_ptr<Term>> Model::make_terms() const {
+  std::vector<std::unique_ptr<Term>> out;
+  for (const std::string& spec : terms) out.push_back(make_term(spec));
+  return out;
+}
+
+std::vector<std::string> Model::make_column_names() const {
+  std::vector<std::string> names;
+  for (const auto& t : make_terms()) {
+    for (const auto& c : t->column_names()) names.push_back(c);
+  }
+  return names;
+}
+
+bool Model::add_term(const std::string& spec) {
+  const std::string canonical = make_term(spec)->spec();
+  if (std::find(terms.begin(), terms.end(), canonical) != terms.end()) return false;
+  terms.push_back(canonical);
+  return true;
+}
+
+Eigen::MatrixXd design_matrix(const Model& model, const FlightData& data) {
+  const auto terms = model.make_terms();
+  for (const auto& t : terms) {
+    for (const auto& f : t->required_fields()) {
+      if (!data.has(f)) {
+        throw Error(data.source() + ": field '" + f + "' needed by term '" + t->spec() +
+                    "' not found");
+      }
+    }
+  }
+  const TermInputs in = make_term_inputs(data, model.vector, model.bt_scale_nT);
+  Eigen::Index cols = 0;
+  for (const auto& t : terms) cols += static_cast<Eigen::Index>(t->column_names().size());
+  Eigen::MatrixXd a(data.size(), cols);
+  Eigen::Index c = 0;
+  for (const auto& t : terms) {
+    const auto w = static_cast<Eigen::Index>(t->column_names().size());
+    t->build(in, a.middleCols(c, w));
+    c += w;
+  }
+  return a;
+}
+
+Eigen::VectorXd ridge_solve(const Eigen::MatrixXd& a, const Eigen::VectorXd& y, double lambda) {
+  Eigen::MatrixXd g = a.transpose() * a;
+  g.diagonal().array() += lambda;
+  return g.ldlt().solve(a.transpose() * y);
+}
+
+namespace {
+
+double condition_number(const Eigen::MatrixXd& a) {
+  if (a.cols() == 0 || a.rows() == 0) return 0.0;
+  Eigen::VectorXd norms = a.colwise().norm().transpose();
+  Eigen::MatrixXd g = a.transpose() * a;
+  for (Eigen::Index i = 0; i < g.rows(); ++i) {
+    for (Eigen::Index j = 0; j < g.cols(); ++j) {
+      const double s = norms[i] * norms[j];
+      g(i, j) = s > 0 ? g(i, j) / s : (i == j ? 0.0 : 0.0);
+    }
+  }
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(g, Eigen::EigenvaluesOnly);
+  const double lo = std::max(es.eigenvalues().minCoeff(), 0.0);
+  const double hi = es.eigenvalues().maxCoeff();
+  return lo > 0 ? std::sqrt(hi / lo) : std::numeric_limits<double>::infinity();
+}
+
+double std_dev(const Eigen::VectorXd& v) {
+  if (v.size() < 2) return 0.0;
+  const double mean = v.mean();
+  return std::sqrt((v.array() - mean).square().sum() / static_cast<double>(v.size() - 1));
+}
+
+}  // namespace
+
+void fit_model(Model& model, const std::vector<const FlightData*>& flights) {
+  const FitSettings& s = model.fit;
+  const bool bandpass = s.method == "bandpass";
+  const auto terms = model.make_terms();
+  std::vector<bool> keep;  // columns the method can fit
+  for (const auto& t : terms) {
+    for (size_t k = 0; k < t->column_names().size(); ++k) {
+      keep.push_back(!bandpass || t->bandpass_observable());
+    }
+  }
+  std::vector<Eigen::MatrixXd> blocks_a;
+  std::vector<Eigen::VectorXd> blocks_y;
+  FitReport report;
+  std::string sources;
+  for (const FlightData* flight : flights) {
+    const FlightData& data = *flight;
+    sources += (sources.empty() ? "" : ",") + data.source();
+    const Eigen::MatrixXd a = design_matrix(model, data);
+    Eigen::VectorXd y = data.column(model.scalar);
+    if (!bandpass) {
+      if (!data.has(s.reference)) {
+        throw Error(data.source() + ": field '" + s.reference + "' (fit.reference) not found");
+      }
+      y -= data.column(s.reference);
+    }
+    std::vector<Eigen::Index> selected;
+    if (s.lines.empty() && s.windows.empty()) {
+      if (bandpass) {
+        throw Error("fit: bandpass needs calibration segments (fit.lines or fit.windows)");
+      }
+      selected.resize(static_cast<size_t>(data.size()));
+      for (Eigen::Index i = 0; i < data.size(); ++i) selected[static_cast<size_t>(i)] = i;
+    } else {
+      selected = data.select(s.lines, s.windows);
+    }
+    // Drop rows with NaN anywhere in the regression: a segment is split there.
+    selected.erase(std::remove_if(selected.begin(), selected.end(),
+                                  [&](Eigen::Index i) {
+                                    return !std::isfinite(y[i]) || !a.row(i).allFinite();
+                                  }),
+                   selected.end());
+    const double dt = data.dt_s();
+    const auto runs = data.contiguous_runs(selected, 1.5 * dt);
+    const Eigen::Index min_len = bandpass ? 2 * s.trim + 10 : 1;
+    for (const auto& [first, last] : runs) {
+      const Eigen::Index len = last - first + 1;
+      if (len < min_len) {
+        std::ostringstream w;
+        w << data.source() << ": segment at tt " << data.tt()[first] << " s has " << len
+          << " samples, too short for the band-pass and trim; skipped";
+        report.warnings.push_back(w.str());
+        continue;
+      }
+      Eigen::MatrixXd seg_a = a.middleRows(first, len);
+      Eigen::VectorXd seg_y = y.segment(first, len);
+      if (bandpass) {
+        const Butterworth bp =
+            Butterworth::band_pass(s.order, s.band_low_hz, s.band_high_hz, 1.0 / dt);
+        seg_a = bp.filtfilt(seg_a);
+        seg_y = bp.filtfilt(seg_y);
+        const Eigen::Index n = len - 2 * s.trim;
+        seg_a = Eigen::MatrixXd(seg_a.middleRows(s.trim, n));
+        seg_y = Eigen::VectorXd(seg_y.segment(s.trim, n));
+      }
+      blocks_a.push_back(std::move(seg_a));
+      blocks_y.push_back(std::move(seg_y));
+      report.segments++;
+    }
+  }
+  Eigen::Index rows = 0;
+  for (const auto& b : blocks_y) rows += b.size();
+  const Eigen::Index p = static_cast<Eigen::Index>(keep.size());
+  const Eigen::Index fitted_cols = std::count(keep.begin(), keep.end(), true);
+  if (rows == 0) {
+    throw Error("fit: the calibration selection (fit.lines / fit.windows) holds no usable sample in " +
+                sources);
+  }
+  if (rows < 2 * fitted_cols) {
+    throw Error("fit: only " + std::to_string(rows) + " usable samples for " +
+                std::to_string(fitted_cols) + " coefficients in " + sources);
+  }
+  Eigen::MatrixXd a(rows, fitted_cols);
+  Eigen::VectorXd y(rows);
+  Eigen::Index r = 0;
+  for (size_t b = 0; b < blocks_y.size(); ++b) {
+    Eigen::Index c = 0;
+    for (Eigen::Index j = 0; j < p; ++j) {
+      if (keep[static_cast<size_t>(j)]) a.block(r, c++, blocks_y[b].size(), 1) = blocks_a[b].col(j);
+    }
+    y.segment(r, blocks_y[b].size()) = blocks_y[b];
+    r += blocks_y[b].size();
+  }
+  const Eigen::VectorXd c_fit = ridge_solve(a, y, s.lambda);
+  model.coefficients = Eigen::VectorXd::Zero(p);
+  for (Eigen::Index j = 0, c = 0; j < p; ++j) {
+    if (keep[static_cast<size_t>(j)]) model.coefficients[j] = c_fit[c++];
+  }
+  model.column_names = model.make_column_names();
+  report.samples = rows;
+  report.condition_number = condition_number(a);
+  report.residual_std_nT = std_dev(y - a * c_fit);
+  // Unexcited columns: no energy in the (filtered) calibration data.
+  const Eigen::VectorXd norms = a.colwise().norm().transpose();
+  const double max_norm = norms.maxCoeff();
+  for (Eigen::Index j = 0, c = 0; j < p; ++j) {
+    if (!keep[static_cast<size_t>(j)]) {
+      report.warnings.push_back("column '" + model.column_names[static_cast<size_t>(j)] +
+                                "' is not observable by a band-pass fit; set to 0");
+      continue;
+    }
+    if (!(norms[c] > 1e-9 * max_norm)) {
+      report.warnings.push_back("column '" + model.column_names[static_cast<size_t>(j)] +
+                                "' is not excited by the calibration segments");
+    }
+    ++c;
+  }
+  if (report.condition_number > 1e6) {
+    std::ostringstream w;
+    w << "design matrix is ill-conditioned (condition number " << report.condition_number
+      << "): the calibration segments do not excite every term; ridge lambda holds the fit";
+    report.warnings.push_back(w.str());
+  }
+  model.report = report;
+}
+
+Eigen::VectorXd model_correction(const Model& model, const FlightData& data) {
+  if (!model.fitted()) throw Error("model: not calibrated (no coefficients)");
+  const Eigen::MatrixXd a = design_matrix(model, data);
+  if (a.cols() != model.coefficients.size()) {
+    throw Error("model: " + std::to_string(model.coefficients.size()) + " coefficients for " +
+                std::to_string(a.cols()) + " columns");
+  }
+  return a * model.coefficients;
+}
+
+Eigen::VectorXd compensate(const Model& model, const FlightData& data) {
+  return data.column(model.scalar) - model_correction(model, data);
+}
+
+}  // namespace magcomp

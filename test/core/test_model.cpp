@@ -1,0 +1,171 @@
+// Model: closed-form recovery of known coefficients, YAML round trip, CLI contract, bad input.
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+#include "magcomp/core/error.h"
+#include "magcomp/core/evaluation.h"
+#include "magcomp/core/model.h"
+#include "synthetic_flight.h"
+#include "test_util.h"
+
+namespace magcomp {
+namespace {
+
+Model tl16() {
+  // induced5 / eddy8 drop the columns that are exactly dependent when |B| is constant.
+  Model m;
+  m.scalar = "mag_5_uc";
+  m.vector = "flux_c";
+  m.terms = {"permanent", "induced5", "eddy8"};
+  m.fit.lambda = 1e-9;
+  m.fit.lines = {1000.01, 1002.01};  // two separate segments
+  return m;
+}
+
+Eigen::VectorXd true_coefficients(Eigen::Index p) {
+  Eigen::VectorXd c(p);
+  for (Eigen::Index j = 0; j < p; ++j) c[j] = 40.0 * std::sin(1.7 * j + 0.4) + (j < 3 ? 300 : 0);
+  return c;
+}
+
+TEST(Model, BandpassFitRecoversKnownCoefficients) {
+  Model m = tl16();
+  const Eigen::VectorXd c_true = true_coefficients(16);
+  const FlightData d = test::synthetic_tl_flight(m, c_true);
+  fit_model(m, {&d});
+  ASSERT_EQ(m.coefficients.size(), 16);
+  EXPECT_EQ(m.report.segments, 2);
+  for (Eigen::Index j = 0; j < 16; ++j) {
+    EXPECT_NEAR(m.coefficients[j], c_true[j], 1e-3 * std::abs(c_true[j]) + 1e-3) << m.column_names[j];
+  }
+  // Evaluated on the lines the fit never saw, the error is only the (unobservable) mean.
+  const Evaluation ev = evaluate_model(m, d, "mag_1_c");
+  EXPECT_LT(ev.std_nT, 1e-3);
+  EXPECT_EQ(ev.per_line.size(), 4u);
+}
+
+TEST(Model, ReferenceFitRecoversBias) {
+  Model m = tl16();
+  m.terms.push_back("bias");
+  m.fit.method = "reference";
+  m.fit.reference = "mag_1_c";
+  m.fit.lines.clear();
+  Eigen::VectorXd c_true = true_coefficients(17);
+  c_true[16] = 0.0;
+  const FlightData d = test::synthetic_tl_flight(m, c_true, 6000, 123.4);
+  fit_model(m, {&d});
+  EXPECT_NEAR(m.coefficients[16], 123.4, 1e-3);
+  EXPECT_NEAR(m.coefficients[0], c_true[0], 1e-3 * std::abs(c_true[0]));
+}
+
+TEST(Model, YamlRoundTripKeepsEveryDigit) {
+  Model m = tl16();
+  m.add_term("current:cur_strb");
+  const FlightData d = [&] {
+    Model plain = tl16();
+    FlightData f = test::synthetic_tl_flight(plain, true_coefficients(16));
+    Eigen::VectorXd cur(f.size());
+    for (Eigen::Index i = 0; i < f.size(); ++i) cur[i] = ((i / 7) % 2) * 1.5;
+    f.set("cur_strb", cur);
+    return f;
+  }();
+  fit_model(m, {&d});
+  const std::string path = test::temp_dir("model") + "/fitted.yaml";
+  save_model_yaml(m, path);
+  const Model r = load_model_yaml(path);
+  EXPECT_EQ(r.terms, m.terms);
+  ASSERT_EQ(r.coefficients.size(), m.coefficients.size());
+  for (Eigen::Index j = 0; j < r.coefficients.size(); ++j) {
+    EXPECT_EQ(r.coefficients[j], m.coefficients[j]);
+  }
+  EXPECT_EQ(r.fit.lines, m.fit.lines);
+}
+
+TEST(Model, BadModelsNameTheKey) {
+  const std::string dir = test::temp_dir("model");
+  auto write = [&](const std::string& text) {
+    std::ofstream(dir + "/m.yaml") << text;
+    return dir + "/m.yaml";
+  };
+  auto message = [](const std::string& path) -> std::string {
+    try {
+      load_model_yaml(path);
+    } catch (const Error& e) {
+      return e.what();
+    }
+    return "";
+  };
+  EXPECT_NE(message(write("vector: flux_c\n")).find("'scalar'"), std::string::npos);
+  EXPECT_NE(message(write("scalar: a\nvector: b\nterms: [permanent, warp]\n")).find("warp"),
+            std::string::npos);
+  EXPECT_NE(message(write("scalar: a\nvector: b\nfit: {method: magic}\n")).find("fit.method"),
+            std::string::npos);
+  EXPECT_NE(message(write("scalar: a\nvector: b\nfit: {lambda: -1}\n")).find("fit.lambda"),
+            std::string::npos);
+  EXPECT_NE(message(write("scalar: a\nvector: b\nfit: {band_hz: [0.9, 0.1]}\n")).find("band_hz"),
+            std::string::npos);
+  EXPECT_NE(message(dir + "/none.yaml").find("none.yaml"), std::string::npos);
+  Model m = tl16();
+  EXPECT_THROW(m.add_term("current:"), Error);
+  EXPECT_FALSE(m.add_term("permanent"));
+}
+
+TEST(Cli, CalibrateThenEvaluateWritesTheContractJson) {
+  const std::string dir = test::temp_dir("cli");
+  Model m = tl16();
+  const FlightData d = test::synthetic_tl_flight(m, true_coefficients(16));
+  write_flight_h5(d, dir + "/flight.h5");
+  std::ofstream(dir + "/model.yaml") << "scalar: mag_5_uc\nvector: flux_c\n"
+                                        "terms: [permanent, induced5]\n"
+                                        "fit:\n  method: bandpass\n  lines: [1000.01, 1001.01]\n"
+                                        "  lambda: 1.0e-9\n";
+  std::string out;
+  ASSERT_EQ(test::run(test::cli() + " calibrate --data " + dir + "/flight.h5 --model " + dir +
+                          "/model.yaml --term eddy8 --out " + dir + "/fitted.yaml",
+                      &out),
+            0)
+      << out;
+  EXPECT_NE(out.find("16 coefficients"), std::string::npos) << out;
+  ASSERT_EQ(test::run(test::cli() + " evaluate --data " + dir + "/flight.h5 --model " + dir +
+                          "/fitted.yaml --truth mag_1_c --json " + dir + "/e.json",
+                      &out),
+            0)
+      << out;
+  nlohmann::json j;
+  std::ifstream(dir + "/e.json") >> j;
+  EXPECT_LT(j["std_nT"].get<double>(), 1e-3);
+  ASSERT_EQ(j["per_line"].size(), 4u);
+  EXPECT_EQ(j["per_line"][0]["n"].get<int>(), 1500);
+  EXPECT_TRUE(j["per_line"][0].contains("rmse_nT"));
+  EXPECT_TRUE(j.contains("rmse_nT"));
+
+  // Failures: one line naming the file / field / parameter, non-zero exit.
+  EXPECT_NE(test::run(test::cli() + " evaluate --data " + dir + "/flight.h5 --model " + dir +
+                          "/fitted.yaml --truth mag_9_c",
+                      &out),
+            0);
+  EXPECT_NE(out.find("'mag_9_c'"), std::string::npos) << out;
+  EXPECT_NE(test::run(test::cli() + " calibrate --data " + dir + "/flight.h5 --model " + dir +
+                          "/model.yaml --term current:cur_nope --out " + dir + "/x.yaml",
+                      &out),
+            0);
+  EXPECT_NE(out.find("cur_nope"), std::string::npos) << out;
+  EXPECT_NE(test::run(test::cli() + " calibrate --data " + dir + "/nothere.h5 --model " + dir +
+                          "/model.yaml --out " + dir + "/x.yaml",
+                      &out),
+            0);
+  EXPECT_NE(out.find("nothere.h5"), std::string::npos) << out;
+  std::ofstream(dir + "/empty.yaml") << "scalar: mag_5_uc\nvector: flux_c\n"
+                                        "fit: {lines: [7777.0]}\n";
+  EXPECT_NE(test::run(test::cli() + " calibrate --data " + dir + "/flight.h5 --model " + dir +
+                          "/empty.yaml --out " + dir + "/x.yaml",
+                      &out),
+            0);
+  EXPECT_NE(out.find("no usable sample"), std::string::npos) << out;
+  EXPECT_EQ(std::count(out.begin(), out.end(), '\n'), 1) << out;
+}
+
+}  // namespace
+}  // namespace magcomp
