@@ -8,6 +8,7 @@
 int main(int argc, char** argv) {
   CLI::App app{"magcomp: airborne magnetic compensation (Tolles-Lawson + physical terms)"};
   app.require_subcommand(1);
+  magcomp::cli::add_simulate(app);
   magcomp::cli::add_calibrate(app);
   magcomp::cli::add_evaluate(app);
   try {

@@ -1,0 +1,31 @@
+// magcomp simulator: a whole flight in the MIT challenge schema, with its truth.
+#pragma once
+
+#include <string>
+
+#include "magcomp/core/flight_data.h"
+#include "magcomp/core/sim/scenario.h"
+
+namespace magcomp::sim {
+
+/// A simulated flight: the data a user sees, and the truth behind it.
+struct Simulation {
+  FlightData flight;   ///< MIT schema (DATA.md): tt, line, INS, mags, fluxgates, channels, ...
+  FlightData truth;    ///< per-sample contributions: `<sensor>.aircraft`, `<sensor>.hidden.<k>.<type>`,
+                       ///< `<sensor>.noise`, `<flux>.clean_x/y/z`, `earth_total`, ... (nT)
+  std::string truth_yaml;  ///< the effects, their parameters, their rms contribution per sensor
+};
+
+/// Simulates the scenario. The physics is computed as vectors and exact norms (never with the
+/// Tolles-Lawson linearisation): Earth field (IGRF-14 + upward-continued crustal anomaly +
+/// diurnal) rotated into the body, plus each sensor's permanent, induced and eddy aircraft field,
+/// plus the hidden effects. Deterministic in scenario.seed.
+Simulation simulate(const Scenario& scenario);
+
+/// Writes F.h5 and, beside it, F.truth.h5 and F.truth.yaml (each atomically).
+void write_simulation(const Simulation& sim, const std::string& out_h5);
+
+/// Path of the truth files for a flight file: `F.h5` -> `F.truth.yaml` / `F.truth.h5`.
+std::string truth_path(const std::string& out_h5, const std::string& extension);
+
+}  // namespace magcomp::sim

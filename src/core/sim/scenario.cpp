@@ -1,0 +1,228 @@
+// magcomp simulator: scenario YAML loading with strict validation.
+#include "magcomp/core/sim/scenario.h"
+
+#include <yaml-cpp/yaml.h>
+
+#include <algorithm>
+#include <set>
+
+#include "magcomp/core/error.h"
+
+namespace magcomp::sim {
+
+const std::vector<std::string>& simulated_channels() {
+  static const std::vector<std::string> kChannels = {
+      "cur_com_1", "cur_ac_hi",  "cur_ac_lo",  "cur_tank",   "cur_flap",   "cur_strb",
+      "cur_srvo_o", "cur_srvo_m", "cur_srvo_i", "cur_heat",  "cur_acpwr",  "cur_outpwr",
+      "cur_bat_1", "cur_bat_2",  "vol_acpwr",  "vol_outpwr", "vol_bat_1",  "vol_bat_2",
+      "vol_res_p", "vol_res_n",  "vol_back_p", "vol_back_n", "vol_gyro_1", "vol_gyro_2",
+      "vol_acc_p", "vol_acc_n",  "vol_block",  "vol_back",   "vol_srvo",   "vol_cabt",
+      "vol_fan"};
+  return kChannels;
+}
+
+const std::vector<SensorMount>& sensor_mounts() {
+  // DATA.md positions (m from the front seat rail, x forward, y left, z up). flux_a is not given
+  // there; the simulator assumes it beside mag 4 on the cabin floor.
+  static const std::vector<SensorMount> kMounts = {
+      {"mag_1_uc", false, {-12.01, 0.0, 1.37}, 0.01}, {"mag_2_uc", false, {-0.60, -0.36, 0.0}, 1.6},
+      {"mag_3_uc", false, {-1.28, -0.36, 0.0}, 1.3},  {"mag_4_uc", false, {-3.53, 0.0, 0.0}, 0.8},
+      {"mag_5_uc", false, {-3.79, 0.0, 1.20}, 1.0},   {"flux_a", true, {-3.40, 0.30, 0.0}, 0.06},
+      {"flux_b", true, {-8.92, 0.0, 0.96}, 0.02},     {"flux_c", true, {-4.06, 0.42, 0.0}, 0.05},
+      {"flux_d", true, {-4.06, -0.42, 0.0}, 0.05}};
+  return kMounts;
+}
+
+namespace {
+
+struct Reader {
+  std::string path;
+
+  void check_keys(const YAML::Node& node, const std::set<std::string>& known,
+                  const std::string& where) const {
+    if (!node.IsMap()) throw Error(path + ": key '" + where + "' must be a map");
+    for (const auto& kv : node) {
+      const std::string key = kv.first.as<std::string>();
+      if (!known.count(key)) {
+        throw Error(path + ": unknown key '" + (where.empty() ? "" : where + ".") + key + "'");
+      }
+    }
+  }
+  template <typename T>
+  void get(const YAML::Node& node, const std::string& key, const std::string& where, T* out) const {
+    if (!node[key]) return;
+    try {
+      *out = node[key].as<T>();
+    } catch (const YAML::Exception&) {
+      throw Error(path + ": key '" + (where.empty() ? "" : where + ".") + key +
+                  "' has the wrong type");
+    }
+  }
+  void vec3(const YAML::Node& node, const std::string& key, const std::string& where,
+            Eigen::Vector3d* out) const {
+    if (!node[key]) return;
+    std::vector<double> v;
+    get(node, key, where, &v);
+    if (v.size() != 3) {
+      throw Error(path + ": key '" + where + "." + key + "' must be a list of 3 numbers");
+    }
+    *out = Eigen::Vector3d(v[0], v[1], v[2]);
+  }
+  void non_negative(double v, const std::string& key) const {
+    if (!(v >= 0)) throw Error(path + ": key '" + key + "' must be >= 0");
+  }
+  void positive(double v, const std::string& key) const {
+    if (!(v > 0)) throw Error(path + ": key '" + key + "' must be > 0");
+  }
+};
+
+}  // namespace
+
+Scenario load_scenario(const std::string& path) {
+  YAML::Node root;
+  try {
+    root = YAML::LoadFile(path);
+  } catch (const YAML::BadFile&) {
+    throw Error(path + ": scenario file not found or not readable");
+  } catch (const YAML::Exception& e) {
+    throw Error(path + ": not valid YAML (line " + std::to_string(e.mark.line + 1) + ")");
+  }
+  Reader r{path};
+  Scenario s;
+  s.source = path;
+  r.check_keys(root,
+               {"description", "seed", "flight", "date", "start_tt_s", "origin", "aircraft",
+                "earth", "sensors", "start_altitude_m", "plan", "hidden"},
+               "");
+  r.get(root, "seed", "", &s.seed);
+  r.get(root, "flight", "", &s.flight);
+  r.get(root, "start_tt_s", "", &s.start_tt_s);
+  r.get(root, "start_altitude_m", "", &s.start_altitude_m);
+  if (root["date"]) {
+    r.check_keys(root["date"], {"year", "doy"}, "date");
+    r.get(root["date"], "year", "date", &s.year);
+    r.get(root["date"], "doy", "date", &s.doy);
+    if (s.doy < 1 || s.doy > 366) throw Error(path + ": key 'date.doy' must be in 1..366");
+  }
+  if (root["origin"]) {
+    r.check_keys(root["origin"], {"lat_deg", "lon_deg"}, "origin");
+    r.get(root["origin"], "lat_deg", "origin", &s.origin_lat_deg);
+    r.get(root["origin"], "lon_deg", "origin", &s.origin_lon_deg);
+    if (std::abs(s.origin_lat_deg) > 80) throw Error(path + ": key 'origin.lat_deg' must be within +-80");
+  }
+  if (const YAML::Node a = root["aircraft"]) {
+    r.check_keys(a, {"speed_mps", "turn_bank_deg", "climb_rate_mps", "field_scale", "turbulence_deg"},
+                 "aircraft");
+    r.get(a, "speed_mps", "aircraft", &s.speed_mps);
+    r.get(a, "turn_bank_deg", "aircraft", &s.turn_bank_deg);
+    r.get(a, "climb_rate_mps", "aircraft", &s.climb_rate_mps);
+    r.get(a, "field_scale", "aircraft", &s.aircraft_scale);
+    r.get(a, "turbulence_deg", "aircraft", &s.turbulence_deg);
+    r.positive(s.speed_mps, "aircraft.speed_mps");
+    r.positive(s.turn_bank_deg, "aircraft.turn_bank_deg");
+    r.positive(s.climb_rate_mps, "aircraft.climb_rate_mps");
+    r.non_negative(s.aircraft_scale, "aircraft.field_scale");
+    r.non_negative(s.turbulence_deg, "aircraft.turbulence_deg");
+  }
+  if (const YAML::Node e = root["earth"]) {
+    r.check_keys(e,
+                 {"anomaly_rms_nT", "anomaly_spectral_slope", "anomaly_grid_m", "anomaly_grid_n",
+                  "terrain_m", "diurnal_amplitude_nT"},
+                 "earth");
+    r.get(e, "anomaly_rms_nT", "earth", &s.anomaly_rms_nT);
+    r.get(e, "anomaly_spectral_slope", "earth", &s.anomaly_spectral_slope);
+    r.get(e, "anomaly_grid_m", "earth", &s.anomaly_grid_m);
+    r.get(e, "anomaly_grid_n", "earth", &s.anomaly_grid_n);
+    r.get(e, "terrain_m", "earth", &s.terrain_m);
+    r.get(e, "diurnal_amplitude_nT", "earth", &s.diurnal_amplitude_nT);
+    r.non_negative(s.anomaly_rms_nT, "earth.anomaly_rms_nT");
+    r.positive(s.anomaly_grid_m, "earth.anomaly_grid_m");
+    r.non_negative(s.diurnal_amplitude_nT, "earth.diurnal_amplitude_nT");
+    if (s.anomaly_grid_n < 16 || s.anomaly_grid_n > 4096 ||
+        (s.anomaly_grid_n & (s.anomaly_grid_n - 1)) != 0) {
+      throw Error(path + ": key 'earth.anomaly_grid_n' must be a power of two in 16..4096");
+    }
+  }
+  if (const YAML::Node n = root["sensors"]) {
+    r.check_keys(n, {"scalar_noise_nT", "fluxgate_noise_nT", "sample_rate_hz"}, "sensors");
+    r.get(n, "scalar_noise_nT", "sensors", &s.scalar_noise_nT);
+    r.get(n, "fluxgate_noise_nT", "sensors", &s.fluxgate_noise_nT);
+    r.get(n, "sample_rate_hz", "sensors", &s.sample_rate_hz);
+    r.non_negative(s.scalar_noise_nT, "sensors.scalar_noise_nT");
+    r.non_negative(s.fluxgate_noise_nT, "sensors.fluxgate_noise_nT");
+    r.positive(s.sample_rate_hz, "sensors.sample_rate_hz");
+  }
+  if (!root["plan"] || !root["plan"].IsSequence() || root["plan"].size() == 0) {
+    throw Error(path + ": key 'plan' must be a non-empty list of segments");
+  }
+  for (size_t i = 0; i < root["plan"].size(); ++i) {
+    const YAML::Node p = root["plan"][i];
+    const std::string where = "plan[" + std::to_string(i) + "]";
+    r.check_keys(p, {"type", "line", "heading_deg", "duration_s", "altitude_m", "lines"}, where);
+    Segment g;
+    r.get(p, "type", where, &g.type);
+    r.get(p, "line", where, &g.line);
+    r.get(p, "heading_deg", where, &g.heading_deg);
+    r.get(p, "duration_s", where, &g.duration_s);
+    r.get(p, "altitude_m", where, &g.altitude_m);
+    r.get(p, "lines", where, &g.lines);
+    static const std::set<std::string> kTypes = {"box", "cloverleaf", "line", "grid", "figure8"};
+    if (!kTypes.count(g.type)) {
+      throw Error(path + ": key '" + where + ".type' must be box, cloverleaf, line, grid or figure8");
+    }
+    r.positive(g.duration_s, where + ".duration_s");
+    if (g.lines < 1) throw Error(path + ": key '" + where + ".lines' must be >= 1");
+    s.segments.push_back(g);
+  }
+  std::set<std::string> channels(simulated_channels().begin(), simulated_channels().end());
+  std::set<std::string> sensors;
+  for (const auto& m : sensor_mounts()) sensors.insert(m.name);
+  if (const YAML::Node h = root["hidden"]) {
+    if (!h.IsSequence()) throw Error(path + ": key 'hidden' must be a list of effects");
+    for (size_t i = 0; i < h.size(); ++i) {
+      const YAML::Node e = h[i];
+      const std::string where = "hidden[" + std::to_string(i) + "]";
+      r.check_keys(e,
+                   {"type", "channel", "position_m", "direction", "length_m", "gain", "lag_s",
+                    "time_constant_s", "scale", "nonorthogonality_rad", "offset_nT", "sensors"},
+                   where);
+      HiddenEffect x;
+      r.get(e, "type", where, &x.type);
+      r.get(e, "channel", where, &x.channel);
+      r.vec3(e, "position_m", where, &x.position_m);
+      r.vec3(e, "direction", where, &x.direction);
+      r.get(e, "length_m", where, &x.length_m);
+      r.get(e, "gain", where, &x.gain);
+      r.get(e, "lag_s", where, &x.lag_s);
+      r.get(e, "time_constant_s", where, &x.time_constant_s);
+      r.vec3(e, "scale", where, &x.scale);
+      r.vec3(e, "nonorthogonality_rad", where, &x.nonorthogonality_rad);
+      r.vec3(e, "offset_nT", where, &x.offset_nT);
+      r.get(e, "sensors", where, &x.sensors);
+      static const std::set<std::string> kTypes = {"wire", "inductive", "lag", "fluxgate",
+                                                   "heading", "drift"};
+      if (!kTypes.count(x.type)) {
+        throw Error(path + ": key '" + where +
+                    ".type' must be wire, inductive, lag, fluxgate, heading or drift");
+      }
+      const bool needs_channel = x.type == "wire" || x.type == "inductive" || x.type == "drift";
+      if (needs_channel && !channels.count(x.channel)) {
+        throw Error(path + ": key '" + where + ".channel': unknown channel '" + x.channel + "'");
+      }
+      for (const auto& sensor : x.sensors) {
+        if (!sensors.count(sensor)) {
+          throw Error(path + ": key '" + where + ".sensors': unknown sensor '" + sensor + "'");
+        }
+      }
+      if (x.type == "wire") r.positive(x.length_m, where + ".length_m");
+      if (x.type == "lag") r.non_negative(x.lag_s, where + ".lag_s");
+      if (x.type == "drift") r.positive(x.time_constant_s, where + ".time_constant_s");
+      if (x.direction.norm() == 0) throw Error(path + ": key '" + where + ".direction' is zero");
+      x.direction.normalize();
+      s.hidden.push_back(x);
+    }
+  }
+  return s;
+}
+
+}  // namespace magcomp::sim
