@@ -11,6 +11,7 @@ int main(int argc, char** argv) {
   magcomp::cli::add_simulate(app);
   magcomp::cli::add_calibrate(app);
   magcomp::cli::add_evaluate(app);
+  magcomp::cli::add_diagnose(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

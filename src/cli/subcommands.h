@@ -8,5 +8,6 @@ namespace magcomp::cli {
 void add_calibrate(CLI::App& app);
 void add_evaluate(CLI::App& app);
 void add_simulate(CLI::App& app);
+void add_diagnose(CLI::App& app);
 
 }  // namespace magcomp::cli

@@ -7,6 +7,7 @@
 #include "magcomp/core/butterworth.h"
 #include "magcomp/core/error.h"
 #include "magcomp/core/model.h"
+#include "magcomp/core/timeseries.h"
 
 namespace magcomp {
 
@@ -24,9 +25,27 @@ std::vector<std::string> Model::make_column_names() const {
   return names;
 }
 
+double Model::scalar_lag_s() const {
+  double lag = 0.0;
+  for (const auto& t : make_terms()) lag += t->scalar_lag_s();
+  return lag;
+}
+
+Eigen::VectorXd aligned_scalar(const Model& model, const FlightData& data) {
+  const Eigen::VectorXd& s = data.column(model.scalar);
+  const double lag = model.scalar_lag_s();
+  if (lag == 0.0) return s;
+  return shift_samples(s, -lag / data.dt_s());
+}
+
 bool Model::add_term(const std::string& spec) {
   const std::string canonical = make_term(spec)->spec();
   if (std::find(terms.begin(), terms.end(), canonical) != terms.end()) return false;
+  if (canonical.rfind("lag:", 0) == 0) {  // one lag per model: a new one replaces the old
+    terms.erase(std::remove_if(terms.begin(), terms.end(),
+                               [](const std::string& t) { return t.rfind("lag:", 0) == 0; }),
+                terms.end());
+  }
   terms.push_back(canonical);
   return true;
 }
@@ -86,6 +105,74 @@ double std_dev(const Eigen::VectorXd& v) {
 
 }  // namespace
 
+std::vector<std::pair<Eigen::Index, Eigen::Index>> calibration_runs(
+    const FitSettings& s, const FlightData& data, const Eigen::MatrixXd& a,
+    const Eigen::VectorXd& y, std::vector<std::string>* warnings) {
+  const bool bandpass = s.method == "bandpass";
+  std::vector<Eigen::Index> selected;
+  if (s.lines.empty() && s.windows.empty()) {
+    if (bandpass) throw Error("fit: bandpass needs calibration segments (fit.lines or fit.windows)");
+    selected.resize(static_cast<size_t>(data.size()));
+    for (Eigen::Index i = 0; i < data.size(); ++i) selected[static_cast<size_t>(i)] = i;
+  } else {
+    selected = data.select(s.lines, s.windows);
+  }
+  // Rows with NaN anywhere in the regression are dropped: a segment is split there.
+  selected.erase(std::remove_if(selected.begin(), selected.end(),
+                                [&](Eigen::Index i) {
+                                  return !std::isfinite(y[i]) || !a.row(i).allFinite();
+                                }),
+                 selected.end());
+  const auto runs = data.contiguous_runs(selected, 1.5 * data.dt_s());
+  const Eigen::Index min_len = bandpass ? 2 * s.trim + 10 : 1;
+  std::vector<std::pair<Eigen::Index, Eigen::Index>> kept;
+  for (const auto& run : runs) {
+    const Eigen::Index len = run.second - run.first + 1;
+    if (len >= min_len) {
+      kept.push_back(run);
+    } else if (warnings) {
+      std::ostringstream w;
+      w << data.source() << ": segment at tt " << data.tt()[run.first] << " s has " << len
+        << " samples, too short for the band-pass and trim; skipped";
+      warnings->push_back(w.str());
+    }
+  }
+  return kept;
+}
+
+Eigen::MatrixXd stack_runs(const FitSettings& s, double dt_s, const Eigen::MatrixXd& x,
+                           const std::vector<std::pair<Eigen::Index, Eigen::Index>>& runs) {
+  const bool bandpass = s.method == "bandpass";
+  Eigen::Index rows = 0;
+  for (const auto& [first, last] : runs) rows += (last - first + 1) - (bandpass ? 2 * s.trim : 0);
+  Eigen::MatrixXd out(rows, x.cols());
+  Eigen::Index r = 0;
+  const Butterworth bp = Butterworth::band_pass(s.order, s.band_low_hz, s.band_high_hz, 1.0 / dt_s);
+  for (const auto& [first, last] : runs) {
+    const Eigen::Index len = last - first + 1;
+    if (bandpass) {
+      const Eigen::Index n = len - 2 * s.trim;
+      out.middleRows(r, n) = bp.filtfilt(Eigen::MatrixXd(x.middleRows(first, len))).middleRows(s.trim, n);
+      r += n;
+    } else {
+      out.middleRows(r, len) = x.middleRows(first, len);
+      r += len;
+    }
+  }
+  return out;
+}
+
+Eigen::VectorXd fit_target(const Model& model, const FlightData& data) {
+  Eigen::VectorXd y = aligned_scalar(model, data);
+  if (model.fit.method == "reference") {
+    if (!data.has(model.fit.reference)) {
+      throw Error(data.source() + ": field '" + model.fit.reference + "' (fit.reference) not found");
+    }
+    y -= data.column(model.fit.reference);
+  }
+  return y;
+}
+
 void fit_model(Model& model, const std::vector<const FlightData*>& flights) {
   const FitSettings& s = model.fit;
   const bool bandpass = s.method == "bandpass";
@@ -104,56 +191,12 @@ void fit_model(Model& model, const std::vector<const FlightData*>& flights) {
     const FlightData& data = *flight;
     sources += (sources.empty() ? "" : ",") + data.source();
     const Eigen::MatrixXd a = design_matrix(model, data);
-    Eigen::VectorXd y = data.column(model.scalar);
-    if (!bandpass) {
-      if (!data.has(s.reference)) {
-        throw Error(data.source() + ": field '" + s.reference + "' (fit.reference) not found");
-      }
-      y -= data.column(s.reference);
-    }
-    std::vector<Eigen::Index> selected;
-    if (s.lines.empty() && s.windows.empty()) {
-      if (bandpass) {
-        throw Error("fit: bandpass needs calibration segments (fit.lines or fit.windows)");
-      }
-      selected.resize(static_cast<size_t>(data.size()));
-      for (Eigen::Index i = 0; i < data.size(); ++i) selected[static_cast<size_t>(i)] = i;
-    } else {
-      selected = data.select(s.lines, s.windows);
-    }
-    // Drop rows with NaN anywhere in the regression: a segment is split there.
-    selected.erase(std::remove_if(selected.begin(), selected.end(),
-                                  [&](Eigen::Index i) {
-                                    return !std::isfinite(y[i]) || !a.row(i).allFinite();
-                                  }),
-                   selected.end());
-    const double dt = data.dt_s();
-    const auto runs = data.contiguous_runs(selected, 1.5 * dt);
-    const Eigen::Index min_len = bandpass ? 2 * s.trim + 10 : 1;
-    for (const auto& [first, last] : runs) {
-      const Eigen::Index len = last - first + 1;
-      if (len < min_len) {
-        std::ostringstream w;
-        w << data.source() << ": segment at tt " << data.tt()[first] << " s has " << len
-          << " samples, too short for the band-pass and trim; skipped";
-        report.warnings.push_back(w.str());
-        continue;
-      }
-      Eigen::MatrixXd seg_a = a.middleRows(first, len);
-      Eigen::VectorXd seg_y = y.segment(first, len);
-      if (bandpass) {
-        const Butterworth bp =
-            Butterworth::band_pass(s.order, s.band_low_hz, s.band_high_hz, 1.0 / dt);
-        seg_a = bp.filtfilt(seg_a);
-        seg_y = bp.filtfilt(seg_y);
-        const Eigen::Index n = len - 2 * s.trim;
-        seg_a = Eigen::MatrixXd(seg_a.middleRows(s.trim, n));
-        seg_y = Eigen::VectorXd(seg_y.segment(s.trim, n));
-      }
-      blocks_a.push_back(std::move(seg_a));
-      blocks_y.push_back(std::move(seg_y));
-      report.segments++;
-    }
+    const Eigen::VectorXd y = fit_target(model, data);
+    const auto runs = calibration_runs(s, data, a, y, &report.warnings);
+    if (runs.empty()) continue;
+    blocks_a.push_back(stack_runs(s, data.dt_s(), a, runs));
+    blocks_y.push_back(stack_runs(s, data.dt_s(), y, runs).col(0));
+    report.segments += static_cast<int>(runs.size());
   }
   Eigen::Index rows = 0;
   for (const auto& b : blocks_y) rows += b.size();
@@ -222,7 +265,7 @@ Eigen::VectorXd model_correction(const Model& model, const FlightData& data) {
 }
 
 Eigen::VectorXd compensate(const Model& model, const FlightData& data) {
-  return data.column(model.scalar) - model_correction(model, data);
+  return aligned_scalar(model, data) - model_correction(model, data);
 }
 
 }  // namespace magcomp

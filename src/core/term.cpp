@@ -2,6 +2,7 @@
 #include "magcomp/core/term.h"
 
 #include <cmath>
+#include <cstdlib>
 
 #include "magcomp/core/error.h"
 #include "magcomp/core/terms_physical.h"
@@ -51,24 +52,32 @@ std::unique_ptr<Term> make_term(const std::string& spec) {
     if (kind == "eddy3") return std::make_unique<EddyTerm>(3);
     if (kind == "fdm") return std::make_unique<FdmTerm>();
     if (kind == "bias") return std::make_unique<BiasTerm>();
-    if (kind == "lag") return std::make_unique<LagTerm>();
   } else if (!arg.empty()) {
     if (kind == "current") return std::make_unique<CurrentTerm>(arg, false);
     if (kind == "dcurrent") return std::make_unique<CurrentTerm>(arg, true);
+    if (kind == "lag") {
+      char* end = nullptr;
+      const double lag_s = std::strtod(arg.c_str(), &end);
+      if (end && *end == '\0' && std::isfinite(lag_s) && std::abs(lag_s) <= 10.0) {
+        return std::make_unique<LagTerm>(lag_s);
+      }
+      throw Error("term '" + spec + "': lag needs seconds in [-10, 10], e.g. lag:0.3");
+    }
   }
   throw Error("term '" + spec + "': unknown (known: permanent, induced, induced5, induced3, eddy, " +
-              "eddy8, eddy3, fdm, bias, lag, current:<channel>, dcurrent:<channel>)");
+              "eddy8, eddy3, fdm, bias, lag:<seconds>, current:<channel>, dcurrent:<channel>)");
 }
 
 std::vector<std::pair<std::string, std::string>> term_catalogue() {
   std::vector<std::pair<std::string, std::string>> out;
   for (const char* s : {"permanent", "induced", "induced5", "induced3", "eddy", "eddy8", "eddy3",
-                        "fdm", "bias", "lag"}) {
+                        "fdm", "bias"}) {
     auto t = make_term(s);
     out.emplace_back(t->spec(), t->effect());
   }
   out.emplace_back("current:<channel>", CurrentTerm("<channel>", false).effect());
   out.emplace_back("dcurrent:<channel>", CurrentTerm("<channel>", true).effect());
+  out.emplace_back("lag:<seconds>", LagTerm(0.0).effect());
   return out;
 }
 

@@ -1,6 +1,8 @@
 // magcomp: current and lag terms.
 #include "magcomp/core/terms_physical.h"
 
+#include <cstdio>
+
 namespace magcomp {
 
 std::string CurrentTerm::effect() const {
@@ -19,8 +21,10 @@ void CurrentTerm::build(const TermInputs& in, Eigen::Ref<Eigen::MatrixXd> out) c
   for (int c = 0; c < 3; ++c) out.col(c) = in.direction.col(c).cwiseProduct(signal);
 }
 
-void LagTerm::build(const TermInputs& in, Eigen::Ref<Eigen::MatrixXd> out) const {
-  out.col(0) = central_difference(in.total_nT) / in.dt_s;
+std::string LagTerm::spec() const {
+  char buf[64];
+  std::snprintf(buf, sizeof(buf), "lag:%g", lag_s_);
+  return buf;
 }
 
 }  // namespace magcomp

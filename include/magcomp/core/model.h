@@ -4,6 +4,7 @@
 #include <Eigen/Core>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "magcomp/core/flight_data.h"
@@ -50,6 +51,8 @@ struct Model {
   std::vector<std::unique_ptr<Term>> make_terms() const;
   /// Names of all columns the terms build, in order.
   std::vector<std::string> make_column_names() const;
+  /// Scalar lag behind the vector sensor the terms declare (lag:<s>), s.
+  double scalar_lag_s() const;
   /// Adds a term spec if not yet present (validated). Returns false if it was already there.
   bool add_term(const std::string& spec);
 };
@@ -66,6 +69,25 @@ Eigen::MatrixXd design_matrix(const Model& model, const FlightData& data);
 /// Fits the model's coefficients on `flights` according to model.fit. Throws magcomp::Error when
 /// the selection is empty or too short. Stores coefficients, column names and the report.
 void fit_model(Model& model, const std::vector<const FlightData*>& flights);
+
+/// Contiguous calibration runs [first, last] of `data` selected by the fit settings (all samples
+/// for a reference fit without lines or windows), skipping rows where `a` or `y` is not finite, and
+/// dropping runs too short for the band-pass and trim (noted in `warnings`).
+std::vector<std::pair<Eigen::Index, Eigen::Index>> calibration_runs(
+    const FitSettings& fit, const FlightData& data, const Eigen::MatrixXd& a,
+    const Eigen::VectorXd& y, std::vector<std::string>* warnings);
+
+/// The rows of `x` in each run, band-passed and trimmed (bandpass method) or as they are
+/// (reference method), stacked. dt_s is the sample period.
+Eigen::MatrixXd stack_runs(const FitSettings& fit, double dt_s, const Eigen::MatrixXd& x,
+                           const std::vector<std::pair<Eigen::Index, Eigen::Index>>& runs);
+
+/// The model's scalar field (nT) realigned to the vector sensor: s(t + lag) when the model has a
+/// lag:<s> term (cubic interpolation; NaN where the realigned time falls past the flight's end).
+Eigen::VectorXd aligned_scalar(const Model& model, const FlightData& data);
+
+/// The regression target of a fit: the scalar field (bandpass) or scalar - reference (nT).
+Eigen::VectorXd fit_target(const Model& model, const FlightData& data);
 
 /// Ridge least squares (A'A + lambda I) c = A'y, as MagNav.jl's linreg.
 Eigen::VectorXd ridge_solve(const Eigen::MatrixXd& a, const Eigen::VectorXd& y, double lambda);

@@ -44,12 +44,15 @@ class Term {
   /// False for terms a band-pass fit cannot see (a constant bias): they are fitted only against
   /// a reference.
   virtual bool bandpass_observable() const { return true; }
+  /// Time by which this term says the scalar sensor is late relative to the vector sensor, s.
+  /// The model realigns the scalar by this much before fitting and compensating.
+  virtual double scalar_lag_s() const { return 0.0; }
   /// Writes N x column_names().size() regressor columns (scalar-field nT per unit coefficient).
   virtual void build(const TermInputs& in, Eigen::Ref<Eigen::MatrixXd> out) const = 0;
 };
 
 /// Parses a term spec. Known: permanent, induced, induced5, induced3, eddy, eddy8, eddy3, fdm, bias,
-/// current:<channel>, dcurrent:<channel>, lag. Throws magcomp::Error naming the spec otherwise.
+/// current:<channel>, dcurrent:<channel>, lag:<seconds>. Throws magcomp::Error naming the spec otherwise.
 std::unique_ptr<Term> make_term(const std::string& spec);
 
 /// All specs make_term accepts without a channel, with their effect, for help texts.

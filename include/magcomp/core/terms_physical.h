@@ -22,17 +22,22 @@ class CurrentTerm : public Term {
   bool rate_;
 };
 
-/// A time lag between the scalar and the vector sensor: to first order the scalar reads
-/// |B|(t - lag) = |B|(t) - lag·d|B|/dt. One column d|B|/dt in nT/s; its coefficient is -lag_s
-/// (compensated = scalar - A c, so a positive coefficient means the scalar leads).
+/// A time lag between the scalar and the vector sensor: the scalar reads everything it measures
+/// (Earth field, aircraft field, wires) lag_s late. Not a regression column: the model realigns
+/// the scalar, s(t + lag_s), by cubic interpolation before fitting and compensating. `lag:0.3`.
 class LagTerm : public Term {
  public:
-  std::string spec() const override { return "lag"; }
+  explicit LagTerm(double lag_s) : lag_s_(lag_s) {}
+  std::string spec() const override;
   std::string effect() const override {
-    return "time lag between the scalar and vector sensors (coefficient = -lag in s)";
+    return "time lag of the scalar sensor behind the vector sensor (realigned)";
   }
-  std::vector<std::string> column_names() const override { return {"lag.dBt_dt"}; }
-  void build(const TermInputs& in, Eigen::Ref<Eigen::MatrixXd> out) const override;
+  std::vector<std::string> column_names() const override { return {}; }
+  double scalar_lag_s() const override { return lag_s_; }
+  void build(const TermInputs&, Eigen::Ref<Eigen::MatrixXd>) const override {}
+
+ private:
+  double lag_s_;
 };
 
 }  // namespace magcomp

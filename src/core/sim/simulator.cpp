@@ -16,6 +16,7 @@
 #include "magcomp/core/sim/anomaly_map.h"
 #include "magcomp/core/sim/electrical.h"
 #include "magcomp/core/sim/trajectory.h"
+#include "magcomp/core/timeseries.h"
 
 namespace magcomp::sim {
 namespace {
@@ -32,16 +33,6 @@ Eigen::VectorXd central_rate(const Eigen::VectorXd& x, double dt) {
     d[i] = (x[b] - x[a]) / (std::max<Eigen::Index>(b - a, 1) * dt);
   }
   return d;
-}
-
-// Catmull-Rom interpolation of x (uniform samples) at fractional index u.
-double cubic_at(const Eigen::VectorXd& x, double u) {
-  const Eigen::Index n = x.size();
-  const Eigen::Index i = static_cast<Eigen::Index>(std::floor(u));
-  const double f = u - static_cast<double>(i);
-  auto at = [&](Eigen::Index k) { return x[std::clamp<Eigen::Index>(k, 0, n - 1)]; };
-  const double p0 = at(i - 1), p1 = at(i), p2 = at(i + 1), p3 = at(i + 2);
-  return p1 + 0.5 * f * (p2 - p0 + f * (2 * p0 - 5 * p1 + 4 * p2 - p3 + f * (3 * (p1 - p2) + p3 - p0)));
 }
 
 // Per-sensor aircraft field: B_a = p + M B + E dB/dt (body frame, nT; E in s).
@@ -269,10 +260,8 @@ Simulation simulate(const Scenario& s) {
     for (size_t k = 0; k < s.hidden.size(); ++k) {
       const HiddenEffect& e = s.hidden[k];
       if (e.type != "lag" || !applies(e, m)) continue;
-      Eigen::VectorXd lagged(n);
-      for (Eigen::Index i = 0; i < n; ++i) {
-        lagged[i] = cubic_at(clean, static_cast<double>(i) - e.lag_s / dt);
-      }
+      // Before the flight's first sample the sensor read the field of the first sample.
+      const Eigen::VectorXd lagged = shift_samples(clean, e.lag_s / dt, true);
       contributions.emplace_back(k, lagged - clean);
       clean = lagged;
     }
