@@ -1,0 +1,38 @@
+// magcomp tests: shipped scenarios, simulated once per test binary.
+#pragma once
+
+#include <map>
+#include <string>
+
+#include "magcomp/core/evaluation.h"
+#include "magcomp/core/model.h"
+#include "magcomp/core/sim/simulator.h"
+#include "test_util.h"
+
+namespace magcomp::test {
+
+/// The simulation of config/scenarios/<name>.yaml (cached).
+inline const sim::Simulation& scenario(const std::string& name) {
+  static std::map<std::string, sim::Simulation> cache;
+  auto it = cache.find(name);
+  if (it == cache.end()) {
+    const sim::Scenario s = sim::load_scenario(source_dir() + "/config/scenarios/" + name + ".yaml");
+    it = cache.emplace(name, sim::simulate(s)).first;
+  }
+  return it->second;
+}
+
+/// The shipped TL model for the simulated flights, plus extra terms, calibrated on `flight`.
+inline Model calibrated_tl(const FlightData& flight, const std::vector<std::string>& extra = {}) {
+  Model m = load_model_yaml(source_dir() + "/config/models/tl_sim.yaml");
+  for (const auto& t : extra) m.add_term(t);
+  fit_model(m, {&flight});
+  return m;
+}
+
+/// Pooled std (line means removed) of the model's error against mag_1_c on the whole flight, nT.
+inline double tl_std(const FlightData& flight, const std::vector<std::string>& extra = {}) {
+  return evaluate_model(calibrated_tl(flight, extra), flight, "mag_1_c").std_nT;
+}
+
+}  // namespace magcomp::test
