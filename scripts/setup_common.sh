@@ -17,7 +17,7 @@ MAGCOMP_APT_PACKAGES=(
   ros-geometry-msgs libgeometry-msgs-dev python3-roslaunch python3-rosmaster rosout python3-rosbag
   python3-rospy python3-rostopic python3-rosnode python3-rosparam python3-rosmsg rosbash
   rospack-tools libgtest-dev googletest libeigen3-dev libhdf5-dev python3-h5py python3-numpy
-  python3-scipy python3-matplotlib libdiagnostic-updater-dev python3-diagnostic-msgs
+  python3-scipy python3-matplotlib python3-yaml libdiagnostic-updater-dev python3-diagnostic-msgs
   libnodeletlib-dev libnodelet-dev ros-nav-msgs libnav-msgs-dev ros-visualization-msgs
   libvisualization-msgs-dev libstd-srvs-dev ros-std-srvs libyaml-cpp-dev nlohmann-json3-dev
   libcli11-dev

@@ -1,5 +1,9 @@
-// magcomp evaluate: a fitted model's error against a reference, overall and per line.
+// magcomp evaluate: a fitted model's error against a reference, per line, per flight condition,
+// per heading sector; --report writes an HTML page with plots.
+#include <sys/stat.h>
+
 #include <cstdio>
+#include <cstdlib>
 #include <fstream>
 #include <iostream>
 #include <nlohmann/json.hpp>
@@ -7,9 +11,72 @@
 #include "common.h"
 #include "magcomp/core/error.h"
 #include "magcomp/core/evaluation.h"
+#include "magcomp/core/flight_conditions.h"
 #include "subcommands.h"
 
+#ifndef MAGCOMP_SCRIPTS_DIR
+#define MAGCOMP_SCRIPTS_DIR "scripts"
+#endif
+
 namespace magcomp::cli {
+namespace {
+
+nlohmann::json to_json(const Evaluation& ev) {
+  nlohmann::json j;
+  j["n"] = ev.n;
+  j["nan_samples"] = ev.nan_samples;
+  j["rmse_nT"] = ev.rmse_nT;
+  j["std_nT"] = ev.std_nT;
+  j["per_line"] = nlohmann::json::array();
+  for (const auto& l : ev.per_line) {
+    j["per_line"].push_back({{"line", l.line}, {"n", l.n}, {"rmse_nT", l.rmse_nT}, {"std_nT", l.std_nT}});
+  }
+  for (const auto& [key, groups] : {std::pair{"per_condition", &ev.per_condition},
+                                    std::pair{"per_heading", &ev.per_heading}}) {
+    j[key] = nlohmann::json::array();
+    for (const auto& g : *groups) j[key].push_back({{"name", g.name}, {"n", g.n}, {"std_nT", g.std_nT}});
+  }
+  return j;
+}
+
+void print_groups(const char* title, const std::vector<GroupStats>& groups) {
+  std::printf("\n%-16s %8s %10s\n", title, "n", "std_nT");
+  for (const auto& g : groups) {
+    std::printf("%-16s %8ld %10.3f\n", g.name.c_str(), static_cast<long>(g.n), g.std_nT);
+  }
+}
+
+// The per-sample series the report plots, as an HDF5 file in the flight schema.
+void write_series(const std::string& path, const FlightData& flight, const Model& model,
+                  const Evaluation& ev, const std::string& truth, const Evaluation* baseline) {
+  FlightData s;
+  s.set_source(path);
+  for (const char* f : {"tt", "line", "lat", "lon", "utm_x", "utm_y", "ins_yaw", "ins_roll", "ins_pitch"}) {
+    if (flight.has(f)) s.set(f, flight.column(f));
+  }
+  const Eigen::VectorXd measured = aligned_scalar(model, flight);
+  s.set("measured", measured);
+  s.set("compensated", ev.compensated_nT);
+  s.set("correction", measured - ev.compensated_nT);
+  s.set("truth", flight.column(truth));
+  s.set("error", ev.error_nT);
+  if (baseline) s.set("error_baseline", baseline->error_nT);
+  const auto cond = classify_conditions(flight);
+  const auto sector = heading_sectors(flight);
+  Eigen::VectorXd c(flight.size()), h(flight.size());
+  for (Eigen::Index i = 0; i < flight.size(); ++i) {
+    c[i] = static_cast<double>(cond[static_cast<size_t>(i)]);
+    h[i] = sector[static_cast<size_t>(i)];
+  }
+  s.set("condition", c);
+  s.set("heading_sector", h);
+  for (const auto& name : flight.names()) {
+    if (name.rfind("cur_", 0) == 0 || name.rfind("vol_", 0) == 0) s.set(name, flight.column(name));
+  }
+  write_flight_h5(s, path);
+}
+
+}  // namespace
 
 void add_evaluate(CLI::App& app) {
   auto* cmd = app.add_subcommand("evaluate", "compare a fitted model with a reference field");
@@ -17,43 +84,68 @@ void add_evaluate(CLI::App& app) {
   auto model_path = std::make_shared<std::string>();
   auto truth = std::make_shared<std::string>("mag_1_c");
   auto json_path = std::make_shared<std::string>();
+  auto report = std::make_shared<std::string>();
+  auto baseline_path = std::make_shared<std::string>();
   cmd->add_option("--data", *data, "flight HDF5 file")->required();
   cmd->add_option("--model", *model_path, "fitted model YAML")->required();
   cmd->add_option("--truth", *truth, "reference field (default mag_1_c)");
   cmd->add_option("--json", *json_path, "write the evaluation JSON here");
+  cmd->add_option("--report", *report, "write an HTML report with plots into this directory");
+  cmd->add_option("--baseline", *baseline_path, "a second fitted model to compare with (before/after)");
   cmd->callback([=] {
     const Model model = load_model_yaml(*model_path);
     if (!model.fitted()) throw Error(*model_path + ": model has no coefficients; run calibrate");
     const FlightData flight = read_flight_h5(*data);
     const Evaluation ev = evaluate_model(model, flight, *truth);
-    std::printf("%-10s %8s %12s %10s\n", "line", "n", "rmse_nT", "std_nT");
-    for (const auto& l : ev.per_line) {
-      std::printf("%-10.2f %8ld %12.3f %10.3f\n", l.line, static_cast<long>(l.n), l.rmse_nT,
-                  l.std_nT);
+    std::unique_ptr<Evaluation> base;
+    if (!baseline_path->empty()) {
+      const Model b = load_model_yaml(*baseline_path);
+      if (!b.fitted()) throw Error(*baseline_path + ": model has no coefficients; run calibrate");
+      base = std::make_unique<Evaluation>(evaluate_model(b, flight, *truth));
     }
-    std::printf("%-10s %8ld %12.3f %10.3f\n", "all", static_cast<long>(ev.n), ev.rmse_nT,
-                ev.std_nT);
+    std::printf("%-10s %8s %12s %10s%s\n", "line", "n", "rmse_nT", "std_nT", base ? "   baseline_std_nT" : "");
+    for (size_t k = 0; k < ev.per_line.size(); ++k) {
+      const auto& l = ev.per_line[k];
+      std::printf("%-10.2f %8ld %12.3f %10.3f", l.line, static_cast<long>(l.n), l.rmse_nT, l.std_nT);
+      if (base && k < base->per_line.size()) std::printf(" %17.3f", base->per_line[k].std_nT);
+      std::printf("\n");
+    }
+    print_groups("condition", ev.per_condition);
+    print_groups("heading", ev.per_heading);
     if (ev.nan_samples > 0) {
-      std::printf("(%ld samples with NaN in the model inputs or the reference were skipped)\n",
+      std::printf("\n(%ld samples with NaN in the model inputs or the reference were skipped)\n",
                   static_cast<long>(ev.nan_samples));
     }
+    std::printf("\n%-10s %8ld %12.3f %10.3f", "all", static_cast<long>(ev.n), ev.rmse_nT, ev.std_nT);
+    if (base) std::printf(" %17.3f", base->std_nT);
+    std::printf("\n");
+    nlohmann::json j = to_json(ev);
+    j["data"] = *data;
+    j["model"] = *model_path;
+    j["truth"] = *truth;
+    j["terms"] = model.terms;
+    if (base) {
+      j["baseline"] = to_json(*base);
+      j["baseline"]["model"] = *baseline_path;
+    }
     if (!json_path->empty()) {
-      nlohmann::json j;
-      j["data"] = *data;
-      j["model"] = *model_path;
-      j["truth"] = *truth;
-      j["n"] = ev.n;
-      j["nan_samples"] = ev.nan_samples;
-      j["rmse_nT"] = ev.rmse_nT;
-      j["std_nT"] = ev.std_nT;
-      j["per_line"] = nlohmann::json::array();
-      for (const auto& l : ev.per_line) {
-        j["per_line"].push_back(
-            {{"line", l.line}, {"n", l.n}, {"rmse_nT", l.rmse_nT}, {"std_nT", l.std_nT}});
-      }
       std::ofstream f(*json_path);
       if (!f) throw Error(*json_path + ": cannot write JSON");
       f << j.dump(2) << "\n";
+    }
+    if (!report->empty()) {
+      ::mkdir(report->c_str(), 0755);
+      write_series(*report + "/series.h5", flight, model, ev, *truth, base.get());
+      std::ofstream(*report + "/evaluation.json") << j.dump(2) << "\n";
+      const char* env = std::getenv("MAGCOMP_SCRIPTS_DIR");
+      const std::string script = std::string(env && *env ? env : MAGCOMP_SCRIPTS_DIR) + "/magcomp_report.py";
+      const std::string cmdline = "/usr/bin/python3 '" + script + "' '" + *report + "'";
+      if (std::system(cmdline.c_str()) != 0) {
+        std::cerr << "warning: " << script << " failed; the report's data is in " << *report
+                  << "/series.h5 and evaluation.json\n";
+      } else {
+        std::printf("report: %s/index.html\n", report->c_str());
+      }
     }
   });
 }

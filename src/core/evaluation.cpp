@@ -5,6 +5,7 @@
 #include <map>
 
 #include "magcomp/core/error.h"
+#include "magcomp/core/flight_conditions.h"
 
 namespace magcomp {
 
@@ -47,6 +48,38 @@ Evaluation error_statistics(const FlightData& data, const Eigen::VectorXd& error
   if (ev.n > 0) {
     ev.rmse_nT = std::sqrt(total_sq / static_cast<double>(ev.n));
     ev.std_nT = std::sqrt(total_var / static_cast<double>(ev.n));
+  }
+  // By flight condition and heading sector, each line's mean removed first.
+  if (data.has("tt") && data.size() > 2) {
+    const std::vector<FlightCondition> cond = classify_conditions(data);
+    const std::vector<int> sector = heading_sectors(data);
+    std::vector<double> ss_c(kConditionCount, 0), ss_h(8, 0);
+    std::vector<Eigen::Index> n_c(kConditionCount, 0), n_h(8, 0);
+    for (Eigen::Index i = 0; i < error_nT.size(); ++i) {
+      if (!std::isfinite(error_nT[i])) continue;
+      double line = has_line ? data.column("line")[i] : 0.0;
+      if (!std::isfinite(line)) line = -1.0;
+      const Acc& a = groups[line];
+      const double d = error_nT[i] - a.sum / static_cast<double>(a.n);
+      const int c = static_cast<int>(cond[static_cast<size_t>(i)]);
+      ss_c[static_cast<size_t>(c)] += d * d;
+      n_c[static_cast<size_t>(c)]++;
+      const int h = sector[static_cast<size_t>(i)];
+      if (h >= 0) {
+        ss_h[static_cast<size_t>(h)] += d * d;
+        n_h[static_cast<size_t>(h)]++;
+      }
+    }
+    for (int c = 0; c < kConditionCount; ++c) {
+      if (n_c[static_cast<size_t>(c)] == 0) continue;
+      ev.per_condition.push_back({condition_name(static_cast<FlightCondition>(c)), n_c[static_cast<size_t>(c)],
+                                  std::sqrt(ss_c[static_cast<size_t>(c)] / static_cast<double>(n_c[static_cast<size_t>(c)]))});
+    }
+    for (int h = 0; h < 8; ++h) {
+      if (n_h[static_cast<size_t>(h)] == 0) continue;
+      ev.per_heading.push_back({sector_name(h), n_h[static_cast<size_t>(h)],
+                                std::sqrt(ss_h[static_cast<size_t>(h)] / static_cast<double>(n_h[static_cast<size_t>(h)]))});
+    }
   }
   return ev;
 }

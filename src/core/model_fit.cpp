@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <sstream>
+#include <thread>
 
 #include "magcomp/core/butterworth.h"
 #include "magcomp/core/error.h"
@@ -73,18 +74,30 @@ Eigen::MatrixXd design_matrix(const Model& model, const FlightData& data) {
   return a;
 }
 
-Eigen::VectorXd ridge_solve(const Eigen::MatrixXd& a, const Eigen::VectorXd& y, double lambda) {
-  Eigen::MatrixXd g = a.transpose() * a;
+namespace {
+// A'A as a symmetric rank update (half the work of a general product).
+Eigen::MatrixXd gram(const Eigen::MatrixXd& a) {
+  Eigen::MatrixXd g = Eigen::MatrixXd::Zero(a.cols(), a.cols());
+  g.selfadjointView<Eigen::Lower>().rankUpdate(a.transpose());
+  return g.selfadjointView<Eigen::Lower>();
+}
+
+Eigen::VectorXd ridge_from_normal(Eigen::MatrixXd g, const Eigen::VectorXd& aty, double lambda) {
   g.diagonal().array() += lambda;
-  return g.ldlt().solve(a.transpose() * y);
+  return g.ldlt().solve(aty);
+}
+}  // namespace
+
+Eigen::VectorXd ridge_solve(const Eigen::MatrixXd& a, const Eigen::VectorXd& y, double lambda) {
+  return ridge_from_normal(gram(a), a.transpose() * y, lambda);
 }
 
 namespace {
 
-double condition_number(const Eigen::MatrixXd& a) {
-  if (a.cols() == 0 || a.rows() == 0) return 0.0;
-  Eigen::VectorXd norms = a.colwise().norm().transpose();
-  Eigen::MatrixXd g = a.transpose() * a;
+// Condition number of the column-normalised matrix whose Gram matrix is g.
+double condition_number(Eigen::MatrixXd g) {
+  if (g.cols() == 0) return 0.0;
+  const Eigen::VectorXd norms = g.diagonal().cwiseMax(0.0).cwiseSqrt();
   for (Eigen::Index i = 0; i < g.rows(); ++i) {
     for (Eigen::Index j = 0; j < g.cols(); ++j) {
       const double s = norms[i] * norms[j];
@@ -152,7 +165,9 @@ Eigen::MatrixXd stack_runs(const FitSettings& s, double dt_s, const Eigen::Matri
     const Eigen::Index len = last - first + 1;
     if (bandpass) {
       const Eigen::Index n = len - 2 * s.trim;
-      out.middleRows(r, n) = bp.filtfilt(Eigen::MatrixXd(x.middleRows(first, len))).middleRows(s.trim, n);
+      static const int threads = std::max(1u, std::thread::hardware_concurrency());
+      out.middleRows(r, n) =
+          bp.filtfilt_parallel(x.middleRows(first, len), threads).middleRows(s.trim, n);
       r += n;
     } else {
       out.middleRows(r, len) = x.middleRows(first, len);
@@ -210,9 +225,17 @@ void fit_model(Model& model, const std::vector<const FlightData*>& flights) {
     throw Error("fit: only " + std::to_string(rows) + " usable samples for " +
                 std::to_string(fitted_cols) + " coefficients in " + sources);
   }
-  Eigen::MatrixXd a(rows, fitted_cols);
-  Eigen::VectorXd y(rows);
+  Eigen::MatrixXd a;
+  Eigen::VectorXd y;
   Eigen::Index r = 0;
+  if (blocks_a.size() == 1 && fitted_cols == p) {  // one flight, every column: no copy
+    a = std::move(blocks_a[0]);
+    y = std::move(blocks_y[0]);
+    blocks_y.clear();
+  } else {
+    a.resize(rows, fitted_cols);
+    y.resize(rows);
+  }
   for (size_t b = 0; b < blocks_y.size(); ++b) {
     Eigen::Index c = 0;
     for (Eigen::Index j = 0; j < p; ++j) {
@@ -221,17 +244,18 @@ void fit_model(Model& model, const std::vector<const FlightData*>& flights) {
     y.segment(r, blocks_y[b].size()) = blocks_y[b];
     r += blocks_y[b].size();
   }
-  const Eigen::VectorXd c_fit = ridge_solve(a, y, s.lambda);
+  const Eigen::MatrixXd g = gram(a);
+  const Eigen::VectorXd c_fit = ridge_from_normal(g, a.transpose() * y, s.lambda);
   model.coefficients = Eigen::VectorXd::Zero(p);
   for (Eigen::Index j = 0, c = 0; j < p; ++j) {
     if (keep[static_cast<size_t>(j)]) model.coefficients[j] = c_fit[c++];
   }
   model.column_names = model.make_column_names();
   report.samples = rows;
-  report.condition_number = condition_number(a);
+  report.condition_number = condition_number(g);
   report.residual_std_nT = std_dev(y - a * c_fit);
   // Unexcited columns: no energy in the (filtered) calibration data.
-  const Eigen::VectorXd norms = a.colwise().norm().transpose();
+  const Eigen::VectorXd norms = g.diagonal().cwiseMax(0.0).cwiseSqrt();
   const double max_norm = norms.maxCoeff();
   for (Eigen::Index j = 0, c = 0; j < p; ++j) {
     if (!keep[static_cast<size_t>(j)]) {

@@ -37,8 +37,10 @@ class Butterworth {
   /// initial conditions (the scipy sosfiltfilt scheme). NaN in the input propagates; callers
   /// filter finite segments. Padding length is min(3 * (2 * sections + 1), n - 1).
   Eigen::VectorXd filtfilt(const Eigen::VectorXd& x) const;
-  /// Column-wise filtfilt of a matrix.
-  Eigen::MatrixXd filtfilt(const Eigen::MatrixXd& x) const;
+  /// Column-wise filtfilt of a matrix (all columns in one vectorised pass).
+  Eigen::MatrixXd filtfilt(const Eigen::Ref<const Eigen::MatrixXd>& x) const;
+  /// The same, with the columns split over `threads` threads (for large blocks).
+  Eigen::MatrixXd filtfilt_parallel(const Eigen::Ref<const Eigen::MatrixXd>& x, int threads) const;
   /// Causal single-pass filtering from steady state at x[0].
   Eigen::VectorXd filter(const Eigen::VectorXd& x) const;
 

@@ -18,6 +18,14 @@ struct LineStats {
   double std_nT = 0.0;
 };
 
+/// Error statistics of a group of samples (a flight condition, a heading sector), nT. std_nT is
+/// the rms of the error after removing each line's mean (so groups compare without the offsets).
+struct GroupStats {
+  std::string name;
+  Eigen::Index n = 0;
+  double std_nT = 0.0;
+};
+
 /// A model's error against a reference on a flight. error = compensated - truth, nT.
 struct Evaluation {
   double rmse_nT = 0.0;  ///< raw RMS of the error over finite samples
@@ -25,6 +33,8 @@ struct Evaluation {
   Eigen::Index n = 0;    ///< finite samples
   Eigen::Index nan_samples = 0;
   std::vector<LineStats> per_line;
+  std::vector<GroupStats> per_condition;  ///< straight_level, turn, climb_descent, maneuver_*
+  std::vector<GroupStats> per_heading;    ///< N, NE, ... NW
   Eigen::VectorXd compensated_nT;
   Eigen::VectorXd error_nT;
 };
