@@ -24,8 +24,10 @@ T get(const YAML::Node& node, const std::string& path, const std::string& key) {
 
 void warn_unknown(const YAML::Node& node, const std::set<std::string>& known,
                   const std::string& path, const std::string& prefix) {
+  std::set<std::string> seen;
   for (const auto& kv : node) {
     const std::string key = kv.first.as<std::string>();
+    if (!seen.insert(key).second) throw Error(path + ": key '" + prefix + key + "' given twice");
     if (!known.count(key)) {
       std::cerr << "warning: " << path << ": unknown key '" << prefix << key << "' ignored\n";
     }

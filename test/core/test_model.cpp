@@ -107,6 +107,8 @@ TEST(Model, BadModelsNameTheKey) {
   EXPECT_NE(message(write("scalar: a\nvector: b\nfit: {band_hz: [0.9, 0.1]}\n")).find("band_hz"),
             std::string::npos);
   EXPECT_NE(message(dir + "/none.yaml").find("none.yaml"), std::string::npos);
+  EXPECT_NE(message(write("scalar: a\nvector: b\nscalar: c\n")).find("'scalar' given twice"),
+            std::string::npos);
   Model m = tl16();
   EXPECT_THROW(m.add_term("current:"), Error);
   EXPECT_FALSE(m.add_term("permanent"));

@@ -163,6 +163,7 @@ TEST(Simulator, BadScenarioFilesNameTheKey) {
                 .find("hidden[0].colour"),
             std::string::npos);
   EXPECT_NE(message("seed: 1\n").find("'plan'"), std::string::npos);
+  EXPECT_NE(message(base + base).find("'plan' given twice"), std::string::npos);
   EXPECT_EQ(message(base), "");
 }
 

@@ -41,8 +41,12 @@ struct Reader {
   void check_keys(const YAML::Node& node, const std::set<std::string>& known,
                   const std::string& where) const {
     if (!node.IsMap()) throw Error(path + ": key '" + where + "' must be a map");
+    std::set<std::string> seen;
     for (const auto& kv : node) {
       const std::string key = kv.first.as<std::string>();
+      if (!seen.insert(key).second) {
+        throw Error(path + ": key '" + (where.empty() ? "" : where + ".") + key + "' given twice");
+      }
       if (!known.count(key)) {
         throw Error(path + ": unknown key '" + (where.empty() ? "" : where + ".") + key + "'");
       }

@@ -298,7 +298,9 @@ Simulation simulate(const Scenario& s) {
     if (e.type == "inductive") y << YAML::Key << "expected_term" << YAML::Value << "dcurrent:" + e.channel;
     if (e.type == "lag") {
       y << YAML::Key << "lag_s" << YAML::Value << e.lag_s;
-      y << YAML::Key << "expected_term" << YAML::Value << "lag";
+      char lag_term[64];
+      std::snprintf(lag_term, sizeof(lag_term), "lag:%g", e.lag_s);
+      y << YAML::Key << "expected_term" << YAML::Value << lag_term;
     }
     if (e.type == "heading" || e.type == "drift" || e.type == "inductive") {
       y << YAML::Key << "gain" << YAML::Value << e.gain;
