@@ -12,6 +12,7 @@ int main(int argc, char** argv) {
   magcomp::cli::add_calibrate(app);
   magcomp::cli::add_evaluate(app);
   magcomp::cli::add_diagnose(app);
+  magcomp::cli::add_convert(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -9,5 +9,6 @@ void add_calibrate(CLI::App& app);
 void add_evaluate(CLI::App& app);
 void add_simulate(CLI::App& app);
 void add_diagnose(CLI::App& app);
+void add_convert(CLI::App& app);
 
 }  // namespace magcomp::cli

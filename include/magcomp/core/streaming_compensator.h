@@ -1,0 +1,66 @@
+// magcomp: sample-by-sample compensation for the online path (the same numbers as offline).
+#pragma once
+
+#include <Eigen/Core>
+#include <deque>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "magcomp/core/model.h"
+
+namespace magcomp {
+
+/// The inputs at one scalar-magnetometer stamp (vector field and channels already interpolated
+/// to that stamp). Times in s, fields in nT, vector in the model's vector-sensor frame.
+struct StreamSample {
+  double t_s = 0.0;
+  double scalar_nT = 0.0;
+  Eigen::Vector3d vector_nT = Eigen::Vector3d::Zero();
+  std::vector<double> channels;  ///< values of required_channels(), in that order
+};
+
+/// The compensation of one sample, nT.
+struct StreamOutput {
+  double t_s = 0.0;
+  double measured_nT = 0.0;    ///< the scalar, realigned by the model's lag
+  double correction_nT = 0.0;  ///< A·c
+  double compensated_nT = 0.0; ///< measured - correction
+};
+
+/// Applies a fitted model to a stream of samples. Each output needs a few samples after it
+/// (central differences, the lag realignment): lookahead() samples of latency. The terms'
+/// columns are built on a sliding window with the batch code, so a whole stream reproduces
+/// compensate() on the same flight exactly (one-sided differences at both ends included).
+class StreamingCompensator {
+ public:
+  /// Throws magcomp::Error if the model is not fitted.
+  explicit StreamingCompensator(Model model);
+
+  const Model& model() const { return model_; }
+  /// Channels the model's terms need (e.g. cur_strb for current:cur_strb).
+  const std::vector<std::string>& required_channels() const { return channels_; }
+  /// Samples of latency (0 until the sample period is known, after the second sample).
+  int lookahead() const { return half_; }
+
+  /// Adds the next sample (stamps must increase; the caller rejects others). Returns the outputs
+  /// that became ready, oldest first.
+  std::vector<StreamOutput> push(const StreamSample& sample);
+  /// Emits every pending sample (end of stream, or before a reset after a gap or a time jump).
+  std::vector<StreamOutput> flush();
+  /// Forgets everything (pending samples are dropped: flush() first to keep them).
+  void reset();
+  size_t pending() const { return buffer_.size() - static_cast<size_t>(next_); }
+
+ private:
+  StreamOutput emit(Eigen::Index index) const;
+
+  Model model_;
+  std::vector<std::unique_ptr<Term>> terms_;
+  std::vector<std::string> channels_;
+  std::deque<StreamSample> buffer_;
+  Eigen::Index next_ = 0;  // index in buffer_ of the next sample to emit
+  int half_ = 0;           // samples needed on each side of an emitted one
+};
+
+}  // namespace magcomp

@@ -1,0 +1,43 @@
+// magcomp convert: MIT-schema HDF5 flight <-> rosbag, lossless both ways.
+#include <chrono>
+#include <fstream>
+#include <iostream>
+
+#include "magcomp/core/error.h"
+#include "magcomp/ros/bag_converter.h"
+#include "subcommands.h"
+
+namespace magcomp::cli {
+
+void add_convert(CLI::App& app) {
+  auto* cmd = app.add_subcommand("convert", "IN.h5 OUT.bag or IN.bag OUT.h5 (lossless)");
+  auto in = std::make_shared<std::string>();
+  auto out = std::make_shared<std::string>();
+  auto force = std::make_shared<bool>(false);
+  cmd->add_option("IN", *in, "input flight (.h5) or bag (.bag)")->required();
+  cmd->add_option("OUT", *out, "output bag (.bag) or flight (.h5)")->required();
+  cmd->add_flag("--force", *force, "overwrite OUT if it exists");
+  cmd->callback([=] {
+    auto ends = [](const std::string& s, const std::string& e) {
+      return s.size() >= e.size() && s.compare(s.size() - e.size(), e.size(), e) == 0;
+    };
+    const auto t0 = std::chrono::steady_clock::now();
+    if (ends(*in, ".h5") && ends(*out, ".bag")) {
+      const FlightData f = read_flight_h5(*in);
+      const rosio::ConvertReport r = rosio::flight_to_bag(f, *out, *force);
+      std::cout << "wrote " << *out << ": " << r.samples << " samples x " << r.fields << " fields, "
+                << r.messages << " messages";
+    } else if (ends(*in, ".bag") && ends(*out, ".h5")) {
+      if (!*force && std::ifstream(*out).good()) throw Error(*out + ": exists; pass --force to overwrite");
+      const FlightData f = rosio::bag_to_flight(*in);
+      write_flight_h5(f, *out);
+      std::cout << "wrote " << *out << ": " << f.size() << " samples x " << f.names().size() << " fields";
+    } else {
+      throw Error("convert: give IN.h5 OUT.bag or IN.bag OUT.h5 (got '" + *in + "' '" + *out + "')");
+    }
+    std::cout << " in "
+              << std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() << " s\n";
+  });
+}
+
+}  // namespace magcomp::cli

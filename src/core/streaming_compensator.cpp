@@ -1,0 +1,96 @@
+// magcomp: streaming compensation on a sliding window.
+#include "magcomp/core/streaming_compensator.h"
+
+#include <cmath>
+#include <set>
+
+#include "magcomp/core/error.h"
+
+namespace magcomp {
+
+StreamingCompensator::StreamingCompensator(Model model) : model_(std::move(model)) {
+  if (!model_.fitted()) throw Error("compensator: model not calibrated (no coefficients)");
+  terms_ = model_.make_terms();
+  std::set<std::string> seen;
+  for (const auto& t : terms_) {
+    for (const auto& f : t->required_fields()) {
+      if (seen.insert(f).second) channels_.push_back(f);
+    }
+  }
+}
+
+void StreamingCompensator::reset() {
+  buffer_.clear();
+  next_ = 0;
+  half_ = 0;
+}
+
+std::vector<StreamOutput> StreamingCompensator::push(const StreamSample& sample) {
+  if (sample.channels.size() != channels_.size()) {
+    throw Error("compensator: sample has " + std::to_string(sample.channels.size()) +
+                " channels, the model needs " + std::to_string(channels_.size()));
+  }
+  buffer_.push_back(sample);
+  if (half_ == 0 && buffer_.size() >= 2) {
+    const double dt = buffer_[1].t_s - buffer_[0].t_s;
+    const double lag = std::abs(model_.scalar_lag_s());
+    // Central differences need 1 neighbour; the cubic realignment by lag needs ceil(lag/dt) + 2.
+    half_ = 2 + (dt > 0 ? static_cast<int>(std::ceil(lag / dt - 1e-9)) + 1 : 0);
+  }
+  std::vector<StreamOutput> out;
+  if (half_ == 0) return out;
+  while (static_cast<Eigen::Index>(buffer_.size()) - 1 - next_ >= half_) {
+    out.push_back(emit(next_));
+    ++next_;
+  }
+  // Keep `half_` samples behind the next one for its backward neighbours.
+  while (next_ > half_) {
+    buffer_.pop_front();
+    --next_;
+  }
+  return out;
+}
+
+std::vector<StreamOutput> StreamingCompensator::flush() {
+  std::vector<StreamOutput> out;
+  while (next_ < static_cast<Eigen::Index>(buffer_.size())) out.push_back(emit(next_++));
+  reset();
+  return out;
+}
+
+StreamOutput StreamingCompensator::emit(Eigen::Index index) const {
+  const Eigen::Index size = static_cast<Eigen::Index>(buffer_.size());
+  const Eigen::Index h = std::max(half_, 2);
+  const Eigen::Index first = std::max<Eigen::Index>(0, index - h);
+  const Eigen::Index last = std::min(size - 1, index + h);
+  const Eigen::Index n = last - first + 1;
+  FlightData w;
+  w.set_source("stream");
+  Eigen::VectorXd tt(n), s(n), bx(n), by(n), bz(n);
+  std::vector<Eigen::VectorXd> ch(channels_.size(), Eigen::VectorXd(n));
+  for (Eigen::Index k = 0; k < n; ++k) {
+    const StreamSample& x = buffer_[static_cast<size_t>(first + k)];
+    tt[k] = x.t_s;
+    s[k] = x.scalar_nT;
+    bx[k] = x.vector_nT.x();
+    by[k] = x.vector_nT.y();
+    bz[k] = x.vector_nT.z();
+    for (size_t c = 0; c < channels_.size(); ++c) ch[c][k] = x.channels[c];
+  }
+  w.set("tt", tt);
+  w.set(model_.scalar, s);
+  w.set(model_.vector + "_x", bx);
+  w.set(model_.vector + "_y", by);
+  w.set(model_.vector + "_z", bz);
+  for (size_t c = 0; c < channels_.size(); ++c) w.set(channels_[c], ch[c]);
+  const Eigen::Index row = index - first;
+  StreamOutput o;
+  o.t_s = tt[row];
+  const Eigen::VectorXd aligned = aligned_scalar(model_, w);
+  o.measured_nT = aligned[row];
+  o.correction_nT = design_matrix(model_, w).row(row).dot(model_.coefficients);
+  o.compensated_nT = o.measured_nT - o.correction_nT;
+  return o;
+}
+
+}  // namespace magcomp

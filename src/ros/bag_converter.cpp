@@ -1,0 +1,232 @@
+// magcomp ROS layer: HDF5 <-> rosbag conversion.
+#include "magcomp/ros/bag_converter.h"
+
+#include <magcomp/AuxChannels.h>
+#include <magcomp/FlightRecord.h>
+#include <magcomp/FlightSchema.h>
+#include <magcomp/ScalarMagnetometer.h>
+#include <rosbag/bag.h>
+#include <rosbag/view.h>
+#include <sensor_msgs/Imu.h>
+#include <sensor_msgs/MagneticField.h>
+#include <sensor_msgs/NavSatFix.h>
+#include <unistd.h>
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <cstdio>
+#include <ctime>
+#include <fstream>
+
+#include "magcomp/core/error.h"
+
+namespace magcomp::rosio {
+namespace {
+
+constexpr double kDeg = M_PI / 180.0;
+
+bool exists(const std::string& path) { return std::ifstream(path).good(); }
+
+double first_finite(const FlightData& f, const std::string& name) {
+  const Eigen::VectorXd& v = f.column(name);
+  for (Eigen::Index i = 0; i < v.size(); ++i) {
+    if (std::isfinite(v[i])) return v[i];
+  }
+  throw Error(f.source() + ": field '" + name + "' has no finite value");
+}
+
+}  // namespace
+
+ros::Time stamp_of(int year, int doy, double tt_s) {
+  std::tm tm{};
+  tm.tm_year = year - 1900;
+  tm.tm_mon = 0;
+  tm.tm_mday = 1;
+  const double midnight = static_cast<double>(timegm(&tm)) + (doy - 1) * 86400.0;
+  return ros::Time(midnight + tt_s);
+}
+
+ConvertReport flight_to_bag(const FlightData& f, const std::string& bag_path, bool force) {
+  if (!force && exists(bag_path)) {
+    throw Error(bag_path + ": exists; pass --force to overwrite");
+  }
+  const int year = static_cast<int>(f.has("year") ? first_finite(f, "year") : -1);
+  const int doy = static_cast<int>(f.has("doy") ? first_finite(f, "doy") : -1);
+  if (year < 1970) throw Error(f.source() + ": field 'year' missing or before 1970 (stamps need it)");
+  if (doy < 1 || doy > 366) throw Error(f.source() + ": field 'doy' missing or not in 1..366");
+  const Eigen::VectorXd& tt = f.tt();
+  for (Eigen::Index i = 0; i < tt.size(); ++i) {
+    if (!std::isfinite(tt[i])) {
+      throw Error(f.source() + ": field 'tt' is NaN at sample " + std::to_string(i) +
+                  "; it cannot be stamped");
+    }
+  }
+  const std::string tmp = bag_path + ".tmp." + std::to_string(::getpid());
+  ConvertReport rep;
+  rep.samples = f.size();
+  rep.fields = static_cast<long>(f.names().size());
+  try {
+    rosbag::Bag bag;
+    bag.open(tmp, rosbag::bagmode::Write);
+    // Lossless record of every field.
+    magcomp::FlightSchema schema;
+    schema.header.stamp = stamp_of(year, doy, tt[0]);
+    schema.names = f.names();
+    bag.write(BagTopics::kSchema, schema.header.stamp, schema);
+    rep.messages++;
+    std::vector<const Eigen::VectorXd*> cols;
+    for (const auto& name : f.names()) cols.push_back(&f.column(name));
+    // Typed sensor topics.
+    std::vector<std::string> scalars, fluxes, aux;
+    for (const auto& name : f.names()) {
+      if (name.size() == 8 && name.rfind("mag_", 0) == 0 && name.substr(5) == "_uc") scalars.push_back(name);
+      if (name.size() == 8 && name.rfind("flux_", 0) == 0 && name.substr(6) == "_x") {
+        const std::string base = name.substr(0, 6);
+        if (f.has(base + "_y") && f.has(base + "_z")) fluxes.push_back(base);
+      }
+      if (name.rfind("cur_", 0) == 0 || name.rfind("vol_", 0) == 0 || name == "diurnal") aux.push_back(name);
+    }
+    const bool has_att = f.has("ins_roll") && f.has("ins_pitch") && f.has("ins_yaw");
+    const bool has_fix = f.has("lat") && f.has("lon");
+    magcomp::FlightRecord rec;
+    rec.values.resize(cols.size());
+    for (Eigen::Index i = 0; i < f.size(); ++i) {
+      const ros::Time t = stamp_of(year, doy, tt[i]);
+      rec.header.stamp = t;
+      rec.header.seq = static_cast<uint32_t>(i);
+      for (size_t c = 0; c < cols.size(); ++c) rec.values[c] = (*cols[c])[i];
+      bag.write(BagTopics::kRecord, t, rec);
+      for (const auto& s : scalars) {
+        magcomp::ScalarMagnetometer m;
+        m.header.stamp = t;
+        m.header.frame_id = s.substr(0, 5);
+        m.field_nT = f.column(s)[i];
+        bag.write(std::string(BagTopics::kScalarPrefix) + s, t, m);
+      }
+      if (f.has("mag_1_c")) {
+        magcomp::ScalarMagnetometer m;
+        m.header.stamp = t;
+        m.header.frame_id = "mag_1";
+        m.field_nT = f.column("mag_1_c")[i];
+        bag.write(BagTopics::kReference, t, m);
+      }
+      for (const auto& b : fluxes) {
+        sensor_msgs::MagneticField m;
+        m.header.stamp = t;
+        m.header.frame_id = b;
+        m.magnetic_field.x = f.column(b + "_x")[i] * 1e-9;  // REP 145: Tesla
+        m.magnetic_field.y = f.column(b + "_y")[i] * 1e-9;
+        m.magnetic_field.z = f.column(b + "_z")[i] * 1e-9;
+        bag.write(std::string(BagTopics::kFluxPrefix) + b, t, m);
+      }
+      if (has_att) {
+        // MIT: yaw clockwise from north, pitch nose up, roll right wing down (NED/FRD).
+        // REP 103: base_link (x fwd, y left, z up) in ENU: yaw_enu = 90 deg - yaw, pitch negated.
+        const double roll = f.column("ins_roll")[i] * kDeg, pitch = f.column("ins_pitch")[i] * kDeg;
+        const double yaw_enu = M_PI / 2 - f.column("ins_yaw")[i] * kDeg;
+        const Eigen::Quaterniond q = Eigen::AngleAxisd(yaw_enu, Eigen::Vector3d::UnitZ()) *
+                                     Eigen::AngleAxisd(-pitch, Eigen::Vector3d::UnitY()) *
+                                     Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitX());
+        sensor_msgs::Imu m;
+        m.header.stamp = t;
+        m.header.frame_id = "base_link";
+        m.orientation.w = q.w();
+        m.orientation.x = q.x();
+        m.orientation.y = q.y();
+        m.orientation.z = q.z();
+        auto get = [&](const char* k) { return f.has(k) ? f.column(k)[i] : 0.0; };
+        m.angular_velocity.x = get("roll_rate") * kDeg;
+        m.angular_velocity.y = -get("pitch_rate") * kDeg;
+        m.angular_velocity.z = -get("yaw_rate") * kDeg;
+        m.linear_acceleration.x = get("ins_acc_x");
+        m.linear_acceleration.y = get("ins_acc_y");
+        m.linear_acceleration.z = get("ins_acc_z");
+        bag.write(BagTopics::kImu, t, m);
+      }
+      if (has_fix) {
+        sensor_msgs::NavSatFix m;
+        m.header.stamp = t;
+        m.header.frame_id = "base_link";
+        m.latitude = f.column("lat")[i];
+        m.longitude = f.column("lon")[i];
+        m.altitude = f.has("utm_z") ? f.column("utm_z")[i] : NAN;  // above the WGS-84 ellipsoid
+        m.position_covariance_type = sensor_msgs::NavSatFix::COVARIANCE_TYPE_UNKNOWN;
+        bag.write(BagTopics::kFix, t, m);
+      }
+      if (!aux.empty()) {
+        magcomp::AuxChannels m;
+        m.header.stamp = t;
+        m.names = aux;
+        m.values.resize(aux.size());
+        for (size_t k = 0; k < aux.size(); ++k) m.values[k] = f.column(aux[k])[i];
+        bag.write(BagTopics::kAux, t, m);
+      }
+      rep.messages += 1 + static_cast<long>(scalars.size() + fluxes.size()) + (f.has("mag_1_c") ? 1 : 0) +
+                      (has_att ? 1 : 0) + (has_fix ? 1 : 0) + (aux.empty() ? 0 : 1);
+    }
+    bag.close();
+  } catch (const rosbag::BagException& e) {
+    std::remove(tmp.c_str());
+    throw Error(bag_path + ": cannot write bag (" + e.what() + ")");
+  } catch (...) {
+    std::remove(tmp.c_str());
+    throw;
+  }
+  if (std::rename(tmp.c_str(), bag_path.c_str()) != 0) {
+    std::remove(tmp.c_str());
+    throw Error(bag_path + ": cannot rename temporary file into place");
+  }
+  return rep;
+}
+
+FlightData bag_to_flight(const std::string& bag_path) {
+  if (!exists(bag_path)) throw Error(bag_path + ": file not found or not readable");
+  rosbag::Bag bag;
+  try {
+    bag.open(bag_path, rosbag::bagmode::Read);
+  } catch (const rosbag::BagException& e) {
+    throw Error(bag_path + ": not a readable rosbag (" + e.what() + ")");
+  }
+  std::vector<std::string> names;
+  {
+    rosbag::View v(bag, rosbag::TopicQuery(std::string(BagTopics::kSchema)));
+    for (const auto& m : v) {
+      auto s = m.instantiate<magcomp::FlightSchema>();
+      if (s) {
+        names = s->names;
+        break;
+      }
+    }
+  }
+  if (names.empty()) {
+    throw Error(bag_path + ": topic '" + BagTopics::kSchema +
+                "' not found: only bags written by magcomp convert can be turned back into flights");
+  }
+  std::vector<std::vector<double>> cols(names.size());
+  rosbag::View v(bag, rosbag::TopicQuery(std::string(BagTopics::kRecord)));
+  long expected_seq = 0;
+  for (const auto& m : v) {
+    auto r = m.instantiate<magcomp::FlightRecord>();
+    if (!r) continue;
+    if (r->values.size() != names.size()) {
+      throw Error(bag_path + ": a record on '" + BagTopics::kRecord + "' has " +
+                  std::to_string(r->values.size()) + " values, the schema names " +
+                  std::to_string(names.size()));
+    }
+    if (static_cast<long>(r->header.seq) != expected_seq) {
+      throw Error(bag_path + ": record " + std::to_string(expected_seq) + " missing or out of order on '" +
+                  BagTopics::kRecord + "'");
+    }
+    ++expected_seq;
+    for (size_t c = 0; c < names.size(); ++c) cols[c].push_back(r->values[c]);
+  }
+  bag.close();
+  FlightData f;
+  f.set_source(bag_path);
+  for (size_t c = 0; c < names.size(); ++c) {
+    f.set(names[c], Eigen::Map<Eigen::VectorXd>(cols[c].data(), static_cast<Eigen::Index>(cols[c].size())));
+  }
+  return f;
+}
+
+}  // namespace magcomp::rosio

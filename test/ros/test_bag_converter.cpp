@@ -1,0 +1,75 @@
+// HDF5 -> bag -> HDF5 is bit-identical (every field, every sample, NaN kept); bad input is named.
+#include <gtest/gtest.h>
+
+#include <cstring>
+#include <fstream>
+
+#include "magcomp/core/error.h"
+#include "magcomp/ros/bag_converter.h"
+#include "scenario_cache.h"
+
+namespace magcomp {
+namespace {
+
+TEST(BagConverter, RoundTripIsBitIdenticalWithNan) {
+  const std::string dir = test::temp_dir("bag");
+  sim::Scenario s = sim::load_scenario(test::source_dir() + "/config/scenarios/wire_strobe.yaml");
+  s.segments.resize(1);
+  FlightData f = sim::simulate(s).flight;
+  Eigen::VectorXd radar = f.column("radar");
+  radar.segment(100, 50).setConstant(std::numeric_limits<double>::quiet_NaN());  // a radar gap
+  f.set("radar", radar);
+  write_flight_h5(f, dir + "/in.h5");
+  std::string out;
+  ASSERT_EQ(test::run(test::cli() + " convert " + dir + "/in.h5 " + dir + "/f.bag", &out), 0) << out;
+  ASSERT_EQ(test::run(test::cli() + " convert " + dir + "/f.bag " + dir + "/back.h5", &out), 0) << out;
+  const FlightData a = read_flight_h5(dir + "/in.h5");
+  const FlightData b = read_flight_h5(dir + "/back.h5");
+  ASSERT_EQ(a.names(), b.names());
+  ASSERT_EQ(a.size(), b.size());
+  long nan_kept = 0;
+  for (const auto& name : a.names()) {
+    const auto& x = a.column(name);
+    const auto& y = b.column(name);
+    ASSERT_EQ(std::memcmp(x.data(), y.data(), sizeof(double) * static_cast<size_t>(x.size())), 0)
+        << name;
+    nan_kept += x.array().isNaN().count();
+  }
+  EXPECT_GE(nan_kept, 50);
+  // Never overwrite without --force.
+  EXPECT_NE(test::run(test::cli() + " convert " + dir + "/in.h5 " + dir + "/f.bag", &out), 0);
+  EXPECT_NE(out.find("--force"), std::string::npos) << out;
+  EXPECT_EQ(test::run(test::cli() + " convert --force " + dir + "/in.h5 " + dir + "/f.bag", &out), 0) << out;
+}
+
+TEST(BagConverter, StampsComeFromYearDoyAndTt) {
+  // 2020 day 181 = 29 June 2020; 00:00 UTC = 1593388800 s.
+  EXPECT_DOUBLE_EQ(rosio::stamp_of(2020, 181, 0.0).toSec(), 1593388800.0);
+  EXPECT_NEAR(rosio::stamp_of(2020, 181, 49820.1).toSec(), 1593388800.0 + 49820.1, 1e-6);
+}
+
+TEST(BagConverter, BadInputIsNamed) {
+  const std::string dir = test::temp_dir("bag");
+  FlightData f;
+  f.set("tt", Eigen::VectorXd::LinSpaced(10, 0, 0.9));
+  f.set("year", Eigen::VectorXd::Constant(10, 2020));
+  f.set("doy", Eigen::VectorXd::Constant(10, 181));
+  Eigen::VectorXd tt = f.tt();
+  tt[4] = std::numeric_limits<double>::quiet_NaN();
+  f.set("tt", tt);
+  try {
+    rosio::flight_to_bag(f, dir + "/x.bag", false);
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("'tt' is NaN at sample 4"), std::string::npos) << e.what();
+  }
+  EXPECT_FALSE(std::ifstream(dir + "/x.bag").good());  // nothing half-written left behind
+  std::ofstream(dir + "/junk.bag") << "junk";
+  EXPECT_THROW(rosio::bag_to_flight(dir + "/junk.bag"), Error);
+  FlightData g;
+  g.set("tt", Eigen::VectorXd::LinSpaced(10, 0, 0.9));
+  EXPECT_THROW(rosio::flight_to_bag(g, dir + "/y.bag", false), Error);  // no year: no stamps
+}
+
+}  // namespace
+}  // namespace magcomp
