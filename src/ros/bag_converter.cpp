@@ -42,8 +42,15 @@ ros::Time stamp_of(int year, int doy, double tt_s) {
   tm.tm_year = year - 1900;
   tm.tm_mon = 0;
   tm.tm_mday = 1;
-  const double midnight = static_cast<double>(timegm(&tm)) + (doy - 1) * 86400.0;
-  return ros::Time(midnight + tt_s);
+  // Whole seconds and the fraction of tt kept apart: exact to the nanosecond (a double of
+  // ~1.6e9 s would only resolve 2.4e-7 s).
+  const double whole = std::floor(tt_s);
+  const int64_t sec = static_cast<int64_t>(timegm(&tm)) + (doy - 1) * 86400LL + static_cast<int64_t>(whole);
+  int64_t nsec = std::llround((tt_s - whole) * 1e9);
+  ros::Time t;
+  t.sec = static_cast<uint32_t>(sec + nsec / 1000000000LL);
+  t.nsec = static_cast<uint32_t>(nsec % 1000000000LL);
+  return t;
 }
 
 ConvertReport flight_to_bag(const FlightData& f, const std::string& bag_path, bool force) {

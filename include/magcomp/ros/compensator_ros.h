@@ -1,0 +1,100 @@
+// magcomp ROS layer: the compensator (one class; the node and the nodelet construct it).
+#pragma once
+
+#include <diagnostic_updater/diagnostic_updater.h>
+#include <diagnostic_updater/publisher.h>
+#include <magcomp/AuxChannels.h>
+#include <magcomp/ScalarMagnetometer.h>
+#include <ros/ros.h>
+#include <sensor_msgs/MagneticField.h>
+#include <sensor_msgs/NavSatFix.h>
+#include <std_srvs/Trigger.h>
+
+#include <Eigen/Core>
+#include <deque>
+#include <memory>
+#include <string>
+
+#include "magcomp/core/streaming_compensator.h"
+
+namespace magcomp::rosio {
+
+/// Subscribes to a scalar magnetometer, a fluxgate, the auxiliary channels, the GNSS fix and
+/// optionally a reference magnetometer; interpolates every input to each scalar stamp (nothing is
+/// dropped for being between two stamps); applies the fitted model sample by sample with the
+/// core's StreamingCompensator; publishes magcomp/CompensatedField. Stamps come from the data.
+/// Survives NaN, gaps, duplicate and out-of-order stamps and jumps back in time (reset), and
+/// reports them in diagnostics. Reloads its model on ~reload or when the file changes, without
+/// losing a sample. Parameters: see config/compensator.yaml.
+class CompensatorRos {
+ public:
+  CompensatorRos(ros::NodeHandle nh, ros::NodeHandle pnh);
+
+ private:
+  struct Timed3 {
+    double t;
+    Eigen::Vector3d v;
+  };
+  struct TimedValues {
+    double t;
+    std::vector<double> v;
+  };
+
+  bool load_model(const std::string& why);
+  void on_scalar(const magcomp::ScalarMagnetometer::ConstPtr& m);
+  void on_vector(const sensor_msgs::MagneticField::ConstPtr& m);
+  void on_aux(const magcomp::AuxChannels::ConstPtr& m);
+  void on_fix(const sensor_msgs::NavSatFix::ConstPtr& m);
+  void on_reference(const magcomp::ScalarMagnetometer::ConstPtr& m);
+  bool on_reload(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res);
+  void on_watch(const ros::TimerEvent&);
+  void process_ready(bool force);
+  void feed(const StreamSample& s);
+  void publish(const StreamOutput& o);
+  void reset_streams(const char* why);
+  void diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat);
+  template <typename T>
+  static bool interpolate(const std::deque<T>& buf, double t, T* out);
+  /// Seconds since the first stamp's whole second: exact to the nanosecond in a double.
+  double rel(const ros::Time& stamp);
+  /// The stamp of a relative time.
+  ros::Time stamp(double t) const;
+
+  ros::NodeHandle nh_, pnh_;
+  // Parameters (SI units, validated at start-up).
+  std::string model_path_, frame_id_;
+  double max_gap_s_ = 1.0, max_wait_s_ = 0.5, jump_back_s_ = 1.0, buffer_s_ = 10.0;
+  bool watch_model_ = true;
+  int marker_stride_ = 10;
+  // State.
+  std::unique_ptr<StreamingCompensator> comp_;
+  std::string model_error_;
+  double model_mtime_ = 0.0;
+  std::deque<std::pair<double, double>> pending_scalar_;  // (t, nT) awaiting vector/aux coverage
+  std::deque<Timed3> vectors_;
+  std::deque<TimedValues> aux_;        // values of the model's channels + diurnal (last)
+  std::deque<Timed3> fixes_;           // lat deg, lon deg, alt m
+  std::deque<std::pair<double, double>> references_;
+  std::deque<StreamSample> history_;   // recent samples, re-fed on a model swap
+  std::vector<std::string> aux_names_; // channel names wanted from AuxChannels
+  double last_scalar_t_ = -1e300, last_published_t_ = -1e300;
+  int64_t base_sec_ = -1;
+  // Counters for diagnostics.
+  long n_in_ = 0, n_out_ = 0, n_nan_ = 0, n_dup_ = 0, n_out_of_order_ = 0, n_jumps_ = 0,
+       n_gaps_ = 0, n_stale_ = 0, n_reloads_ = 0;
+  double last_vector_t_ = NAN;
+  // ROS plumbing.
+  ros::Subscriber sub_scalar_, sub_vector_, sub_aux_, sub_fix_, sub_ref_;
+  ros::Publisher pub_out_, pub_marker_;
+  ros::ServiceServer srv_reload_;
+  ros::WallTimer watch_timer_, diag_timer_;
+  ros::WallTime last_scalar_wall_;
+  double flush_after_s_ = 1.0;
+  diagnostic_updater::Updater updater_;
+  double min_freq_ = 5.0, max_freq_ = 50.0;
+  std::unique_ptr<diagnostic_updater::FrequencyStatus> freq_;
+  std::vector<std::array<double, 4>> track_;  // east m, north m, up m, error nT
+  double origin_lat_ = NAN, origin_lon_ = NAN;
+};
+
+}  // namespace magcomp::rosio

@@ -1,0 +1,445 @@
+// magcomp ROS layer: compensator node class.
+#include "magcomp/ros/compensator_ros.h"
+
+#include <magcomp/CompensatedField.h>
+#include <sys/stat.h>
+#include <visualization_msgs/Marker.h>
+
+#include <algorithm>
+#include <cmath>
+#include <set>
+
+#include "magcomp/core/error.h"
+#include "magcomp/core/igrf.h"
+
+namespace magcomp::rosio {
+namespace {
+
+double file_mtime(const std::string& path) {
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0) return 0.0;
+  return static_cast<double>(st.st_mtim.tv_sec) + 1e-9 * static_cast<double>(st.st_mtim.tv_nsec);
+}
+
+const std::set<std::string> kKnownParams = {
+    "model_path",  "scalar_topic", "vector_topic", "aux_topic",     "fix_topic",
+    "reference_topic", "output_topic", "frame_id", "max_gap_s",     "max_wait_s",
+    "jump_back_s", "buffer_s",     "watch_model", "marker_stride", "expected_rate_hz",
+    "flush_after_s"};
+
+}  // namespace
+
+template <typename T>
+bool CompensatorRos::interpolate(const std::deque<T>& buf, double t, T* out) {
+  if (buf.empty() || t > buf.back().t || t < buf.front().t) return false;
+  auto hi = std::lower_bound(buf.begin(), buf.end(), t, [](const T& a, double x) { return a.t < x; });
+  if (hi->t == t) {
+    *out = *hi;
+    return true;
+  }
+  auto lo = hi - 1;
+  const double w = (t - lo->t) / (hi->t - lo->t);
+  *out = *lo;
+  out->t = t;
+  if constexpr (std::is_same_v<T, Timed3>) {
+    out->v = (1 - w) * lo->v + w * hi->v;
+  } else {
+    for (size_t k = 0; k < out->v.size(); ++k) out->v[k] = (1 - w) * lo->v[k] + w * hi->v[k];
+  }
+  return true;
+}
+
+double CompensatorRos::rel(const ros::Time& s) {
+  if (base_sec_ < 0) base_sec_ = s.sec;
+  return static_cast<double>(static_cast<int64_t>(s.sec) - base_sec_) + 1e-9 * s.nsec;
+}
+
+ros::Time CompensatorRos::stamp(double t) const {
+  const double whole = std::floor(t);
+  int64_t nsec = std::llround((t - whole) * 1e9);
+  const int64_t sec = std::max<int64_t>(0, base_sec_) + static_cast<int64_t>(whole) + nsec / 1000000000LL;
+  nsec %= 1000000000LL;
+  ros::Time out;
+  out.sec = static_cast<uint32_t>(sec);
+  out.nsec = static_cast<uint32_t>(nsec);
+  return out;
+}
+
+CompensatorRos::CompensatorRos(ros::NodeHandle nh, ros::NodeHandle pnh)
+    : nh_(nh), pnh_(pnh), updater_(nh, pnh) {
+  // Unknown private parameters are warned about (typos are not silently ignored).
+  std::vector<std::string> names;
+  ros::param::getParamNames(names);
+  const std::string ns = pnh_.getNamespace() + "/";
+  for (const auto& n : names) {
+    if (n.rfind(ns, 0) == 0) {
+      const std::string key = n.substr(ns.size());
+      if (key.find('/') == std::string::npos && !kKnownParams.count(key)) {
+        ROS_WARN("%s: unknown parameter '%s' ignored", ns.c_str(), key.c_str());
+      }
+    }
+  }
+  if (!pnh_.getParam("model_path", model_path_) || model_path_.empty()) {
+    ROS_FATAL("~model_path: required (a fitted model YAML written by magcomp calibrate)");
+    throw Error("~model_path: required");
+  }
+  pnh_.param("max_gap_s", max_gap_s_, 1.0);
+  pnh_.param("max_wait_s", max_wait_s_, 0.5);
+  pnh_.param("jump_back_s", jump_back_s_, 1.0);
+  pnh_.param("buffer_s", buffer_s_, 10.0);
+  pnh_.param("watch_model", watch_model_, true);
+  pnh_.param("marker_stride", marker_stride_, 10);
+  pnh_.param("flush_after_s", flush_after_s_, 1.0);
+  pnh_.param<std::string>("frame_id", frame_id_, "map");
+  double rate = 10.0;
+  pnh_.param("expected_rate_hz", rate, 10.0);
+  auto positive = [](double v, const char* key) {
+    if (!(v > 0)) {
+      ROS_FATAL("~%s: must be > 0 (s or Hz), got %g", key, v);
+      throw Error(std::string("~") + key + ": must be > 0");
+    }
+  };
+  positive(max_gap_s_, "max_gap_s");
+  positive(max_wait_s_, "max_wait_s");
+  positive(jump_back_s_, "jump_back_s");
+  positive(buffer_s_, "buffer_s");
+  positive(flush_after_s_, "flush_after_s");
+  positive(rate, "expected_rate_hz");
+  if (marker_stride_ < 1) marker_stride_ = 1;
+  min_freq_ = 0.5 * rate;
+  max_freq_ = 2.0 * rate;
+  if (!load_model("start-up")) ROS_ERROR("%s", model_error_.c_str());
+  const std::string scalar = comp_ ? comp_->model().scalar : "mag_5_uc";
+  const std::string vector = comp_ ? comp_->model().vector : "flux_c";
+  std::string scalar_topic, vector_topic, aux_topic, fix_topic, ref_topic, out_topic;
+  pnh_.param<std::string>("scalar_topic", scalar_topic, "/magcomp/scalar/" + scalar);
+  pnh_.param<std::string>("vector_topic", vector_topic, "/magcomp/fluxgate/" + vector);
+  pnh_.param<std::string>("aux_topic", aux_topic, "/magcomp/aux");
+  pnh_.param<std::string>("fix_topic", fix_topic, "/magcomp/ins/fix");
+  pnh_.param<std::string>("reference_topic", ref_topic, "");
+  pnh_.param<std::string>("output_topic", out_topic, "/magcomp/compensated");
+  pub_out_ = nh_.advertise<magcomp::CompensatedField>(out_topic, 100);
+  pub_marker_ = nh_.advertise<visualization_msgs::Marker>(out_topic + "/track", 2, true);
+  const ros::TransportHints hints = ros::TransportHints().tcpNoDelay();
+  sub_scalar_ = nh_.subscribe(scalar_topic, 1000, &CompensatorRos::on_scalar, this, hints);
+  sub_vector_ = nh_.subscribe(vector_topic, 1000, &CompensatorRos::on_vector, this, hints);
+  sub_aux_ = nh_.subscribe(aux_topic, 1000, &CompensatorRos::on_aux, this, hints);
+  sub_fix_ = nh_.subscribe(fix_topic, 1000, &CompensatorRos::on_fix, this, hints);
+  if (!ref_topic.empty()) {
+    sub_ref_ = nh_.subscribe(ref_topic, 1000, &CompensatorRos::on_reference, this, hints);
+  }
+  srv_reload_ = pnh_.advertiseService("reload", &CompensatorRos::on_reload, this);
+  // Wall timers: the model file and the end of a replay happen in wall time, not data time.
+  watch_timer_ = nh_.createWallTimer(ros::WallDuration(0.25), [this](const ros::WallTimerEvent&) {
+    if (watch_model_) on_watch(ros::TimerEvent());
+    // End of stream (bag finished, sensor stopped): emit what is pending instead of keeping it.
+    if ((ros::WallTime::now() - last_scalar_wall_).toSec() > flush_after_s_ &&
+        (!pending_scalar_.empty() || (comp_ && comp_->pending() > 0))) {
+      process_ready(true);
+      if (comp_) {
+        for (const auto& o : comp_->flush()) publish(o);
+        history_.clear();
+      }
+    }
+  });
+  updater_.setHardwareID("magcomp compensator: " + scalar + " with " + vector);
+  updater_.add("compensator", this, &CompensatorRos::diagnose);
+  freq_ = std::make_unique<diagnostic_updater::FrequencyStatus>(
+      diagnostic_updater::FrequencyStatusParam(&min_freq_, &max_freq_, 0.1, 10));
+  updater_.add(*freq_);
+  diag_timer_ = nh_.createWallTimer(ros::WallDuration(1.0),
+                                    [this](const ros::WallTimerEvent&) { updater_.force_update(); });
+  ROS_INFO("magcomp compensator: %s -> %s (model %s)", scalar_topic.c_str(), out_topic.c_str(),
+           model_path_.c_str());
+}
+
+bool CompensatorRos::load_model(const std::string& why) {
+  try {
+    Model m = load_model_yaml(model_path_);
+    auto next = std::make_unique<StreamingCompensator>(std::move(m));
+    const double mtime = file_mtime(model_path_);
+    if (comp_) {
+      if (next->model().scalar != comp_->model().scalar || next->model().vector != comp_->model().vector) {
+        model_error_ = model_path_ + ": the new model's sensors differ from the subscribed ones; not swapped";
+        return false;
+      }
+      // Swap without losing a sample: the new model re-reads the recent samples and takes over
+      // at the first stamp not yet published.
+      for (const auto& s : history_) {
+        for (const auto& o : next->push(s)) {
+          if (o.t_s > last_published_t_) publish(o);
+        }
+      }
+      ++n_reloads_;
+      ROS_INFO("magcomp: model reloaded (%s): terms now %zu, takes effect after t = %.3f",
+               why.c_str(), next->model().terms.size(), last_published_t_);
+    }
+    comp_ = std::move(next);
+    aux_names_ = comp_->required_channels();
+    aux_names_.push_back("diurnal");
+    aux_.clear();
+    model_mtime_ = mtime;
+    model_error_.clear();
+    return true;
+  } catch (const std::exception& e) {
+    model_error_ = e.what();
+    model_mtime_ = file_mtime(model_path_);
+    return false;
+  }
+}
+
+bool CompensatorRos::on_reload(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res) {
+  res.success = load_model("service");
+  res.message = res.success ? "reloaded " + model_path_ : model_error_;
+  return true;
+}
+
+void CompensatorRos::on_watch(const ros::TimerEvent&) {
+  const double m = file_mtime(model_path_);
+  if (m != 0.0 && m != model_mtime_) {
+    if (!load_model("file changed")) ROS_ERROR("magcomp: %s", model_error_.c_str());
+  }
+}
+
+void CompensatorRos::reset_streams(const char* why) {
+  if (comp_) {
+    for (const auto& o : comp_->flush()) publish(o);
+    comp_->reset();
+  }
+  history_.clear();
+  ROS_WARN("magcomp: %s: compensator restarted", why);
+}
+
+void CompensatorRos::on_scalar(const magcomp::ScalarMagnetometer::ConstPtr& m) {
+  const double t = rel(m->header.stamp);
+  ++n_in_;
+  if (t == last_scalar_t_) {
+    ++n_dup_;
+    return;
+  }
+  if (t < last_scalar_t_) {
+    if (last_scalar_t_ - t > jump_back_s_) {  // e.g. a bag played in a loop: start again
+      ++n_jumps_;
+      pending_scalar_.clear();
+      reset_streams("time jumped back");
+      vectors_.clear();
+      aux_.clear();
+      fixes_.clear();
+      references_.clear();
+      last_published_t_ = -1e300;
+      track_.clear();
+    } else {
+      ++n_out_of_order_;
+      return;
+    }
+  }
+  last_scalar_t_ = t;
+  last_scalar_wall_ = ros::WallTime::now();
+  if (!std::isfinite(m->field_nT)) ++n_nan_;
+  pending_scalar_.emplace_back(t, m->field_nT);
+  process_ready(false);
+}
+
+void CompensatorRos::on_vector(const sensor_msgs::MagneticField::ConstPtr& m) {
+  const double t = rel(m->header.stamp);
+  if (!vectors_.empty() && t <= vectors_.back().t) {
+    if (vectors_.back().t - t > jump_back_s_) vectors_.clear(); else return;
+  }
+  vectors_.push_back({t, Eigen::Vector3d(m->magnetic_field.x, m->magnetic_field.y, m->magnetic_field.z) * 1e9});
+  last_vector_t_ = t;
+  while (vectors_.size() > 2 && vectors_.front().t < t - buffer_s_) vectors_.pop_front();
+  process_ready(false);
+}
+
+void CompensatorRos::on_aux(const magcomp::AuxChannels::ConstPtr& m) {
+  const double t = rel(m->header.stamp);
+  if (!aux_.empty() && t <= aux_.back().t) {
+    if (aux_.back().t - t > jump_back_s_) aux_.clear(); else return;
+  }
+  TimedValues tv{t, std::vector<double>(aux_names_.size(), NAN)};
+  for (size_t k = 0; k < aux_names_.size(); ++k) {
+    for (size_t j = 0; j < m->names.size() && j < m->values.size(); ++j) {
+      if (m->names[j] == aux_names_[k]) tv.v[k] = m->values[j];
+    }
+  }
+  aux_.push_back(std::move(tv));
+  while (aux_.size() > 2 && aux_.front().t < t - buffer_s_) aux_.pop_front();
+  process_ready(false);
+}
+
+void CompensatorRos::on_fix(const sensor_msgs::NavSatFix::ConstPtr& m) {
+  const double t = rel(m->header.stamp);
+  if (!fixes_.empty() && t <= fixes_.back().t) {
+    if (fixes_.back().t - t > jump_back_s_) fixes_.clear(); else return;
+  }
+  fixes_.push_back({t, Eigen::Vector3d(m->latitude, m->longitude, m->altitude)});
+  while (fixes_.size() > 2 && fixes_.front().t < t - buffer_s_) fixes_.pop_front();
+}
+
+void CompensatorRos::on_reference(const magcomp::ScalarMagnetometer::ConstPtr& m) {
+  const double t = rel(m->header.stamp);
+  if (!references_.empty() && t <= references_.back().first) {
+    if (references_.back().first - t > jump_back_s_) references_.clear(); else return;
+  }
+  references_.emplace_back(t, m->field_nT);
+  while (references_.size() > 2 && references_.front().first < t - buffer_s_) references_.pop_front();
+}
+
+void CompensatorRos::process_ready(bool force) {
+  if (!comp_) {
+    pending_scalar_.clear();
+    return;
+  }
+  const bool need_aux = aux_names_.size() > 1;
+  while (!pending_scalar_.empty()) {
+    const auto [t, value] = pending_scalar_.front();
+    const bool covered = !vectors_.empty() && vectors_.back().t >= t &&
+                         (!need_aux || (!aux_.empty() && aux_.back().t >= t));
+    const bool waited_enough = last_scalar_t_ - t > max_wait_s_;
+    if (!covered && !waited_enough && !force) return;
+    pending_scalar_.pop_front();
+    StreamSample s;
+    s.t_s = t;
+    s.scalar_nT = value;
+    Timed3 v{};
+    if (interpolate(vectors_, t, &v)) {
+      s.vector_nT = v.v;
+    } else if (!vectors_.empty()) {
+      s.vector_nT = vectors_.back().v;  // waited max_wait_s: hold the latest, and say so
+      ++n_stale_;
+    } else {
+      s.vector_nT.setConstant(NAN);
+      ++n_stale_;
+    }
+    const size_t nc = comp_->required_channels().size();
+    s.channels.assign(nc, NAN);
+    TimedValues a{};
+    if (interpolate(aux_, t, &a) || (!aux_.empty() && (a = aux_.back(), true))) {
+      for (size_t k = 0; k < nc; ++k) s.channels[k] = a.v[k];
+    }
+    if (!history_.empty() && t - history_.back().t_s > max_gap_s_) {
+      ++n_gaps_;
+      reset_streams("gap in the scalar stamps");
+    }
+    feed(s);
+  }
+}
+
+void CompensatorRos::feed(const StreamSample& s) {
+  history_.push_back(s);
+  while (history_.size() > static_cast<size_t>(4 * std::max(comp_->lookahead(), 3) + 4)) history_.pop_front();
+  for (const auto& o : comp_->push(s)) publish(o);
+}
+
+void CompensatorRos::publish(const StreamOutput& o) {
+  if (o.t_s <= last_published_t_) return;
+  last_published_t_ = o.t_s;
+  magcomp::CompensatedField msg;
+  msg.header.stamp = stamp(o.t_s);
+  msg.header.frame_id = comp_ ? comp_->model().scalar.substr(0, 5) : "";
+  msg.measured_nT = o.measured_nT;
+  msg.aircraft_correction_nT = o.correction_nT;
+  msg.compensated_nT = o.compensated_nT;
+  msg.variance_nT2 = comp_ ? std::pow(comp_->model().report.residual_std_nT, 2) : NAN;
+  msg.anomaly_nT = NAN;
+  Timed3 fix{};
+  double diurnal = 0.0;
+  TimedValues a{};
+  if (interpolate(aux_, o.t_s, &a) && std::isfinite(a.v.back())) diurnal = a.v.back();
+  if (interpolate(fixes_, o.t_s, &fix)) {
+    try {
+      const boost::posix_time::ptime p = msg.header.stamp.toBoost();
+      const double year = decimal_year(p.date().year(), p.date().day_of_year(),
+                                       p.time_of_day().total_microseconds() * 1e-6);
+      const double igrf = Igrf::shipped().geodetic(fix.v.x(), fix.v.y(), fix.v.z(), year).total_nT();
+      msg.anomaly_nT = o.compensated_nT - igrf - diurnal;
+    } catch (const std::exception& e) {
+      ROS_WARN_THROTTLE(10, "magcomp: no anomaly: %s", e.what());
+    }
+  }
+  msg.reference_nT = NAN;
+  msg.error_nT = NAN;
+  if (!references_.empty()) {
+    auto it = std::lower_bound(references_.begin(), references_.end(), o.t_s,
+                               [](const std::pair<double, double>& r, double x) { return r.first < x; });
+    if (it != references_.end() && it->first == o.t_s) {
+      msg.reference_nT = it->second;
+    } else if (it != references_.end() && it != references_.begin()) {
+      const auto lo = it - 1;
+      const double w = (o.t_s - lo->first) / (it->first - lo->first);
+      msg.reference_nT = (1 - w) * lo->second + w * it->second;
+    }
+    msg.error_nT = msg.compensated_nT - msg.reference_nT;
+  }
+  pub_out_.publish(msg);
+  ++n_out_;
+  freq_->tick();
+  // rviz: the track in a local east-north-up frame, coloured by the error (or the anomaly).
+  if (std::isfinite(fix.v.x())) {
+    if (!std::isfinite(origin_lat_)) {
+      origin_lat_ = fix.v.x();
+      origin_lon_ = fix.v.y();
+    }
+    const double north = (fix.v.x() - origin_lat_) * M_PI / 180.0 * 6371000.0;
+    const double east = (fix.v.y() - origin_lon_) * M_PI / 180.0 * 6371000.0 * std::cos(origin_lat_ * M_PI / 180.0);
+    if (n_out_ % marker_stride_ == 0 && track_.size() < 50000) {
+      track_.push_back({east, north, 0.0, std::isfinite(msg.error_nT) ? msg.error_nT : msg.anomaly_nT});
+    }
+    if (n_out_ % (marker_stride_ * 20) == 0 && pub_marker_.getNumSubscribers() > 0) {
+      visualization_msgs::Marker mk;
+      mk.header.frame_id = frame_id_;
+      mk.header.stamp = msg.header.stamp;
+      mk.ns = "magcomp_track";
+      mk.type = visualization_msgs::Marker::POINTS;
+      mk.scale.x = mk.scale.y = 30.0;
+      mk.pose.orientation.w = 1.0;
+      double lim = 1e-9;
+      for (const auto& p : track_) lim = std::max(lim, std::abs(p[3]));
+      for (const auto& p : track_) {
+        geometry_msgs::Point pt;
+        pt.x = p[0];
+        pt.y = p[1];
+        mk.points.push_back(pt);
+        std_msgs::ColorRGBA c;
+        const double u = std::isfinite(p[3]) ? 0.5 + 0.5 * p[3] / lim : 0.5;
+        c.r = static_cast<float>(u);
+        c.b = static_cast<float>(1 - u);
+        c.g = 0.2f;
+        c.a = 1.0f;
+        mk.colors.push_back(c);
+      }
+      pub_marker_.publish(mk);
+    }
+  }
+}
+
+void CompensatorRos::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) {
+  if (!comp_) {
+    stat.summary(diagnostic_msgs::DiagnosticStatus::ERROR, "no model: " + model_error_);
+  } else if (n_jumps_ + n_gaps_ + n_out_of_order_ + n_dup_ + n_nan_ + n_stale_ > 0) {
+    stat.summary(diagnostic_msgs::DiagnosticStatus::WARN, "running; input faults seen (see counts)");
+  } else {
+    stat.summary(diagnostic_msgs::DiagnosticStatus::OK, "running");
+  }
+  stat.add("model_path", model_path_);
+  stat.add("model_error", model_error_);
+  if (comp_) {
+    std::string terms;
+    for (const auto& t : comp_->model().terms) terms += (terms.empty() ? "" : " ") + t;
+    stat.add("terms", terms);
+    stat.add("lookahead_samples", comp_->lookahead());
+  }
+  stat.add("model_reloads", n_reloads_);
+  stat.add("scalar_in", n_in_);
+  stat.add("published", n_out_);
+  stat.add("nan_scalar", n_nan_);
+  stat.add("duplicate_stamps", n_dup_);
+  stat.add("out_of_order_dropped", n_out_of_order_);
+  stat.add("time_jumps_back", n_jumps_);
+  stat.add("gaps", n_gaps_);
+  stat.add("stale_inputs_held", n_stale_);
+  stat.add("pending", static_cast<long>(pending_scalar_.size()) + (comp_ ? static_cast<long>(comp_->pending()) : 0));
+  stat.add("scalar_minus_vector_stamp_s", std::isfinite(last_vector_t_) ? last_scalar_t_ - last_vector_t_ : NAN);
+}
+
+}  // namespace magcomp::rosio
