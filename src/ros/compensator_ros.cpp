@@ -153,6 +153,26 @@ CompensatorRos::CompensatorRos(ros::NodeHandle nh, ros::NodeHandle pnh)
            model_path_.c_str());
 }
 
+std::vector<int> CompensatorRos::channel_indices(const std::vector<std::string>& names) const {
+  std::vector<int> idx;
+  for (const auto& n : names) {
+    auto it = std::find(aux_all_names_.begin(), aux_all_names_.end(), n);
+    idx.push_back(it == aux_all_names_.end() ? -1 : static_cast<int>(it - aux_all_names_.begin()));
+  }
+  return idx;
+}
+
+std::vector<double> CompensatorRos::channels_at(double t, const std::vector<int>& index) {
+  std::vector<double> out(index.size(), NAN);
+  TimedValues a{};
+  const bool ok = interpolate(aux_, t, &a) || (!aux_.empty() && (a = aux_.back(), true));
+  if (!ok) return out;
+  for (size_t k = 0; k < index.size(); ++k) {
+    if (index[k] >= 0 && static_cast<size_t>(index[k]) < a.v.size()) out[k] = a.v[static_cast<size_t>(index[k])];
+  }
+  return out;
+}
+
 bool CompensatorRos::load_model(const std::string& why) {
   try {
     Model m = load_model_yaml(model_path_);
@@ -165,7 +185,9 @@ bool CompensatorRos::load_model(const std::string& why) {
       }
       // Swap without losing a sample: the new model re-reads the recent samples and takes over
       // at the first stamp not yet published.
-      for (const auto& s : history_) {
+      const std::vector<int> idx = channel_indices(next->required_channels());
+      for (StreamSample s : history_) {
+        s.channels = channels_at(s.t_s, idx);
         for (const auto& o : next->push(s)) {
           if (o.t_s > last_published_t_) publish(o);
         }
@@ -175,9 +197,7 @@ bool CompensatorRos::load_model(const std::string& why) {
                why.c_str(), next->model().terms.size(), last_published_t_);
     }
     comp_ = std::move(next);
-    aux_names_ = comp_->required_channels();
-    aux_names_.push_back("diurnal");
-    aux_.clear();
+    channel_index_ = channel_indices(comp_->required_channels());
     model_mtime_ = mtime;
     model_error_.clear();
     return true;
@@ -256,12 +276,14 @@ void CompensatorRos::on_aux(const magcomp::AuxChannels::ConstPtr& m) {
   if (!aux_.empty() && t <= aux_.back().t) {
     if (aux_.back().t - t > jump_back_s_) aux_.clear(); else return;
   }
-  TimedValues tv{t, std::vector<double>(aux_names_.size(), NAN)};
-  for (size_t k = 0; k < aux_names_.size(); ++k) {
-    for (size_t j = 0; j < m->names.size() && j < m->values.size(); ++j) {
-      if (m->names[j] == aux_names_[k]) tv.v[k] = m->values[j];
-    }
+  if (m->names != aux_all_names_) {  // a new channel list: re-index (older values are dropped)
+    aux_all_names_ = m->names;
+    aux_.clear();
+    if (comp_) channel_index_ = channel_indices(comp_->required_channels());
+    diurnal_index_ = channel_indices({"diurnal"})[0];
   }
+  TimedValues tv{t, m->values};
+  tv.v.resize(aux_all_names_.size(), NAN);
   aux_.push_back(std::move(tv));
   while (aux_.size() > 2 && aux_.front().t < t - buffer_s_) aux_.pop_front();
   process_ready(false);
@@ -290,7 +312,7 @@ void CompensatorRos::process_ready(bool force) {
     pending_scalar_.clear();
     return;
   }
-  const bool need_aux = aux_names_.size() > 1;
+  const bool need_aux = !channel_index_.empty();
   while (!pending_scalar_.empty()) {
     const auto [t, value] = pending_scalar_.front();
     const bool covered = !vectors_.empty() && vectors_.back().t >= t &&
@@ -311,12 +333,7 @@ void CompensatorRos::process_ready(bool force) {
       s.vector_nT.setConstant(NAN);
       ++n_stale_;
     }
-    const size_t nc = comp_->required_channels().size();
-    s.channels.assign(nc, NAN);
-    TimedValues a{};
-    if (interpolate(aux_, t, &a) || (!aux_.empty() && (a = aux_.back(), true))) {
-      for (size_t k = 0; k < nc; ++k) s.channels[k] = a.v[k];
-    }
+    s.channels = channels_at(t, channel_index_);
     if (!history_.empty() && t - history_.back().t_s > max_gap_s_) {
       ++n_gaps_;
       reset_streams("gap in the scalar stamps");
@@ -344,8 +361,10 @@ void CompensatorRos::publish(const StreamOutput& o) {
   msg.anomaly_nT = NAN;
   Timed3 fix{};
   double diurnal = 0.0;
-  TimedValues a{};
-  if (interpolate(aux_, o.t_s, &a) && std::isfinite(a.v.back())) diurnal = a.v.back();
+  if (diurnal_index_ >= 0) {
+    const double d = channels_at(o.t_s, {diurnal_index_})[0];
+    if (std::isfinite(d)) diurnal = d;
+  }
   if (interpolate(fixes_, o.t_s, &fix)) {
     try {
       const boost::posix_time::ptime p = msg.header.stamp.toBoost();

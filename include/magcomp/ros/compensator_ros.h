@@ -50,6 +50,10 @@ class CompensatorRos {
   void on_watch(const ros::TimerEvent&);
   void process_ready(bool force);
   void feed(const StreamSample& s);
+  /// Index of each named channel in the AuxChannels messages (-1 when absent).
+  std::vector<int> channel_indices(const std::vector<std::string>& names) const;
+  /// Values of the indexed channels at t (interpolated; the latest when t is past the buffer).
+  std::vector<double> channels_at(double t, const std::vector<int>& index);
   void publish(const StreamOutput& o);
   void reset_streams(const char* why);
   void diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat);
@@ -72,11 +76,13 @@ class CompensatorRos {
   double model_mtime_ = 0.0;
   std::deque<std::pair<double, double>> pending_scalar_;  // (t, nT) awaiting vector/aux coverage
   std::deque<Timed3> vectors_;
-  std::deque<TimedValues> aux_;        // values of the model's channels + diurnal (last)
+  std::deque<TimedValues> aux_;        // every channel of the AuxChannels messages (aux_all_names_)
   std::deque<Timed3> fixes_;           // lat deg, lon deg, alt m
   std::deque<std::pair<double, double>> references_;
-  std::deque<StreamSample> history_;   // recent samples, re-fed on a model swap
-  std::vector<std::string> aux_names_; // channel names wanted from AuxChannels
+  std::deque<StreamSample> history_;   // recent samples (channels rebuilt per model), re-fed on a swap
+  std::vector<std::string> aux_all_names_;  // names in the AuxChannels messages
+  std::vector<int> channel_index_;          // the model's channel k -> index in aux_all_names_ (-1: absent)
+  int diurnal_index_ = -1;
   double last_scalar_t_ = -1e300, last_published_t_ = -1e300;
   int64_t base_sec_ = -1;
   // Counters for diagnostics.
