@@ -118,7 +118,8 @@ CompensatorRos::CompensatorRos(ros::NodeHandle nh, ros::NodeHandle pnh)
   pnh_.param<std::string>("fix_topic", fix_topic, "/magcomp/ins/fix");
   pnh_.param<std::string>("reference_topic", ref_topic, "");
   pnh_.param<std::string>("output_topic", out_topic, "/magcomp/compensated");
-  pub_out_ = nh_.advertise<magcomp::CompensatedField>(out_topic, 100);
+  // Deep enough that a fast replay's bursts are never dropped by the transport.
+  pub_out_ = nh_.advertise<magcomp::CompensatedField>(out_topic, 10000);
   pub_marker_ = nh_.advertise<visualization_msgs::Marker>(out_topic + "/track", 2, true);
   const ros::TransportHints hints = ros::TransportHints().tcpNoDelay();
   sub_scalar_ = nh_.subscribe(scalar_topic, 1000, &CompensatorRos::on_scalar, this, hints);
@@ -132,6 +133,7 @@ CompensatorRos::CompensatorRos(ros::NodeHandle nh, ros::NodeHandle pnh)
   // Wall timers: the model file and the end of a replay happen in wall time, not data time.
   watch_timer_ = nh_.createWallTimer(ros::WallDuration(0.25), [this](const ros::WallTimerEvent&) {
     if (watch_model_) on_watch(ros::TimerEvent());
+    process_ready(false);  // inputs that never came: hold the latest once max_wait_s has passed
     // End of stream (bag finished, sensor stopped): emit what is pending instead of keeping it.
     if ((ros::WallTime::now() - last_scalar_wall_).toSec() > flush_after_s_ &&
         (!pending_scalar_.empty() || (comp_ && comp_->pending() > 0))) {
@@ -256,7 +258,7 @@ void CompensatorRos::on_scalar(const magcomp::ScalarMagnetometer::ConstPtr& m) {
   last_scalar_t_ = t;
   last_scalar_wall_ = ros::WallTime::now();
   if (!std::isfinite(m->field_nT)) ++n_nan_;
-  pending_scalar_.emplace_back(t, m->field_nT);
+  pending_scalar_.push_back({t, m->field_nT, ros::WallTime::now().toSec()});
   process_ready(false);
 }
 
@@ -314,10 +316,13 @@ void CompensatorRos::process_ready(bool force) {
   }
   const bool need_aux = !channel_index_.empty();
   while (!pending_scalar_.empty()) {
-    const auto [t, value] = pending_scalar_.front();
+    const auto [t, value, arrived_wall] = pending_scalar_.front();
     const bool covered = !vectors_.empty() && vectors_.back().t >= t &&
                          (!need_aux || (!aux_.empty() && aux_.back().t >= t));
-    const bool waited_enough = last_scalar_t_ - t > max_wait_s_;
+    // Hold the latest inputs only after waiting max_wait_s in data time AND in wall time (on a fast
+    // replay data time runs ahead of the transport; in real time the two agree).
+    const bool waited_enough = last_scalar_t_ - t > max_wait_s_ &&
+                               ros::WallTime::now().toSec() - arrived_wall > max_wait_s_;
     if (!covered && !waited_enough && !force) return;
     pending_scalar_.pop_front();
     StreamSample s;

@@ -74,7 +74,10 @@ class CompensatorRos {
   std::unique_ptr<StreamingCompensator> comp_;
   std::string model_error_;
   double model_mtime_ = 0.0;
-  std::deque<std::pair<double, double>> pending_scalar_;  // (t, nT) awaiting vector/aux coverage
+  struct PendingScalar {
+    double t, value_nT, arrived_wall_s;
+  };
+  std::deque<PendingScalar> pending_scalar_;  // awaiting vector/aux coverage
   std::deque<Timed3> vectors_;
   std::deque<TimedValues> aux_;        // every channel of the AuxChannels messages (aux_all_names_)
   std::deque<Timed3> fixes_;           // lat deg, lon deg, alt m

@@ -1,0 +1,108 @@
+// magcomp benchmark: compensator throughput and latency through ROS (run by scripts/bench_ros).
+// Publishes a flight's scalar, fluxgate and aux messages as fast as the compensator keeps up, and
+// measures: samples per second end to end, and the latency from publishing the message that
+// completes an output's window (sample i + lookahead) to receiving output i. Nothing may be lost.
+#include <magcomp/AuxChannels.h>
+#include <magcomp/CompensatedField.h>
+#include <magcomp/ScalarMagnetometer.h>
+#include <ros/ros.h>
+#include <sensor_msgs/MagneticField.h>
+
+#include <algorithm>
+#include <atomic>
+#include <mutex>
+
+#include "magcomp/core/model.h"
+#include "magcomp/ros/bag_converter.h"
+
+namespace {
+std::mutex g_mutex;
+std::vector<double> g_recv_wall;  // by sample index
+std::atomic<long> g_received{0};
+double g_t0_stamp = 0;
+}  // namespace
+
+int main(int argc, char** argv) {
+  ros::init(argc, argv, "bench_compensator");
+  ros::NodeHandle nh, pnh("~");
+  std::string h5, model_path;
+  int lookahead = 6, window = 800;
+  pnh.getParam("h5", h5);
+  pnh.getParam("model", model_path);
+  pnh.param("lookahead", lookahead, 6);
+  pnh.param("in_flight", window, 800);  // samples in flight at most (back-pressure, no drops)
+  double rate_hz = 0.0;                  // 0: as fast as possible (throughput); else paced (latency)
+  pnh.param("rate_hz", rate_hz, 0.0);
+  const magcomp::FlightData f = magcomp::read_flight_h5(h5);
+  const magcomp::Model m = magcomp::load_model_yaml(model_path);
+  const Eigen::Index n = f.size();
+  g_recv_wall.assign(static_cast<size_t>(n), -1);
+  std::vector<double> sent_wall(static_cast<size_t>(n), -1);
+  const int year = static_cast<int>(f.column("year")[0]), doy = static_cast<int>(f.column("doy")[0]);
+  g_t0_stamp = magcomp::rosio::stamp_of(year, doy, f.tt()[0]).toSec();
+  auto scalar = nh.advertise<magcomp::ScalarMagnetometer>("/magcomp/scalar/" + m.scalar, 10000);
+  auto vec = nh.advertise<sensor_msgs::MagneticField>("/magcomp/fluxgate/" + m.vector, 10000);
+  auto aux = nh.advertise<magcomp::AuxChannels>("/magcomp/aux", 10000);
+  ros::Subscriber sub = nh.subscribe<magcomp::CompensatedField>(
+      "/magcomp/compensated", 100000, [&](const magcomp::CompensatedField::ConstPtr& o) {
+        const long i = std::lround((o->header.stamp.toSec() - g_t0_stamp) * 10.0);
+        if (i >= 0 && i < n) g_recv_wall[static_cast<size_t>(i)] = ros::WallTime::now().toSec();
+        ++g_received;
+      }, ros::VoidConstPtr(), ros::TransportHints().tcpNoDelay());
+  ros::AsyncSpinner spinner(1);
+  spinner.start();
+  while ((scalar.getNumSubscribers() == 0 || vec.getNumSubscribers() == 0 || aux.getNumSubscribers() == 0 ||
+          sub.getNumPublishers() == 0) && ros::ok()) {
+    ros::WallDuration(0.05).sleep();
+  }
+  ros::WallDuration(0.5).sleep();
+  std::vector<std::string> names;
+  for (const auto& name : f.names()) {
+    if (name.rfind("cur_", 0) == 0 || name.rfind("vol_", 0) == 0 || name == "diurnal") names.push_back(name);
+  }
+  const double start = ros::WallTime::now().toSec();
+  for (Eigen::Index i = 0; i < n && ros::ok(); ++i) {
+    while (i - g_received > window) ros::WallDuration(0.0001).sleep();  // back-pressure
+    if (rate_hz > 0) {
+      const double due = start + static_cast<double>(i) / rate_hz;
+      while (ros::WallTime::now().toSec() < due) ros::WallDuration(0.00005).sleep();
+    }
+    const ros::Time t = magcomp::rosio::stamp_of(year, doy, f.tt()[i]);
+    sensor_msgs::MagneticField v;
+    v.header.stamp = t;
+    v.magnetic_field.x = f.column(m.vector + "_x")[i] * 1e-9;
+    v.magnetic_field.y = f.column(m.vector + "_y")[i] * 1e-9;
+    v.magnetic_field.z = f.column(m.vector + "_z")[i] * 1e-9;
+    vec.publish(v);
+    magcomp::AuxChannels a;
+    a.header.stamp = t;
+    a.names = names;
+    for (const auto& k : names) a.values.push_back(f.column(k)[i]);
+    aux.publish(a);
+    magcomp::ScalarMagnetometer s;
+    s.header.stamp = t;
+    s.field_nT = f.column(m.scalar)[i];
+    sent_wall[static_cast<size_t>(i)] = ros::WallTime::now().toSec();
+    scalar.publish(s);
+  }
+  while (g_received < n && ros::ok() && ros::WallTime::now().toSec() - start < 120) ros::WallDuration(0.01).sleep();
+  const double elapsed = ros::WallTime::now().toSec() - start;
+  std::vector<double> lat;
+  for (Eigen::Index i = 0; i + lookahead < n; ++i) {
+    if (g_recv_wall[static_cast<size_t>(i)] > 0) lat.push_back(g_recv_wall[static_cast<size_t>(i)] - sent_wall[static_cast<size_t>(i + lookahead)]);
+  }
+  std::sort(lat.begin(), lat.end());
+  long shown = 0;
+  for (Eigen::Index i = 0; i < n && shown < 12; ++i) {
+    if (g_recv_wall[static_cast<size_t>(i)] < 0) {
+      std::printf("missing sample %ld (tt %.1f)\n", static_cast<long>(i), f.tt()[i]);
+      ++shown;
+    }
+  }
+  auto pct = [&](double p) { return lat.empty() ? NAN : 1e3 * lat[static_cast<size_t>(p * (lat.size() - 1))]; };
+  std::printf("%s: ", rate_hz > 0 ? ("paced at " + std::to_string(static_cast<int>(rate_hz)) + " Hz").c_str() : "flood");
+  std::printf("samples %ld, received %ld (lost %ld), %.0f samples/s end to end; latency ms: p50 %.3f p99 %.3f max %.3f\n",
+              static_cast<long>(n), static_cast<long>(g_received), static_cast<long>(n - g_received),
+              n / elapsed, pct(0.5), pct(0.99), pct(1.0));
+  return g_received == n ? 0 : 1;
+}
