@@ -28,15 +28,19 @@ void add_convert(CLI::App& app) {
       std::cout << "wrote " << *out << ": " << r.samples << " samples x " << r.fields << " fields, "
                 << r.messages << " messages";
     } else if (ends(*in, ".bag") && ends(*out, ".h5")) {
-      if (!*force && std::ifstream(*out).good()) throw Error(*out + ": exists; pass --force to overwrite");
+      if (!*force && std::ifstream(*out).good())
+        throw Error(*out + ": exists; pass --force to overwrite");
       const FlightData f = rosio::bag_to_flight(*in);
       write_flight_h5(f, *out);
-      std::cout << "wrote " << *out << ": " << f.size() << " samples x " << f.names().size() << " fields";
+      std::cout << "wrote " << *out << ": " << f.size() << " samples x " << f.names().size()
+                << " fields";
     } else {
-      throw Error("convert: give IN.h5 OUT.bag or IN.bag OUT.h5 (got '" + *in + "' '" + *out + "')");
+      throw Error("convert: give IN.h5 OUT.bag or IN.bag OUT.h5 (got '" + *in + "' '" + *out +
+                  "')");
     }
     std::cout << " in "
-              << std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() << " s\n";
+              << std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count()
+              << " s\n";
   });
 }
 

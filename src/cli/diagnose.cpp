@@ -29,9 +29,10 @@ void add_diagnose(CLI::App& app) {
     std::printf("model: %s with %s, terms:", model.scalar.c_str(), model.vector.c_str());
     for (const auto& t : model.terms) std::printf(" %s", t.c_str());
     std::printf("\nsplit: %s\n", dx.split.c_str());
-    std::printf("baseline: held-out error std %.3f nT (line means removed) on %ld samples; fit on %ld\n\n",
-                dx.baseline_std_nT, static_cast<long>(dx.heldout_samples),
-                static_cast<long>(dx.fit_samples));
+    std::printf(
+        "baseline: held-out error std %.3f nT (line means removed) on %ld samples; fit on %ld\n\n",
+        dx.baseline_std_nT, static_cast<long>(dx.heldout_samples),
+        static_cast<long>(dx.fit_samples));
     std::printf("%-4s %-22s %11s %11s %9s  %-26s %s\n", "rank", "term (--term)", "std_before",
                 "std_after", "explained", "estimate", "effect");
     for (size_t k = 0; k < dx.candidates.size() && static_cast<int>(k) < *top; ++k) {
@@ -42,8 +43,10 @@ void add_diagnose(CLI::App& app) {
     }
     if (!dx.candidates.empty()) {
       const Candidate& best = dx.candidates.front();
-      std::printf("\nto add the top effect:\n  magcomp calibrate --data %s --model %s --term %s --out NEW.yaml\n",
-                  data->c_str(), model_path->c_str(), best.term.c_str());
+      std::printf(
+          "\nto add the top effect:\n  magcomp calibrate --data %s --model %s --term %s --out "
+          "NEW.yaml\n",
+          data->c_str(), model_path->c_str(), best.term.c_str());
     }
     std::printf("\nresidual vs channel (held-out, line means removed), strongest first:\n");
     std::printf("  %-14s %8s %9s %8s\n", "channel", "pearson", "spearman", "MI_bits");

@@ -29,12 +29,14 @@ nlohmann::json to_json(const Evaluation& ev) {
   j["std_nT"] = ev.std_nT;
   j["per_line"] = nlohmann::json::array();
   for (const auto& l : ev.per_line) {
-    j["per_line"].push_back({{"line", l.line}, {"n", l.n}, {"rmse_nT", l.rmse_nT}, {"std_nT", l.std_nT}});
+    j["per_line"].push_back(
+        {{"line", l.line}, {"n", l.n}, {"rmse_nT", l.rmse_nT}, {"std_nT", l.std_nT}});
   }
-  for (const auto& [key, groups] : {std::pair{"per_condition", &ev.per_condition},
-                                    std::pair{"per_heading", &ev.per_heading}}) {
+  for (const auto& [key, groups] :
+       {std::pair{"per_condition", &ev.per_condition}, std::pair{"per_heading", &ev.per_heading}}) {
     j[key] = nlohmann::json::array();
-    for (const auto& g : *groups) j[key].push_back({{"name", g.name}, {"n", g.n}, {"std_nT", g.std_nT}});
+    for (const auto& g : *groups)
+      j[key].push_back({{"name", g.name}, {"n", g.n}, {"std_nT", g.std_nT}});
   }
   return j;
 }
@@ -51,7 +53,8 @@ void write_series(const std::string& path, const FlightData& flight, const Model
                   const Evaluation& ev, const std::string& truth, const Evaluation* baseline) {
   FlightData s;
   s.set_source(path);
-  for (const char* f : {"tt", "line", "lat", "lon", "utm_x", "utm_y", "ins_yaw", "ins_roll", "ins_pitch"}) {
+  for (const char* f :
+       {"tt", "line", "lat", "lon", "utm_x", "utm_y", "ins_yaw", "ins_roll", "ins_pitch"}) {
     if (flight.has(f)) s.set(f, flight.column(f));
   }
   const Eigen::VectorXd measured = aligned_scalar(model, flight);
@@ -91,7 +94,8 @@ void add_evaluate(CLI::App& app) {
   cmd->add_option("--truth", *truth, "reference field (default mag_1_c)");
   cmd->add_option("--json", *json_path, "write the evaluation JSON here");
   cmd->add_option("--report", *report, "write an HTML report with plots into this directory");
-  cmd->add_option("--baseline", *baseline_path, "a second fitted model to compare with (before/after)");
+  cmd->add_option("--baseline", *baseline_path,
+                  "a second fitted model to compare with (before/after)");
   cmd->callback([=] {
     const Model model = load_model_yaml(*model_path);
     if (!model.fitted()) throw Error(*model_path + ": model has no coefficients; run calibrate");
@@ -103,10 +107,12 @@ void add_evaluate(CLI::App& app) {
       if (!b.fitted()) throw Error(*baseline_path + ": model has no coefficients; run calibrate");
       base = std::make_unique<Evaluation>(evaluate_model(b, flight, *truth));
     }
-    std::printf("%-10s %8s %12s %10s%s\n", "line", "n", "rmse_nT", "std_nT", base ? "   baseline_std_nT" : "");
+    std::printf("%-10s %8s %12s %10s%s\n", "line", "n", "rmse_nT", "std_nT",
+                base ? "   baseline_std_nT" : "");
     for (size_t k = 0; k < ev.per_line.size(); ++k) {
       const auto& l = ev.per_line[k];
-      std::printf("%-10.2f %8ld %12.3f %10.3f", l.line, static_cast<long>(l.n), l.rmse_nT, l.std_nT);
+      std::printf("%-10.2f %8ld %12.3f %10.3f", l.line, static_cast<long>(l.n), l.rmse_nT,
+                  l.std_nT);
       if (base && k < base->per_line.size()) std::printf(" %17.3f", base->per_line[k].std_nT);
       std::printf("\n");
     }
@@ -116,7 +122,8 @@ void add_evaluate(CLI::App& app) {
       std::printf("\n(%ld samples with NaN in the model inputs or the reference were skipped)\n",
                   static_cast<long>(ev.nan_samples));
     }
-    std::printf("\n%-10s %8ld %12.3f %10.3f", "all", static_cast<long>(ev.n), ev.rmse_nT, ev.std_nT);
+    std::printf("\n%-10s %8ld %12.3f %10.3f", "all", static_cast<long>(ev.n), ev.rmse_nT,
+                ev.std_nT);
     if (base) std::printf(" %17.3f", base->std_nT);
     std::printf("\n");
     nlohmann::json j = to_json(ev);
@@ -138,7 +145,8 @@ void add_evaluate(CLI::App& app) {
       write_series(*report + "/series.h5", flight, model, ev, *truth, base.get());
       std::ofstream(*report + "/evaluation.json") << j.dump(2) << "\n";
       const char* env = std::getenv("MAGCOMP_SCRIPTS_DIR");
-      const std::string script = std::string(env && *env ? env : MAGCOMP_SCRIPTS_DIR) + "/magcomp_report.py";
+      const std::string script =
+          std::string(env && *env ? env : MAGCOMP_SCRIPTS_DIR) + "/magcomp_report.py";
       const std::string cmdline = "/usr/bin/python3 '" + script + "' '" + *report + "'";
       if (std::system(cmdline.c_str()) != 0) {
         std::cerr << "warning: " << script << " failed; the report's data is in " << *report

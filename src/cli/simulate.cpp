@@ -8,7 +8,8 @@
 namespace magcomp::cli {
 
 void add_simulate(CLI::App& app) {
-  auto* cmd = app.add_subcommand("simulate", "simulate a flight (with hidden effects) from a scenario");
+  auto* cmd =
+      app.add_subcommand("simulate", "simulate a flight (with hidden effects) from a scenario");
   auto scenario = std::make_shared<std::string>();
   auto out = std::make_shared<std::string>();
   auto seed = std::make_shared<long long>(-1);

@@ -47,9 +47,9 @@ std::vector<std::array<double, 2>> pole_pairs_to_denominators(std::vector<cd> po
 
 }  // namespace
 
-Butterworth::Butterworth(FilterType type, int order, double low_hz, double high_hz,
-                         double fs) {
-  if (order < 1 || order > 20) throw Error("filter: order " + std::to_string(order) + " not in 1..20");
+Butterworth::Butterworth(FilterType type, int order, double low_hz, double high_hz, double fs) {
+  if (order < 1 || order > 20)
+    throw Error("filter: order " + std::to_string(order) + " not in 1..20");
 
   if (!(fs > 0)) throw Error("filter: sample_rate_hz must be positive");
   const double nyq = fs / 2.0;

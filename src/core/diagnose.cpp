@@ -31,7 +31,8 @@ std::string family(const std::string& spec) {
 Eigen::VectorXd ranks(const Eigen::VectorXd& x) {
   std::vector<Eigen::Index> order(static_cast<size_t>(x.size()));
   std::iota(order.begin(), order.end(), 0);
-  std::sort(order.begin(), order.end(), [&](Eigen::Index a, Eigen::Index b) { return x[a] < x[b]; });
+  std::sort(order.begin(), order.end(),
+            [&](Eigen::Index a, Eigen::Index b) { return x[a] < x[b]; });
   Eigen::VectorXd r(x.size());
   for (size_t i = 0; i < order.size();) {
     size_t j = i;
@@ -135,7 +136,8 @@ Diagnosis diagnose(const Model& model, const FlightData& data, const std::string
   } else {
     std::vector<double> lines;
     for (Eigen::Index i = 0; i < n; ++i) {
-      if (std::isfinite(line[i]) && (lines.empty() || std::find(lines.begin(), lines.end(), line[i]) == lines.end())) {
+      if (std::isfinite(line[i]) &&
+          (lines.empty() || std::find(lines.begin(), lines.end(), line[i]) == lines.end())) {
         lines.push_back(line[i]);
       }
     }
@@ -172,7 +174,8 @@ Diagnosis diagnose(const Model& model, const FlightData& data, const std::string
   const Eigen::VectorXd e0 = scalar - truth - a0 * c0;  // error of the refitted model
   std::vector<Eigen::Index> held;
   for (Eigen::Index i = 0; i < n; ++i) {
-    if (!in_fit[static_cast<size_t>(i)] && std::isfinite(e0[i]) && std::isfinite(line[i])) held.push_back(i);
+    if (!in_fit[static_cast<size_t>(i)] && std::isfinite(e0[i]) && std::isfinite(line[i]))
+      held.push_back(i);
   }
   if (held.size() < 10) throw Error(data.source() + ": too few held-out samples for diagnose");
   dx.heldout_samples = static_cast<Eigen::Index>(held.size());

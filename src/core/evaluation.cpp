@@ -72,13 +72,16 @@ Evaluation error_statistics(const FlightData& data, const Eigen::VectorXd& error
     }
     for (int c = 0; c < kConditionCount; ++c) {
       if (n_c[static_cast<size_t>(c)] == 0) continue;
-      ev.per_condition.push_back({condition_name(static_cast<FlightCondition>(c)), n_c[static_cast<size_t>(c)],
-                                  std::sqrt(ss_c[static_cast<size_t>(c)] / static_cast<double>(n_c[static_cast<size_t>(c)]))});
+      ev.per_condition.push_back({condition_name(static_cast<FlightCondition>(c)),
+                                  n_c[static_cast<size_t>(c)],
+                                  std::sqrt(ss_c[static_cast<size_t>(c)] /
+                                            static_cast<double>(n_c[static_cast<size_t>(c)]))});
     }
     for (int h = 0; h < 8; ++h) {
       if (n_h[static_cast<size_t>(h)] == 0) continue;
       ev.per_heading.push_back({sector_name(h), n_h[static_cast<size_t>(h)],
-                                std::sqrt(ss_h[static_cast<size_t>(h)] / static_cast<double>(n_h[static_cast<size_t>(h)]))});
+                                std::sqrt(ss_h[static_cast<size_t>(h)] /
+                                          static_cast<double>(n_h[static_cast<size_t>(h)]))});
     }
   }
   return ev;

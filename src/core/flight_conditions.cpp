@@ -7,12 +7,18 @@ namespace magcomp {
 
 const char* condition_name(FlightCondition c) {
   switch (c) {
-    case FlightCondition::kStraightLevel: return "straight_level";
-    case FlightCondition::kTurn: return "turn";
-    case FlightCondition::kClimbDescent: return "climb_descent";
-    case FlightCondition::kPitchManeuver: return "maneuver_pitch";
-    case FlightCondition::kRollManeuver: return "maneuver_roll";
-    case FlightCondition::kYawManeuver: return "maneuver_yaw";
+    case FlightCondition::kStraightLevel:
+      return "straight_level";
+    case FlightCondition::kTurn:
+      return "turn";
+    case FlightCondition::kClimbDescent:
+      return "climb_descent";
+    case FlightCondition::kPitchManeuver:
+      return "maneuver_pitch";
+    case FlightCondition::kRollManeuver:
+      return "maneuver_roll";
+    case FlightCondition::kYawManeuver:
+      return "maneuver_yaw";
   }
   return "unknown";
 }

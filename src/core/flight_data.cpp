@@ -11,11 +11,11 @@ namespace magcomp {
 std::string FlightData::canonical_name(const std::string& name) {
   // Older (2020 first release) names -> final names, DATA.md.
   static const std::unordered_map<std::string, std::string> kAliases = {
-      {"tie_line", "line"},   {"utmX", "utm_x"},          {"utmY", "utm_y"},
-      {"utmZ", "utm_z"},      {"alt", "msl"},             {"ins_azim", "ins_yaw"},
+      {"tie_line", "line"},       {"utmX", "utm_x"},        {"utmY", "utm_y"},
+      {"utmZ", "utm_z"},          {"alt", "msl"},           {"ins_azim", "ins_yaw"},
       {"pitch_rt", "pitch_rate"}, {"roll_rt", "roll_rate"}, {"yaw_rt", "yaw_rate"},
-      {"lon_acc", "lgtl_acc"}, {"lat_acc", "ltrl_acc"},   {"alt_acc", "nrml_acc"},
-      {"true_as", "tas"},     {"vol_servo", "vol_srvo"}};
+      {"lon_acc", "lgtl_acc"},    {"lat_acc", "ltrl_acc"},  {"alt_acc", "nrml_acc"},
+      {"true_as", "tas"},         {"vol_servo", "vol_srvo"}};
   auto it = kAliases.find(name);
   return it == kAliases.end() ? name : it->second;
 }

@@ -86,8 +86,8 @@ FlightData read_flight_h5(const std::string& path) {
     }
     Dataset d = read_dataset(file.id, path, name);
     if (!d.numeric) continue;
-    const bool scalar = d.dims.empty() || (d.dims.size() == 1 && d.dims[0] == 1 &&
-                                           (name == "N" || name == "dt"));
+    const bool scalar =
+        d.dims.empty() || (d.dims.size() == 1 && d.dims[0] == 1 && (name == "N" || name == "dt"));
     if (scalar) continue;  // `N`, `dt`: derived from tt instead (dt is wrong in some files)
     if (d.dims.size() != 1) {
       if (d.dims.size() == 2 && (d.dims[0] == 1 || d.dims[1] == 1)) {
@@ -100,8 +100,8 @@ FlightData read_flight_h5(const std::string& path) {
     series.push_back(std::move(d));
   }
 
-  auto tt_it = std::find_if(series.begin(), series.end(),
-                            [](const Dataset& d) { return d.name == "tt"; });
+  auto tt_it =
+      std::find_if(series.begin(), series.end(), [](const Dataset& d) { return d.name == "tt"; });
   if (tt_it == series.end()) throw Error(path + ": field 'tt' not found");
   const size_t n = tt_it->values.size();
   if (n == 0) throw Error(path + ": field 'tt' is empty");
@@ -147,8 +147,7 @@ void write_flight_h5(const FlightData& data, const std::string& path) {
     H5Handle file(H5Fcreate(tmp.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose);
     if (file.id < 0) throw Error(path + ": cannot create file");
     auto write = [&](const std::string& name, const double* values, hsize_t n, bool scalar) {
-      H5Handle space(scalar ? H5Screate(H5S_SCALAR) : H5Screate_simple(1, &n, nullptr),
-                     H5Sclose);
+      H5Handle space(scalar ? H5Screate(H5S_SCALAR) : H5Screate_simple(1, &n, nullptr), H5Sclose);
       H5Handle ds(H5Dcreate2(file.id, name.c_str(), H5T_IEEE_F64LE, space.id, H5P_DEFAULT,
                              H5P_DEFAULT, H5P_DEFAULT),
                   H5Dclose);

@@ -17,7 +17,7 @@ namespace {
 
 constexpr double kDeg = M_PI / 180.0;
 constexpr double kReferenceRadiusKm = 6371.2;
-constexpr double kWgs84A = 6378.137;              // km
+constexpr double kWgs84A = 6378.137;  // km
 constexpr double kWgs84F = 1.0 / 298.257223563;
 
 inline size_t idx(int n, int m) { return static_cast<size_t>(n * (n + 1) / 2 + m); }
@@ -82,7 +82,8 @@ Igrf Igrf::load(const std::string& path) {
     }
     const bool is_h = (m > 0 && pending_n == n && pending_m == m);
     for (int e = 0; e < n_epochs; ++e) {
-      (is_h ? model.h_ : model.g_)[static_cast<size_t>(e)][idx(n, m)] = values[static_cast<size_t>(e)];
+      (is_h ? model.h_ : model.g_)[static_cast<size_t>(e)][idx(n, m)] =
+          values[static_cast<size_t>(e)];
     }
     if (m > 0 && !is_h) {
       pending_n = n;
@@ -121,7 +122,8 @@ FieldNED Igrf::geocentric(double colat_deg, double lon_deg, double r_km, double 
     double pmm = 1.0;
     for (int k = 1; k <= m; ++k) pmm *= (2.0 * k - 1.0) * s;
     if (m <= nmax + 1) p[static_cast<size_t>(m)][static_cast<size_t>(m)] = pmm;
-    if (m + 1 <= nmax + 1) p[static_cast<size_t>(m + 1)][static_cast<size_t>(m)] = x * (2.0 * m + 1.0) * pmm;
+    if (m + 1 <= nmax + 1)
+      p[static_cast<size_t>(m + 1)][static_cast<size_t>(m)] = x * (2.0 * m + 1.0) * pmm;
     for (int n = m + 2; n <= nmax + 1; ++n) {
       p[static_cast<size_t>(n)][static_cast<size_t>(m)] =
           ((2.0 * n - 1.0) * x * p[static_cast<size_t>(n - 1)][static_cast<size_t>(m)] -
@@ -145,9 +147,9 @@ FieldNED Igrf::geocentric(double colat_deg, double lon_deg, double r_km, double 
       const double h = (1 - w) * h_[e][idx(n, m)] + w * h_[e + 1][idx(n, m)];
       const double cm = std::cos(m * phi), sm = std::sin(m * phi);
       const double pnm = schmidt * P(n, m);
-      const double dpnm = schmidt * (m == 0 ? -P(n, 1)
-                                            : 0.5 * ((n + m) * (n - m + 1.0) * P(n, m - 1) -
-                                                     P(n, m + 1)));
+      const double dpnm =
+          schmidt *
+          (m == 0 ? -P(n, 1) : 0.5 * ((n + m) * (n - m + 1.0) * P(n, m - 1) - P(n, m + 1)));
       bx += ratio * (g * cm + h * sm) * dpnm;
       bz -= ratio * (n + 1.0) * (g * cm + h * sm) * pnm;
       if (s > 1e-12) by += ratio * m * (g * sm - h * cm) * pnm / s;
@@ -162,8 +164,8 @@ FieldNED Igrf::geodetic(double lat_deg, double lon_deg, double height_m, double 
   const double e2 = kWgs84F * (2.0 - kWgs84F);
   const double sl = std::sin(lat), cl = std::cos(lat);
   const double nu = kWgs84A / std::sqrt(1.0 - e2 * sl * sl);
-  const double rho = (nu + h) * cl;              // distance from the axis, km
-  const double z = (nu * (1.0 - e2) + h) * sl;   // along the axis, km
+  const double rho = (nu + h) * cl;             // distance from the axis, km
+  const double z = (nu * (1.0 - e2) + h) * sl;  // along the axis, km
   const double r = std::hypot(rho, z);
   const double lat_gc = std::atan2(z, rho);
   const FieldNED gc = geocentric(90.0 - lat_gc / kDeg, lon_deg, r, year);

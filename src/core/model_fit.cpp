@@ -124,18 +124,18 @@ std::vector<std::pair<Eigen::Index, Eigen::Index>> calibration_runs(
   const bool bandpass = s.method == "bandpass";
   std::vector<Eigen::Index> selected;
   if (s.lines.empty() && s.windows.empty()) {
-    if (bandpass) throw Error("fit: bandpass needs calibration segments (fit.lines or fit.windows)");
+    if (bandpass)
+      throw Error("fit: bandpass needs calibration segments (fit.lines or fit.windows)");
     selected.resize(static_cast<size_t>(data.size()));
     for (Eigen::Index i = 0; i < data.size(); ++i) selected[static_cast<size_t>(i)] = i;
   } else {
     selected = data.select(s.lines, s.windows);
   }
   // Rows with NaN anywhere in the regression are dropped: a segment is split there.
-  selected.erase(std::remove_if(selected.begin(), selected.end(),
-                                [&](Eigen::Index i) {
-                                  return !std::isfinite(y[i]) || !a.row(i).allFinite();
-                                }),
-                 selected.end());
+  selected.erase(
+      std::remove_if(selected.begin(), selected.end(),
+                     [&](Eigen::Index i) { return !std::isfinite(y[i]) || !a.row(i).allFinite(); }),
+      selected.end());
   const auto runs = data.contiguous_runs(selected, 1.5 * data.dt_s());
   const Eigen::Index min_len = bandpass ? 2 * s.trim + 10 : 1;
   std::vector<std::pair<Eigen::Index, Eigen::Index>> kept;
@@ -181,7 +181,8 @@ Eigen::VectorXd fit_target(const Model& model, const FlightData& data) {
   Eigen::VectorXd y = aligned_scalar(model, data);
   if (model.fit.method == "reference") {
     if (!data.has(model.fit.reference)) {
-      throw Error(data.source() + ": field '" + model.fit.reference + "' (fit.reference) not found");
+      throw Error(data.source() + ": field '" + model.fit.reference +
+                  "' (fit.reference) not found");
     }
     y -= data.column(model.fit.reference);
   }
@@ -218,8 +219,9 @@ void fit_model(Model& model, const std::vector<const FlightData*>& flights) {
   const Eigen::Index p = static_cast<Eigen::Index>(keep.size());
   const Eigen::Index fitted_cols = std::count(keep.begin(), keep.end(), true);
   if (rows == 0) {
-    throw Error("fit: the calibration selection (fit.lines / fit.windows) holds no usable sample in " +
-                sources);
+    throw Error(
+        "fit: the calibration selection (fit.lines / fit.windows) holds no usable sample in " +
+        sources);
   }
   if (rows < 2 * fitted_cols) {
     throw Error("fit: only " + std::to_string(rows) + " usable samples for " +

@@ -1,11 +1,11 @@
 // magcomp: model YAML load and atomic save.
 #include <yaml-cpp/yaml.h>
 
+#include <unistd.h>
 #include <cstdio>
 #include <fstream>
 #include <iostream>
 #include <set>
-#include <unistd.h>
 
 #include "magcomp/core/error.h"
 #include "magcomp/core/model.h"
@@ -80,7 +80,8 @@ Model load_model_yaml(const std::string& path) {
     FitSettings& s = m.fit;
     if (f["method"]) s.method = get<std::string>(f["method"], path, "fit.method");
     if (s.method != "bandpass" && s.method != "reference") {
-      throw Error(path + ": key 'fit.method' must be bandpass or reference, not '" + s.method + "'");
+      throw Error(path + ": key 'fit.method' must be bandpass or reference, not '" + s.method +
+                  "'");
     }
     if (f["lines"]) s.lines = get<std::vector<double>>(f["lines"], path, "fit.lines");
     if (f["windows"]) {

@@ -64,14 +64,15 @@ std::unique_ptr<Term> make_term(const std::string& spec) {
       throw Error("term '" + spec + "': lag needs seconds in [-10, 10], e.g. lag:0.3");
     }
   }
-  throw Error("term '" + spec + "': unknown (known: permanent, induced, induced5, induced3, eddy, " +
+  throw Error("term '" + spec +
+              "': unknown (known: permanent, induced, induced5, induced3, eddy, " +
               "eddy8, eddy3, fdm, bias, lag:<seconds>, current:<channel>, dcurrent:<channel>)");
 }
 
 std::vector<std::pair<std::string, std::string>> term_catalogue() {
   std::vector<std::pair<std::string, std::string>> out;
-  for (const char* s : {"permanent", "induced", "induced5", "induced3", "eddy", "eddy8", "eddy3",
-                        "fdm", "bias"}) {
+  for (const char* s :
+       {"permanent", "induced", "induced5", "induced3", "eddy", "eddy8", "eddy3", "fdm", "bias"}) {
     auto t = make_term(s);
     out.emplace_back(t->spec(), t->effect());
   }

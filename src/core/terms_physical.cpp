@@ -6,8 +6,9 @@
 namespace magcomp {
 
 std::string CurrentTerm::effect() const {
-  return rate_ ? "inductive pick-up ∝ dI/dt of " + channel_ + ", projected on the field direction"
-               : "field of a wire carrying " + channel_ + " (∝ I), projected on the field direction";
+  return rate_
+             ? "inductive pick-up ∝ dI/dt of " + channel_ + ", projected on the field direction"
+             : "field of a wire carrying " + channel_ + " (∝ I), projected on the field direction";
 }
 
 std::vector<std::string> CurrentTerm::column_names() const {

@@ -38,8 +38,7 @@ std::string InducedTerm::spec() const {
 
 std::vector<std::string> InducedTerm::column_names() const {
   std::vector<std::string> names;
-  for (auto [i, j] : induced_pairs(columns_))
-    names.push_back(spec() + "." + kAxis[i] + kAxis[j]);
+  for (auto [i, j] : induced_pairs(columns_)) names.push_back(spec() + "." + kAxis[i] + kAxis[j]);
   return names;
 }
 
@@ -73,8 +72,6 @@ void FdmTerm::build(const TermInputs& in, Eigen::Ref<Eigen::MatrixXd> out) const
   out = in.delta_nT;
 }
 
-void BiasTerm::build(const TermInputs&, Eigen::Ref<Eigen::MatrixXd> out) const {
-  out.setOnes();
-}
+void BiasTerm::build(const TermInputs&, Eigen::Ref<Eigen::MatrixXd> out) const { out.setOnes(); }
 
 }  // namespace magcomp

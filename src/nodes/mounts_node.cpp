@@ -14,7 +14,9 @@ int main(int argc, char** argv) {
   pnh.param<std::string>("parent_frame", parent, "base_link");
   XmlRpc::XmlRpcValue mounts;
   if (!pnh.getParam("mounts", mounts) || mounts.getType() != XmlRpc::XmlRpcValue::TypeStruct) {
-    ROS_FATAL("~mounts: required map frame -> {xyz_m: [x, y, z], rpy_rad: [r, p, y]} (config/sensor_mounts.yaml)");
+    ROS_FATAL(
+        "~mounts: required map frame -> {xyz_m: [x, y, z], rpy_rad: [r, p, y]} "
+        "(config/sensor_mounts.yaml)");
     return 1;
   }
   std::vector<geometry_msgs::TransformStamped> transforms;
@@ -30,8 +32,9 @@ int main(int argc, char** argv) {
         throw std::runtime_error("~mounts/" + frame + "/" + key + ": must be a list of 3 numbers");
       }
       for (int i = 0; i < 3; ++i) {
-        v[static_cast<size_t>(i)] = x[i].getType() == XmlRpc::XmlRpcValue::TypeInt ? static_cast<int>(x[i])
-                                                                                   : static_cast<double>(x[i]);
+        v[static_cast<size_t>(i)] = x[i].getType() == XmlRpc::XmlRpcValue::TypeInt
+                                        ? static_cast<int>(x[i])
+                                        : static_cast<double>(x[i]);
       }
       return v;
     };

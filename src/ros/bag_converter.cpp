@@ -45,7 +45,8 @@ ros::Time stamp_of(int year, int doy, double tt_s) {
   // Whole seconds and the fraction of tt kept apart: exact to the nanosecond (a double of
   // ~1.6e9 s would only resolve 2.4e-7 s).
   const double whole = std::floor(tt_s);
-  const int64_t sec = static_cast<int64_t>(timegm(&tm)) + (doy - 1) * 86400LL + static_cast<int64_t>(whole);
+  const int64_t sec =
+      static_cast<int64_t>(timegm(&tm)) + (doy - 1) * 86400LL + static_cast<int64_t>(whole);
   int64_t nsec = std::llround((tt_s - whole) * 1e9);
   ros::Time t;
   t.sec = static_cast<uint32_t>(sec + nsec / 1000000000LL);
@@ -59,7 +60,8 @@ ConvertReport flight_to_bag(const FlightData& f, const std::string& bag_path, bo
   }
   const int year = static_cast<int>(f.has("year") ? first_finite(f, "year") : -1);
   const int doy = static_cast<int>(f.has("doy") ? first_finite(f, "doy") : -1);
-  if (year < 1970) throw Error(f.source() + ": field 'year' missing or before 1970 (stamps need it)");
+  if (year < 1970)
+    throw Error(f.source() + ": field 'year' missing or before 1970 (stamps need it)");
   if (doy < 1 || doy > 366) throw Error(f.source() + ": field 'doy' missing or not in 1..366");
   const Eigen::VectorXd& tt = f.tt();
   for (Eigen::Index i = 0; i < tt.size(); ++i) {
@@ -86,12 +88,14 @@ ConvertReport flight_to_bag(const FlightData& f, const std::string& bag_path, bo
     // Typed sensor topics.
     std::vector<std::string> scalars, fluxes, aux;
     for (const auto& name : f.names()) {
-      if (name.size() == 8 && name.rfind("mag_", 0) == 0 && name.substr(5) == "_uc") scalars.push_back(name);
+      if (name.size() == 8 && name.rfind("mag_", 0) == 0 && name.substr(5) == "_uc")
+        scalars.push_back(name);
       if (name.size() == 8 && name.rfind("flux_", 0) == 0 && name.substr(6) == "_x") {
         const std::string base = name.substr(0, 6);
         if (f.has(base + "_y") && f.has(base + "_z")) fluxes.push_back(base);
       }
-      if (name.rfind("cur_", 0) == 0 || name.rfind("vol_", 0) == 0 || name == "diurnal") aux.push_back(name);
+      if (name.rfind("cur_", 0) == 0 || name.rfind("vol_", 0) == 0 || name == "diurnal")
+        aux.push_back(name);
     }
     const bool has_att = f.has("ins_roll") && f.has("ins_pitch") && f.has("ins_yaw");
     const bool has_fix = f.has("lat") && f.has("lon");
@@ -168,8 +172,9 @@ ConvertReport flight_to_bag(const FlightData& f, const std::string& bag_path, bo
         for (size_t k = 0; k < aux.size(); ++k) m.values[k] = f.column(aux[k])[i];
         bag.write(BagTopics::kAux, t, m);
       }
-      rep.messages += 1 + static_cast<long>(scalars.size() + fluxes.size()) + (f.has("mag_1_c") ? 1 : 0) +
-                      (has_att ? 1 : 0) + (has_fix ? 1 : 0) + (aux.empty() ? 0 : 1);
+      rep.messages += 1 + static_cast<long>(scalars.size() + fluxes.size()) +
+                      (f.has("mag_1_c") ? 1 : 0) + (has_att ? 1 : 0) + (has_fix ? 1 : 0) +
+                      (aux.empty() ? 0 : 1);
     }
     bag.close();
   } catch (const rosbag::BagException& e) {
@@ -206,8 +211,9 @@ FlightData bag_to_flight(const std::string& bag_path) {
     }
   }
   if (names.empty()) {
-    throw Error(bag_path + ": topic '" + BagTopics::kSchema +
-                "' not found: only bags written by magcomp convert can be turned back into flights");
+    throw Error(
+        bag_path + ": topic '" + BagTopics::kSchema +
+        "' not found: only bags written by magcomp convert can be turned back into flights");
   }
   std::vector<std::vector<double>> cols(names.size());
   rosbag::View v(bag, rosbag::TopicQuery(std::string(BagTopics::kRecord)));
@@ -221,8 +227,8 @@ FlightData bag_to_flight(const std::string& bag_path) {
                   std::to_string(names.size()));
     }
     if (static_cast<long>(r->header.seq) != expected_seq) {
-      throw Error(bag_path + ": record " + std::to_string(expected_seq) + " missing or out of order on '" +
-                  BagTopics::kRecord + "'");
+      throw Error(bag_path + ": record " + std::to_string(expected_seq) +
+                  " missing or out of order on '" + BagTopics::kRecord + "'");
     }
     ++expected_seq;
     for (size_t c = 0; c < names.size(); ++c) cols[c].push_back(r->values[c]);
@@ -231,7 +237,8 @@ FlightData bag_to_flight(const std::string& bag_path) {
   FlightData f;
   f.set_source(bag_path);
   for (size_t c = 0; c < names.size(); ++c) {
-    f.set(names[c], Eigen::Map<Eigen::VectorXd>(cols[c].data(), static_cast<Eigen::Index>(cols[c].size())));
+    f.set(names[c],
+          Eigen::Map<Eigen::VectorXd>(cols[c].data(), static_cast<Eigen::Index>(cols[c].size())));
   }
   return f;
 }

@@ -22,17 +22,18 @@ double file_mtime(const std::string& path) {
 }
 
 const std::set<std::string> kKnownParams = {
-    "model_path",  "scalar_topic", "vector_topic", "aux_topic",     "fix_topic",
-    "reference_topic", "output_topic", "frame_id", "max_gap_s",     "max_wait_s",
-    "jump_back_s", "buffer_s",     "watch_model", "marker_stride", "expected_rate_hz",
-    "flush_after_s"};
+    "model_path",  "scalar_topic",    "vector_topic",     "aux_topic",
+    "fix_topic",   "reference_topic", "output_topic",     "frame_id",
+    "max_gap_s",   "max_wait_s",      "jump_back_s",      "buffer_s",
+    "watch_model", "marker_stride",   "expected_rate_hz", "flush_after_s"};
 
 }  // namespace
 
 template <typename T>
 bool CompensatorRos::interpolate(const std::deque<T>& buf, double t, T* out) {
   if (buf.empty() || t > buf.back().t || t < buf.front().t) return false;
-  auto hi = std::lower_bound(buf.begin(), buf.end(), t, [](const T& a, double x) { return a.t < x; });
+  auto hi =
+      std::lower_bound(buf.begin(), buf.end(), t, [](const T& a, double x) { return a.t < x; });
   if (hi->t == t) {
     *out = *hi;
     return true;
@@ -57,7 +58,8 @@ double CompensatorRos::rel(const ros::Time& s) {
 ros::Time CompensatorRos::stamp(double t) const {
   const double whole = std::floor(t);
   int64_t nsec = std::llround((t - whole) * 1e9);
-  const int64_t sec = std::max<int64_t>(0, base_sec_) + static_cast<int64_t>(whole) + nsec / 1000000000LL;
+  const int64_t sec =
+      std::max<int64_t>(0, base_sec_) + static_cast<int64_t>(whole) + nsec / 1000000000LL;
   nsec %= 1000000000LL;
   ros::Time out;
   out.sec = static_cast<uint32_t>(sec);
@@ -149,8 +151,8 @@ CompensatorRos::CompensatorRos(ros::NodeHandle nh, ros::NodeHandle pnh)
   freq_ = std::make_unique<diagnostic_updater::FrequencyStatus>(
       diagnostic_updater::FrequencyStatusParam(&min_freq_, &max_freq_, 0.1, 10));
   updater_.add(*freq_);
-  diag_timer_ = nh_.createWallTimer(ros::WallDuration(1.0),
-                                    [this](const ros::WallTimerEvent&) { updater_.force_update(); });
+  diag_timer_ = nh_.createWallTimer(
+      ros::WallDuration(1.0), [this](const ros::WallTimerEvent&) { updater_.force_update(); });
   ROS_INFO("magcomp compensator: %s -> %s (model %s)", scalar_topic.c_str(), out_topic.c_str(),
            model_path_.c_str());
 }
@@ -170,7 +172,8 @@ std::vector<double> CompensatorRos::channels_at(double t, const std::vector<int>
   const bool ok = interpolate(aux_, t, &a) || (!aux_.empty() && (a = aux_.back(), true));
   if (!ok) return out;
   for (size_t k = 0; k < index.size(); ++k) {
-    if (index[k] >= 0 && static_cast<size_t>(index[k]) < a.v.size()) out[k] = a.v[static_cast<size_t>(index[k])];
+    if (index[k] >= 0 && static_cast<size_t>(index[k]) < a.v.size())
+      out[k] = a.v[static_cast<size_t>(index[k])];
   }
   return out;
 }
@@ -181,8 +184,10 @@ bool CompensatorRos::load_model(const std::string& why) {
     auto next = std::make_unique<StreamingCompensator>(std::move(m));
     const double mtime = file_mtime(model_path_);
     if (comp_) {
-      if (next->model().scalar != comp_->model().scalar || next->model().vector != comp_->model().vector) {
-        model_error_ = model_path_ + ": the new model's sensors differ from the subscribed ones; not swapped";
+      if (next->model().scalar != comp_->model().scalar ||
+          next->model().vector != comp_->model().vector) {
+        model_error_ =
+            model_path_ + ": the new model's sensors differ from the subscribed ones; not swapped";
         return false;
       }
       // Swap without losing a sample: the new model re-reads the recent samples and takes over
@@ -265,9 +270,13 @@ void CompensatorRos::on_scalar(const magcomp::ScalarMagnetometer::ConstPtr& m) {
 void CompensatorRos::on_vector(const sensor_msgs::MagneticField::ConstPtr& m) {
   const double t = rel(m->header.stamp);
   if (!vectors_.empty() && t <= vectors_.back().t) {
-    if (vectors_.back().t - t > jump_back_s_) vectors_.clear(); else return;
+    if (vectors_.back().t - t > jump_back_s_)
+      vectors_.clear();
+    else
+      return;
   }
-  vectors_.push_back({t, Eigen::Vector3d(m->magnetic_field.x, m->magnetic_field.y, m->magnetic_field.z) * 1e9});
+  vectors_.push_back(
+      {t, Eigen::Vector3d(m->magnetic_field.x, m->magnetic_field.y, m->magnetic_field.z) * 1e9});
   last_vector_t_ = t;
   while (vectors_.size() > 2 && vectors_.front().t < t - buffer_s_) vectors_.pop_front();
   process_ready(false);
@@ -276,7 +285,10 @@ void CompensatorRos::on_vector(const sensor_msgs::MagneticField::ConstPtr& m) {
 void CompensatorRos::on_aux(const magcomp::AuxChannels::ConstPtr& m) {
   const double t = rel(m->header.stamp);
   if (!aux_.empty() && t <= aux_.back().t) {
-    if (aux_.back().t - t > jump_back_s_) aux_.clear(); else return;
+    if (aux_.back().t - t > jump_back_s_)
+      aux_.clear();
+    else
+      return;
   }
   if (m->names != aux_all_names_) {  // a new channel list: re-index (older values are dropped)
     aux_all_names_ = m->names;
@@ -294,7 +306,10 @@ void CompensatorRos::on_aux(const magcomp::AuxChannels::ConstPtr& m) {
 void CompensatorRos::on_fix(const sensor_msgs::NavSatFix::ConstPtr& m) {
   const double t = rel(m->header.stamp);
   if (!fixes_.empty() && t <= fixes_.back().t) {
-    if (fixes_.back().t - t > jump_back_s_) fixes_.clear(); else return;
+    if (fixes_.back().t - t > jump_back_s_)
+      fixes_.clear();
+    else
+      return;
   }
   fixes_.push_back({t, Eigen::Vector3d(m->latitude, m->longitude, m->altitude)});
   while (fixes_.size() > 2 && fixes_.front().t < t - buffer_s_) fixes_.pop_front();
@@ -303,10 +318,14 @@ void CompensatorRos::on_fix(const sensor_msgs::NavSatFix::ConstPtr& m) {
 void CompensatorRos::on_reference(const magcomp::ScalarMagnetometer::ConstPtr& m) {
   const double t = rel(m->header.stamp);
   if (!references_.empty() && t <= references_.back().first) {
-    if (references_.back().first - t > jump_back_s_) references_.clear(); else return;
+    if (references_.back().first - t > jump_back_s_)
+      references_.clear();
+    else
+      return;
   }
   references_.emplace_back(t, m->field_nT);
-  while (references_.size() > 2 && references_.front().first < t - buffer_s_) references_.pop_front();
+  while (references_.size() > 2 && references_.front().first < t - buffer_s_)
+    references_.pop_front();
 }
 
 void CompensatorRos::process_ready(bool force) {
@@ -349,7 +368,8 @@ void CompensatorRos::process_ready(bool force) {
 
 void CompensatorRos::feed(const StreamSample& s) {
   history_.push_back(s);
-  while (history_.size() > static_cast<size_t>(4 * std::max(comp_->lookahead(), 3) + 4)) history_.pop_front();
+  while (history_.size() > static_cast<size_t>(4 * std::max(comp_->lookahead(), 3) + 4))
+    history_.pop_front();
   for (const auto& o : comp_->push(s)) publish(o);
 }
 
@@ -375,7 +395,8 @@ void CompensatorRos::publish(const StreamOutput& o) {
       const boost::posix_time::ptime p = msg.header.stamp.toBoost();
       const double year = decimal_year(p.date().year(), p.date().day_of_year(),
                                        p.time_of_day().total_microseconds() * 1e-6);
-      const double igrf = Igrf::shipped().geodetic(fix.v.x(), fix.v.y(), fix.v.z(), year).total_nT();
+      const double igrf =
+          Igrf::shipped().geodetic(fix.v.x(), fix.v.y(), fix.v.z(), year).total_nT();
       msg.anomaly_nT = o.compensated_nT - igrf - diurnal;
     } catch (const std::exception& e) {
       ROS_WARN_THROTTLE(10, "magcomp: no anomaly: %s", e.what());
@@ -384,8 +405,9 @@ void CompensatorRos::publish(const StreamOutput& o) {
   msg.reference_nT = NAN;
   msg.error_nT = NAN;
   if (!references_.empty()) {
-    auto it = std::lower_bound(references_.begin(), references_.end(), o.t_s,
-                               [](const std::pair<double, double>& r, double x) { return r.first < x; });
+    auto it =
+        std::lower_bound(references_.begin(), references_.end(), o.t_s,
+                         [](const std::pair<double, double>& r, double x) { return r.first < x; });
     if (it != references_.end() && it->first == o.t_s) {
       msg.reference_nT = it->second;
     } else if (it != references_.end() && it != references_.begin()) {
@@ -405,9 +427,11 @@ void CompensatorRos::publish(const StreamOutput& o) {
       origin_lon_ = fix.v.y();
     }
     const double north = (fix.v.x() - origin_lat_) * M_PI / 180.0 * 6371000.0;
-    const double east = (fix.v.y() - origin_lon_) * M_PI / 180.0 * 6371000.0 * std::cos(origin_lat_ * M_PI / 180.0);
+    const double east =
+        (fix.v.y() - origin_lon_) * M_PI / 180.0 * 6371000.0 * std::cos(origin_lat_ * M_PI / 180.0);
     if (n_out_ % marker_stride_ == 0 && track_.size() < 50000) {
-      track_.push_back({east, north, 0.0, std::isfinite(msg.error_nT) ? msg.error_nT : msg.anomaly_nT});
+      track_.push_back(
+          {east, north, 0.0, std::isfinite(msg.error_nT) ? msg.error_nT : msg.anomaly_nT});
     }
     if (n_out_ % (marker_stride_ * 20) == 0 && pub_marker_.getNumSubscribers() > 0) {
       visualization_msgs::Marker mk;
@@ -441,7 +465,8 @@ void CompensatorRos::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat)
   if (!comp_) {
     stat.summary(diagnostic_msgs::DiagnosticStatus::ERROR, "no model: " + model_error_);
   } else if (n_jumps_ + n_gaps_ + n_out_of_order_ + n_dup_ + n_nan_ + n_stale_ > 0) {
-    stat.summary(diagnostic_msgs::DiagnosticStatus::WARN, "running; input faults seen (see counts)");
+    stat.summary(diagnostic_msgs::DiagnosticStatus::WARN,
+                 "running; input faults seen (see counts)");
   } else {
     stat.summary(diagnostic_msgs::DiagnosticStatus::OK, "running");
   }
@@ -462,8 +487,10 @@ void CompensatorRos::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat)
   stat.add("time_jumps_back", n_jumps_);
   stat.add("gaps", n_gaps_);
   stat.add("stale_inputs_held", n_stale_);
-  stat.add("pending", static_cast<long>(pending_scalar_.size()) + (comp_ ? static_cast<long>(comp_->pending()) : 0));
-  stat.add("scalar_minus_vector_stamp_s", std::isfinite(last_vector_t_) ? last_scalar_t_ - last_vector_t_ : NAN);
+  stat.add("pending", static_cast<long>(pending_scalar_.size()) +
+                          (comp_ ? static_cast<long>(comp_->pending()) : 0));
+  stat.add("scalar_minus_vector_stamp_s",
+           std::isfinite(last_vector_t_) ? last_scalar_t_ - last_vector_t_ : NAN);
 }
 
 }  // namespace magcomp::rosio

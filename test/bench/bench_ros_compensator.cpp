@@ -31,34 +31,39 @@ int main(int argc, char** argv) {
   pnh.getParam("model", model_path);
   pnh.param("lookahead", lookahead, 6);
   pnh.param("in_flight", window, 800);  // samples in flight at most (back-pressure, no drops)
-  double rate_hz = 0.0;                  // 0: as fast as possible (throughput); else paced (latency)
+  double rate_hz = 0.0;                 // 0: as fast as possible (throughput); else paced (latency)
   pnh.param("rate_hz", rate_hz, 0.0);
   const magcomp::FlightData f = magcomp::read_flight_h5(h5);
   const magcomp::Model m = magcomp::load_model_yaml(model_path);
   const Eigen::Index n = f.size();
   g_recv_wall.assign(static_cast<size_t>(n), -1);
   std::vector<double> sent_wall(static_cast<size_t>(n), -1);
-  const int year = static_cast<int>(f.column("year")[0]), doy = static_cast<int>(f.column("doy")[0]);
+  const int year = static_cast<int>(f.column("year")[0]),
+            doy = static_cast<int>(f.column("doy")[0]);
   g_t0_stamp = magcomp::rosio::stamp_of(year, doy, f.tt()[0]).toSec();
   auto scalar = nh.advertise<magcomp::ScalarMagnetometer>("/magcomp/scalar/" + m.scalar, 10000);
   auto vec = nh.advertise<sensor_msgs::MagneticField>("/magcomp/fluxgate/" + m.vector, 10000);
   auto aux = nh.advertise<magcomp::AuxChannels>("/magcomp/aux", 10000);
   ros::Subscriber sub = nh.subscribe<magcomp::CompensatedField>(
-      "/magcomp/compensated", 100000, [&](const magcomp::CompensatedField::ConstPtr& o) {
+      "/magcomp/compensated", 100000,
+      [&](const magcomp::CompensatedField::ConstPtr& o) {
         const long i = std::lround((o->header.stamp.toSec() - g_t0_stamp) * 10.0);
         if (i >= 0 && i < n) g_recv_wall[static_cast<size_t>(i)] = ros::WallTime::now().toSec();
         ++g_received;
-      }, ros::VoidConstPtr(), ros::TransportHints().tcpNoDelay());
+      },
+      ros::VoidConstPtr(), ros::TransportHints().tcpNoDelay());
   ros::AsyncSpinner spinner(1);
   spinner.start();
-  while ((scalar.getNumSubscribers() == 0 || vec.getNumSubscribers() == 0 || aux.getNumSubscribers() == 0 ||
-          sub.getNumPublishers() == 0) && ros::ok()) {
+  while ((scalar.getNumSubscribers() == 0 || vec.getNumSubscribers() == 0 ||
+          aux.getNumSubscribers() == 0 || sub.getNumPublishers() == 0) &&
+         ros::ok()) {
     ros::WallDuration(0.05).sleep();
   }
   ros::WallDuration(0.5).sleep();
   std::vector<std::string> names;
   for (const auto& name : f.names()) {
-    if (name.rfind("cur_", 0) == 0 || name.rfind("vol_", 0) == 0 || name == "diurnal") names.push_back(name);
+    if (name.rfind("cur_", 0) == 0 || name.rfind("vol_", 0) == 0 || name == "diurnal")
+      names.push_back(name);
   }
   const double start = ros::WallTime::now().toSec();
   for (Eigen::Index i = 0; i < n && ros::ok(); ++i) {
@@ -85,11 +90,16 @@ int main(int argc, char** argv) {
     sent_wall[static_cast<size_t>(i)] = ros::WallTime::now().toSec();
     scalar.publish(s);
   }
-  while (g_received < n && ros::ok() && ros::WallTime::now().toSec() - start < 120) ros::WallDuration(0.01).sleep();
+  const double published = ros::WallTime::now().toSec();  // wait for the flush after the last one
+  while (g_received < n && ros::ok() && ros::WallTime::now().toSec() - published < 30) {
+    ros::WallDuration(0.01).sleep();
+  }
   const double elapsed = ros::WallTime::now().toSec() - start;
   std::vector<double> lat;
   for (Eigen::Index i = 0; i + lookahead < n; ++i) {
-    if (g_recv_wall[static_cast<size_t>(i)] > 0) lat.push_back(g_recv_wall[static_cast<size_t>(i)] - sent_wall[static_cast<size_t>(i + lookahead)]);
+    if (g_recv_wall[static_cast<size_t>(i)] > 0)
+      lat.push_back(g_recv_wall[static_cast<size_t>(i)] -
+                    sent_wall[static_cast<size_t>(i + lookahead)]);
   }
   std::sort(lat.begin(), lat.end());
   long shown = 0;
@@ -99,10 +109,17 @@ int main(int argc, char** argv) {
       ++shown;
     }
   }
-  auto pct = [&](double p) { return lat.empty() ? NAN : 1e3 * lat[static_cast<size_t>(p * (lat.size() - 1))]; };
-  std::printf("%s: ", rate_hz > 0 ? ("paced at " + std::to_string(static_cast<int>(rate_hz)) + " Hz").c_str() : "flood");
-  std::printf("samples %ld, received %ld (lost %ld), %.0f samples/s end to end; latency ms: p50 %.3f p99 %.3f max %.3f\n",
-              static_cast<long>(n), static_cast<long>(g_received), static_cast<long>(n - g_received),
-              n / elapsed, pct(0.5), pct(0.99), pct(1.0));
+  auto pct = [&](double p) {
+    return lat.empty() ? NAN : 1e3 * lat[static_cast<size_t>(p * (lat.size() - 1))];
+  };
+  std::printf("%s: ",
+              rate_hz > 0
+                  ? ("paced at " + std::to_string(static_cast<int>(rate_hz)) + " Hz").c_str()
+                  : "flood");
+  std::printf(
+      "samples %ld, received %ld (lost %ld), %.0f samples/s end to end; latency ms: p50 %.3f p99 "
+      "%.3f max %.3f\n",
+      static_cast<long>(n), static_cast<long>(g_received), static_cast<long>(n - g_received),
+      n / elapsed, pct(0.5), pct(0.99), pct(1.0));
   return g_received == n ? 0 : 1;
 }

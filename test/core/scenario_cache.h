@@ -16,7 +16,8 @@ inline const sim::Simulation& scenario(const std::string& name) {
   static std::map<std::string, sim::Simulation> cache;
   auto it = cache.find(name);
   if (it == cache.end()) {
-    const sim::Scenario s = sim::load_scenario(source_dir() + "/config/scenarios/" + name + ".yaml");
+    const sim::Scenario s =
+        sim::load_scenario(source_dir() + "/config/scenarios/" + name + ".yaml");
     it = cache.emplace(name, sim::simulate(s)).first;
   }
   return it->second;

@@ -30,10 +30,15 @@ TEST(Butterworth, BandPassTransferFunctionEqualsScipy) {
   const std::vector<double> b_ref = {0.00223489169808233, 0, -0.00893956679232931, 0,
                                      0.01340935018849396, 0, -0.00893956679232931, 0,
                                      0.00223489169808233};
-  const std::vector<double> a_ref = {1.0, -6.5715072754461925, 19.030138916000173,
-                                     -31.754413014587726, 33.421633988809134,
-                                     -22.73087042070526, 9.757330177244835,
-                                     -2.4167663056152353, 0.26445481644350444};
+  const std::vector<double> a_ref = {1.0,
+                                     -6.5715072754461925,
+                                     19.030138916000173,
+                                     -31.754413014587726,
+                                     33.421633988809134,
+                                     -22.73087042070526,
+                                     9.757330177244835,
+                                     -2.4167663056152353,
+                                     0.26445481644350444};
   const Butterworth bp = Butterworth::band_pass(4, 0.1, 0.9, 10.0);
   EXPECT_EQ(bp.sections().size(), 4u);
   auto [b, a] = expand(bp.sections());
@@ -48,8 +53,8 @@ TEST(Butterworth, MinusThreeDecibelsAtCutoffsAndUnityInBand) {
   const Butterworth bp = Butterworth::band_pass(4, 0.1, 0.9, 10.0);
   EXPECT_NEAR(bp.magnitude(0.1), half_power, 1e-9);
   EXPECT_NEAR(bp.magnitude(0.9), half_power, 1e-9);
-  EXPECT_LT(bp.magnitude(0.0), 1e-12);   // DC rejected
-  EXPECT_LT(bp.magnitude(5.0), 1e-12);   // Nyquist rejected
+  EXPECT_LT(bp.magnitude(0.0), 1e-12);  // DC rejected
+  EXPECT_LT(bp.magnitude(5.0), 1e-12);  // Nyquist rejected
   EXPECT_GT(bp.magnitude(0.3), 0.999);
   const Butterworth lp = Butterworth::low_pass(5, 1.0, 10.0);
   EXPECT_NEAR(lp.magnitude(0.0), 1.0, 1e-12);

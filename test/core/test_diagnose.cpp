@@ -3,8 +3,8 @@
 
 #include <fstream>
 #include <limits>
-#include <set>
 #include <nlohmann/json.hpp>
+#include <set>
 
 #include "magcomp/core/diagnose.h"
 #include "magcomp/core/error.h"
@@ -47,7 +47,8 @@ TEST(Diagnose, TwoHiddenEffectsAreFoundInTwoRoundsAndThreeReachTheFloor) {
     const Diagnosis dx = diagnose(test::calibrated_tl(f, added), f, "mag_1_c");
     ASSERT_FALSE(dx.candidates.empty());
     const std::string top = dx.candidates.front().term;
-    found.push_back(top.substr(0, top.find(':')) + (top.rfind("current:", 0) == 0 ? top.substr(top.find(':')) : ""));
+    found.push_back(top.substr(0, top.find(':')) +
+                    (top.rfind("current:", 0) == 0 ? top.substr(top.find(':')) : ""));
     added.push_back(top);
     std::printf("  round %d: %s (%.1f%%)\n", round + 1, top.c_str(),
                 100 * dx.candidates.front().explained_fraction);
@@ -75,10 +76,12 @@ TEST(Diagnose, BadInputsGiveClearMessagesAndConstantChannelsAreSkipped) {
   f.set("cur_dead", Eigen::VectorXd::Constant(f.size(), 0.0));
   const Diagnosis dx = diagnose(tl, f, "mag_1_c");
   bool noted = false;
-  for (const auto& n : dx.notes) noted = noted || n.find("'cur_dead' is constant") != std::string::npos;
+  for (const auto& n : dx.notes)
+    noted = noted || n.find("'cur_dead' is constant") != std::string::npos;
   EXPECT_TRUE(noted);
   FlightData nan_ref = f;
-  nan_ref.set("mag_1_c", Eigen::VectorXd::Constant(f.size(), std::numeric_limits<double>::quiet_NaN()));
+  nan_ref.set("mag_1_c",
+              Eigen::VectorXd::Constant(f.size(), std::numeric_limits<double>::quiet_NaN()));
   try {
     diagnose(tl, nan_ref, "mag_1_c");
     FAIL();
@@ -99,10 +102,11 @@ TEST(Diagnose, CliWritesTheContractJson) {
   const std::string dir = test::temp_dir("dx");
   sim::write_simulation(test::scenario("inductive_heater"), dir + "/f.h5");
   std::string out;
-  ASSERT_EQ(test::run(test::cli() + " calibrate --data " + dir + "/f.h5 --model " +
-                          test::source_dir() + "/config/models/tl_sim.yaml --out " + dir + "/m.yaml",
-                      &out),
-            0)
+  ASSERT_EQ(
+      test::run(test::cli() + " calibrate --data " + dir + "/f.h5 --model " + test::source_dir() +
+                    "/config/models/tl_sim.yaml --out " + dir + "/m.yaml",
+                &out),
+      0)
       << out;
   ASSERT_EQ(test::run(test::cli() + " diagnose --data " + dir + "/f.h5 --model " + dir +
                           "/m.yaml --json " + dir + "/d.json",

@@ -125,7 +125,8 @@ TEST(FlightData, BadInputsNameFileAndField) {
   EXPECT_NE(expect_error([&] { read_flight_h5(dir + "/text.h5"); }).find("not an HDF5 file"),
             std::string::npos);
   write_raw(dir + "/nott.h5", {{"mag_1_uc", {1, 2}}});
-  EXPECT_NE(expect_error([&] { read_flight_h5(dir + "/nott.h5"); }).find("'tt'"), std::string::npos);
+  EXPECT_NE(expect_error([&] { read_flight_h5(dir + "/nott.h5"); }).find("'tt'"),
+            std::string::npos);
   FlightData d;
   d.set("tt", Eigen::VectorXd::LinSpaced(3, 0, 0.2));
   EXPECT_NE(expect_error([&] { d.column("flux_c_x"); }).find("'flux_c_x'"), std::string::npos);

@@ -38,7 +38,8 @@ TEST(Model, BandpassFitRecoversKnownCoefficients) {
   ASSERT_EQ(m.coefficients.size(), 16);
   EXPECT_EQ(m.report.segments, 2);
   for (Eigen::Index j = 0; j < 16; ++j) {
-    EXPECT_NEAR(m.coefficients[j], c_true[j], 1e-3 * std::abs(c_true[j]) + 1e-3) << m.column_names[j];
+    EXPECT_NEAR(m.coefficients[j], c_true[j], 1e-3 * std::abs(c_true[j]) + 1e-3)
+        << m.column_names[j];
   }
   // Evaluated on the lines the fit never saw, the error is only the (unobservable) mean.
   const Evaluation ev = evaluate_model(m, d, "mag_1_c");

@@ -18,7 +18,7 @@ TEST(SimulatorPhysics, WireFieldMatchesClosedForms) {
   // pointing up (+z) for a current along +x (right-hand rule).
   const Eigen::Vector3d b = sim::wire_field_per_ampere_nT({-1000, 0, 0}, {1000, 0, 0}, {0, 1.5, 0});
   const double expected = 4e-7 * M_PI / (2 * M_PI * 1.5) * 1e9;  // nT per A
-  EXPECT_NEAR(b.z(), expected, 2e-6 * expected);  // 2 km vs infinite: 1.1e-6 shorter
+  EXPECT_NEAR(b.z(), expected, 2e-6 * expected);                 // 2 km vs infinite: 1.1e-6 shorter
   EXPECT_NEAR(b.x(), 0.0, 1e-12);
   EXPECT_NEAR(b.y(), 0.0, 1e-12);
   // Finite segment on its perpendicular bisector: mu0 I / (4 pi d) * 2 sin(theta).
@@ -73,11 +73,12 @@ TEST(Simulator, SameSeedSameFlightAndTheSchemaReadsBack) {
   sim::write_simulation(a, dir + "/f.h5");
   const FlightData r = read_flight_h5(dir + "/f.h5");
   EXPECT_NEAR(r.dt_s(), 0.1, 1e-9);
-  for (const char* f : {"tt", "line", "flight", "year", "doy", "lat", "lon", "utm_x", "utm_y",
-                        "utm_z", "msl", "baro", "radar", "topo", "ins_pitch", "ins_roll", "ins_yaw",
-                        "diurnal", "mag_1_c", "mag_1_igrf", "mag_1_uc", "mag_5_uc", "flux_a_x",
-                        "flux_d_t", "ins_vn", "ins_vw", "ins_vu", "pitch_rate", "tas", "cur_strb",
-                        "cur_tank", "vol_bat_1", "static_p", "drape"}) {
+  for (const char* f :
+       {"tt",        "line",     "flight",   "year",      "doy",      "lat",        "lon",
+        "utm_x",     "utm_y",    "utm_z",    "msl",       "baro",     "radar",      "topo",
+        "ins_pitch", "ins_roll", "ins_yaw",  "diurnal",   "mag_1_c",  "mag_1_igrf", "mag_1_uc",
+        "mag_5_uc",  "flux_a_x", "flux_d_t", "ins_vn",    "ins_vw",   "ins_vu",     "pitch_rate",
+        "tas",       "cur_strb", "cur_tank", "vol_bat_1", "static_p", "drape"}) {
     EXPECT_TRUE(r.has(f)) << f;
   }
   EXPECT_TRUE(std::ifstream(dir + "/f.truth.yaml").good());

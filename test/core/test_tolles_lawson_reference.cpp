@@ -1,4 +1,5 @@
-// Tolles-Lawson verified against MagNav.jl's results on real flight data (shared/reference/magnav_tl).
+// Tolles-Lawson verified against MagNav.jl's results on real flight data
+// (shared/reference/magnav_tl).
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -18,8 +19,8 @@ struct Reference {
 
 Reference load_reference() {
   Reference r;
-  r.series = test::read_csv(test::reference_dir() + "/magnav_tl/TL_data_timeseries.csv", true,
-                            &r.names);
+  r.series =
+      test::read_csv(test::reference_dir() + "/magnav_tl/TL_data_timeseries.csv", true, &r.names);
   const Eigen::Index n = r.series.rows();
   r.flight.set("tt", Eigen::VectorXd::LinSpaced(n, 0.0, 0.1 * (n - 1)));
   r.flight.set("flux_a_x", r.series.col(0));
@@ -49,7 +50,8 @@ TEST(TollesLawsonReference, DesignMatrixEqualsMagNav) {
   double worst = 0;
   for (Eigen::Index i = 0; i < a.rows(); ++i) {
     for (Eigen::Index j = 0; j < a.cols(); ++j) {
-      const double rel = std::abs(a(i, j) - expected(i, j)) / std::max(std::abs(expected(i, j)), 1e-12);
+      const double rel =
+          std::abs(a(i, j) - expected(i, j)) / std::max(std::abs(expected(i, j)), 1e-12);
       worst = std::max(worst, rel);
     }
   }

@@ -21,8 +21,10 @@ TEST(BagConverter, RoundTripIsBitIdenticalWithNan) {
   f.set("radar", radar);
   write_flight_h5(f, dir + "/in.h5");
   std::string out;
-  ASSERT_EQ(test::run(test::cli() + " convert " + dir + "/in.h5 " + dir + "/f.bag", &out), 0) << out;
-  ASSERT_EQ(test::run(test::cli() + " convert " + dir + "/f.bag " + dir + "/back.h5", &out), 0) << out;
+  ASSERT_EQ(test::run(test::cli() + " convert " + dir + "/in.h5 " + dir + "/f.bag", &out), 0)
+      << out;
+  ASSERT_EQ(test::run(test::cli() + " convert " + dir + "/f.bag " + dir + "/back.h5", &out), 0)
+      << out;
   const FlightData a = read_flight_h5(dir + "/in.h5");
   const FlightData b = read_flight_h5(dir + "/back.h5");
   ASSERT_EQ(a.names(), b.names());
@@ -39,7 +41,9 @@ TEST(BagConverter, RoundTripIsBitIdenticalWithNan) {
   // Never overwrite without --force.
   EXPECT_NE(test::run(test::cli() + " convert " + dir + "/in.h5 " + dir + "/f.bag", &out), 0);
   EXPECT_NE(out.find("--force"), std::string::npos) << out;
-  EXPECT_EQ(test::run(test::cli() + " convert --force " + dir + "/in.h5 " + dir + "/f.bag", &out), 0) << out;
+  EXPECT_EQ(test::run(test::cli() + " convert --force " + dir + "/in.h5 " + dir + "/f.bag", &out),
+            0)
+      << out;
 }
 
 TEST(BagConverter, StampsComeFromYearDoyAndTt) {

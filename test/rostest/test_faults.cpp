@@ -46,7 +46,8 @@ TEST(Faults, NodeSurvivesAndReportsEveryFault) {
   ros::Subscriber sd = nh.subscribe("/diagnostics", 100, on_diag);
   ros::Subscriber so = nh.subscribe("/magcomp/compensated", 10000, on_output);
   const ros::WallTime t0 = ros::WallTime::now();
-  while ((scalar.getNumSubscribers() == 0 || vec.getNumSubscribers() == 0 || aux.getNumSubscribers() == 0) &&
+  while ((scalar.getNumSubscribers() == 0 || vec.getNumSubscribers() == 0 ||
+          aux.getNumSubscribers() == 0) &&
          (ros::WallTime::now() - t0).toSec() < 20.0) {
     ros::WallDuration(0.1).sleep();
   }
@@ -72,15 +73,15 @@ TEST(Faults, NodeSurvivesAndReportsEveryFault) {
     ros::WallDuration(0.002).sleep();
   };
   for (Eigen::Index i = 0; i < 300; ++i) {
-    if (i >= 250 && i < 280) continue;             // a 3 s gap
-    send(i, -1, i == 100);                         // NaN at 100
-    if (i == 150) send(i, -1, false);              // duplicate stamp
-    if (i == 200) send(195, -1, false);            // out of order (0.5 s back)
+    if (i >= 250 && i < 280) continue;   // a 3 s gap
+    send(i, -1, i == 100);               // NaN at 100
+    if (i == 150) send(i, -1, false);    // duplicate stamp
+    if (i == 200) send(195, -1, false);  // out of order (0.5 s back)
   }
   ros::WallDuration(1.5).sleep();
   const long before_jump = g_outputs;
   for (Eigen::Index i = 0; i < 60; ++i) send(i, -1, false);  // back to the start: a 30 s jump
-  ros::WallDuration(3.0).sleep();                             // flush + two diagnostics periods
+  ros::WallDuration(3.0).sleep();                            // flush + two diagnostics periods
   EXPECT_GT(before_jump, 200);
   EXPECT_GT(g_outputs - before_jump, 40) << "no output after the jump back: the node did not reset";
   EXPECT_LT(g_last_output_t, base + 10.0);

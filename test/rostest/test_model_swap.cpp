@@ -83,10 +83,12 @@ TEST(ModelSwap, TakesEffectAtOneStampWithNoSampleLost) {
       ++n_after;
     }
   }
-  std::printf("  swap took effect at sample %ld of %ld (t = %.1f s); %ld after it, live error rms diff %.2e nT\n",
-              static_cast<long>(switch_at), static_cast<long>(f.size()),
-              switch_at >= 0 ? f.tt()[switch_at] - f.tt()[0] : -1.0, n_after,
-              n_after ? std::sqrt(ss_err / n_after) : -1.0);
+  std::printf(
+      "  swap took effect at sample %ld of %ld (t = %.1f s); %ld after it, live error rms diff "
+      "%.2e nT\n",
+      static_cast<long>(switch_at), static_cast<long>(f.size()),
+      switch_at >= 0 ? f.tt()[switch_at] - f.tt()[0] : -1.0, n_after,
+      n_after ? std::sqrt(ss_err / n_after) : -1.0);
   EXPECT_GT(switch_at, f.size() / 2);
   EXPECT_EQ(mismatches, 0);
   ASSERT_GT(n_after, 100);

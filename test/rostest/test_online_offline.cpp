@@ -47,18 +47,22 @@ TEST(OnlineOffline, WholeReplayedFlightEqualsOfflineWithNoSampleLost) {
   }
   std::lock_guard<std::mutex> lock(g_mutex);
   ASSERT_EQ(g_out.size(), static_cast<size_t>(f.size())) << "samples lost or duplicated";
-  const int year = static_cast<int>(f.column("year")[0]), doy = static_cast<int>(f.column("doy")[0]);
+  const int year = static_cast<int>(f.column("year")[0]),
+            doy = static_cast<int>(f.column("doy")[0]);
   double ss = 0, ss_err = 0;
   long finite = 0;
   for (Eigen::Index i = 0; i < f.size(); ++i) {
     const auto& o = g_out[static_cast<size_t>(i)];
-    ASSERT_NEAR(o.header.stamp.toSec(), magcomp::rosio::stamp_of(year, doy, f.tt()[i]).toSec(), 1e-6) << i;
+    ASSERT_NEAR(o.header.stamp.toSec(), magcomp::rosio::stamp_of(year, doy, f.tt()[i]).toSec(),
+                1e-6)
+        << i;
     if (!std::isfinite(offline[i])) {
       EXPECT_FALSE(std::isfinite(o.compensated_nT)) << i;
       continue;
     }
     if (!std::isfinite(o.compensated_nT)) {
-      ADD_FAILURE() << "online NaN at sample " << i << " of " << f.size() << " (offline " << offline[i] << ")";
+      ADD_FAILURE() << "online NaN at sample " << i << " of " << f.size() << " (offline "
+                    << offline[i] << ")";
       continue;
     }
     ss += std::pow(o.compensated_nT - offline[i], 2);
@@ -66,7 +70,8 @@ TEST(OnlineOffline, WholeReplayedFlightEqualsOfflineWithNoSampleLost) {
     ++finite;
   }
   const double rms = std::sqrt(ss / finite), rms_err = std::sqrt(ss_err / finite);
-  std::printf("  %ld samples; online vs offline: rms %.3e nT (live error rms diff %.3e nT)\n", finite, rms, rms_err);
+  std::printf("  %ld samples; online vs offline: rms %.3e nT (live error rms diff %.3e nT)\n",
+              finite, rms, rms_err);
   EXPECT_LT(rms, tol);
   EXPECT_LT(rms_err, tol);
   EXPECT_GT(finite, f.size() - 10);

@@ -29,18 +29,18 @@ struct ChannelAssociation {
 };
 
 struct Diagnosis {
-  double baseline_std_nT = 0.0;   ///< held-out error std of the model refitted as it is
+  double baseline_std_nT = 0.0;  ///< held-out error std of the model refitted as it is
   Eigen::Index heldout_samples = 0;
   Eigen::Index fit_samples = 0;
-  std::string split;              ///< how fit and held-out samples were chosen
-  std::vector<Candidate> candidates;            ///< best first
-  std::vector<ChannelAssociation> associations; ///< strongest |Spearman| first
-  std::vector<std::string> notes;               ///< skipped channels and why
+  std::string split;                             ///< how fit and held-out samples were chosen
+  std::vector<Candidate> candidates;             ///< best first
+  std::vector<ChannelAssociation> associations;  ///< strongest |Spearman| first
+  std::vector<std::string> notes;                ///< skipped channels and why
 };
 
 /// Candidate term specs for this model and flight: current:/dcurrent: for every cur_* and vol_*
-/// channel and the Tolles-Lawson families the model lacks (diagnose adds lag:<s>, scanned). Constant channels are skipped
-/// with a note.
+/// channel and the Tolles-Lawson families the model lacks (diagnose adds lag:<s>, scanned).
+/// Constant channels are skipped with a note.
 std::vector<std::string> candidate_terms(const Model& model, const FlightData& data,
                                          std::vector<std::string>* notes);
 

@@ -27,7 +27,8 @@ class FlightData {
   const std::vector<std::string>& names() const { return names_; }
   /// True if the column exists (final name, or an older alias of it).
   bool has(const std::string& name) const;
-  /// Column by name (older aliases accepted). Throws magcomp::Error naming `source()` and the field.
+  /// Column by name (older aliases accepted). Throws magcomp::Error naming `source()` and the
+  /// field.
   const Eigen::VectorXd& column(const std::string& name) const;
   /// Mutable column; same lookup rules.
   Eigen::VectorXd& column(const std::string& name);

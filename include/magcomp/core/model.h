@@ -1,4 +1,5 @@
-// magcomp: a compensation model (scalar sensor + vector sensor + terms + fit settings + coefficients).
+// magcomp: a compensation model (scalar sensor + vector sensor + terms + fit settings +
+// coefficients).
 #pragma once
 
 #include <Eigen/Core>
@@ -14,30 +15,30 @@ namespace magcomp {
 
 /// How the coefficients are fitted (the `fit:` block of the model YAML).
 struct FitSettings {
-  std::string method = "bandpass";   ///< "bandpass" (calibration segments) or "reference"
-  std::vector<double> lines;         ///< calibration segments by line number
-  std::vector<TimeWindow> windows;   ///< and/or by tt windows, s
-  double band_low_hz = 0.1;          ///< band-pass only
+  std::string method = "bandpass";  ///< "bandpass" (calibration segments) or "reference"
+  std::vector<double> lines;        ///< calibration segments by line number
+  std::vector<TimeWindow> windows;  ///< and/or by tt windows, s
+  double band_low_hz = 0.1;         ///< band-pass only
   double band_high_hz = 0.9;
-  int order = 4;                     ///< Butterworth prototype order
-  int trim = 20;                     ///< samples dropped at each end of each filtered segment
-  double lambda = 0.025;             ///< ridge parameter (dimensionless, on the raw columns)
-  std::string reference;             ///< reference field name, reference method only
+  int order = 4;          ///< Butterworth prototype order
+  int trim = 20;          ///< samples dropped at each end of each filtered segment
+  double lambda = 0.025;  ///< ridge parameter (dimensionless, on the raw columns)
+  std::string reference;  ///< reference field name, reference method only
 };
 
 /// What a fit reports about its conditioning.
 struct FitReport {
-  Eigen::Index samples = 0;            ///< rows used in the regression
-  int segments = 0;                    ///< contiguous calibration segments used
-  double condition_number = 0.0;       ///< of the column-normalised design matrix
-  double residual_std_nT = 0.0;        ///< std of the fit residual (filtered for bandpass)
-  std::vector<std::string> warnings;   ///< e.g. terms the segments do not excite
+  Eigen::Index samples = 0;           ///< rows used in the regression
+  int segments = 0;                   ///< contiguous calibration segments used
+  double condition_number = 0.0;      ///< of the column-normalised design matrix
+  double residual_std_nT = 0.0;       ///< std of the fit residual (filtered for bandpass)
+  std::vector<std::string> warnings;  ///< e.g. terms the segments do not excite
 };
 
 /// A compensation model. Terms are held as specs; the model builds them on demand.
 struct Model {
-  std::string scalar = "mag_5_uc";       ///< field of the scalar magnetometer, nT
-  std::string vector = "flux_c";         ///< vector magnetometer prefix: <vector>_x/_y/_z, nT
+  std::string scalar = "mag_5_uc";  ///< field of the scalar magnetometer, nT
+  std::string vector = "flux_c";    ///< vector magnetometer prefix: <vector>_x/_y/_z, nT
   std::vector<std::string> terms = {"permanent", "induced", "eddy"};
   double bt_scale_nT = 50000.0;
   FitSettings fit;

@@ -23,9 +23,9 @@ struct StreamSample {
 /// The compensation of one sample, nT.
 struct StreamOutput {
   double t_s = 0.0;
-  double measured_nT = 0.0;    ///< the scalar, realigned by the model's lag
-  double correction_nT = 0.0;  ///< A·c
-  double compensated_nT = 0.0; ///< measured - correction
+  double measured_nT = 0.0;     ///< the scalar, realigned by the model's lag
+  double correction_nT = 0.0;   ///< A·c
+  double compensated_nT = 0.0;  ///< measured - correction
 };
 
 /// Applies a fitted model to a stream of samples. Each output needs a few samples after it

@@ -14,12 +14,12 @@ namespace magcomp {
 /// derived into the quantities the Tolles-Lawson family uses. All fields in nT, sensor frame.
 struct TermInputs {
   const FlightData* data = nullptr;
-  Eigen::MatrixX3d field_nT;       ///< vector sensor B (N x 3)
-  Eigen::VectorXd total_nT;        ///< |B|
-  Eigen::MatrixX3d direction;      ///< B / |B|, unit direction cosines
-  Eigen::MatrixX3d delta_nT;       ///< central difference of B per sample (one-sided at the ends)
-  double bt_scale_nT = 50000.0;    ///< scale of the induced and eddy columns (MagNav.jl: 50000)
-  double dt_s = 0.1;               ///< sample period
+  Eigen::MatrixX3d field_nT;     ///< vector sensor B (N x 3)
+  Eigen::VectorXd total_nT;      ///< |B|
+  Eigen::MatrixX3d direction;    ///< B / |B|, unit direction cosines
+  Eigen::MatrixX3d delta_nT;     ///< central difference of B per sample (one-sided at the ends)
+  double bt_scale_nT = 50000.0;  ///< scale of the induced and eddy columns (MagNav.jl: 50000)
+  double dt_s = 0.1;             ///< sample period
 };
 
 /// Builds TermInputs from the columns `<vector>_x/_y/_z` of `data`.
@@ -29,7 +29,8 @@ TermInputs make_term_inputs(const FlightData& data, const std::string& vector_se
 /// Central difference per sample (one-sided at both ends), as MagNav.jl's fdm; NOT divided by dt.
 Eigen::VectorXd central_difference(const Eigen::VectorXd& x);
 
-/// One physical effect. A term's spec is the exact string `--term`, the model YAML and diagnose use.
+/// One physical effect. A term's spec is the exact string `--term`, the model YAML and diagnose
+/// use.
 class Term {
  public:
   virtual ~Term() = default;
@@ -51,8 +52,9 @@ class Term {
   virtual void build(const TermInputs& in, Eigen::Ref<Eigen::MatrixXd> out) const = 0;
 };
 
-/// Parses a term spec. Known: permanent, induced, induced5, induced3, eddy, eddy8, eddy3, fdm, bias,
-/// current:<channel>, dcurrent:<channel>, lag:<seconds>. Throws magcomp::Error naming the spec otherwise.
+/// Parses a term spec. Known: permanent, induced, induced5, induced3, eddy, eddy8, eddy3, fdm,
+/// bias, current:<channel>, dcurrent:<channel>, lag:<seconds>. Throws magcomp::Error naming the
+/// spec otherwise.
 std::unique_ptr<Term> make_term(const std::string& spec);
 
 /// All specs make_term accepts without a channel, with their effect, for help texts.

@@ -12,6 +12,7 @@ double cubic_at(const Eigen::VectorXd& x, double u);
 /// x delayed (shift_samples > 0: y[i] = x(i - shift)) or advanced (< 0), by cubic interpolation
 /// (exact for whole samples). Samples that would need data beyond either end are NaN, or the end
 /// value when `hold_ends` is true.
-Eigen::VectorXd shift_samples(const Eigen::VectorXd& x, double shift_samples, bool hold_ends = false);
+Eigen::VectorXd shift_samples(const Eigen::VectorXd& x, double shift_samples,
+                              bool hold_ends = false);
 
 }  // namespace magcomp

@@ -11,14 +11,15 @@ namespace magcomp::rosio {
 
 /// Topics written by flight_to_bag (and read by the nodes).
 struct BagTopics {
-  static constexpr const char* kSchema = "/magcomp/flight_schema";   ///< FlightSchema, once
-  static constexpr const char* kRecord = "/magcomp/flight_record";   ///< FlightRecord, every sample
-  static constexpr const char* kScalarPrefix = "/magcomp/scalar/";   ///< + mag_k_uc: ScalarMagnetometer
-  static constexpr const char* kReference = "/magcomp/reference";    ///< mag_1_c: ScalarMagnetometer
-  static constexpr const char* kFluxPrefix = "/magcomp/fluxgate/";   ///< + flux_x: MagneticField (T)
-  static constexpr const char* kImu = "/magcomp/ins/imu";            ///< sensor_msgs/Imu (ENU, FLU)
-  static constexpr const char* kFix = "/magcomp/ins/fix";            ///< sensor_msgs/NavSatFix
-  static constexpr const char* kAux = "/magcomp/aux";                ///< AuxChannels: cur_*, vol_*, diurnal
+  static constexpr const char* kSchema = "/magcomp/flight_schema";  ///< FlightSchema, once
+  static constexpr const char* kRecord = "/magcomp/flight_record";  ///< FlightRecord, every sample
+  static constexpr const char* kScalarPrefix =
+      "/magcomp/scalar/";  ///< + mag_k_uc: ScalarMagnetometer
+  static constexpr const char* kReference = "/magcomp/reference";   ///< mag_1_c: ScalarMagnetometer
+  static constexpr const char* kFluxPrefix = "/magcomp/fluxgate/";  ///< + flux_x: MagneticField (T)
+  static constexpr const char* kImu = "/magcomp/ins/imu";           ///< sensor_msgs/Imu (ENU, FLU)
+  static constexpr const char* kFix = "/magcomp/ins/fix";           ///< sensor_msgs/NavSatFix
+  static constexpr const char* kAux = "/magcomp/aux";  ///< AuxChannels: cur_*, vol_*, diurnal
 };
 
 /// Stamp of a sample: midnight UTC of (year, day of year) + tt seconds.

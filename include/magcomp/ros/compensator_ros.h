@@ -79,12 +79,13 @@ class CompensatorRos {
   };
   std::deque<PendingScalar> pending_scalar_;  // awaiting vector/aux coverage
   std::deque<Timed3> vectors_;
-  std::deque<TimedValues> aux_;        // every channel of the AuxChannels messages (aux_all_names_)
-  std::deque<Timed3> fixes_;           // lat deg, lon deg, alt m
+  std::deque<TimedValues> aux_;  // every channel of the AuxChannels messages (aux_all_names_)
+  std::deque<Timed3> fixes_;     // lat deg, lon deg, alt m
   std::deque<std::pair<double, double>> references_;
-  std::deque<StreamSample> history_;   // recent samples (channels rebuilt per model), re-fed on a swap
+  std::deque<StreamSample>
+      history_;  // recent samples (channels rebuilt per model), re-fed on a swap
   std::vector<std::string> aux_all_names_;  // names in the AuxChannels messages
-  std::vector<int> channel_index_;          // the model's channel k -> index in aux_all_names_ (-1: absent)
+  std::vector<int> channel_index_;  // the model's channel k -> index in aux_all_names_ (-1: absent)
   int diurnal_index_ = -1;
   double last_scalar_t_ = -1e300, last_published_t_ = -1e300;
   int64_t base_sec_ = -1;

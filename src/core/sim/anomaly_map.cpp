@@ -48,8 +48,7 @@ AnomalyMap::AnomalyMap(Eigen::MatrixXd ground, double spacing_m)
   fft2(spectrum_, n_, false);
 }
 
-AnomalyMap AnomalyMap::random(int n, double spacing_m, double rms_nT, double slope,
-                              unsigned seed) {
+AnomalyMap AnomalyMap::random(int n, double spacing_m, double rms_nT, double slope, unsigned seed) {
   std::mt19937_64 rng(seed * 104729ULL + 3);
   std::normal_distribution<double> normal(0.0, 1.0);
   std::vector<std::complex<double>> g(static_cast<size_t>(n) * n);
@@ -105,7 +104,8 @@ LayeredMap::LayeredMap(const AnomalyMap& map, double min_h, double max_h, double
 }
 
 double LayeredMap::at(double north, double east, double height) const {
-  const double u = std::clamp((height - h0_) / step_, 0.0, static_cast<double>(layers_.size() - 1) - 1e-9);
+  const double u =
+      std::clamp((height - h0_) / step_, 0.0, static_cast<double>(layers_.size() - 1) - 1e-9);
   const size_t k = static_cast<size_t>(u);
   const double w = u - static_cast<double>(k);
   return (1 - w) * AnomalyMap::sample(layers_[k], spacing_m_, north, east) +

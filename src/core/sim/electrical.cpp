@@ -88,7 +88,8 @@ std::map<std::string, Eigen::VectorXd> simulate_channels(const Track& tr, unsign
   // INS gimbal servos follow the attitude rates.
   Eigen::VectorXd roll_rate(n), pitch_rate(n), yaw_rate(n);
   for (Eigen::Index i = 0; i < n; ++i) {
-    const Eigen::Index a = std::max<Eigen::Index>(i - 1, 0), b = std::min<Eigen::Index>(i + 1, n - 1);
+    const Eigen::Index a = std::max<Eigen::Index>(i - 1, 0),
+                       b = std::min<Eigen::Index>(i + 1, n - 1);
     const double span = std::max<double>(static_cast<double>(b - a), 1.0) * dt;
     roll_rate[i] = std::remainder(tr.roll_rad[b] - tr.roll_rad[a], 2 * M_PI) / span;
     pitch_rate[i] = std::remainder(tr.pitch_rad[b] - tr.pitch_rad[a], 2 * M_PI) / span;
@@ -131,10 +132,12 @@ std::map<std::string, Eigen::VectorXd> simulate_channels(const Track& tr, unsign
   c["vol_acc_n"] = Eigen::VectorXd::Constant(n, -12.0) + noise(0.004);
   c["vol_block"] = (24.0 + 0.5 * drift.array()).matrix() + noise(0.01);
   c["vol_back"] = Eigen::VectorXd::Constant(n, 3.3) + noise(0.002);
-  c["vol_srvo"] = (24.0 - 0.2 * (c["cur_srvo_o"] + c["cur_srvo_m"] + c["cur_srvo_i"]).array()).matrix() +
-                  noise(0.01);
+  c["vol_srvo"] =
+      (24.0 - 0.2 * (c["cur_srvo_o"] + c["cur_srvo_m"] + c["cur_srvo_i"]).array()).matrix() +
+      noise(0.01);
   // Cabin temperature sensor (V): heats slowly while the heater runs.
-  c["vol_cabt"] = (2.0 + 0.3 * smooth(c["cur_heat"], 600.0, dt).array() / 5.0).matrix() + noise(0.002);
+  c["vol_cabt"] =
+      (2.0 + 0.3 * smooth(c["cur_heat"], 600.0, dt).array() / 5.0).matrix() + noise(0.002);
   c["vol_fan"] = (12.0 * fan_on.array()).matrix() + noise(0.02);
   return c;
 }

@@ -12,11 +12,11 @@ namespace magcomp::sim {
 
 const std::vector<std::string>& simulated_channels() {
   static const std::vector<std::string> kChannels = {
-      "cur_com_1", "cur_ac_hi",  "cur_ac_lo",  "cur_tank",   "cur_flap",   "cur_strb",
-      "cur_srvo_o", "cur_srvo_m", "cur_srvo_i", "cur_heat",  "cur_acpwr",  "cur_outpwr",
-      "cur_bat_1", "cur_bat_2",  "vol_acpwr",  "vol_outpwr", "vol_bat_1",  "vol_bat_2",
-      "vol_res_p", "vol_res_n",  "vol_back_p", "vol_back_n", "vol_gyro_1", "vol_gyro_2",
-      "vol_acc_p", "vol_acc_n",  "vol_block",  "vol_back",   "vol_srvo",   "vol_cabt",
+      "cur_com_1",  "cur_ac_hi",  "cur_ac_lo",  "cur_tank",   "cur_flap",   "cur_strb",
+      "cur_srvo_o", "cur_srvo_m", "cur_srvo_i", "cur_heat",   "cur_acpwr",  "cur_outpwr",
+      "cur_bat_1",  "cur_bat_2",  "vol_acpwr",  "vol_outpwr", "vol_bat_1",  "vol_bat_2",
+      "vol_res_p",  "vol_res_n",  "vol_back_p", "vol_back_n", "vol_gyro_1", "vol_gyro_2",
+      "vol_acc_p",  "vol_acc_n",  "vol_block",  "vol_back",   "vol_srvo",   "vol_cabt",
       "vol_fan"};
   return kChannels;
 }
@@ -112,10 +112,12 @@ Scenario load_scenario(const std::string& path) {
     r.check_keys(root["origin"], {"lat_deg", "lon_deg"}, "origin");
     r.get(root["origin"], "lat_deg", "origin", &s.origin_lat_deg);
     r.get(root["origin"], "lon_deg", "origin", &s.origin_lon_deg);
-    if (std::abs(s.origin_lat_deg) > 80) throw Error(path + ": key 'origin.lat_deg' must be within +-80");
+    if (std::abs(s.origin_lat_deg) > 80)
+      throw Error(path + ": key 'origin.lat_deg' must be within +-80");
   }
   if (const YAML::Node a = root["aircraft"]) {
-    r.check_keys(a, {"speed_mps", "turn_bank_deg", "climb_rate_mps", "field_scale", "turbulence_deg"},
+    r.check_keys(a,
+                 {"speed_mps", "turn_bank_deg", "climb_rate_mps", "field_scale", "turbulence_deg"},
                  "aircraft");
     r.get(a, "speed_mps", "aircraft", &s.speed_mps);
     r.get(a, "turn_bank_deg", "aircraft", &s.turn_bank_deg);
@@ -172,7 +174,8 @@ Scenario load_scenario(const std::string& path) {
     r.get(p, "lines", where, &g.lines);
     static const std::set<std::string> kTypes = {"box", "cloverleaf", "line", "grid", "figure8"};
     if (!kTypes.count(g.type)) {
-      throw Error(path + ": key '" + where + ".type' must be box, cloverleaf, line, grid or figure8");
+      throw Error(path + ": key '" + where +
+                  ".type' must be box, cloverleaf, line, grid or figure8");
     }
     r.positive(g.duration_s, where + ".duration_s");
     if (g.lines < 1) throw Error(path + ": key '" + where + ".lines' must be >= 1");
@@ -203,8 +206,8 @@ Scenario load_scenario(const std::string& path) {
       r.vec3(e, "nonorthogonality_rad", where, &x.nonorthogonality_rad);
       r.vec3(e, "offset_nT", where, &x.offset_nT);
       r.get(e, "sensors", where, &x.sensors);
-      static const std::set<std::string> kTypes = {"wire", "inductive", "lag", "fluxgate",
-                                                   "heading", "drift"};
+      static const std::set<std::string> kTypes = {"wire",     "inductive", "lag",
+                                                   "fluxgate", "heading",   "drift"};
       if (!kTypes.count(x.type)) {
         throw Error(path + ": key '" + where +
                     ".type' must be wire, inductive, lag, fluxgate, heading or drift");

@@ -1,8 +1,8 @@
 // magcomp simulator: assembly of the Earth field, the aircraft, the sensors and the hidden effects.
 #include "magcomp/core/sim/simulator.h"
 
-#include <yaml-cpp/yaml.h>
 #include <unistd.h>
+#include <yaml-cpp/yaml.h>
 
 #include <Eigen/Geometry>
 #include <cmath>
@@ -29,7 +29,8 @@ Eigen::VectorXd central_rate(const Eigen::VectorXd& x, double dt) {
   const Eigen::Index n = x.size();
   Eigen::VectorXd d(n);
   for (Eigen::Index i = 0; i < n; ++i) {
-    const Eigen::Index a = std::max<Eigen::Index>(i - 1, 0), b = std::min<Eigen::Index>(i + 1, n - 1);
+    const Eigen::Index a = std::max<Eigen::Index>(i - 1, 0),
+                       b = std::min<Eigen::Index>(i + 1, n - 1);
     d[i] = (x[b] - x[a]) / (std::max<Eigen::Index>(b - a, 1) * dt);
   }
   return d;
@@ -48,9 +49,7 @@ bool applies(const HiddenEffect& e, const SensorMount& m) {
 }
 
 double rms(const Eigen::VectorXd& v) { return std::sqrt(v.array().square().mean()); }
-double stdev(const Eigen::VectorXd& v) {
-  return std::sqrt((v.array() - v.mean()).square().mean());
-}
+double stdev(const Eigen::VectorXd& v) { return std::sqrt((v.array() - v.mean()).square().mean()); }
 
 }  // namespace
 
@@ -96,9 +95,8 @@ Simulation simulate(const Scenario& s) {
   for (Eigen::Index i = 0; i < n; ++i) {
     anomaly[i] = layers.at(tr.north_m[i], tr.east_m[i], tr.alt_m[i] - s.terrain_m);
     walk = 0.9995 * walk + 0.02 * normal(rng);
-    diurnal[i] = s.diurnal_amplitude_nT *
-                     (std::sin(2 * M_PI * tt[i] / 86400.0 + phase) +
-                      0.3 * std::sin(4 * M_PI * tt[i] / 86400.0 + 2 * phase)) +
+    diurnal[i] = s.diurnal_amplitude_nT * (std::sin(2 * M_PI * tt[i] / 86400.0 + phase) +
+                                           0.3 * std::sin(4 * M_PI * tt[i] / 86400.0 + 2 * phase)) +
                  walk * s.diurnal_amplitude_nT / 15.0;
     const Eigen::Vector3d& g = igrf_ned[static_cast<size_t>(i)];
     igrf_total[i] = g.norm();
@@ -113,7 +111,8 @@ Simulation simulate(const Scenario& s) {
   }
   Vectors earth_rate(static_cast<size_t>(n));
   for (Eigen::Index i = 0; i < n; ++i) {
-    const Eigen::Index a = std::max<Eigen::Index>(i - 1, 0), b = std::min<Eigen::Index>(i + 1, n - 1);
+    const Eigen::Index a = std::max<Eigen::Index>(i - 1, 0),
+                       b = std::min<Eigen::Index>(i + 1, n - 1);
     earth_rate[static_cast<size_t>(i)] =
         (earth_body[static_cast<size_t>(b)] - earth_body[static_cast<size_t>(a)]) /
         (static_cast<double>(std::max<Eigen::Index>(b - a, 1)) * dt);
@@ -169,7 +168,8 @@ Simulation simulate(const Scenario& s) {
     Vectors field(static_cast<size_t>(n));  // Earth + aircraft, body frame
     for (Eigen::Index i = 0; i < n; ++i) {
       const auto k = static_cast<size_t>(i);
-      field[k] = earth_body[k] + a.permanent_nT + a.induced * earth_body[k] + a.eddy_s * earth_rate[k];
+      field[k] =
+          earth_body[k] + a.permanent_nT + a.induced * earth_body[k] + a.eddy_s * earth_rate[k];
     }
     y << YAML::Key << m.name << YAML::Value << YAML::BeginMap;
     y << YAML::Key << "position_m" << YAML::Value << YAML::Flow
@@ -220,9 +220,9 @@ Simulation simulate(const Scenario& s) {
         Eigen::Vector3d per_unit;
         Eigen::VectorXd drive;
         if (e.type == "wire") {
-          per_unit = wire_field_per_ampere_nT(e.position_m - 0.5 * e.length_m * e.direction,
-                                              e.position_m + 0.5 * e.length_m * e.direction,
-                                              m.position_m);
+          per_unit =
+              wire_field_per_ampere_nT(e.position_m - 0.5 * e.length_m * e.direction,
+                                       e.position_m + 0.5 * e.length_m * e.direction, m.position_m);
           drive = current;
         } else {
           per_unit = e.gain * e.direction;
@@ -276,8 +276,8 @@ Simulation simulate(const Scenario& s) {
       truth.set(col, contrib);
       y << YAML::BeginMap << YAML::Key << "effect" << YAML::Value << static_cast<int>(k)
         << YAML::Key << "type" << YAML::Value << s.hidden[k].type << YAML::Key << "column"
-        << YAML::Value << col << YAML::Key << "rms_nT" << YAML::Value << rms(contrib)
-        << YAML::Key << "std_nT" << YAML::Value << stdev(contrib) << YAML::EndMap;
+        << YAML::Value << col << YAML::Key << "rms_nT" << YAML::Value << rms(contrib) << YAML::Key
+        << "std_nT" << YAML::Value << stdev(contrib) << YAML::EndMap;
     }
     y << YAML::EndSeq;
     y << YAML::EndMap;
@@ -295,7 +295,8 @@ Simulation simulate(const Scenario& s) {
       y << YAML::Key << "length_m" << YAML::Value << e.length_m;
       y << YAML::Key << "expected_term" << YAML::Value << "current:" + e.channel;
     }
-    if (e.type == "inductive") y << YAML::Key << "expected_term" << YAML::Value << "dcurrent:" + e.channel;
+    if (e.type == "inductive")
+      y << YAML::Key << "expected_term" << YAML::Value << "dcurrent:" + e.channel;
     if (e.type == "lag") {
       y << YAML::Key << "lag_s" << YAML::Value << e.lag_s;
       char lag_term[64];
@@ -333,7 +334,8 @@ Simulation simulate(const Scenario& s) {
   f.set("msl", msl);
   Eigen::VectorXd baro(n), topo(n), radar(n);
   for (Eigen::Index i = 0; i < n; ++i) {
-    topo[i] = s.terrain_m - geoid_m + 15.0 * std::sin(tr.north_m[i] / 3000.0) * std::cos(tr.east_m[i] / 4000.0);
+    topo[i] = s.terrain_m - geoid_m +
+              15.0 * std::sin(tr.north_m[i] / 3000.0) * std::cos(tr.east_m[i] / 4000.0);
     baro[i] = msl[i] + 6.0 + 0.5 * normal(rng);
     radar[i] = msl[i] - topo[i] + 0.3 * normal(rng);
   }
@@ -354,7 +356,8 @@ Simulation simulate(const Scenario& s) {
   f.set("ins_yaw", yaw_deg);
   Eigen::VectorXd unwrapped_yaw = tr.yaw_rad;
   for (Eigen::Index i = 1; i < n; ++i) {
-    unwrapped_yaw[i] = unwrapped_yaw[i - 1] + std::remainder(tr.yaw_rad[i] - tr.yaw_rad[i - 1], 2 * M_PI);
+    unwrapped_yaw[i] =
+        unwrapped_yaw[i - 1] + std::remainder(tr.yaw_rad[i] - tr.yaw_rad[i - 1], 2 * M_PI);
   }
   f.set("pitch_rate", central_rate(tr.pitch_rad, dt) / kDeg);
   f.set("roll_rate", central_rate(tr.roll_rad, dt) / kDeg);

@@ -20,14 +20,15 @@ struct Leg {
   double heading_rad = NAN;  // straight legs: heading to hold (NaN: keep current)
   double turn_rad = 0;       // turn legs: signed heading change (+ right)
   double climb_mps = 0;
-  bool maneuvers = false;    // calibration box leg: pitch, roll, yaw thirds
+  bool maneuvers = false;  // calibration box leg: pitch, roll, yaw thirds
 };
 
 double wrap(double a) { return std::atan2(std::sin(a), std::cos(a)); }
 
 class Planner {
  public:
-  explicit Planner(const Scenario& s) : s_(s), rate_(kG * std::tan(s.turn_bank_deg * kDeg) / s.speed_mps) {}
+  explicit Planner(const Scenario& s)
+      : s_(s), rate_(kG * std::tan(s.turn_bank_deg * kDeg) / s.speed_mps) {}
 
   std::vector<Leg> expand() {
     heading_ = s_.segments.front().heading_deg * kDeg;
@@ -126,9 +127,9 @@ Track fly(const Scenario& s) {
   }
   const Eigen::Index n = static_cast<Eigen::Index>(total);
   Track tr;
-  for (Eigen::VectorXd* v : {&tr.t_s, &tr.line, &tr.yaw_rad, &tr.pitch_rad, &tr.roll_rad, &tr.north_m,
-                             &tr.east_m, &tr.alt_m, &tr.vn_mps, &tr.ve_mps, &tr.vu_mps, &tr.speed_mps,
-                             &tr.lat_deg, &tr.lon_deg, &tr.maneuver}) {
+  for (Eigen::VectorXd* v : {&tr.t_s, &tr.line, &tr.yaw_rad, &tr.pitch_rad, &tr.roll_rad,
+                             &tr.north_m, &tr.east_m, &tr.alt_m, &tr.vn_mps, &tr.ve_mps, &tr.vu_mps,
+                             &tr.speed_mps, &tr.lat_deg, &tr.lon_deg, &tr.maneuver}) {
     v->resize(n);
   }
   std::mt19937_64 rng(s.seed * 7919ULL + 17);

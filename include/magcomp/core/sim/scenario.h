@@ -9,27 +9,27 @@ namespace magcomp::sim {
 
 /// One piece of the flight plan. Turns and climbs between segments are inserted automatically.
 struct Segment {
-  std::string type;         ///< box | cloverleaf | line | grid | figure8
-  double line = 0.0;        ///< line number (grid: the first line; +0.01 per further line)
-  double heading_deg = 0.0; ///< clockwise from north
-  double duration_s = 0.0;  ///< line, figure8: total; box/cloverleaf: per leg; grid: per line
-  double altitude_m = 0.0;  ///< above the WGS-84 ellipsoid; 0 keeps the current altitude
-  int lines = 1;            ///< grid only
+  std::string type;          ///< box | cloverleaf | line | grid | figure8
+  double line = 0.0;         ///< line number (grid: the first line; +0.01 per further line)
+  double heading_deg = 0.0;  ///< clockwise from north
+  double duration_s = 0.0;   ///< line, figure8: total; box/cloverleaf: per leg; grid: per line
+  double altitude_m = 0.0;   ///< above the WGS-84 ellipsoid; 0 keeps the current altitude
+  int lines = 1;             ///< grid only
 };
 
 /// A hidden (or visible) physical effect the simulator adds to the scalar sensors.
 struct HiddenEffect {
-  std::string type;                  ///< wire | inductive | lag | fluxgate | heading | drift
-  std::string channel;               ///< wire / inductive / drift: the current or other channel
-  Eigen::Vector3d position_m{0, 0, 0};   ///< wire: midpoint in base_link (x fwd, y left, z up)
-  Eigen::Vector3d direction{1, 0, 0};    ///< wire: along the wire; inductive/heading: field axis
-  double length_m = 1.0;             ///< wire length
-  double gain = 0.0;                 ///< inductive: nT per A/s at 1 m scale; heading: nT; drift: nT per unit
-  double lag_s = 0.0;                ///< lag: scalar sensors read the field lag_s late
-  double time_constant_s = 300.0;    ///< drift: low-pass of the channel
-  Eigen::Vector3d scale{0, 0, 0};        ///< fluxgate: scale errors (fraction) per axis
+  std::string type;                     ///< wire | inductive | lag | fluxgate | heading | drift
+  std::string channel;                  ///< wire / inductive / drift: the current or other channel
+  Eigen::Vector3d position_m{0, 0, 0};  ///< wire: midpoint in base_link (x fwd, y left, z up)
+  Eigen::Vector3d direction{1, 0, 0};   ///< wire: along the wire; inductive/heading: field axis
+  double length_m = 1.0;                ///< wire length
+  double gain = 0.0;   ///< inductive: nT per A/s at 1 m scale; heading: nT; drift: nT per unit
+  double lag_s = 0.0;  ///< lag: scalar sensors read the field lag_s late
+  double time_constant_s = 300.0;                 ///< drift: low-pass of the channel
+  Eigen::Vector3d scale{0, 0, 0};                 ///< fluxgate: scale errors (fraction) per axis
   Eigen::Vector3d nonorthogonality_rad{0, 0, 0};  ///< fluxgate: xy, xz, yz angles
-  Eigen::Vector3d offset_nT{0, 0, 0};    ///< fluxgate: offsets
+  Eigen::Vector3d offset_nT{0, 0, 0};             ///< fluxgate: offsets
   std::vector<std::string> sensors;  ///< sensors affected (empty: every scalar / every fluxgate)
 };
 
@@ -50,17 +50,17 @@ struct Scenario {
   double start_altitude_m = 1000.0;
   std::vector<Segment> segments;
   // Earth
-  double anomaly_rms_nT = 150.0;       ///< crustal anomaly rms at the ground (before continuation)
-  double anomaly_spectral_slope = 3.0; ///< power spectrum ∝ k^-slope
+  double anomaly_rms_nT = 150.0;        ///< crustal anomaly rms at the ground (before continuation)
+  double anomaly_spectral_slope = 3.0;  ///< power spectrum ∝ k^-slope
   double anomaly_grid_m = 100.0;
   int anomaly_grid_n = 512;
-  double terrain_m = 80.0;             ///< ground height above the ellipsoid
+  double terrain_m = 80.0;  ///< ground height above the ellipsoid
   double diurnal_amplitude_nT = 15.0;
   // Aircraft and sensors
-  double aircraft_scale = 1.0;         ///< multiplies every aircraft-field coefficient
-  double turbulence_deg = 0.3;         ///< rms attitude turbulence
-  double scalar_noise_nT = 0.005;      ///< cesium white noise rms
-  double fluxgate_noise_nT = 0.3;      ///< fluxgate white noise rms per axis
+  double aircraft_scale = 1.0;     ///< multiplies every aircraft-field coefficient
+  double turbulence_deg = 0.3;     ///< rms attitude turbulence
+  double scalar_noise_nT = 0.005;  ///< cesium white noise rms
+  double fluxgate_noise_nT = 0.3;  ///< fluxgate white noise rms per axis
   std::vector<HiddenEffect> hidden;
 };
 

@@ -10,9 +10,10 @@ namespace magcomp::sim {
 
 /// A simulated flight: the data a user sees, and the truth behind it.
 struct Simulation {
-  FlightData flight;   ///< MIT schema (DATA.md): tt, line, INS, mags, fluxgates, channels, ...
-  FlightData truth;    ///< per-sample contributions: `<sensor>.aircraft`, `<sensor>.hidden.<k>.<type>`,
-                       ///< `<sensor>.noise`, `<flux>.clean_x/y/z`, `earth_total`, ... (nT)
+  FlightData flight;  ///< MIT schema (DATA.md): tt, line, INS, mags, fluxgates, channels, ...
+  FlightData
+      truth;  ///< per-sample contributions: `<sensor>.aircraft`, `<sensor>.hidden.<k>.<type>`,
+              ///< `<sensor>.noise`, `<flux>.clean_x/y/z`, `earth_total`, ... (nT)
   std::string truth_yaml;  ///< the effects, their parameters, their rms contribution per sensor
 };
 

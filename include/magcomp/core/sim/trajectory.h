@@ -12,7 +12,7 @@ namespace magcomp::sim {
 struct Track {
   Eigen::VectorXd t_s, line;
   Eigen::VectorXd yaw_rad, pitch_rad, roll_rad;
-  Eigen::VectorXd north_m, east_m, alt_m;       ///< alt: above the WGS-84 ellipsoid
+  Eigen::VectorXd north_m, east_m, alt_m;  ///< alt: above the WGS-84 ellipsoid
   Eigen::VectorXd vn_mps, ve_mps, vu_mps, speed_mps;
   Eigen::VectorXd lat_deg, lon_deg;
   Eigen::VectorXd maneuver;  ///< 0 none, 1 pitch, 2 roll, 3 yaw (calibration maneuvers)
