@@ -94,7 +94,8 @@ ConvertReport flight_to_bag(const FlightData& f, const std::string& bag_path, bo
         const std::string base = name.substr(0, 6);
         if (f.has(base + "_y") && f.has(base + "_z")) fluxes.push_back(base);
       }
-      if (name.rfind("cur_", 0) == 0 || name.rfind("vol_", 0) == 0 || name == "diurnal")
+      if (name.rfind("cur_", 0) == 0 || name.rfind("vol_", 0) == 0 || name == "diurnal" ||
+          name == "line")
         aux.push_back(name);
     }
     const bool has_att = f.has("ins_roll") && f.has("ins_pitch") && f.has("ins_yaw");

@@ -22,10 +22,10 @@ double file_mtime(const std::string& path) {
 }
 
 const std::set<std::string> kKnownParams = {
-    "model_path",  "scalar_topic",    "vector_topic",     "aux_topic",
-    "fix_topic",   "reference_topic", "output_topic",     "frame_id",
-    "max_gap_s",   "max_wait_s",      "jump_back_s",      "buffer_s",
-    "watch_model", "marker_stride",   "expected_rate_hz", "flush_after_s"};
+    "model_path",      "scalar_topic",      "vector_topic",    "aux_topic",     "fix_topic",
+    "reference_topic", "output_topic",      "frame_id",        "max_gap_s",     "max_wait_s",
+    "jump_back_s",     "buffer_s",          "watch_model",     "marker_stride", "expected_rate_hz",
+    "flush_after_s",   "calibration_model", "calibration_out", "forgetting"};
 
 }  // namespace
 
@@ -81,7 +81,22 @@ CompensatorRos::CompensatorRos(ros::NodeHandle nh, ros::NodeHandle pnh)
       }
     }
   }
-  if (!pnh_.getParam("model_path", model_path_) || model_path_.empty()) {
+  std::string calibration_model;
+  pnh_.param<std::string>("calibration_model", calibration_model, "");
+  pnh_.param<std::string>("calibration_out", calibration_out_, "");
+  double forgetting = 1.0;
+  pnh_.param("forgetting", forgetting, 1.0);
+  if (!calibration_model.empty()) {
+    try {
+      calibration_template_ = std::make_unique<Model>(load_model_yaml(calibration_model));
+      calibrator_ = std::make_unique<InflightCalibrator>(*calibration_template_, forgetting);
+    } catch (const std::exception& e) {
+      ROS_FATAL("~calibration_model: %s", e.what());
+      throw Error(std::string("~calibration_model: ") + e.what());
+    }
+  }
+  pnh_.param<std::string>("model_path", model_path_, "");
+  if (model_path_.empty() && !calibrator_) {
     ROS_FATAL("~model_path: required (a fitted model YAML written by magcomp calibrate)");
     throw Error("~model_path: required");
   }
@@ -110,9 +125,10 @@ CompensatorRos::CompensatorRos(ros::NodeHandle nh, ros::NodeHandle pnh)
   if (marker_stride_ < 1) marker_stride_ = 1;
   min_freq_ = 0.5 * rate;
   max_freq_ = 2.0 * rate;
-  if (!load_model("start-up")) ROS_ERROR("%s", model_error_.c_str());
-  const std::string scalar = comp_ ? comp_->model().scalar : "mag_5_uc";
-  const std::string vector = comp_ ? comp_->model().vector : "flux_c";
+  if (!model_path_.empty() && !load_model("start-up")) ROS_ERROR("%s", model_error_.c_str());
+  const Model* sensors = comp_ ? &comp_->model() : calibration_template_.get();
+  const std::string scalar = sensors ? sensors->scalar : "mag_5_uc";
+  const std::string vector = sensors ? sensors->vector : "flux_c";
   std::string scalar_topic, vector_topic, aux_topic, fix_topic, ref_topic, out_topic;
   pnh_.param<std::string>("scalar_topic", scalar_topic, "/magcomp/scalar/" + scalar);
   pnh_.param<std::string>("vector_topic", vector_topic, "/magcomp/fluxgate/" + vector);
@@ -132,6 +148,18 @@ CompensatorRos::CompensatorRos(ros::NodeHandle nh, ros::NodeHandle pnh)
     sub_ref_ = nh_.subscribe(ref_topic, 1000, &CompensatorRos::on_reference, this, hints);
   }
   srv_reload_ = pnh_.advertiseService("reload", &CompensatorRos::on_reload, this);
+  if (calibrator_) {
+    pub_status_ = pnh_.advertise<magcomp::CalibrationStatus>("calibration_status", 10, true);
+    srv_start_ = pnh_.advertiseService("start_segment", &CompensatorRos::on_start_segment, this);
+    srv_stop_ = pnh_.advertiseService("stop_segment", &CompensatorRos::on_stop_segment, this);
+    srv_fit_ = pnh_.advertiseService("fit", &CompensatorRos::on_fit, this);
+    srv_save_ = pnh_.advertiseService("save", &CompensatorRos::on_save, this);
+    srv_reset_ =
+        pnh_.advertiseService("reset_calibration", &CompensatorRos::on_reset_calibration, this);
+    status_timer_ = nh_.createWallTimer(ros::WallDuration(1.0), [this](const ros::WallTimerEvent&) {
+      publish_calibration_status();
+    });
+  }
   // Wall timers: the model file and the end of a replay happen in wall time, not data time.
   watch_timer_ = nh_.createWallTimer(ros::WallDuration(0.25), [this](const ros::WallTimerEvent&) {
     if (watch_model_) on_watch(ros::TimerEvent());
@@ -255,6 +283,7 @@ void CompensatorRos::on_scalar(const magcomp::ScalarMagnetometer::ConstPtr& m) {
       references_.clear();
       last_published_t_ = -1e300;
       track_.clear();
+      if (calibrator_) calibrator_->reset();  // a replay starting over must not count twice
     } else {
       ++n_out_of_order_;
       return;
@@ -295,6 +324,14 @@ void CompensatorRos::on_aux(const magcomp::AuxChannels::ConstPtr& m) {
     aux_.clear();
     if (comp_) channel_index_ = channel_indices(comp_->required_channels());
     diurnal_index_ = channel_indices({"diurnal"})[0];
+    line_index_ = channel_indices({"line"})[0];
+    if (calibration_template_) {
+      std::vector<std::string> names;
+      for (const auto& t : calibration_template_->make_terms()) {
+        for (const auto& f : t->required_fields()) names.push_back(f);
+      }
+      calibration_index_ = channel_indices(names);
+    }
   }
   TimedValues tv{t, m->values};
   tv.v.resize(aux_all_names_.size(), NAN);
@@ -329,11 +366,15 @@ void CompensatorRos::on_reference(const magcomp::ScalarMagnetometer::ConstPtr& m
 }
 
 void CompensatorRos::process_ready(bool force) {
-  if (!comp_) {
+  if (!comp_ && !calibrator_) {
     pending_scalar_.clear();
     return;
   }
-  const bool need_aux = !channel_index_.empty();
+  // Wait for the aux message of a stamp when the model or the calibration needs a channel from it
+  // (a calibration selected by line needs the `line` of that very sample).
+  const bool need_aux =
+      !channel_index_.empty() ||
+      (calibrator_ && (!calibration_index_.empty() || !calibration_template_->fit.lines.empty()));
   while (!pending_scalar_.empty()) {
     const auto [t, value, arrived_wall] = pending_scalar_.front();
     const bool covered = !vectors_.empty() && vectors_.back().t >= t &&
@@ -367,6 +408,8 @@ void CompensatorRos::process_ready(bool force) {
 }
 
 void CompensatorRos::feed(const StreamSample& s) {
+  if (calibrator_) calibrate(s);
+  if (!comp_) return;
   history_.push_back(s);
   while (history_.size() > static_cast<size_t>(4 * std::max(comp_->lookahead(), 3) + 4))
     history_.pop_front();
@@ -461,8 +504,105 @@ void CompensatorRos::publish(const StreamOutput& o) {
   }
 }
 
+void CompensatorRos::calibrate(const StreamSample& s) {
+  StreamSample c = s;
+  c.channels = channels_at(s.t_s, calibration_index_);
+  // Segment membership: the services, or the template's fit.lines (the aux channel `line`) and
+  // fit.windows (tt, seconds past midnight UTC of the stamp).
+  bool in = manual_segment_;
+  const FitSettings& fs = calibration_template_->fit;
+  if (!in && !fs.lines.empty() && line_index_ >= 0) {
+    const double line = channels_at(s.t_s, {line_index_})[0];
+    for (double l : fs.lines) in = in || std::abs(line - l) < 1e-6;
+  }
+  if (!in && !fs.windows.empty()) {
+    const ros::Time st = stamp(s.t_s);
+    const double tt = static_cast<double>(st.sec % 86400) + 1e-9 * st.nsec;
+    for (const auto& w : fs.windows) in = in || (tt >= w.start_s && tt <= w.end_s);
+  }
+  calibrator_->add(c, in);
+}
+
+void CompensatorRos::publish_calibration_status() {
+  if (!calibrator_) return;
+  magcomp::CalibrationStatus st;
+  st.header.stamp = stamp(std::max(last_scalar_t_, 0.0));
+  const Model m = calibrated_ ? *calibrated_ : calibrator_->rls();
+  st.state = calibrated_ ? "fitted" : (calibrator_->samples() > 0 ? "collecting" : "idle");
+  st.segments = static_cast<uint32_t>(calibrator_->segments());
+  st.samples = static_cast<uint32_t>(calibrator_->samples());
+  st.condition_number = calibrated_ ? calibrated_->report.condition_number : NAN;
+  st.residual_std_nT = calibrated_ ? calibrated_->report.residual_std_nT : NAN;
+  st.column_names = m.column_names;
+  st.coefficients.assign(m.coefficients.data(), m.coefficients.data() + m.coefficients.size());
+  pub_status_.publish(st);
+}
+
+bool CompensatorRos::on_start_segment(std_srvs::Trigger::Request&,
+                                      std_srvs::Trigger::Response& res) {
+  manual_segment_ = true;
+  res.success = true;
+  res.message = "collecting";
+  return true;
+}
+
+bool CompensatorRos::on_stop_segment(std_srvs::Trigger::Request&,
+                                     std_srvs::Trigger::Response& res) {
+  manual_segment_ = false;
+  calibrator_->end_segment();
+  res.success = true;
+  res.message = std::to_string(calibrator_->segments()) + " segments";
+  return true;
+}
+
+bool CompensatorRos::on_fit(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res) {
+  try {
+    calibrated_ = std::make_unique<Model>(calibrator_->batch());
+    res.success = true;
+    res.message = "fitted on " + std::to_string(calibrated_->report.samples) + " samples in " +
+                  std::to_string(calibrated_->report.segments) + " segments, condition number " +
+                  std::to_string(calibrated_->report.condition_number);
+  } catch (const std::exception& e) {
+    res.success = false;
+    res.message = e.what();
+  }
+  publish_calibration_status();
+  return true;
+}
+
+bool CompensatorRos::on_save(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res) {
+  if (calibration_out_.empty()) {
+    res.success = false;
+    res.message = "~calibration_out: not set";
+    return true;
+  }
+  if (!calibrated_ && (on_fit(req, res), !res.success)) return true;
+  try {
+    save_model_yaml(*calibrated_, calibration_out_);  // atomic; a compensator watching it reloads
+    res.success = true;
+    res.message = "wrote " + calibration_out_;
+  } catch (const std::exception& e) {
+    res.success = false;
+    res.message = e.what();
+  }
+  return true;
+}
+
+bool CompensatorRos::on_reset_calibration(std_srvs::Trigger::Request&,
+                                          std_srvs::Trigger::Response& res) {
+  calibrator_->reset();
+  calibrated_.reset();
+  manual_segment_ = false;
+  res.success = true;
+  res.message = "reset";
+  publish_calibration_status();
+  return true;
+}
+
 void CompensatorRos::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) {
-  if (!comp_) {
+  if (!comp_ && calibrator_) {
+    stat.summary(diagnostic_msgs::DiagnosticStatus::OK, "calibrating (no model applied)");
+  } else if (!comp_) {
     stat.summary(diagnostic_msgs::DiagnosticStatus::ERROR, "no model: " + model_error_);
   } else if (n_jumps_ + n_gaps_ + n_out_of_order_ + n_dup_ + n_nan_ + n_stale_ > 0) {
     stat.summary(diagnostic_msgs::DiagnosticStatus::WARN,
@@ -479,6 +619,11 @@ void CompensatorRos::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat)
     stat.add("lookahead_samples", comp_->lookahead());
   }
   stat.add("model_reloads", n_reloads_);
+  if (calibrator_) {
+    stat.add("calibration_segments", calibrator_->segments());
+    stat.add("calibration_samples", static_cast<long>(calibrator_->samples()));
+    stat.add("calibration_rls_updates", static_cast<long>(calibrator_->rls_updates()));
+  }
   stat.add("scalar_in", n_in_);
   stat.add("published", n_out_);
   stat.add("nan_scalar", n_nan_);

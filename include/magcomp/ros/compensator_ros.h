@@ -4,6 +4,7 @@
 #include <diagnostic_updater/diagnostic_updater.h>
 #include <diagnostic_updater/publisher.h>
 #include <magcomp/AuxChannels.h>
+#include <magcomp/CalibrationStatus.h>
 #include <magcomp/ScalarMagnetometer.h>
 #include <ros/ros.h>
 #include <sensor_msgs/MagneticField.h>
@@ -15,6 +16,7 @@
 #include <memory>
 #include <string>
 
+#include "magcomp/core/inflight_calibrator.h"
 #include "magcomp/core/streaming_compensator.h"
 
 namespace magcomp::rosio {
@@ -25,7 +27,9 @@ namespace magcomp::rosio {
 /// core's StreamingCompensator; publishes magcomp/CompensatedField. Stamps come from the data.
 /// Survives NaN, gaps, duplicate and out-of-order stamps and jumps back in time (reset), and
 /// reports them in diagnostics. Reloads its model on ~reload or when the file changes, without
-/// losing a sample. Parameters: see config/compensator.yaml.
+/// losing a sample. With ~calibration_model it also calibrates in flight (InflightCalibrator): the
+/// calibrator node is this class with calibration on and, optionally, no model to apply.
+/// Parameters: see config/compensator.yaml and config/calibrator.yaml.
 class CompensatorRos {
  public:
   CompensatorRos(ros::NodeHandle nh, ros::NodeHandle pnh);
@@ -57,6 +61,14 @@ class CompensatorRos {
   void publish(const StreamOutput& o);
   void reset_streams(const char* why);
   void diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat);
+  // In-flight calibration.
+  void calibrate(const StreamSample& s);
+  void publish_calibration_status();
+  bool on_start_segment(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res);
+  bool on_stop_segment(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res);
+  bool on_fit(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res);
+  bool on_save(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res);
+  bool on_reset_calibration(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res);
   template <typename T>
   static bool interpolate(const std::deque<T>& buf, double t, T* out);
   /// Seconds since the first stamp's whole second: exact to the nanosecond in a double.
@@ -104,6 +116,15 @@ class CompensatorRos {
   double min_freq_ = 5.0, max_freq_ = 50.0;
   std::unique_ptr<diagnostic_updater::FrequencyStatus> freq_;
   std::vector<std::array<double, 4>> track_;  // east m, north m, up m, error nT
+  std::unique_ptr<InflightCalibrator> calibrator_;
+  std::unique_ptr<Model> calibration_template_, calibrated_;
+  std::string calibration_out_;
+  std::vector<int> calibration_index_;  // the template's channels in the aux messages
+  int line_index_ = -1;
+  bool manual_segment_ = false;
+  ros::Publisher pub_status_;
+  ros::ServiceServer srv_start_, srv_stop_, srv_fit_, srv_save_, srv_reset_;
+  ros::WallTimer status_timer_;
   double origin_lat_ = NAN, origin_lon_ = NAN;
 };
 
