@@ -13,6 +13,7 @@
 #include <unistd.h>
 
 #include <Eigen/Geometry>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <ctime>
@@ -77,6 +78,8 @@ ConvertReport flight_to_bag(const FlightData& f, const std::string& bag_path, bo
   try {
     rosbag::Bag bag;
     bag.open(tmp, rosbag::bagmode::Write);
+    bag.setChunkThreshold(16 * 1024 *
+                          1024);  // fewer, larger chunks: faster for millions of messages
     // Lossless record of every field.
     magcomp::FlightSchema schema;
     schema.header.stamp = stamp_of(year, doy, tt[0]);
@@ -100,45 +103,61 @@ ConvertReport flight_to_bag(const FlightData& f, const std::string& bag_path, bo
     }
     const bool has_att = f.has("ins_roll") && f.has("ins_pitch") && f.has("ins_yaw");
     const bool has_fix = f.has("lat") && f.has("lon");
+    // Column pointers resolved once (a name lookup per message costs more than the message).
+    auto col = [&](const std::string& name) {
+      return f.has(name) ? f.column(name).data() : nullptr;
+    };
+    std::vector<const double*> scalar_cols, aux_cols;
+    for (const auto& s : scalars) scalar_cols.push_back(col(s));
+    for (const auto& a : aux) aux_cols.push_back(col(a));
+    std::vector<std::array<const double*, 3>> flux_cols;
+    for (const auto& b : fluxes) flux_cols.push_back({col(b + "_x"), col(b + "_y"), col(b + "_z")});
+    const double* ref = col("mag_1_c");
+    const double *roll = col("ins_roll"), *pitch = col("ins_pitch"), *yaw = col("ins_yaw");
+    const double *roll_rate = col("roll_rate"), *pitch_rate = col("pitch_rate"),
+                 *yaw_rate = col("yaw_rate");
+    const double *acc_x = col("ins_acc_x"), *acc_y = col("ins_acc_y"), *acc_z = col("ins_acc_z");
+    const double *lat = col("lat"), *lon = col("lon"), *alt = col("utm_z");
+    auto at = [](const double* c, Eigen::Index i) { return c ? c[i] : 0.0; };
     magcomp::FlightRecord rec;
     rec.values.resize(cols.size());
+    magcomp::ScalarMagnetometer sm;
+    sensor_msgs::MagneticField fm;
+    magcomp::AuxChannels am;
+    am.names = aux;
+    am.values.resize(aux.size());
     for (Eigen::Index i = 0; i < f.size(); ++i) {
       const ros::Time t = stamp_of(year, doy, tt[i]);
       rec.header.stamp = t;
       rec.header.seq = static_cast<uint32_t>(i);
       for (size_t c = 0; c < cols.size(); ++c) rec.values[c] = (*cols[c])[i];
       bag.write(BagTopics::kRecord, t, rec);
-      for (const auto& s : scalars) {
-        magcomp::ScalarMagnetometer m;
-        m.header.stamp = t;
-        m.header.frame_id = s.substr(0, 5);
-        m.field_nT = f.column(s)[i];
-        bag.write(std::string(BagTopics::kScalarPrefix) + s, t, m);
+      sm.header.stamp = t;
+      for (size_t k = 0; k < scalars.size(); ++k) {
+        sm.header.frame_id = scalars[k].substr(0, 5);
+        sm.field_nT = scalar_cols[k][i];
+        bag.write(std::string(BagTopics::kScalarPrefix) + scalars[k], t, sm);
       }
-      if (f.has("mag_1_c")) {
-        magcomp::ScalarMagnetometer m;
-        m.header.stamp = t;
-        m.header.frame_id = "mag_1";
-        m.field_nT = f.column("mag_1_c")[i];
-        bag.write(BagTopics::kReference, t, m);
+      if (ref) {
+        sm.header.frame_id = "mag_1";
+        sm.field_nT = ref[i];
+        bag.write(BagTopics::kReference, t, sm);
       }
-      for (const auto& b : fluxes) {
-        sensor_msgs::MagneticField m;
-        m.header.stamp = t;
-        m.header.frame_id = b;
-        m.magnetic_field.x = f.column(b + "_x")[i] * 1e-9;  // REP 145: Tesla
-        m.magnetic_field.y = f.column(b + "_y")[i] * 1e-9;
-        m.magnetic_field.z = f.column(b + "_z")[i] * 1e-9;
-        bag.write(std::string(BagTopics::kFluxPrefix) + b, t, m);
+      fm.header.stamp = t;
+      for (size_t k = 0; k < fluxes.size(); ++k) {
+        fm.header.frame_id = fluxes[k];
+        fm.magnetic_field.x = flux_cols[k][0][i] * 1e-9;  // REP 145: Tesla
+        fm.magnetic_field.y = flux_cols[k][1][i] * 1e-9;
+        fm.magnetic_field.z = flux_cols[k][2][i] * 1e-9;
+        bag.write(std::string(BagTopics::kFluxPrefix) + fluxes[k], t, fm);
       }
       if (has_att) {
         // MIT: yaw clockwise from north, pitch nose up, roll right wing down (NED/FRD).
         // REP 103: base_link (x fwd, y left, z up) in ENU: yaw_enu = 90 deg - yaw, pitch negated.
-        const double roll = f.column("ins_roll")[i] * kDeg, pitch = f.column("ins_pitch")[i] * kDeg;
-        const double yaw_enu = M_PI / 2 - f.column("ins_yaw")[i] * kDeg;
-        const Eigen::Quaterniond q = Eigen::AngleAxisd(yaw_enu, Eigen::Vector3d::UnitZ()) *
-                                     Eigen::AngleAxisd(-pitch, Eigen::Vector3d::UnitY()) *
-                                     Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitX());
+        const Eigen::Quaterniond q =
+            Eigen::AngleAxisd(M_PI / 2 - yaw[i] * kDeg, Eigen::Vector3d::UnitZ()) *
+            Eigen::AngleAxisd(-pitch[i] * kDeg, Eigen::Vector3d::UnitY()) *
+            Eigen::AngleAxisd(roll[i] * kDeg, Eigen::Vector3d::UnitX());
         sensor_msgs::Imu m;
         m.header.stamp = t;
         m.header.frame_id = "base_link";
@@ -146,36 +165,31 @@ ConvertReport flight_to_bag(const FlightData& f, const std::string& bag_path, bo
         m.orientation.x = q.x();
         m.orientation.y = q.y();
         m.orientation.z = q.z();
-        auto get = [&](const char* k) { return f.has(k) ? f.column(k)[i] : 0.0; };
-        m.angular_velocity.x = get("roll_rate") * kDeg;
-        m.angular_velocity.y = -get("pitch_rate") * kDeg;
-        m.angular_velocity.z = -get("yaw_rate") * kDeg;
-        m.linear_acceleration.x = get("ins_acc_x");
-        m.linear_acceleration.y = get("ins_acc_y");
-        m.linear_acceleration.z = get("ins_acc_z");
+        m.angular_velocity.x = at(roll_rate, i) * kDeg;
+        m.angular_velocity.y = -at(pitch_rate, i) * kDeg;
+        m.angular_velocity.z = -at(yaw_rate, i) * kDeg;
+        m.linear_acceleration.x = at(acc_x, i);
+        m.linear_acceleration.y = at(acc_y, i);
+        m.linear_acceleration.z = at(acc_z, i);
         bag.write(BagTopics::kImu, t, m);
       }
       if (has_fix) {
         sensor_msgs::NavSatFix m;
         m.header.stamp = t;
         m.header.frame_id = "base_link";
-        m.latitude = f.column("lat")[i];
-        m.longitude = f.column("lon")[i];
-        m.altitude = f.has("utm_z") ? f.column("utm_z")[i] : NAN;  // above the WGS-84 ellipsoid
+        m.latitude = lat[i];
+        m.longitude = lon[i];
+        m.altitude = alt ? alt[i] : NAN;  // above the WGS-84 ellipsoid
         m.position_covariance_type = sensor_msgs::NavSatFix::COVARIANCE_TYPE_UNKNOWN;
         bag.write(BagTopics::kFix, t, m);
       }
       if (!aux.empty()) {
-        magcomp::AuxChannels m;
-        m.header.stamp = t;
-        m.names = aux;
-        m.values.resize(aux.size());
-        for (size_t k = 0; k < aux.size(); ++k) m.values[k] = f.column(aux[k])[i];
-        bag.write(BagTopics::kAux, t, m);
+        am.header.stamp = t;
+        for (size_t k = 0; k < aux.size(); ++k) am.values[k] = aux_cols[k][i];
+        bag.write(BagTopics::kAux, t, am);
       }
-      rep.messages += 1 + static_cast<long>(scalars.size() + fluxes.size()) +
-                      (f.has("mag_1_c") ? 1 : 0) + (has_att ? 1 : 0) + (has_fix ? 1 : 0) +
-                      (aux.empty() ? 0 : 1);
+      rep.messages += 1 + static_cast<long>(scalars.size() + fluxes.size()) + (ref ? 1 : 0) +
+                      (has_att ? 1 : 0) + (has_fix ? 1 : 0) + (aux.empty() ? 0 : 1);
     }
     bag.close();
   } catch (const rosbag::BagException& e) {

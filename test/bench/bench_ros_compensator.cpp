@@ -31,7 +31,9 @@ int main(int argc, char** argv) {
   pnh.getParam("model", model_path);
   pnh.param("lookahead", lookahead, 6);
   pnh.param("in_flight", window, 800);  // samples in flight at most (back-pressure, no drops)
-  double rate_hz = 0.0;                 // 0: as fast as possible (throughput); else paced (latency)
+  bool all_channels = true;             // false: the aux message carries only the model's channels
+  pnh.param("all_channels", all_channels, true);
+  double rate_hz = 0.0;  // 0: as fast as possible (throughput); else paced (latency)
   pnh.param("rate_hz", rate_hz, 0.0);
   const magcomp::FlightData f = magcomp::read_flight_h5(h5);
   const magcomp::Model m = magcomp::load_model_yaml(model_path);
@@ -62,6 +64,11 @@ int main(int argc, char** argv) {
   ros::WallDuration(0.5).sleep();
   std::vector<std::string> names;
   for (const auto& name : f.names()) {
+    const auto needed = m.make_terms();
+    bool used = false;
+    for (const auto& t : needed)
+      for (const auto& r : t->required_fields()) used = used || r == name;
+    if (!all_channels && !used) continue;
     if (name.rfind("cur_", 0) == 0 || name.rfind("vol_", 0) == 0 || name == "diurnal")
       names.push_back(name);
   }

@@ -4,10 +4,12 @@
 #include <cmath>
 #include <fstream>
 
+#include <yaml-cpp/yaml.h>
 #include "magcomp/core/diagnose.h"
 #include "magcomp/core/error.h"
 #include "magcomp/core/sim/anomaly_map.h"
 #include "magcomp/core/sim/electrical.h"
+
 #include "scenario_cache.h"
 
 namespace magcomp {
@@ -139,6 +141,23 @@ TEST(Simulator, HiddenEffectsLeaveClearlyMoreAndTheTruthAccountsForTheExcess) {
     EXPECT_GT(with_hidden, 5.0 * floor) << name;
     EXPECT_LT(without, 1.2 * floor) << name;
   }
+}
+
+TEST(Simulator, MultiFlightSetSharesOneAircraftAndHeadingErrorIsAbsorbedByTl) {
+  std::vector<std::vector<double>> permanent;
+  for (const char* name : {"multi/flt2001_calibration", "multi/flt2003_survey_grid"}) {
+    sim::Scenario s =
+        sim::load_scenario(test::source_dir() + "/config/scenarios/" + name + ".yaml");
+    s.segments.resize(1);
+    const YAML::Node truth = YAML::Load(sim::simulate(s).truth_yaml);
+    permanent.push_back(truth["sensors"]["mag_5_uc"]["permanent_nT"].as<std::vector<double>>());
+  }
+  EXPECT_EQ(permanent[0], permanent[1]);  // aircraft.seed: the same aircraft on every flight
+  // A cesium heading error (∝ cos of the field-to-axis angle) lies in the permanent term's span.
+  const double floor = test::tl_std(test::scenario("tl_only").flight);
+  const double heading = test::tl_std(test::scenario("heading_error").flight);
+  std::printf("  heading_error: TL std %.3f nT (tl_only %.3f)\n", heading, floor);
+  EXPECT_LT(heading, 1.2 * floor);
 }
 
 TEST(Simulator, BadScenarioFilesNameTheKey) {

@@ -116,14 +116,16 @@ Scenario load_scenario(const std::string& path) {
       throw Error(path + ": key 'origin.lat_deg' must be within +-80");
   }
   if (const YAML::Node a = root["aircraft"]) {
-    r.check_keys(a,
-                 {"speed_mps", "turn_bank_deg", "climb_rate_mps", "field_scale", "turbulence_deg"},
-                 "aircraft");
+    r.check_keys(
+        a,
+        {"speed_mps", "turn_bank_deg", "climb_rate_mps", "field_scale", "turbulence_deg", "seed"},
+        "aircraft");
     r.get(a, "speed_mps", "aircraft", &s.speed_mps);
     r.get(a, "turn_bank_deg", "aircraft", &s.turn_bank_deg);
     r.get(a, "climb_rate_mps", "aircraft", &s.climb_rate_mps);
     r.get(a, "field_scale", "aircraft", &s.aircraft_scale);
     r.get(a, "turbulence_deg", "aircraft", &s.turbulence_deg);
+    r.get(a, "seed", "aircraft", &s.aircraft_seed);
     r.positive(s.speed_mps, "aircraft.speed_mps");
     r.positive(s.turn_bank_deg, "aircraft.turn_bank_deg");
     r.positive(s.climb_rate_mps, "aircraft.climb_rate_mps");

@@ -150,14 +150,20 @@ Simulation simulate(const Scenario& s) {
 
   // --- Sensors.
   std::vector<AircraftField> aircraft;
+  std::mt19937_64 aircraft_rng(static_cast<unsigned long long>(s.aircraft_seed) * 40503ULL + 7);
+  std::mt19937_64& arng = s.aircraft_seed >= 0 ? aircraft_rng : rng;
+  // Its own distribution: normal_distribution caches values between calls, which must not leak
+  // from the flight's stream into the aircraft's.
+  std::normal_distribution<double> anormal(0.0, 1.0);
+  std::normal_distribution<double>& an = s.aircraft_seed >= 0 ? anormal : normal;
   for (const SensorMount& m : sensor_mounts()) {
     const double w = m.aircraft_weight * s.aircraft_scale;
     AircraftField a;
-    for (int k = 0; k < 3; ++k) a.permanent_nT[k] = w * 200.0 * normal(rng);
+    for (int k = 0; k < 3; ++k) a.permanent_nT[k] = w * 200.0 * an(arng);
     for (int r = 0; r < 3; ++r)
-      for (int c = 0; c < 3; ++c) a.induced(r, c) = w * 0.004 * normal(rng);
+      for (int c = 0; c < 3; ++c) a.induced(r, c) = w * 0.004 * an(arng);
     for (int r = 0; r < 3; ++r)
-      for (int c = 0; c < 3; ++c) a.eddy_s(r, c) = w * 0.0008 * normal(rng);
+      for (int c = 0; c < 3; ++c) a.eddy_s(r, c) = w * 0.0008 * an(arng);
     aircraft.push_back(a);
   }
   y << YAML::Key << "sensors" << YAML::Value << YAML::BeginMap;

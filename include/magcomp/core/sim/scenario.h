@@ -58,6 +58,8 @@ struct Scenario {
   double diurnal_amplitude_nT = 15.0;
   // Aircraft and sensors
   double aircraft_scale = 1.0;     ///< multiplies every aircraft-field coefficient
+  long long aircraft_seed = -1;    ///< draws the aircraft field (same value: same aircraft across
+                                   ///< flights); -1: from the flight's own random stream
   double turbulence_deg = 0.3;     ///< rms attitude turbulence
   double scalar_noise_nT = 0.005;  ///< cesium white noise rms
   double fluxgate_noise_nT = 0.3;  ///< fluxgate white noise rms per axis
