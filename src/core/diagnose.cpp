@@ -81,6 +81,11 @@ std::vector<std::string> candidate_terms(const Model& model, const FlightData& d
   for (const char* f : {"permanent", "induced", "eddy"}) {
     if (!families.count(f)) out.push_back(f);
   }
+  if (!have.count("second_order")) out.push_back("second_order");
+  for (const char* rate : {"pitch_rate", "roll_rate", "yaw_rate"}) {
+    const std::string spec = std::string("rate:") + rate;
+    if (data.has(rate) && !have.count(spec)) out.push_back(spec);
+  }
   for (const std::string& name : data.names()) {
     if (!is_channel(name)) continue;
     const Eigen::VectorXd& x = data.column(name);

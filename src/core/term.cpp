@@ -52,9 +52,11 @@ std::unique_ptr<Term> make_term(const std::string& spec) {
     if (kind == "eddy3") return std::make_unique<EddyTerm>(3);
     if (kind == "fdm") return std::make_unique<FdmTerm>();
     if (kind == "bias") return std::make_unique<BiasTerm>();
+    if (kind == "second_order") return std::make_unique<SecondOrderTerm>();
   } else if (!arg.empty()) {
     if (kind == "current") return std::make_unique<CurrentTerm>(arg, false);
     if (kind == "dcurrent") return std::make_unique<CurrentTerm>(arg, true);
+    if (kind == "rate") return std::make_unique<CurrentTerm>(arg, false, true);
     if (kind == "lag") {
       char* end = nullptr;
       const double lag_s = std::strtod(arg.c_str(), &end);
@@ -66,18 +68,20 @@ std::unique_ptr<Term> make_term(const std::string& spec) {
   }
   throw Error("term '" + spec +
               "': unknown (known: permanent, induced, induced5, induced3, eddy, " +
-              "eddy8, eddy3, fdm, bias, lag:<seconds>, current:<channel>, dcurrent:<channel>)");
+              "eddy8, eddy3, fdm, bias, second_order, lag:<seconds>, current:<channel>, " +
+              "dcurrent:<channel>, rate:<channel>)");
 }
 
 std::vector<std::pair<std::string, std::string>> term_catalogue() {
   std::vector<std::pair<std::string, std::string>> out;
-  for (const char* s :
-       {"permanent", "induced", "induced5", "induced3", "eddy", "eddy8", "eddy3", "fdm", "bias"}) {
+  for (const char* s : {"permanent", "induced", "induced5", "induced3", "eddy", "eddy8", "eddy3",
+                        "fdm", "bias", "second_order"}) {
     auto t = make_term(s);
     out.emplace_back(t->spec(), t->effect());
   }
   out.emplace_back("current:<channel>", CurrentTerm("<channel>", false).effect());
   out.emplace_back("dcurrent:<channel>", CurrentTerm("<channel>", true).effect());
+  out.emplace_back("rate:<channel>", CurrentTerm("<channel>", false, true).effect());
   out.emplace_back("lag:<seconds>", LagTerm(0.0).effect());
   return out;
 }

@@ -39,7 +39,8 @@ struct Diagnosis {
 };
 
 /// Candidate term specs for this model and flight: current:/dcurrent: for every cur_* and vol_*
-/// channel and the Tolles-Lawson families the model lacks (diagnose adds lag:<s>, scanned).
+/// channel, rate: for the attitude rates, second_order, and the Tolles-Lawson families the model
+/// lacks (diagnose adds lag:<s>, scanned).
 /// Constant channels are skipped with a note.
 std::vector<std::string> candidate_terms(const Model& model, const FlightData& data,
                                          std::vector<std::string>* notes);
