@@ -8,32 +8,10 @@
 namespace magcomp {
 namespace {
 
-// A flight holding the given samples (tt, scalar, vector, channels) and a `line` per sample.
-FlightData to_flight(const Model& m, const std::vector<std::string>& channels,
-                     const std::vector<StreamSample>& samples, const std::vector<int>& line) {
-  const Eigen::Index n = static_cast<Eigen::Index>(samples.size());
-  Eigen::VectorXd tt(n), s(n), x(n), y(n), z(n), l(n);
-  std::vector<Eigen::VectorXd> ch(channels.size(), Eigen::VectorXd(n));
-  for (Eigen::Index i = 0; i < n; ++i) {
-    const StreamSample& a = samples[static_cast<size_t>(i)];
-    tt[i] = a.t_s;
-    s[i] = a.scalar_nT;
-    x[i] = a.vector_nT.x();
-    y[i] = a.vector_nT.y();
-    z[i] = a.vector_nT.z();
-    l[i] = line.empty() ? 0.0 : line[static_cast<size_t>(i)];
-    for (size_t c = 0; c < channels.size(); ++c) ch[c][i] = a.channels[c];
-  }
-  FlightData f;
-  f.set_source("in-flight calibration");
-  f.set("tt", tt);
-  f.set("line", l);
-  f.set(m.scalar, s);
-  f.set(m.vector + "_x", x);
-  f.set(m.vector + "_y", y);
-  f.set(m.vector + "_z", z);
-  for (size_t c = 0; c < channels.size(); ++c) f.set(channels[c], ch[c]);
-  return f;
+std::vector<const StreamSample*> pointers(const std::vector<StreamSample>& v) {
+  std::vector<const StreamSample*> p;
+  for (const auto& s : v) p.push_back(&s);
+  return p;
 }
 
 }  // namespace
@@ -110,7 +88,9 @@ void InflightCalibrator::rls_step(const StreamSample& s) {
   if (window_.size() < 3) return;
   if (window_.size() > 3) window_.pop_front();
   // The design row of the middle sample (central differences need the newest one).
-  const FlightData w = to_flight(model_, channels_, {window_.begin(), window_.end()}, {});
+  std::vector<const StreamSample*> win;
+  for (const auto& x : window_) win.push_back(&x);
+  const FlightData w = samples_to_flight(model_, channels_, win);
   const Eigen::MatrixXd a = design_matrix(model_, w);
   const Eigen::Index p = a.cols();
   Eigen::VectorXd row = a.row(1).transpose();
@@ -142,7 +122,7 @@ Model InflightCalibrator::batch() const {
   m.fit.windows.clear();
   m.fit.lines.clear();
   for (int k = 1; k <= segments_; ++k) m.fit.lines.push_back(k);
-  const FlightData f = to_flight(model_, channels_, collected_, segment_of_);
+  const FlightData f = samples_to_flight(model_, channels_, pointers(collected_), &segment_of_);
   fit_model(m, {&f});
   m.fit = model_.fit;  // keep the user's segment description in the saved model
   return m;

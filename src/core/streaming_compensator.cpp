@@ -58,34 +58,45 @@ std::vector<StreamOutput> StreamingCompensator::flush() {
   return out;
 }
 
-StreamOutput StreamingCompensator::emit(Eigen::Index index) const {
-  const Eigen::Index size = static_cast<Eigen::Index>(buffer_.size());
-  const Eigen::Index h = std::max(half_, 2);
-  const Eigen::Index first = std::max<Eigen::Index>(0, index - h);
-  const Eigen::Index last = std::min(size - 1, index + h);
-  const Eigen::Index n = last - first + 1;
-  FlightData w;
-  w.set_source("stream");
-  Eigen::VectorXd tt(n), s(n), bx(n), by(n), bz(n);
-  std::vector<Eigen::VectorXd> ch(channels_.size(), Eigen::VectorXd(n));
+FlightData samples_to_flight(const Model& model, const std::vector<std::string>& channels,
+                             const std::vector<const StreamSample*>& samples,
+                             const std::vector<int>* lines) {
+  const Eigen::Index n = static_cast<Eigen::Index>(samples.size());
+  Eigen::VectorXd tt(n), s(n), bx(n), by(n), bz(n), l(n);
+  std::vector<Eigen::VectorXd> ch(channels.size(), Eigen::VectorXd(n));
   for (Eigen::Index k = 0; k < n; ++k) {
-    const StreamSample& x = buffer_[static_cast<size_t>(first + k)];
+    const StreamSample& x = *samples[static_cast<size_t>(k)];
     tt[k] = x.t_s;
     s[k] = x.scalar_nT;
     bx[k] = x.vector_nT.x();
     by[k] = x.vector_nT.y();
     bz[k] = x.vector_nT.z();
-    for (size_t c = 0; c < channels_.size(); ++c) ch[c][k] = x.channels[c];
+    if (lines) l[k] = (*lines)[static_cast<size_t>(k)];
+    for (size_t c = 0; c < channels.size(); ++c) ch[c][k] = x.channels[c];
   }
+  FlightData w;
+  w.set_source("stream");
   w.set("tt", tt);
-  w.set(model_.scalar, s);
-  w.set(model_.vector + "_x", bx);
-  w.set(model_.vector + "_y", by);
-  w.set(model_.vector + "_z", bz);
-  for (size_t c = 0; c < channels_.size(); ++c) w.set(channels_[c], ch[c]);
+  if (lines) w.set("line", l);
+  w.set(model.scalar, s);
+  w.set(model.vector + "_x", bx);
+  w.set(model.vector + "_y", by);
+  w.set(model.vector + "_z", bz);
+  for (size_t c = 0; c < channels.size(); ++c) w.set(channels[c], ch[c]);
+  return w;
+}
+
+StreamOutput StreamingCompensator::emit(Eigen::Index index) const {
+  const Eigen::Index size = static_cast<Eigen::Index>(buffer_.size());
+  const Eigen::Index h = std::max(half_, 2);
+  const Eigen::Index first = std::max<Eigen::Index>(0, index - h);
+  const Eigen::Index last = std::min(size - 1, index + h);
+  std::vector<const StreamSample*> window;
+  for (Eigen::Index k = first; k <= last; ++k) window.push_back(&buffer_[static_cast<size_t>(k)]);
+  const FlightData w = samples_to_flight(model_, channels_, window);
   const Eigen::Index row = index - first;
   StreamOutput o;
-  o.t_s = tt[row];
+  o.t_s = w.tt()[row];
   const Eigen::VectorXd aligned = aligned_scalar(model_, w);
   o.measured_nT = aligned[row];
   o.correction_nT = design_matrix(model_, w).row(row).dot(model_.coefficients);

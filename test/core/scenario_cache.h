@@ -7,6 +7,7 @@
 #include "magcomp/core/evaluation.h"
 #include "magcomp/core/model.h"
 #include "magcomp/core/sim/simulator.h"
+#include "magcomp/core/streaming_compensator.h"
 #include "test_util.h"
 
 namespace magcomp::test {
@@ -34,6 +35,17 @@ inline Model calibrated_tl(const FlightData& flight, const std::vector<std::stri
 /// Pooled std (line means removed) of the model's error against mag_1_c on the whole flight, nT.
 inline double tl_std(const FlightData& flight, const std::vector<std::string>& extra = {}) {
   return evaluate_model(calibrated_tl(flight, extra), flight, "mag_1_c").std_nT;
+}
+
+/// Sample i of a flight as the stream sees it: mag_5_uc, flux_c, and the named channels.
+inline StreamSample sample_at(const FlightData& f, Eigen::Index i,
+                              const std::vector<std::string>& channels = {}) {
+  StreamSample s;
+  s.t_s = f.tt()[i];
+  s.scalar_nT = f.column("mag_5_uc")[i];
+  s.vector_nT = {f.column("flux_c_x")[i], f.column("flux_c_y")[i], f.column("flux_c_z")[i]};
+  for (const auto& c : channels) s.channels.push_back(f.column(c)[i]);
+  return s;
 }
 
 }  // namespace magcomp::test

@@ -18,11 +18,7 @@ TEST(InflightCalibrator, BatchEqualsCalibrateAndRlsConvergesTowardIt) {
   for (auto i : in_box) flag[static_cast<size_t>(i)] = true;
   std::vector<std::pair<Eigen::Index, double>> history;  // (samples seen, rls error std)
   for (Eigen::Index i = 0; i < f.size(); ++i) {
-    StreamSample s;
-    s.t_s = f.tt()[i];
-    s.scalar_nT = f.column("mag_5_uc")[i];
-    s.vector_nT = {f.column("flux_c_x")[i], f.column("flux_c_y")[i], f.column("flux_c_z")[i]};
-    s.channels = {f.column("cur_strb")[i]};
+    const StreamSample s = test::sample_at(f, i, {"cur_strb"});
     cal.add(s, flag[static_cast<size_t>(i)]);
     if (flag[static_cast<size_t>(i)] && cal.rls_updates() > 0 && cal.samples() % 2000 == 0) {
       history.emplace_back(cal.samples(), evaluate_model(cal.rls(), f, "mag_1_c").std_nT);

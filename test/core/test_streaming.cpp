@@ -18,11 +18,7 @@ TEST(Streaming, WholeFlightEqualsBatchWithCurrentsAndLag) {
   std::vector<StreamOutput> out;
   const auto t0 = std::chrono::steady_clock::now();
   for (Eigen::Index i = 0; i < f.size(); ++i) {
-    StreamSample s;
-    s.t_s = f.tt()[i];
-    s.scalar_nT = f.column("mag_5_uc")[i];
-    s.vector_nT = {f.column("flux_c_x")[i], f.column("flux_c_y")[i], f.column("flux_c_z")[i]};
-    s.channels = {f.column("cur_strb")[i]};
+    const StreamSample s = test::sample_at(f, i, {"cur_strb"});
     for (const auto& o : sc.push(s)) out.push_back(o);
   }
   const double per_sample_us =

@@ -20,6 +20,12 @@ struct StreamSample {
   std::vector<double> channels;  ///< values of required_channels(), in that order
 };
 
+/// A flight made of stream samples [begin, end): tt, the model's scalar, <vector>_x/_y/_z, the
+/// channels (named `channels`, in the samples' order) and, when `lines` is given, a `line` column.
+FlightData samples_to_flight(const Model& model, const std::vector<std::string>& channels,
+                             const std::vector<const StreamSample*>& samples,
+                             const std::vector<int>* lines = nullptr);
+
 /// The compensation of one sample, nT.
 struct StreamOutput {
   double t_s = 0.0;

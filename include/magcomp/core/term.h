@@ -53,8 +53,8 @@ class Term {
 };
 
 /// Parses a term spec. Known: permanent, induced, induced5, induced3, eddy, eddy8, eddy3, fdm,
-/// bias, current:<channel>, dcurrent:<channel>, lag:<seconds>. Throws magcomp::Error naming the
-/// spec otherwise.
+/// bias, second_order, current:, dcurrent:, rate:<channel>, lag:<seconds>. Throws magcomp::Error
+/// naming the spec otherwise.
 std::unique_ptr<Term> make_term(const std::string& spec);
 
 /// All specs make_term accepts without a channel, with their effect, for help texts.
