@@ -42,7 +42,7 @@ bool CompensatorRos::interpolate(const std::deque<T>& buf, double t, T* out) {
   const double w = (t - lo->t) / (hi->t - lo->t);
   *out = *lo;
   out->t = t;
-  if constexpr (std::is_same_v<T, Timed3>) {
+  if constexpr (std::is_same_v<T, Timed3> || std::is_same_v<T, Timed1>) {
     out->v = (1 - w) * lo->v + w * hi->v;
   } else {
     for (size_t k = 0; k < out->v.size(); ++k) out->v[k] = (1 - w) * lo->v[k] + w * hi->v[k];
@@ -296,29 +296,28 @@ void CompensatorRos::on_scalar(const magcomp::ScalarMagnetometer::ConstPtr& m) {
   process_ready(false);
 }
 
+template <typename T>
+bool CompensatorRos::append(std::deque<T>& buf, T item) {
+  const double t = item.t;
+  if (!buf.empty() && t <= buf.back().t) {
+    if (buf.back().t - t <= jump_back_s_) return false;
+    buf.clear();
+  }
+  buf.push_back(std::move(item));
+  while (buf.size() > 2 && buf.front().t < t - buffer_s_) buf.pop_front();
+  return true;
+}
+
 void CompensatorRos::on_vector(const sensor_msgs::MagneticField::ConstPtr& m) {
   const double t = rel(m->header.stamp);
-  if (!vectors_.empty() && t <= vectors_.back().t) {
-    if (vectors_.back().t - t > jump_back_s_)
-      vectors_.clear();
-    else
-      return;
-  }
-  vectors_.push_back(
-      {t, Eigen::Vector3d(m->magnetic_field.x, m->magnetic_field.y, m->magnetic_field.z) * 1e9});
+  const Eigen::Vector3d b(m->magnetic_field.x, m->magnetic_field.y, m->magnetic_field.z);
+  if (!append(vectors_, Timed3{t, b * 1e9})) return;  // REP 145 Tesla -> nT
   last_vector_t_ = t;
-  while (vectors_.size() > 2 && vectors_.front().t < t - buffer_s_) vectors_.pop_front();
   process_ready(false);
 }
 
 void CompensatorRos::on_aux(const magcomp::AuxChannels::ConstPtr& m) {
   const double t = rel(m->header.stamp);
-  if (!aux_.empty() && t <= aux_.back().t) {
-    if (aux_.back().t - t > jump_back_s_)
-      aux_.clear();
-    else
-      return;
-  }
   if (m->names != aux_all_names_) {  // a new channel list: re-index (older values are dropped)
     aux_all_names_ = m->names;
     aux_.clear();
@@ -327,42 +326,24 @@ void CompensatorRos::on_aux(const magcomp::AuxChannels::ConstPtr& m) {
     line_index_ = channel_indices({"line"})[0];
     if (calibration_template_) {
       std::vector<std::string> names;
-      for (const auto& t : calibration_template_->make_terms()) {
-        for (const auto& f : t->required_fields()) names.push_back(f);
+      for (const auto& term : calibration_template_->make_terms()) {
+        for (const auto& f : term->required_fields()) names.push_back(f);
       }
       calibration_index_ = channel_indices(names);
     }
   }
   TimedValues tv{t, m->values};
   tv.v.resize(aux_all_names_.size(), NAN);
-  aux_.push_back(std::move(tv));
-  while (aux_.size() > 2 && aux_.front().t < t - buffer_s_) aux_.pop_front();
-  process_ready(false);
+  if (append(aux_, std::move(tv))) process_ready(false);
 }
 
 void CompensatorRos::on_fix(const sensor_msgs::NavSatFix::ConstPtr& m) {
-  const double t = rel(m->header.stamp);
-  if (!fixes_.empty() && t <= fixes_.back().t) {
-    if (fixes_.back().t - t > jump_back_s_)
-      fixes_.clear();
-    else
-      return;
-  }
-  fixes_.push_back({t, Eigen::Vector3d(m->latitude, m->longitude, m->altitude)});
-  while (fixes_.size() > 2 && fixes_.front().t < t - buffer_s_) fixes_.pop_front();
+  append(fixes_,
+         Timed3{rel(m->header.stamp), Eigen::Vector3d(m->latitude, m->longitude, m->altitude)});
 }
 
 void CompensatorRos::on_reference(const magcomp::ScalarMagnetometer::ConstPtr& m) {
-  const double t = rel(m->header.stamp);
-  if (!references_.empty() && t <= references_.back().first) {
-    if (references_.back().first - t > jump_back_s_)
-      references_.clear();
-    else
-      return;
-  }
-  references_.emplace_back(t, m->field_nT);
-  while (references_.size() > 2 && references_.front().first < t - buffer_s_)
-    references_.pop_front();
+  append(references_, Timed1{rel(m->header.stamp), m->field_nT});
 }
 
 void CompensatorRos::process_ready(bool force) {
@@ -447,17 +428,9 @@ void CompensatorRos::publish(const StreamOutput& o) {
   }
   msg.reference_nT = NAN;
   msg.error_nT = NAN;
-  if (!references_.empty()) {
-    auto it =
-        std::lower_bound(references_.begin(), references_.end(), o.t_s,
-                         [](const std::pair<double, double>& r, double x) { return r.first < x; });
-    if (it != references_.end() && it->first == o.t_s) {
-      msg.reference_nT = it->second;
-    } else if (it != references_.end() && it != references_.begin()) {
-      const auto lo = it - 1;
-      const double w = (o.t_s - lo->first) / (it->first - lo->first);
-      msg.reference_nT = (1 - w) * lo->second + w * it->second;
-    }
+  Timed1 ref{};
+  if (interpolate(references_, o.t_s, &ref)) {
+    msg.reference_nT = ref.v;
     msg.error_nT = msg.compensated_nT - msg.reference_nT;
   }
   pub_out_.publish(msg);

@@ -43,6 +43,10 @@ class CompensatorRos {
     double t;
     std::vector<double> v;
   };
+  struct Timed1 {
+    double t;
+    double v;
+  };
 
   bool load_model(const std::string& why);
   void on_scalar(const magcomp::ScalarMagnetometer::ConstPtr& m);
@@ -71,6 +75,10 @@ class CompensatorRos {
   bool on_reset_calibration(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res);
   template <typename T>
   static bool interpolate(const std::deque<T>& buf, double t, T* out);
+  /// Appends to an input buffer in stamp order: a stamp not after the last is dropped, one far
+  /// back (jump_back_s) clears the buffer first; samples older than buffer_s are pruned.
+  template <typename T>
+  bool append(std::deque<T>& buf, T item);
   /// Seconds since the first stamp's whole second: exact to the nanosecond in a double.
   double rel(const ros::Time& stamp);
   /// The stamp of a relative time.
@@ -93,7 +101,7 @@ class CompensatorRos {
   std::deque<Timed3> vectors_;
   std::deque<TimedValues> aux_;  // every channel of the AuxChannels messages (aux_all_names_)
   std::deque<Timed3> fixes_;     // lat deg, lon deg, alt m
-  std::deque<std::pair<double, double>> references_;
+  std::deque<Timed1> references_;
   std::deque<StreamSample>
       history_;  // recent samples (channels rebuilt per model), re-fed on a swap
   std::vector<std::string> aux_all_names_;  // names in the AuxChannels messages
