@@ -84,6 +84,28 @@ std::vector<FlightCondition> classify_conditions(const FlightData& data, double 
   return out;
 }
 
+bool ManeuverDetector::update(double t, double p, double r, double y) {
+  if (!samples_.empty() && t < samples_.back().t) samples_.clear();  // time went back: start over
+  samples_.push_back({t, p, r, y});
+  size_t first = 0;
+  while (first < samples_.size() && samples_[first].t < t - window_s_) ++first;
+  if (first > 0) samples_.erase(samples_.begin(), samples_.begin() + static_cast<long>(first));
+  if (samples_.back().t - samples_.front().t < 0.5 * window_s_) return false;
+  double s[3] = {0, 0, 0}, s2[3] = {0, 0, 0};
+  for (const Rates& x : samples_) {
+    const double v[3] = {x.p, x.r, x.y};
+    for (int k = 0; k < 3; ++k) {
+      s[k] += v[k];
+      s2[k] += v[k] * v[k];
+    }
+  }
+  const double n = static_cast<double>(samples_.size());
+  double osc = 0;
+  for (int k = 0; k < 3; ++k)
+    osc = std::max(osc, std::sqrt(std::max(0.0, s2[k] / n - std::pow(s[k] / n, 2))));
+  return osc > threshold_dps_ && std::abs(s[2] / n) < 1.5;
+}
+
 std::vector<int> heading_sectors(const FlightData& data) {
   std::vector<int> out(static_cast<size_t>(data.size()), -1);
   if (!data.has("ins_yaw")) return out;

@@ -25,7 +25,8 @@ const std::set<std::string> kKnownParams = {
     "model_path",      "scalar_topic",      "vector_topic",    "aux_topic",     "fix_topic",
     "reference_topic", "output_topic",      "frame_id",        "max_gap_s",     "max_wait_s",
     "jump_back_s",     "buffer_s",          "watch_model",     "marker_stride", "expected_rate_hz",
-    "flush_after_s",   "calibration_model", "calibration_out", "forgetting"};
+    "flush_after_s",   "calibration_model", "calibration_out", "forgetting",    "auto_segments",
+    "imu_topic"};
 
 }  // namespace
 
@@ -148,6 +149,12 @@ CompensatorRos::CompensatorRos(ros::NodeHandle nh, ros::NodeHandle pnh)
     sub_ref_ = nh_.subscribe(ref_topic, 1000, &CompensatorRos::on_reference, this, hints);
   }
   srv_reload_ = pnh_.advertiseService("reload", &CompensatorRos::on_reload, this);
+  pnh_.param("auto_segments", auto_segments_, false);
+  if (calibrator_ && auto_segments_) {
+    std::string imu_topic;
+    pnh_.param<std::string>("imu_topic", imu_topic, "/magcomp/ins/imu");
+    sub_imu_ = nh_.subscribe(imu_topic, 1000, &CompensatorRos::on_imu, this, hints);
+  }
   if (calibrator_) {
     pub_status_ = pnh_.advertise<magcomp::CalibrationStatus>("calibration_status", 10, true);
     srv_start_ = pnh_.advertiseService("start_segment", &CompensatorRos::on_start_segment, this);
@@ -284,6 +291,8 @@ void CompensatorRos::on_scalar(const magcomp::ScalarMagnetometer::ConstPtr& m) {
       last_published_t_ = -1e300;
       track_.clear();
       if (calibrator_) calibrator_->reset();  // a replay starting over must not count twice
+      detector_.reset();
+      maneuver_.clear();
     } else {
       ++n_out_of_order_;
       return;
@@ -340,6 +349,16 @@ void CompensatorRos::on_aux(const magcomp::AuxChannels::ConstPtr& m) {
 void CompensatorRos::on_fix(const sensor_msgs::NavSatFix::ConstPtr& m) {
   append(fixes_,
          Timed3{rel(m->header.stamp), Eigen::Vector3d(m->latitude, m->longitude, m->altitude)});
+}
+
+void CompensatorRos::on_imu(const sensor_msgs::Imu::ConstPtr& m) {
+  // base_link (FLU) body rates -> MIT convention (pitch nose up, yaw clockwise), deg/s.
+  const double t = rel(m->header.stamp);
+  constexpr double kDegPerRad = 180.0 / M_PI;
+  const bool on =
+      detector_.update(t, -m->angular_velocity.y * kDegPerRad, m->angular_velocity.x * kDegPerRad,
+                       -m->angular_velocity.z * kDegPerRad);
+  append(maneuver_, Timed1{t, on ? 1.0 : 0.0});
 }
 
 void CompensatorRos::on_reference(const magcomp::ScalarMagnetometer::ConstPtr& m) {
@@ -483,6 +502,12 @@ void CompensatorRos::calibrate(const StreamSample& s) {
   // Segment membership: the services, or the template's fit.lines (the aux channel `line`) and
   // fit.windows (tt, seconds past midnight UTC of the stamp).
   bool in = manual_segment_;
+  if (!in && auto_segments_ &&
+      !maneuver_.empty()) {  // the detector's latest verdict at or before t
+    auto it = std::upper_bound(maneuver_.begin(), maneuver_.end(), s.t_s,
+                               [](double x, const Timed1& a) { return x < a.t; });
+    in = it != maneuver_.begin() && (it - 1)->v > 0.5;
+  }
   const FitSettings& fs = calibration_template_->fit;
   if (!in && !fs.lines.empty() && line_index_ >= 0) {
     const double line = channels_at(s.t_s, {line_index_})[0];

@@ -28,6 +28,8 @@ TEST(Calibrator, BatchEqualsCliAndRecursiveConverges) {
   ASSERT_TRUE(pnh.getParam("h5", h5));
   ASSERT_TRUE(pnh.getParam("cli_model", cli_path));
   ASSERT_TRUE(pnh.getParam("saved", saved));
+  bool automatic = false;  // segments detected from the rates: compare quality, not coefficients
+  pnh.param("auto", automatic, false);
   std::remove(saved.c_str());
   ros::Subscriber sub = nh.subscribe("/calibrator/calibration_status", 10, on_status);
   // Wait until the replay is over: the collected sample count stops growing.
@@ -50,7 +52,8 @@ TEST(Calibrator, BatchEqualsCliAndRecursiveConverges) {
     rls = g_status;
   }
   EXPECT_EQ(rls.state, "collecting");
-  EXPECT_EQ(rls.segments, 4u);  // the box's four legs
+  if (!automatic) EXPECT_EQ(rls.segments, 4u);  // the box's four legs
+  if (automatic) EXPECT_GE(rls.segments, 4u);
   std_srvs::Trigger fit, save;
   ASSERT_TRUE(ros::service::call("/calibrator/fit", fit));
   ASSERT_TRUE(fit.response.success) << fit.response.message;
@@ -75,7 +78,14 @@ TEST(Calibrator, BatchEqualsCliAndRecursiveConverges) {
       "  batch vs calibrate: worst relative difference %.2e; error std: batch %.3f nT, "
       "recursive %.3f nT (%u samples in %u segments)\n",
       worst, batch_std, rls_std, rls.samples, rls.segments);
-  EXPECT_LT(worst, 1e-9);
+  if (automatic) {
+    const double cli_std = magcomp::evaluate_model(cli, f, "mag_1_c").std_nT;
+    std::printf("  automatic segments: batch %.3f nT vs calibrate on the known lines %.3f nT\n",
+                batch_std, cli_std);
+    EXPECT_LT(batch_std, 1.3 * cli_std);
+  } else {
+    EXPECT_LT(worst, 1e-9);
+  }
   EXPECT_LT(rls_std, 3.0 * batch_std);
 }
 

@@ -28,6 +28,26 @@ constexpr int kConditionCount = 6;
 /// (missing ones count as zero).
 std::vector<FlightCondition> classify_conditions(const FlightData& data, double window_s = 6.0);
 
+/// Online detection of calibration maneuvers (pitch, roll, yaw oscillations flown on a straight
+/// leg) from the attitude rates, causal: over the last window_s seconds, some rate's oscillation
+/// (rms about its mean) exceeds threshold_dps while the mean yaw rate stays below 1.5 deg/s (not a
+/// turn). Rates in deg/s, time in s.
+class ManeuverDetector {
+ public:
+  explicit ManeuverDetector(double window_s = 6.0, double threshold_dps = 1.0)
+      : window_s_(window_s), threshold_dps_(threshold_dps) {}
+  /// Adds the rates at time t_s (increasing); returns whether a calibration maneuver is under way.
+  bool update(double t_s, double pitch_rate_dps, double roll_rate_dps, double yaw_rate_dps);
+  void reset() { samples_.clear(); }
+
+ private:
+  struct Rates {
+    double t, p, r, y;
+  };
+  std::vector<Rates> samples_;
+  double window_s_, threshold_dps_;
+};
+
 /// Heading sector index 0..7 (N, NE, E, SE, S, SW, W, NW; 45 deg each) from ins_yaw (deg), -1 if
 /// unknown.
 std::vector<int> heading_sectors(const FlightData& data);

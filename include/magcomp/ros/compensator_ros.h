@@ -7,6 +7,7 @@
 #include <magcomp/CalibrationStatus.h>
 #include <magcomp/ScalarMagnetometer.h>
 #include <ros/ros.h>
+#include <sensor_msgs/Imu.h>
 #include <sensor_msgs/MagneticField.h>
 #include <sensor_msgs/NavSatFix.h>
 #include <std_srvs/Trigger.h>
@@ -16,6 +17,7 @@
 #include <memory>
 #include <string>
 
+#include "magcomp/core/flight_conditions.h"
 #include "magcomp/core/inflight_calibrator.h"
 #include "magcomp/core/streaming_compensator.h"
 
@@ -54,6 +56,7 @@ class CompensatorRos {
   void on_aux(const magcomp::AuxChannels::ConstPtr& m);
   void on_fix(const sensor_msgs::NavSatFix::ConstPtr& m);
   void on_reference(const magcomp::ScalarMagnetometer::ConstPtr& m);
+  void on_imu(const sensor_msgs::Imu::ConstPtr& m);
   bool on_reload(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res);
   void on_watch(const ros::TimerEvent&);
   void process_ready(bool force);
@@ -130,6 +133,10 @@ class CompensatorRos {
   std::vector<int> calibration_index_;  // the template's channels in the aux messages
   int line_index_ = -1;
   bool manual_segment_ = false;
+  bool auto_segments_ = false;
+  ManeuverDetector detector_;
+  std::deque<Timed1> maneuver_;  // detector output (1: maneuver under way) by stamp
+  ros::Subscriber sub_imu_;
   ros::Publisher pub_status_;
   ros::ServiceServer srv_start_, srv_stop_, srv_fit_, srv_save_, srv_reset_;
   ros::WallTimer status_timer_;
