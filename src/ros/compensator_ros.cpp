@@ -5,6 +5,7 @@
 #include <sys/stat.h>
 #include <visualization_msgs/Marker.h>
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <set>
@@ -26,7 +27,7 @@ const std::set<std::string> kKnownParams = {
     "reference_topic", "output_topic",      "frame_id",        "max_gap_s",     "max_wait_s",
     "jump_back_s",     "buffer_s",          "watch_model",     "marker_stride", "expected_rate_hz",
     "flush_after_s",   "calibration_model", "calibration_out", "forgetting",    "auto_segments",
-    "imu_topic"};
+    "imu_topic",       "base_frame"};
 
 }  // namespace
 
@@ -149,6 +150,9 @@ CompensatorRos::CompensatorRos(ros::NodeHandle nh, ros::NodeHandle pnh)
     sub_ref_ = nh_.subscribe(ref_topic, 1000, &CompensatorRos::on_reference, this, hints);
   }
   srv_reload_ = pnh_.advertiseService("reload", &CompensatorRos::on_reload, this);
+  pnh_.param<std::string>("base_frame", base_frame_, "base_link");
+  tf_buffer_ = std::make_unique<tf2_ros::Buffer>();
+  tf_listener_ = std::make_unique<tf2_ros::TransformListener>(*tf_buffer_, nh_);
   pnh_.param("auto_segments", auto_segments_, false);
   if (calibrator_ && auto_segments_) {
     std::string imu_topic;
@@ -319,7 +323,27 @@ bool CompensatorRos::append(std::deque<T>& buf, T item) {
 
 void CompensatorRos::on_vector(const sensor_msgs::MagneticField::ConstPtr& m) {
   const double t = rel(m->header.stamp);
-  const Eigen::Vector3d b(m->magnetic_field.x, m->magnetic_field.y, m->magnetic_field.z);
+  Eigen::Vector3d b(m->magnetic_field.x, m->magnetic_field.y, m->magnetic_field.z);
+  // A fluxgate mounted with a rotation: rotate into base_frame (its mount is static: look it up
+  // once; until it is known the vector is used as is and counted).
+  const std::string& frame = m->header.frame_id;
+  if (!frame.empty() && frame != base_frame_) {
+    if (!rotation_known_ || frame != vector_frame_) {
+      try {
+        const geometry_msgs::TransformStamped tf =
+            tf_buffer_->lookupTransform(base_frame_, frame, ros::Time(0));
+        const auto& q = tf.transform.rotation;
+        vector_rotation_ = Eigen::Quaterniond(q.w, q.x, q.y, q.z).toRotationMatrix();
+        vector_frame_ = frame;
+        rotation_known_ = true;
+      } catch (const tf2::TransformException& e) {
+        ++n_no_tf_;
+        ROS_WARN_THROTTLE(10, "magcomp: no tf2 %s <- %s yet (%s): fluxgate used as is",
+                          base_frame_.c_str(), frame.c_str(), e.what());
+      }
+    }
+    if (rotation_known_) b = vector_rotation_ * b;
+  }
   if (!append(vectors_, Timed3{t, b * 1e9})) return;  // REP 145 Tesla -> nT
   last_vector_t_ = t;
   process_ready(false);
@@ -617,6 +641,8 @@ void CompensatorRos::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat)
     stat.add("lookahead_samples", comp_->lookahead());
   }
   stat.add("model_reloads", n_reloads_);
+  stat.add("fluxgate_frame", vector_frame_.empty() ? std::string("(as given)") : vector_frame_);
+  stat.add("fluxgate_vectors_without_tf", n_no_tf_);
   if (calibrator_) {
     stat.add("calibration_segments", calibrator_->segments());
     stat.add("calibration_samples", static_cast<long>(calibrator_->samples()));

@@ -11,6 +11,8 @@
 #include <sensor_msgs/MagneticField.h>
 #include <sensor_msgs/NavSatFix.h>
 #include <std_srvs/Trigger.h>
+#include <tf2_ros/buffer.h>
+#include <tf2_ros/transform_listener.h>
 
 #include <Eigen/Core>
 #include <deque>
@@ -137,6 +139,14 @@ class CompensatorRos {
   ManeuverDetector detector_;
   std::deque<Timed1> maneuver_;  // detector output (1: maneuver under way) by stamp
   ros::Subscriber sub_imu_;
+  // Fluxgate mounting: vectors are rotated from their frame into base_frame_ with tf2.
+  std::string base_frame_;
+  std::unique_ptr<tf2_ros::Buffer> tf_buffer_;
+  std::unique_ptr<tf2_ros::TransformListener> tf_listener_;
+  std::string vector_frame_;
+  Eigen::Matrix3d vector_rotation_ = Eigen::Matrix3d::Identity();
+  bool rotation_known_ = false;
+  long n_no_tf_ = 0;
   ros::Publisher pub_status_;
   ros::ServiceServer srv_start_, srv_stop_, srv_fit_, srv_save_, srv_reset_;
   ros::WallTimer status_timer_;
