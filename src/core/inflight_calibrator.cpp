@@ -23,7 +23,8 @@ InflightCalibrator::InflightCalibrator(Model model, double forgetting)
   if (model_.fit.method != "bandpass")
     throw Error("calibrator: in-flight fits use fit.method bandpass");
   std::set<std::string> seen;
-  for (const auto& t : model_.make_terms()) {
+  terms_ = model_.make_terms();
+  for (const auto& t : terms_) {
     if (!t->bandpass_observable())
       throw Error("calibrator: term '" + t->spec() + "' needs a reference fit");
     for (const auto& f : t->required_fields()) {
@@ -91,7 +92,7 @@ void InflightCalibrator::rls_step(const StreamSample& s) {
   std::vector<const StreamSample*> win;
   for (const auto& x : window_) win.push_back(&x);
   const FlightData w = samples_to_flight(model_, channels_, win);
-  const Eigen::MatrixXd a = design_matrix(model_, w);
+  const Eigen::MatrixXd a = design_matrix(model_, terms_, w);
   const Eigen::Index p = a.cols();
   Eigen::VectorXd row = a.row(1).transpose();
   double y = w.column(model_.scalar)[1];

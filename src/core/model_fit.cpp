@@ -33,8 +33,11 @@ double Model::scalar_lag_s() const {
 }
 
 Eigen::VectorXd aligned_scalar(const Model& model, const FlightData& data) {
+  return aligned_scalar(model, data, model.scalar_lag_s());
+}
+
+Eigen::VectorXd aligned_scalar(const Model& model, const FlightData& data, double lag) {
   const Eigen::VectorXd& s = data.column(model.scalar);
-  const double lag = model.scalar_lag_s();
   if (lag == 0.0) return s;
   return shift_samples(s, -lag / data.dt_s());
 }
@@ -52,7 +55,11 @@ bool Model::add_term(const std::string& spec) {
 }
 
 Eigen::MatrixXd design_matrix(const Model& model, const FlightData& data) {
-  const auto terms = model.make_terms();
+  return design_matrix(model, model.make_terms(), data);
+}
+
+Eigen::MatrixXd design_matrix(const Model& model, const std::vector<std::unique_ptr<Term>>& terms,
+                              const FlightData& data) {
   for (const auto& t : terms) {
     for (const auto& f : t->required_fields()) {
       if (!data.has(f)) {

@@ -11,6 +11,7 @@ namespace magcomp {
 StreamingCompensator::StreamingCompensator(Model model) : model_(std::move(model)) {
   if (!model_.fitted()) throw Error("compensator: model not calibrated (no coefficients)");
   terms_ = model_.make_terms();
+  for (const auto& t : terms_) lag_s_ += t->scalar_lag_s();
   std::set<std::string> seen;
   for (const auto& t : terms_) {
     for (const auto& f : t->required_fields()) {
@@ -33,7 +34,7 @@ std::vector<StreamOutput> StreamingCompensator::push(const StreamSample& sample)
   buffer_.push_back(sample);
   if (half_ == 0 && buffer_.size() >= 2) {
     const double dt = buffer_[1].t_s - buffer_[0].t_s;
-    const double lag = std::abs(model_.scalar_lag_s());
+    const double lag = std::abs(lag_s_);
     // Central differences need 1 neighbour; the cubic realignment by lag needs ceil(lag/dt) + 2.
     half_ = 2 + (dt > 0 ? static_cast<int>(std::ceil(lag / dt - 1e-9)) + 1 : 0);
   }
@@ -97,9 +98,9 @@ StreamOutput StreamingCompensator::emit(Eigen::Index index) const {
   const Eigen::Index row = index - first;
   StreamOutput o;
   o.t_s = w.tt()[row];
-  const Eigen::VectorXd aligned = aligned_scalar(model_, w);
+  const Eigen::VectorXd aligned = aligned_scalar(model_, w, lag_s_);
   o.measured_nT = aligned[row];
-  o.correction_nT = design_matrix(model_, w).row(row).dot(model_.coefficients);
+  o.correction_nT = design_matrix(model_, terms_, w).row(row).dot(model_.coefficients);
   o.compensated_nT = o.measured_nT - o.correction_nT;
   return o;
 }

@@ -13,6 +13,7 @@
 #include <mutex>
 
 #include "magcomp/core/flight_data.h"
+#include "rostest_util.h"
 
 namespace {
 
@@ -99,9 +100,5 @@ TEST(Faults, NodeSurvivesAndReportsEveryFault) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  testing::InitGoogleTest(&argc, argv);
-  ros::init(argc, argv, "test_faults");
-  ros::AsyncSpinner spinner(2);
-  spinner.start();
-  return RUN_ALL_TESTS();
+  return magcomp::rostest_util::run_tests(argc, argv, "test_faults", 2);
 }

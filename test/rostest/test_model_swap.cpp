@@ -10,16 +10,9 @@
 #include <mutex>
 
 #include "magcomp/core/model.h"
+#include "rostest_util.h"
 
 namespace {
-
-std::mutex g_mutex;
-std::vector<magcomp::CompensatedField> g_out;
-
-void on_output(const magcomp::CompensatedField::ConstPtr& m) {
-  std::lock_guard<std::mutex> lock(g_mutex);
-  g_out.push_back(*m);
-}
 
 void copy_atomically(const std::string& from, const std::string& to) {
   {
@@ -45,26 +38,17 @@ TEST(ModelSwap, TakesEffectAtOneStampWithNoSampleLost) {
   // bag starts playing 4 s after launch).
   copy_atomically(old_path, live);
   ros::WallDuration(1.0).sleep();
-  ros::Subscriber sub = nh.subscribe("/magcomp/compensated", 100000, on_output);
-  const ros::WallTime start = ros::WallTime::now();
+  magcomp::rostest_util::OutputCollector collector(nh);
   bool swapped = false;
-  size_t last_count = 0;
-  ros::WallTime last_change = start;
-  while ((ros::WallTime::now() - start).toSec() < 200.0) {
-    ros::WallDuration(0.05).sleep();
-    std::lock_guard<std::mutex> lock(g_mutex);
-    if (!swapped && g_out.size() > static_cast<size_t>(f.size() / 2)) {
-      copy_atomically(new_path, live);  // as `magcomp calibrate --out` does: temp file + rename
-      swapped = true;
-    }
-    if (g_out.size() != last_count) {
-      last_count = g_out.size();
-      last_change = ros::WallTime::now();
-    }
-    if (last_count >= static_cast<size_t>(f.size())) break;
-    if (last_count > 0 && (ros::WallTime::now() - last_change).toSec() > 8.0) break;
-  }
-  std::lock_guard<std::mutex> lock(g_mutex);
+  magcomp::rostest_util::wait_until_settled(
+      [&] { return collector.size(); }, static_cast<size_t>(f.size()), 8.0, 200.0, 0.05,
+      [&](size_t n) {
+        if (!swapped && n > static_cast<size_t>(f.size() / 2)) {
+          copy_atomically(new_path, live);  // as `magcomp calibrate --out` does: temp + rename
+          swapped = true;
+        }
+      });
+  const std::vector<magcomp::CompensatedField> g_out = collector.outputs();
   ASSERT_TRUE(swapped);
   ASSERT_EQ(g_out.size(), static_cast<size_t>(f.size())) << "samples lost or duplicated";
   // Each output equals the old model's offline value, then (from one index on) the new model's.
@@ -98,9 +82,5 @@ TEST(ModelSwap, TakesEffectAtOneStampWithNoSampleLost) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  testing::InitGoogleTest(&argc, argv);
-  ros::init(argc, argv, "test_model_swap");
-  ros::AsyncSpinner spinner(1);
-  spinner.start();
-  return RUN_ALL_TESTS();
+  return magcomp::rostest_util::run_tests(argc, argv, "test_model_swap", 1);
 }

@@ -10,16 +10,9 @@
 #include <mutex>
 
 #include "magcomp/core/model.h"
+#include "rostest_util.h"
 
 namespace {
-
-std::mutex g_mutex;
-std::vector<magcomp::CompensatedField> g_out;
-
-void on_output(const magcomp::CompensatedField::ConstPtr& m) {
-  std::lock_guard<std::mutex> lock(g_mutex);
-  g_out.push_back(*m);
-}
 
 TEST(MountRotation, RotatedFluxgateGivesTheOfflineCompensation) {
   ros::NodeHandle nh, pnh("~");
@@ -31,10 +24,10 @@ TEST(MountRotation, RotatedFluxgateGivesTheOfflineCompensation) {
   auto scalar = nh.advertise<magcomp::ScalarMagnetometer>("/magcomp/scalar/mag_5_uc", 1000);
   auto vec = nh.advertise<sensor_msgs::MagneticField>("/magcomp/fluxgate/flux_c", 1000);
   auto aux = nh.advertise<magcomp::AuxChannels>("/magcomp/aux", 1000);
-  ros::Subscriber sub = nh.subscribe("/magcomp/compensated", 10000, on_output);
+  magcomp::rostest_util::OutputCollector collector(nh);
   const ros::WallTime t0 = ros::WallTime::now();
   while ((scalar.getNumSubscribers() == 0 || vec.getNumSubscribers() == 0 ||
-          aux.getNumSubscribers() == 0 || sub.getNumPublishers() == 0) &&
+          aux.getNumSubscribers() == 0 || collector.subscriber().getNumPublishers() == 0) &&
          (ros::WallTime::now() - t0).toSec() < 20.0) {
     ros::WallDuration(0.1).sleep();
   }
@@ -67,7 +60,7 @@ TEST(MountRotation, RotatedFluxgateGivesTheOfflineCompensation) {
     ros::WallDuration(0.002).sleep();
   }
   ros::WallDuration(2.0).sleep();  // the end-of-stream flush
-  std::lock_guard<std::mutex> lock(g_mutex);
+  const std::vector<magcomp::CompensatedField> g_out = collector.outputs();
   ASSERT_EQ(g_out.size(), static_cast<size_t>(n));
   double worst = 0;
   for (int i = 2; i < n - 10; ++i) {  // away from the stream's ends (one-sided differences there)
@@ -81,9 +74,5 @@ TEST(MountRotation, RotatedFluxgateGivesTheOfflineCompensation) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  testing::InitGoogleTest(&argc, argv);
-  ros::init(argc, argv, "test_mount_rotation");
-  ros::AsyncSpinner spinner(1);
-  spinner.start();
-  return RUN_ALL_TESTS();
+  return magcomp::rostest_util::run_tests(argc, argv, "test_mount_rotation", 1);
 }

@@ -8,16 +8,9 @@
 
 #include "magcomp/core/model.h"
 #include "magcomp/ros/bag_converter.h"
+#include "rostest_util.h"
 
 namespace {
-
-std::mutex g_mutex;
-std::vector<magcomp::CompensatedField> g_out;
-
-void on_output(const magcomp::CompensatedField::ConstPtr& m) {
-  std::lock_guard<std::mutex> lock(g_mutex);
-  g_out.push_back(*m);
-}
 
 TEST(OnlineOffline, WholeReplayedFlightEqualsOfflineWithNoSampleLost) {
   ros::NodeHandle nh, pnh("~");
@@ -30,22 +23,11 @@ TEST(OnlineOffline, WholeReplayedFlightEqualsOfflineWithNoSampleLost) {
   const magcomp::Model m = magcomp::load_model_yaml(model_path);
   const Eigen::VectorXd offline = magcomp::compensate(m, f);
   const Eigen::VectorXd& ref = f.column("mag_1_c");
-  ros::Subscriber sub = nh.subscribe("/magcomp/compensated", 100000, on_output);
+  magcomp::rostest_util::OutputCollector collector(nh);
   // Wait for the whole flight (the node flushes its last samples when the bag ends).
-  const ros::WallTime start = ros::WallTime::now();
-  size_t last_count = 0;
-  ros::WallTime last_change = start;
-  while ((ros::WallTime::now() - start).toSec() < 200.0) {
-    ros::WallDuration(0.2).sleep();
-    std::lock_guard<std::mutex> lock(g_mutex);
-    if (g_out.size() != last_count) {
-      last_count = g_out.size();
-      last_change = ros::WallTime::now();
-    }
-    if (last_count >= static_cast<size_t>(f.size())) break;
-    if (last_count > 0 && (ros::WallTime::now() - last_change).toSec() > 8.0) break;
-  }
-  std::lock_guard<std::mutex> lock(g_mutex);
+  magcomp::rostest_util::wait_until_settled([&] { return collector.size(); },
+                                            static_cast<size_t>(f.size()), 8.0, 200.0, 0.2);
+  const std::vector<magcomp::CompensatedField> g_out = collector.outputs();
   ASSERT_EQ(g_out.size(), static_cast<size_t>(f.size())) << "samples lost or duplicated";
   const int year = static_cast<int>(f.column("year")[0]),
             doy = static_cast<int>(f.column("doy")[0]);
@@ -80,9 +62,5 @@ TEST(OnlineOffline, WholeReplayedFlightEqualsOfflineWithNoSampleLost) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  testing::InitGoogleTest(&argc, argv);
-  ros::init(argc, argv, "test_online_offline");
-  ros::AsyncSpinner spinner(1);
-  spinner.start();
-  return RUN_ALL_TESTS();
+  return magcomp::rostest_util::run_tests(argc, argv, "test_online_offline", 1);
 }

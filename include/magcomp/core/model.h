@@ -66,6 +66,9 @@ void save_model_yaml(const Model& model, const std::string& path);
 /// The N x P design matrix of the model's terms on a whole flight (rows may hold NaN where inputs
 /// are NaN). Throws magcomp::Error naming the file and the missing field.
 Eigen::MatrixXd design_matrix(const Model& model, const FlightData& data);
+/// The same with the model's terms already built (per-sample callers build them once).
+Eigen::MatrixXd design_matrix(const Model& model, const std::vector<std::unique_ptr<Term>>& terms,
+                              const FlightData& data);
 
 /// Fits the model's coefficients on `flights` according to model.fit. Throws magcomp::Error when
 /// the selection is empty or too short. Stores coefficients, column names and the report.
@@ -86,6 +89,8 @@ Eigen::MatrixXd stack_runs(const FitSettings& fit, double dt_s, const Eigen::Mat
 /// The model's scalar field (nT) realigned to the vector sensor: s(t + lag) when the model has a
 /// lag:<s> term (cubic interpolation; NaN where the realigned time falls past the flight's end).
 Eigen::VectorXd aligned_scalar(const Model& model, const FlightData& data);
+/// The same with the model's lag (Model::scalar_lag_s()) already known, s.
+Eigen::VectorXd aligned_scalar(const Model& model, const FlightData& data, double lag_s);
 
 /// The regression target of a fit: the scalar field (bandpass) or scalar - reference (nT).
 Eigen::VectorXd fit_target(const Model& model, const FlightData& data);

@@ -62,7 +62,8 @@ class StreamingCompensator {
   StreamOutput emit(Eigen::Index index) const;
 
   Model model_;
-  std::vector<std::unique_ptr<Term>> terms_;
+  std::vector<std::unique_ptr<Term>> terms_;  // built once: emit() runs per sample
+  double lag_s_ = 0.0;
   std::vector<std::string> channels_;
   std::deque<StreamSample> buffer_;
   Eigen::Index next_ = 0;  // index in buffer_ of the next sample to emit
