@@ -1,11 +1,41 @@
 // magcomp: the command-line tool. Each subcommand is a thin shell over magcomp_core.
+#include <unistd.h>
+
 #include <CLI/CLI.hpp>
+#include <climits>
+#include <cstring>
 #include <iostream>
+#include <string>
 
 #include "magcomp/core/error.h"
 #include "subcommands.h"
 
+namespace {
+
+/// `magcomp train ...` runs the magcomp_train executable beside this one (libtorch lives there,
+/// so the other subcommands start in a millisecond).
+int exec_train(int argc, char** argv) {
+  char buf[PATH_MAX];
+  const ssize_t n = ::readlink("/proc/self/exe", buf, sizeof(buf) - 1);
+  std::string dir = ".";
+  if (n > 0) {
+    const std::string self(buf, static_cast<size_t>(n));
+    dir = self.substr(0, self.find_last_of('/'));
+  }
+  const std::string train = dir + "/magcomp_train";
+  std::vector<char*> args;
+  args.push_back(const_cast<char*>(train.c_str()));
+  for (int i = 2; i < argc; ++i) args.push_back(argv[i]);
+  args.push_back(nullptr);
+  ::execv(train.c_str(), args.data());
+  std::cerr << "error: " << train << ": cannot run (" << std::strerror(errno) << ")\n";
+  return 2;
+}
+
+}  // namespace
+
 int main(int argc, char** argv) {
+  if (argc >= 2 && std::string(argv[1]) == "train") return exec_train(argc, argv);
   CLI::App app{"magcomp: airborne magnetic compensation (Tolles-Lawson + physical terms)"};
   app.require_subcommand(1);
   magcomp::cli::add_simulate(app);
@@ -13,6 +43,8 @@ int main(int argc, char** argv) {
   magcomp::cli::add_evaluate(app);
   magcomp::cli::add_diagnose(app);
   magcomp::cli::add_convert(app);
+  app.add_subcommand("train",
+                     "train a model's neural stage (runs magcomp_train; see magcomp train --help)");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

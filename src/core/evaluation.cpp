@@ -6,6 +6,7 @@
 
 #include "magcomp/core/error.h"
 #include "magcomp/core/flight_conditions.h"
+#include "magcomp/core/neural_network.h"
 
 namespace magcomp {
 
@@ -112,7 +113,9 @@ Evaluation evaluate_model(const Model& model, const FlightData& data, const std:
   if (!ref.array().isFinite().any()) {
     throw Error(data.source() + ": reference field '" + truth + "' holds no finite sample");
   }
-  const Eigen::VectorXd comp = compensate(model, data);
+  const Eigen::VectorXd comp = model.neural && model.neural->trained()
+                                   ? neural_compensate(model, data).compensated_nT
+                                   : compensate(model, data);
   Evaluation ev = error_statistics(data, comp - ref);
   ev.compensated_nT = comp;
   return ev;

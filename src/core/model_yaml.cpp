@@ -1,6 +1,7 @@
 // magcomp: model YAML load and atomic save.
 #include <yaml-cpp/yaml.h>
 
+#include <sys/stat.h>
 #include <unistd.h>
 #include <cstdio>
 #include <fstream>
@@ -34,9 +35,160 @@ void warn_unknown(const YAML::Node& node, const std::set<std::string>& known,
   }
 }
 
+bool is_directory(const std::string& path) {
+  struct stat st {};
+  return ::stat(path.c_str(), &st) == 0 && S_ISDIR(st.st_mode);
+}
+
+std::string directory_of(const std::string& path) {
+  const auto slash = path.find_last_of('/');
+  return slash == std::string::npos ? std::string(".") : path.substr(0, slash);
+}
+
+Eigen::VectorXd to_vector(const std::vector<double>& v) {
+  return Eigen::Map<const Eigen::VectorXd>(v.data(), static_cast<Eigen::Index>(v.size()));
+}
+
+std::vector<double> to_std(const Eigen::VectorXd& v) { return {v.data(), v.data() + v.size()}; }
+
+NeuralSpec parse_neural(const YAML::Node& n, const std::string& path, size_t tl_columns) {
+  if (!n.IsMap()) throw Error(path + ": key 'neural' must be a map");
+  warn_unknown(n,
+               {"architecture", "mode", "features", "window", "hidden", "reference", "training",
+                "normalisation", "tl_delta", "weights", "version", "train_flights",
+                "validation_flights", "epochs_run", "validation_rmse_nT"},
+               path, "neural.");
+  NeuralSpec s;
+  if (n["architecture"])
+    s.architecture = get<std::string>(n["architecture"], path, "neural.architecture");
+  if (n["mode"]) s.mode = get<std::string>(n["mode"], path, "neural.mode");
+  if (n["features"])
+    s.features = get<std::vector<std::string>>(n["features"], path, "neural.features");
+  if (n["window"]) s.window = get<int>(n["window"], path, "neural.window");
+  if (n["hidden"]) s.hidden = get<std::vector<int>>(n["hidden"], path, "neural.hidden");
+  if (n["reference"]) s.reference = get<std::string>(n["reference"], path, "neural.reference");
+  if (const YAML::Node t = n["training"]) {
+    if (!t.IsMap()) throw Error(path + ": key 'neural.training' must be a map");
+    warn_unknown(t,
+                 {"epochs", "batch", "learning_rate", "lr_decay", "weight_decay", "patience",
+                  "seed", "stride", "threads"},
+                 path, "neural.training.");
+    NeuralTraining& r = s.training;
+    if (t["epochs"]) r.epochs = get<int>(t["epochs"], path, "neural.training.epochs");
+    if (t["batch"]) r.batch = get<int>(t["batch"], path, "neural.training.batch");
+    if (t["learning_rate"])
+      r.learning_rate = get<double>(t["learning_rate"], path, "neural.training.learning_rate");
+    if (t["lr_decay"]) r.lr_decay = get<double>(t["lr_decay"], path, "neural.training.lr_decay");
+    if (t["weight_decay"])
+      r.weight_decay = get<double>(t["weight_decay"], path, "neural.training.weight_decay");
+    if (t["patience"]) r.patience = get<int>(t["patience"], path, "neural.training.patience");
+    if (t["seed"]) r.seed = get<std::uint64_t>(t["seed"], path, "neural.training.seed");
+    if (t["stride"]) r.stride = get<int>(t["stride"], path, "neural.training.stride");
+    if (t["threads"]) r.threads = get<int>(t["threads"], path, "neural.training.threads");
+  }
+  if (const YAML::Node z = n["normalisation"]) {
+    warn_unknown(z, {"feature_mean", "feature_std", "target_mean_nT", "target_std_nT"}, path,
+                 "neural.normalisation.");
+    for (const char* k : {"feature_mean", "feature_std", "target_mean_nT", "target_std_nT"}) {
+      if (!z[k]) throw Error(path + ": key 'neural.normalisation." + k + "' missing");
+    }
+    s.feature_mean = to_vector(
+        get<std::vector<double>>(z["feature_mean"], path, "neural.normalisation.feature_mean"));
+    s.feature_std = to_vector(
+        get<std::vector<double>>(z["feature_std"], path, "neural.normalisation.feature_std"));
+    s.target_mean = get<double>(z["target_mean_nT"], path, "neural.normalisation.target_mean_nT");
+    s.target_std = get<double>(z["target_std_nT"], path, "neural.normalisation.target_std_nT");
+    if (s.feature_mean.size() != static_cast<Eigen::Index>(s.features.size()) ||
+        s.feature_std.size() != static_cast<Eigen::Index>(s.features.size())) {
+      throw Error(path + ": key 'neural.normalisation' has " +
+                  std::to_string(s.feature_mean.size()) + " means for " +
+                  std::to_string(s.features.size()) + " features");
+    }
+    if (!(s.target_std > 0) || !(s.feature_std.array() > 0).all()) {
+      throw Error(path + ": key 'neural.normalisation' holds a non-positive std");
+    }
+  }
+  if (n["tl_delta"]) {
+    s.tl_delta = to_vector(get<std::vector<double>>(n["tl_delta"], path, "neural.tl_delta"));
+    if (static_cast<size_t>(s.tl_delta.size()) != tl_columns) {
+      throw Error(path + ": key 'neural.tl_delta' has " + std::to_string(s.tl_delta.size()) +
+                  " values, the terms have " + std::to_string(tl_columns) + " columns");
+    }
+  }
+  if (n["weights"]) {
+    s.weights = get<std::string>(n["weights"], path, "neural.weights");
+    s.weights_path =
+        s.weights.rfind('/', 0) == 0 ? s.weights : directory_of(path) + "/" + s.weights;
+    if (s.feature_mean.size() == 0) {
+      throw Error(path + ": key 'neural.normalisation' missing for trained weights");
+    }
+  }
+  if (n["version"]) s.version = get<int>(n["version"], path, "neural.version");
+  if (s.version != 1) {
+    throw Error(path + ": key 'neural.version' is " + std::to_string(s.version) +
+                ", this magcomp reads version 1");
+  }
+  if (n["train_flights"])
+    s.train_flights =
+        get<std::vector<std::string>>(n["train_flights"], path, "neural.train_flights");
+  if (n["validation_flights"])
+    s.validation_flights =
+        get<std::vector<std::string>>(n["validation_flights"], path, "neural.validation_flights");
+  if (n["epochs_run"]) s.epochs_run = get<int>(n["epochs_run"], path, "neural.epochs_run");
+  if (n["validation_rmse_nT"])
+    s.validation_rmse_nT = get<double>(n["validation_rmse_nT"], path, "neural.validation_rmse_nT");
+  validate_neural_spec(s, path);
+  return s;
+}
+
+void emit_neural(YAML::Emitter& out, const NeuralSpec& s) {
+  out << YAML::Key << "neural" << YAML::Value << YAML::BeginMap;
+  out << YAML::Key << "version" << YAML::Value << s.version;
+  out << YAML::Key << "architecture" << YAML::Value << s.architecture;
+  out << YAML::Key << "mode" << YAML::Value << s.mode;
+  out << YAML::Key << "features" << YAML::Value << YAML::Flow << s.features;
+  out << YAML::Key << "window" << YAML::Value << s.window;
+  out << YAML::Key << "hidden" << YAML::Value << YAML::Flow << s.hidden_or_default();
+  out << YAML::Key << "reference" << YAML::Value << s.reference;
+  const NeuralTraining& t = s.training;
+  out << YAML::Key << "training" << YAML::Value << YAML::BeginMap;
+  out << YAML::Key << "epochs" << YAML::Value << t.epochs;
+  out << YAML::Key << "batch" << YAML::Value << t.batch;
+  out << YAML::Key << "learning_rate" << YAML::Value << t.learning_rate;
+  out << YAML::Key << "lr_decay" << YAML::Value << t.lr_decay;
+  out << YAML::Key << "weight_decay" << YAML::Value << t.weight_decay;
+  out << YAML::Key << "patience" << YAML::Value << t.patience;
+  out << YAML::Key << "seed" << YAML::Value << t.seed;
+  out << YAML::Key << "stride" << YAML::Value << t.stride;
+  out << YAML::Key << "threads" << YAML::Value << t.threads;
+  out << YAML::EndMap;
+  if (s.feature_mean.size() > 0) {
+    out << YAML::Key << "normalisation" << YAML::Value << YAML::BeginMap;
+    out << YAML::Key << "feature_mean" << YAML::Value << YAML::Flow << to_std(s.feature_mean);
+    out << YAML::Key << "feature_std" << YAML::Value << YAML::Flow << to_std(s.feature_std);
+    out << YAML::Key << "target_mean_nT" << YAML::Value << s.target_mean;
+    out << YAML::Key << "target_std_nT" << YAML::Value << s.target_std;
+    out << YAML::EndMap;
+  }
+  if (s.tl_delta.size() > 0) {
+    out << YAML::Key << "tl_delta" << YAML::Value << YAML::Flow << to_std(s.tl_delta);
+  }
+  if (!s.weights.empty()) out << YAML::Key << "weights" << YAML::Value << s.weights;
+  if (!s.train_flights.empty())
+    out << YAML::Key << "train_flights" << YAML::Value << YAML::Flow << s.train_flights;
+  if (!s.validation_flights.empty())
+    out << YAML::Key << "validation_flights" << YAML::Value << YAML::Flow << s.validation_flights;
+  if (s.epochs_run > 0) {
+    out << YAML::Key << "epochs_run" << YAML::Value << s.epochs_run;
+    out << YAML::Key << "validation_rmse_nT" << YAML::Value << s.validation_rmse_nT;
+  }
+  out << YAML::EndMap;
+}
+
 }  // namespace
 
-Model load_model_yaml(const std::string& path) {
+Model load_model_yaml(const std::string& path_in) {
+  const std::string path = is_directory(path_in) ? path_in + "/model.yaml" : path_in;
   YAML::Node root;
   try {
     root = YAML::LoadFile(path);
@@ -130,6 +282,7 @@ Model load_model_yaml(const std::string& path) {
     m.column_names = names;
     m.coefficients = coef;
   }
+  if (root["neural"]) m.neural = parse_neural(root["neural"], path, m.make_column_names().size());
   return m;
 }
 
@@ -173,6 +326,7 @@ void save_model_yaml(const Model& m, const std::string& path) {
     out << YAML::Key << "warnings" << YAML::Value << YAML::Flow << m.report.warnings;
     out << YAML::EndMap;
   }
+  if (m.neural) emit_neural(out, *m.neural);
   out << YAML::EndMap;
   const std::string tmp = path + ".tmp." + std::to_string(::getpid());
   {

@@ -8,7 +8,8 @@
 
 namespace magcomp {
 
-StreamingCompensator::StreamingCompensator(Model model) : model_(std::move(model)) {
+StreamingCompensator::StreamingCompensator(Model model, std::shared_ptr<NeuralNetwork> network)
+    : model_(std::move(model)) {
   if (!model_.fitted()) throw Error("compensator: model not calibrated (no coefficients)");
   terms_ = model_.make_terms();
   for (const auto& t : terms_) lag_s_ += t->scalar_lag_s();
@@ -18,9 +19,20 @@ StreamingCompensator::StreamingCompensator(Model model) : model_(std::move(model
       if (seen.insert(f).second) channels_.push_back(f);
     }
   }
+  if (model_.neural && model_.neural->trained()) {
+    plan_ = std::make_unique<FeaturePlan>(model_);
+    for (const auto& f : plan_->fields()) {
+      if (seen.insert(f).second) channels_.push_back(f);
+    }
+    plan_->bind(channels_, "compensator");
+    if (!network) network = load_neural_network(model_, static_cast<int>(plan_->size()));
+    streamer_ = std::make_unique<NeuralStreamer>(*model_.neural, std::move(network));
+    feature_row_.resize(plan_->size());
+  }
 }
 
 void StreamingCompensator::reset() {
+  if (streamer_) streamer_->reset();
   buffer_.clear();
   next_ = 0;
   half_ = 0;
@@ -87,7 +99,7 @@ FlightData samples_to_flight(const Model& model, const std::vector<std::string>&
   return w;
 }
 
-StreamOutput StreamingCompensator::emit(Eigen::Index index) const {
+StreamOutput StreamingCompensator::emit(Eigen::Index index) {
   const Eigen::Index size = static_cast<Eigen::Index>(buffer_.size());
   const Eigen::Index h = std::max(half_, 2);
   const Eigen::Index first = std::max<Eigen::Index>(0, index - h);
@@ -100,7 +112,19 @@ StreamOutput StreamingCompensator::emit(Eigen::Index index) const {
   o.t_s = w.tt()[row];
   const Eigen::VectorXd aligned = aligned_scalar(model_, w, lag_s_);
   o.measured_nT = aligned[row];
-  o.correction_nT = design_matrix(model_, terms_, w).row(row).dot(model_.coefficients);
+  const Eigen::RowVectorXd a = design_matrix(model_, terms_, w).row(row);
+  o.tl_correction_nT = a.dot(model_.coefficients);
+  o.correction_nT = o.tl_correction_nT;
+  if (streamer_) {
+    const StreamSample& x = buffer_[static_cast<size_t>(index)];
+    const NeuralSpec& s = *model_.neural;
+    plan_->row(o.measured_nT, o.tl_correction_nT, x.igrf_nT, x.vector_nT, x.channels.data(),
+               feature_row_.data());
+    const double y = streamer_->push(feature_row_.data());
+    const double delta = s.tl_delta.size() > 0 ? a.dot(s.tl_delta) : 0.0;
+    o.correction_nT = neural_correction_nT(s, o.measured_nT, o.tl_correction_nT, delta, x.igrf_nT,
+                                           plan_->diurnal_nT(x.channels.data()), y);
+  }
   o.compensated_nT = o.measured_nT - o.correction_nT;
   return o;
 }

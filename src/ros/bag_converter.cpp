@@ -20,6 +20,7 @@
 #include <fstream>
 
 #include "magcomp/core/error.h"
+#include "magcomp/ros/bag_writer.h"
 
 namespace magcomp::rosio {
 namespace {
@@ -76,15 +77,13 @@ ConvertReport flight_to_bag(const FlightData& f, const std::string& bag_path, bo
   rep.samples = f.size();
   rep.fields = static_cast<long>(f.names().size());
   try {
-    rosbag::Bag bag;
-    bag.open(tmp, rosbag::bagmode::Write);
-    bag.setChunkThreshold(16 * 1024 *
-                          1024);  // fewer, larger chunks: faster for millions of messages
+    BagWriter bag(tmp);
     // Lossless record of every field.
     magcomp::FlightSchema schema;
     schema.header.stamp = stamp_of(year, doy, tt[0]);
     schema.names = f.names();
-    bag.write(BagTopics::kSchema, schema.header.stamp, schema);
+    bag.write(bag.connection<magcomp::FlightSchema>(BagTopics::kSchema), schema.header.stamp,
+              schema);
     rep.messages++;
     std::vector<const Eigen::VectorXd*> cols;
     for (const auto& name : f.names()) cols.push_back(&f.column(name));
@@ -97,8 +96,11 @@ ConvertReport flight_to_bag(const FlightData& f, const std::string& bag_path, bo
         const std::string base = name.substr(0, 6);
         if (f.has(base + "_y") && f.has(base + "_z")) fluxes.push_back(base);
       }
+      // Named values: the electrical channels, diurnal, line, and the INS values a neural
+      // stage may take as features (the compensator reads any feature by name from here).
       if (name.rfind("cur_", 0) == 0 || name.rfind("vol_", 0) == 0 || name == "diurnal" ||
-          name == "line")
+          name == "line" || name == "baro" || name == "ins_vn" || name == "ins_vw" ||
+          name == "ins_vu" || name == "ins_roll" || name == "ins_pitch" || name == "ins_yaw")
         aux.push_back(name);
     }
     const bool has_att = f.has("ins_roll") && f.has("ins_pitch") && f.has("ins_yaw");
@@ -119,8 +121,28 @@ ConvertReport flight_to_bag(const FlightData& f, const std::string& bag_path, bo
     const double *acc_x = col("ins_acc_x"), *acc_y = col("ins_acc_y"), *acc_z = col("ins_acc_z");
     const double *lat = col("lat"), *lon = col("lon"), *alt = col("utm_z");
     auto at = [](const double* c, Eigen::Index i) { return c ? c[i] : 0.0; };
+    // Connections (topic + type) registered once, in a fixed order.
+    const uint32_t c_record = bag.connection<magcomp::FlightRecord>(BagTopics::kRecord);
+    std::vector<uint32_t> c_scalar, c_flux;
+    for (const auto& s : scalars)
+      c_scalar.push_back(
+          bag.connection<magcomp::ScalarMagnetometer>(std::string(BagTopics::kScalarPrefix) + s));
+    const uint32_t c_ref =
+        ref ? bag.connection<magcomp::ScalarMagnetometer>(BagTopics::kReference) : 0;
+    for (const auto& b : fluxes)
+      c_flux.push_back(
+          bag.connection<sensor_msgs::MagneticField>(std::string(BagTopics::kFluxPrefix) + b));
+    const uint32_t c_imu = has_att ? bag.connection<sensor_msgs::Imu>(BagTopics::kImu) : 0;
+    const uint32_t c_fix = has_fix ? bag.connection<sensor_msgs::NavSatFix>(BagTopics::kFix) : 0;
+    const uint32_t c_aux = aux.empty() ? 0 : bag.connection<magcomp::AuxChannels>(BagTopics::kAux);
+    std::vector<std::string> scalar_frames;
+    for (const auto& s : scalars) scalar_frames.push_back(s.substr(0, 5));
     magcomp::FlightRecord rec;
     rec.values.resize(cols.size());
+    sensor_msgs::Imu imu;
+    imu.header.frame_id = "base_link";
+    sensor_msgs::NavSatFix fix;
+    fix.header.frame_id = "base_link";
     magcomp::ScalarMagnetometer sm;
     sensor_msgs::MagneticField fm;
     magcomp::AuxChannels am;
@@ -131,17 +153,17 @@ ConvertReport flight_to_bag(const FlightData& f, const std::string& bag_path, bo
       rec.header.stamp = t;
       rec.header.seq = static_cast<uint32_t>(i);
       for (size_t c = 0; c < cols.size(); ++c) rec.values[c] = (*cols[c])[i];
-      bag.write(BagTopics::kRecord, t, rec);
+      bag.write(c_record, t, rec);
       sm.header.stamp = t;
       for (size_t k = 0; k < scalars.size(); ++k) {
-        sm.header.frame_id = scalars[k].substr(0, 5);
+        sm.header.frame_id = scalar_frames[k];
         sm.field_nT = scalar_cols[k][i];
-        bag.write(std::string(BagTopics::kScalarPrefix) + scalars[k], t, sm);
+        bag.write(c_scalar[k], t, sm);
       }
       if (ref) {
         sm.header.frame_id = "mag_1";
         sm.field_nT = ref[i];
-        bag.write(BagTopics::kReference, t, sm);
+        bag.write(c_ref, t, sm);
       }
       fm.header.stamp = t;
       for (size_t k = 0; k < fluxes.size(); ++k) {
@@ -149,7 +171,7 @@ ConvertReport flight_to_bag(const FlightData& f, const std::string& bag_path, bo
         fm.magnetic_field.x = flux_cols[k][0][i] * 1e-9;  // REP 145: Tesla
         fm.magnetic_field.y = flux_cols[k][1][i] * 1e-9;
         fm.magnetic_field.z = flux_cols[k][2][i] * 1e-9;
-        bag.write(std::string(BagTopics::kFluxPrefix) + fluxes[k], t, fm);
+        bag.write(c_flux[k], t, fm);
       }
       if (has_att) {
         // MIT: yaw clockwise from north, pitch nose up, roll right wing down (NED/FRD).
@@ -158,9 +180,8 @@ ConvertReport flight_to_bag(const FlightData& f, const std::string& bag_path, bo
             Eigen::AngleAxisd(M_PI / 2 - yaw[i] * kDeg, Eigen::Vector3d::UnitZ()) *
             Eigen::AngleAxisd(-pitch[i] * kDeg, Eigen::Vector3d::UnitY()) *
             Eigen::AngleAxisd(roll[i] * kDeg, Eigen::Vector3d::UnitX());
-        sensor_msgs::Imu m;
+        sensor_msgs::Imu& m = imu;
         m.header.stamp = t;
-        m.header.frame_id = "base_link";
         m.orientation.w = q.w();
         m.orientation.x = q.x();
         m.orientation.y = q.y();
@@ -171,30 +192,26 @@ ConvertReport flight_to_bag(const FlightData& f, const std::string& bag_path, bo
         m.linear_acceleration.x = at(acc_x, i);
         m.linear_acceleration.y = at(acc_y, i);
         m.linear_acceleration.z = at(acc_z, i);
-        bag.write(BagTopics::kImu, t, m);
+        bag.write(c_imu, t, m);
       }
       if (has_fix) {
-        sensor_msgs::NavSatFix m;
+        sensor_msgs::NavSatFix& m = fix;
         m.header.stamp = t;
-        m.header.frame_id = "base_link";
         m.latitude = lat[i];
         m.longitude = lon[i];
         m.altitude = alt ? alt[i] : NAN;  // above the WGS-84 ellipsoid
         m.position_covariance_type = sensor_msgs::NavSatFix::COVARIANCE_TYPE_UNKNOWN;
-        bag.write(BagTopics::kFix, t, m);
+        bag.write(c_fix, t, m);
       }
       if (!aux.empty()) {
         am.header.stamp = t;
         for (size_t k = 0; k < aux.size(); ++k) am.values[k] = aux_cols[k][i];
-        bag.write(BagTopics::kAux, t, am);
+        bag.write(c_aux, t, am);
       }
       rep.messages += 1 + static_cast<long>(scalars.size() + fluxes.size()) + (ref ? 1 : 0) +
                       (has_att ? 1 : 0) + (has_fix ? 1 : 0) + (aux.empty() ? 0 : 1);
     }
     bag.close();
-  } catch (const rosbag::BagException& e) {
-    std::remove(tmp.c_str());
-    throw Error(bag_path + ": cannot write bag (" + e.what() + ")");
   } catch (...) {
     std::remove(tmp.c_str());
     throw;

@@ -234,6 +234,7 @@ bool CompensatorRos::load_model(const std::string& why) {
       const std::vector<int> idx = channel_indices(next->required_channels());
       for (StreamSample s : history_) {
         s.channels = channels_at(s.t_s, idx);
+        if (next->needs_igrf()) s.igrf_nT = igrf_at(s.t_s);
         for (const auto& o : next->push(s)) {
           if (o.t_s > last_published_t_) publish(o);
         }
@@ -399,10 +400,13 @@ void CompensatorRos::process_ready(bool force) {
   const bool need_aux =
       !channel_index_.empty() ||
       (calibrator_ && (!calibration_index_.empty() || !calibration_template_->fit.lines.empty()));
+  // A neural stage that removes the core field needs the position of that very sample.
+  const bool need_fix = comp_ && comp_->needs_igrf();
   while (!pending_scalar_.empty()) {
     const auto [t, value, arrived_wall] = pending_scalar_.front();
     const bool covered = !vectors_.empty() && vectors_.back().t >= t &&
-                         (!need_aux || (!aux_.empty() && aux_.back().t >= t));
+                         (!need_aux || (!aux_.empty() && aux_.back().t >= t)) &&
+                         (!need_fix || (!fixes_.empty() && fixes_.back().t >= t));
     // Hold the latest inputs only after waiting max_wait_s in data time AND in wall time (on a fast
     // replay data time runs ahead of the transport; in real time the two agree).
     const bool waited_enough = last_scalar_t_ - t > max_wait_s_ &&
@@ -423,6 +427,7 @@ void CompensatorRos::process_ready(bool force) {
       ++n_stale_;
     }
     s.channels = channels_at(t, channel_index_);
+    if (need_fix) s.igrf_nT = igrf_at(t);
     if (!history_.empty() && t - history_.back().t_s > max_gap_s_) {
       ++n_gaps_;
       reset_streams("gap in the scalar stamps");
@@ -435,9 +440,25 @@ void CompensatorRos::feed(const StreamSample& s) {
   if (calibrator_) calibrate(s);
   if (!comp_) return;
   history_.push_back(s);
-  while (history_.size() > static_cast<size_t>(4 * std::max(comp_->lookahead(), 3) + 4))
+  // Enough recent samples for a swapped-in model to fill its lookahead and a neural window.
+  while (history_.size() >
+         static_cast<size_t>(std::max(4 * std::max(comp_->lookahead(), 3) + 4, 256)))
     history_.pop_front();
   for (const auto& o : comp_->push(s)) publish(o);
+}
+
+double CompensatorRos::igrf_at(double t) {
+  Timed3 fix{};
+  if (!interpolate(fixes_, t, &fix)) return NAN;
+  try {
+    const boost::posix_time::ptime p = stamp(t).toBoost();
+    const double year = decimal_year(p.date().year(), p.date().day_of_year(),
+                                     p.time_of_day().total_microseconds() * 1e-6);
+    return Igrf::shipped().geodetic(fix.v.x(), fix.v.y(), fix.v.z(), year).total_nT();
+  } catch (const std::exception& e) {
+    ROS_WARN_THROTTLE(10, "magcomp: no IGRF at the sample: %s", e.what());
+    return NAN;
+  }
 }
 
 void CompensatorRos::publish(const StreamOutput& o) {
@@ -451,24 +472,13 @@ void CompensatorRos::publish(const StreamOutput& o) {
   msg.compensated_nT = o.compensated_nT;
   msg.variance_nT2 = comp_ ? std::pow(comp_->model().report.residual_std_nT, 2) : NAN;
   msg.anomaly_nT = NAN;
-  Timed3 fix{};
   double diurnal = 0.0;
   if (diurnal_index_ >= 0) {
     const double d = channels_at(o.t_s, {diurnal_index_})[0];
     if (std::isfinite(d)) diurnal = d;
   }
-  if (interpolate(fixes_, o.t_s, &fix)) {
-    try {
-      const boost::posix_time::ptime p = msg.header.stamp.toBoost();
-      const double year = decimal_year(p.date().year(), p.date().day_of_year(),
-                                       p.time_of_day().total_microseconds() * 1e-6);
-      const double igrf =
-          Igrf::shipped().geodetic(fix.v.x(), fix.v.y(), fix.v.z(), year).total_nT();
-      msg.anomaly_nT = o.compensated_nT - igrf - diurnal;
-    } catch (const std::exception& e) {
-      ROS_WARN_THROTTLE(10, "magcomp: no anomaly: %s", e.what());
-    }
-  }
+  const double igrf = igrf_at(o.t_s);
+  if (std::isfinite(igrf)) msg.anomaly_nT = o.compensated_nT - igrf - diurnal;
   msg.reference_nT = NAN;
   msg.error_nT = NAN;
   Timed1 ref{};
@@ -480,7 +490,8 @@ void CompensatorRos::publish(const StreamOutput& o) {
   ++n_out_;
   freq_->tick();
   // rviz: the track in a local east-north-up frame, coloured by the error (or the anomaly).
-  if (std::isfinite(fix.v.x())) {
+  Timed3 fix{};
+  if (interpolate(fixes_, o.t_s, &fix)) {
     if (!std::isfinite(origin_lat_)) {
       origin_lat_ = fix.v.x();
       origin_lon_ = fix.v.y();
@@ -639,6 +650,11 @@ void CompensatorRos::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat)
     for (const auto& t : comp_->model().terms) terms += (terms.empty() ? "" : " ") + t;
     stat.add("terms", terms);
     stat.add("lookahead_samples", comp_->lookahead());
+    const auto& nn = comp_->model().neural;
+    stat.add("neural_stage", nn && nn->trained()
+                                 ? nn->architecture + " (" + nn->mode + ", window " +
+                                       std::to_string(nn->window) + ")"
+                                 : std::string("none"));
   }
   stat.add("model_reloads", n_reloads_);
   stat.add("fluxgate_frame", vector_frame_.empty() ? std::string("(as given)") : vector_frame_);

@@ -7,6 +7,7 @@
 #include <mutex>
 
 #include "magcomp/core/model.h"
+#include "magcomp/core/neural_network.h"
 #include "magcomp/ros/bag_converter.h"
 #include "rostest_util.h"
 
@@ -21,7 +22,13 @@ TEST(OnlineOffline, WholeReplayedFlightEqualsOfflineWithNoSampleLost) {
   pnh.param("tolerance_rms_nT", tol, 1e-6);
   const magcomp::FlightData f = magcomp::read_flight_h5(h5);
   const magcomp::Model m = magcomp::load_model_yaml(model_path);
-  const Eigen::VectorXd offline = magcomp::compensate(m, f);
+  // A model with a neural stage: the offline path is the batch inference (windows padded at
+  // the flight's start, as the node's ring buffer is).
+  const Eigen::VectorXd offline =
+      m.neural ? magcomp::neural_compensate(m, f).compensated_nT : magcomp::compensate(m, f);
+  if (m.neural)
+    std::printf("  neural stage: %s, %s mode, window %d\n", m.neural->architecture.c_str(),
+                m.neural->mode.c_str(), m.neural->window);
   const Eigen::VectorXd& ref = f.column("mag_1_c");
   magcomp::rostest_util::OutputCollector collector(nh);
   // Wait for the whole flight (the node flushes its last samples when the bag ends).

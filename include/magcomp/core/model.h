@@ -4,11 +4,13 @@
 
 #include <Eigen/Core>
 #include <memory>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
 
 #include "magcomp/core/flight_data.h"
+#include "magcomp/core/neural_spec.h"
 #include "magcomp/core/term.h"
 
 namespace magcomp {
@@ -46,6 +48,8 @@ struct Model {
   std::vector<std::string> column_names;
   Eigen::VectorXd coefficients;
   FitReport report;
+  /// Optional neural stage on top of the terms (see neural_spec.h).
+  std::optional<NeuralSpec> neural;
 
   bool fitted() const { return coefficients.size() > 0; }
   /// The term objects, in order.
@@ -58,9 +62,11 @@ struct Model {
   bool add_term(const std::string& spec);
 };
 
-/// Loads a model YAML (a plain or a fitted one). Throws magcomp::Error naming file and key.
+/// Loads a model YAML (a plain or a fitted one), or a bundle directory holding model.yaml (and
+/// the neural stage's weights). Throws magcomp::Error naming file and key.
 Model load_model_yaml(const std::string& path);
-/// Writes the model (and coefficients, when fitted) atomically: temporary file + rename.
+/// Writes the model (and coefficients, when fitted) atomically: temporary file + rename. A neural
+/// stage's weights are not written here (magcomp train writes them first, then this file).
 void save_model_yaml(const Model& model, const std::string& path);
 
 /// The N x P design matrix of the model's terms on a whole flight (rows may hold NaN where inputs

@@ -2,12 +2,15 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <cmath>
 #include <deque>
 #include <memory>
 #include <string>
 #include <vector>
 
 #include "magcomp/core/model.h"
+#include "magcomp/core/neural_features.h"
+#include "magcomp/core/neural_network.h"
 
 namespace magcomp {
 
@@ -18,6 +21,7 @@ struct StreamSample {
   double scalar_nT = 0.0;
   Eigen::Vector3d vector_nT = Eigen::Vector3d::Zero();
   std::vector<double> channels;  ///< values of required_channels(), in that order
+  double igrf_nT = NAN;          ///< IGRF total field at the sample (needs_igrf() models), nT
 };
 
 /// A flight made of stream samples [begin, end): tt, the model's scalar, <vector>_x/_y/_z, the
@@ -32,6 +36,8 @@ struct StreamOutput {
   double measured_nT = 0.0;     ///< the scalar, realigned by the model's lag
   double correction_nT = 0.0;   ///< A·c
   double compensated_nT = 0.0;  ///< measured - correction
+  double tl_correction_nT =
+      0.0;  ///< the terms' part A·c of the correction (all of it without a neural stage)
 };
 
 /// Applies a fitted model to a stream of samples. Each output needs a few samples after it
@@ -40,11 +46,17 @@ struct StreamOutput {
 /// compensate() on the same flight exactly (one-sided differences at both ends included).
 class StreamingCompensator {
  public:
-  /// Throws magcomp::Error if the model is not fitted.
-  explicit StreamingCompensator(Model model);
+  /// Throws magcomp::Error if the model is not fitted. A model with a trained neural stage
+  /// loads libmagcomp_neural (or uses `network` when given) and runs it at batch 1 on a ring
+  /// buffer of its window.
+  explicit StreamingCompensator(Model model, std::shared_ptr<NeuralNetwork> network = nullptr);
 
   const Model& model() const { return model_; }
-  /// Channels the model's terms need (e.g. cur_strb for current:cur_strb).
+  /// True when samples must carry igrf_nT (a neural stage that removes the core field).
+  bool needs_igrf() const { return plan_ && plan_->needs_igrf(); }
+  /// True when the model has a neural stage.
+  bool has_network() const { return static_cast<bool>(streamer_); }
+  /// Channels the model's terms and neural features need (e.g. cur_strb for current:cur_strb).
   const std::vector<std::string>& required_channels() const { return channels_; }
   /// Samples of latency (0 until the sample period is known, after the second sample).
   int lookahead() const { return half_; }
@@ -59,12 +71,15 @@ class StreamingCompensator {
   size_t pending() const { return buffer_.size() - static_cast<size_t>(next_); }
 
  private:
-  StreamOutput emit(Eigen::Index index) const;
+  StreamOutput emit(Eigen::Index index);
 
   Model model_;
   std::vector<std::unique_ptr<Term>> terms_;  // built once: emit() runs per sample
   double lag_s_ = 0.0;
   std::vector<std::string> channels_;
+  std::unique_ptr<FeaturePlan> plan_;         // neural stage only
+  std::unique_ptr<NeuralStreamer> streamer_;  // neural stage only
+  std::vector<double> feature_row_;
   std::deque<StreamSample> buffer_;
   Eigen::Index next_ = 0;  // index in buffer_ of the next sample to emit
   int half_ = 0;           // samples needed on each side of an emitted one

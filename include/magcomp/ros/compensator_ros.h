@@ -68,6 +68,8 @@ class CompensatorRos {
   /// Values of the indexed channels at t (interpolated; the latest when t is past the buffer).
   std::vector<double> channels_at(double t, const std::vector<int>& index);
   void publish(const StreamOutput& o);
+  /// IGRF total field (nT) at data time t from the interpolated fix; NaN without a fix.
+  double igrf_at(double t);
   void reset_streams(const char* why);
   void diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat);
   // In-flight calibration.

@@ -1,0 +1,71 @@
+// magcomp: the neural stage at run time. The network itself lives in libmagcomp_neural (libtorch),
+// loaded with dlopen only when a model has a neural stage, so TL-only tools and nodes never pay
+// libtorch's start-up (~0.6 s, ~160 MB).
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <deque>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "magcomp/core/flight_data.h"
+#include "magcomp/core/model.h"
+
+namespace magcomp {
+
+/// A trained network: standardised windows in, standardised predictions out.
+class NeuralNetwork {
+ public:
+  virtual ~NeuralNetwork() = default;
+  /// windows: count x window x features, row-major (oldest sample first, features fastest);
+  /// out: count predictions (standardised target). Runs in double precision.
+  virtual void predict(const double* windows, std::int64_t count, double* out) = 0;
+};
+
+/// Loads the network of a trained model's neural stage from its weights file, through
+/// libmagcomp_neural (found beside the executable's lib directory, on LD_LIBRARY_PATH, or at
+/// $MAGCOMP_NEURAL_LIB). Throws magcomp::Error naming the model or library at fault.
+std::shared_ptr<NeuralNetwork> load_neural_network(const Model& model, int n_features);
+
+/// The symbol libmagcomp_neural exports; returns nullptr and fills `error` on failure.
+using CreateNetworkFn = NeuralNetwork* (*)(const NeuralSpec* spec, int n_features,
+                                           std::string* error);
+constexpr const char* kCreateNetworkSymbol = "magcomp_create_network";
+
+/// A model with a neural stage applied to a whole flight, nT.
+struct NeuralCompensation {
+  Eigen::VectorXd measured_nT;     ///< scalar realigned by the model's lag
+  Eigen::VectorXd correction_nT;   ///< total aircraft correction (TL + network)
+  Eigen::VectorXd compensated_nT;  ///< measured - correction
+  Eigen::VectorXd tl_correction_nT;
+  Eigen::VectorXd network_nT;  ///< the network's prediction, in target units
+};
+/// Offline inference: windows end at each sample and are padded at the flight's start by
+/// repeating its first sample (the online path does the same after each reset).
+NeuralCompensation neural_compensate(const Model& model, const FlightData& data,
+                                     std::shared_ptr<NeuralNetwork> network = nullptr);
+
+/// Maps the network's prediction y (nT) to the total correction, given the sample's realigned
+/// scalar, TL correction A c, A·tl_delta, IGRF and diurnal (nT).
+double neural_correction_nT(const NeuralSpec& spec, double scalar_nT, double tl_correction_nT,
+                            double tl_delta_nT, double igrf_nT, double diurnal_nT, double y_nT);
+
+/// Online inference at batch 1: a ring buffer of the last `window` standardised feature rows.
+class NeuralStreamer {
+ public:
+  NeuralStreamer(const NeuralSpec& spec, std::shared_ptr<NeuralNetwork> network);
+  /// Adds a raw feature row and returns the network's prediction for it, nT.
+  double push(const double* raw_features);
+  /// Forgets the window (after a gap or a time jump); the next row is padded as at a start.
+  void reset() { rows_.clear(); }
+
+ private:
+  const NeuralSpec spec_;
+  std::shared_ptr<NeuralNetwork> network_;
+  std::deque<std::vector<double>> rows_;
+  std::vector<double> window_;
+};
+
+}  // namespace magcomp

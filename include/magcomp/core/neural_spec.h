@@ -1,0 +1,67 @@
+// magcomp: the neural stage of a model (the `neural:` block of the model YAML): what the network
+// sees, what it predicts, how it is trained, and, once trained, its normalisation and weights.
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace magcomp {
+
+/// Training settings (`neural.training`). Defaults are the seed's (Adam, batch 256, lr 1e-3
+/// decayed by 0.9 per epoch, MSE).
+struct NeuralTraining {
+  int epochs = 25;              ///< maximum epochs
+  int batch = 256;              ///< windows per batch
+  double learning_rate = 1e-3;  ///< Adam, first epoch
+  double lr_decay = 0.9;        ///< learning rate multiplied by this after each epoch
+  double weight_decay = 1e-2;   ///< Adam weight decay (L2)
+  int patience = 5;             ///< early stopping: epochs without a better validation loss
+  std::uint64_t seed = 1;       ///< torch and shuffling seed: same seed, same weights
+  int stride = 1;               ///< a training window ends every `stride` samples
+  int threads = 2;              ///< torch intra-op threads
+};
+
+/// The neural stage. Modes:
+/// - `anomaly`: the seed's networks: predict the reference anomaly (reference - IGRF - diurnal)
+///   from the features; compensated = IGRF + diurnal + prediction.
+/// - `residual`: TL fixed, the network predicts what TL leaves (TL-compensated - reference);
+///   correction = A c + prediction (MagNav.jl's "model 2b" idea).
+/// - `joint`: as residual, but a change of the TL coefficients is trained with the network;
+///   correction = A (c + tl_delta) + prediction (MagNav.jl's "model 2c" idea).
+struct NeuralSpec {
+  std::string architecture = "mlp";  ///< mlp | cnn | lstm
+  std::string mode = "residual";     ///< anomaly | residual | joint
+  /// Inputs by name: a data field (cur_strb, ins_roll, baro...), `tl_anomaly` (the model's
+  /// TL-compensated scalar - IGRF - diurnal, nT), `tl_correction` (A c, nT), `anomaly:<field>`
+  /// (field - IGRF - diurnal, nT), `dir_x|dir_y|dir_z` (vector-sensor direction cosines).
+  std::vector<std::string> features;
+  int window = 5;           ///< samples per window; the window ends at the predicted sample
+  std::vector<int> hidden;  ///< mlp: layer widths; cnn: conv filters; lstm: hidden size per layer
+  std::string reference = "mag_1_c";  ///< training target field (nT)
+  NeuralTraining training;
+
+  // Fitted state, written by `magcomp train`.
+  Eigen::VectorXd feature_mean;  ///< per feature, training flights only
+  Eigen::VectorXd feature_std;
+  double target_mean = 0.0;  ///< nT
+  double target_std = 1.0;   ///< nT
+  Eigen::VectorXd tl_delta;  ///< joint mode: change of the TL coefficients (model units)
+  std::string weights;       ///< weights file, relative to the model YAML's directory
+  std::string weights_path;  ///< resolved at load (not written)
+  int version = 1;           ///< bundle format version
+  std::vector<std::string> train_flights, validation_flights;  ///< provenance
+  int epochs_run = 0;
+  double validation_rmse_nT = 0.0;
+
+  bool trained() const { return !weights.empty() && feature_mean.size() > 0; }
+  /// Hidden sizes, or the architecture's default (mlp 16,4; cnn 16,32; lstm 32,32).
+  std::vector<int> hidden_or_default() const;
+};
+
+/// Checks the spec's values (architecture, mode, window, features...). Throws magcomp::Error
+/// naming `where` (file) and the key.
+void validate_neural_spec(const NeuralSpec& spec, const std::string& where);
+
+}  // namespace magcomp

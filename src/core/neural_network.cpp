@@ -1,0 +1,131 @@
+// magcomp: loading the neural library and running a trained network offline and online.
+#include "magcomp/core/neural_network.h"
+
+#include <dlfcn.h>
+#include <unistd.h>
+
+#include <climits>
+#include <cmath>
+#include <cstdlib>
+#include <mutex>
+
+#include "magcomp/core/error.h"
+#include "magcomp/core/neural_features.h"
+
+namespace magcomp {
+namespace {
+
+std::string executable_dir() {
+  char buf[PATH_MAX];
+  const ssize_t n = ::readlink("/proc/self/exe", buf, sizeof(buf) - 1);
+  if (n <= 0) return ".";
+  std::string p(buf, static_cast<size_t>(n));
+  const auto slash = p.find_last_of('/');
+  return slash == std::string::npos ? "." : p.substr(0, slash);
+}
+
+CreateNetworkFn create_function() {
+  static std::mutex mutex;
+  static CreateNetworkFn fn = nullptr;
+  std::lock_guard<std::mutex> lock(mutex);
+  if (fn) return fn;
+  std::vector<std::string> candidates;
+  if (const char* env = std::getenv("MAGCOMP_NEURAL_LIB")) candidates.push_back(env);
+  const std::string dir = executable_dir();
+  candidates.push_back(dir + "/libmagcomp_neural.so");     // installed beside lib/
+  candidates.push_back(dir + "/../libmagcomp_neural.so");  // catkin: lib/magcomp/<exe>
+  candidates.push_back("libmagcomp_neural.so");            // LD_LIBRARY_PATH
+  std::string errors;
+  for (const auto& c : candidates) {
+    void* handle = ::dlopen(c.c_str(), RTLD_NOW | RTLD_LOCAL);
+    if (!handle) {
+      if (const char* e = ::dlerror()) errors = e;
+      continue;
+    }
+    fn = reinterpret_cast<CreateNetworkFn>(::dlsym(handle, kCreateNetworkSymbol));
+    if (fn) return fn;
+    errors = c + " has no symbol " + kCreateNetworkSymbol;
+  }
+  throw Error("neural: cannot load libmagcomp_neural.so (set MAGCOMP_NEURAL_LIB): " + errors);
+}
+
+}  // namespace
+
+std::shared_ptr<NeuralNetwork> load_neural_network(const Model& model, int n_features) {
+  if (!model.neural || !model.neural->trained()) {
+    throw Error("model: the neural stage is not trained (no weights); run magcomp train");
+  }
+  std::string error;
+  NeuralNetwork* net = create_function()(&*model.neural, n_features, &error);
+  if (!net) throw Error(model.neural->weights_path + ": " + error);
+  return std::shared_ptr<NeuralNetwork>(net);
+}
+
+double neural_correction_nT(const NeuralSpec& spec, double scalar_nT, double tl_correction_nT,
+                            double tl_delta_nT, double igrf_nT, double diurnal_nT, double y_nT) {
+  if (spec.mode == "anomaly") return scalar_nT - (igrf_nT + diurnal_nT + y_nT);
+  return tl_correction_nT + tl_delta_nT + y_nT;
+}
+
+NeuralCompensation neural_compensate(const Model& model, const FlightData& data,
+                                     std::shared_ptr<NeuralNetwork> network) {
+  const NeuralInputs in = neural_inputs(model, data);
+  const NeuralSpec& s = *model.neural;
+  const Eigen::Index n = data.size(), f = in.features.cols(), k = s.window;
+  if (!network) network = load_neural_network(model, static_cast<int>(f));
+  Eigen::MatrixXd z(f, n);  // standardised, one sample per column
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const Eigen::VectorXd raw = in.features.row(i).transpose();
+    standardise_features(s, raw.data(), z.col(i).data());
+  }
+  NeuralCompensation out;
+  out.measured_nT = in.scalar_nT;
+  out.tl_correction_nT = in.correction_nT;
+  out.network_nT.resize(n);
+  const Eigen::Index chunk = 2048;
+  std::vector<double> windows;
+  for (Eigen::Index start = 0; start < n; start += chunk) {
+    const Eigen::Index count = std::min(chunk, n - start);
+    windows.assign(static_cast<size_t>(count * k * f), 0.0);
+    for (Eigen::Index b = 0; b < count; ++b) {
+      for (Eigen::Index j = 0; j < k; ++j) {
+        const Eigen::Index src = std::max<Eigen::Index>(0, start + b - (k - 1) + j);
+        std::copy(z.col(src).data(), z.col(src).data() + f, windows.data() + (b * k + j) * f);
+      }
+    }
+    network->predict(windows.data(), count, out.network_nT.data() + start);
+  }
+  out.network_nT = out.network_nT.array() * s.target_std + s.target_mean;
+  const Eigen::VectorXd delta = s.tl_delta.size() > 0 ? Eigen::VectorXd(in.tl_columns * s.tl_delta)
+                                                      : Eigen::VectorXd::Zero(n);
+  out.correction_nT.resize(n);
+  for (Eigen::Index i = 0; i < n; ++i) {
+    out.correction_nT[i] = neural_correction_nT(s, in.scalar_nT[i], in.correction_nT[i], delta[i],
+                                                in.igrf_nT[i], in.diurnal_nT[i], out.network_nT[i]);
+  }
+  out.compensated_nT = out.measured_nT - out.correction_nT;
+  return out;
+}
+
+NeuralStreamer::NeuralStreamer(const NeuralSpec& spec, std::shared_ptr<NeuralNetwork> network)
+    : spec_(spec), network_(std::move(network)) {}
+
+double NeuralStreamer::push(const double* raw_features) {
+  const size_t f = static_cast<size_t>(spec_.feature_mean.size());
+  const size_t k = static_cast<size_t>(spec_.window);
+  std::vector<double> z(f);
+  standardise_features(spec_, raw_features, z.data());
+  if (rows_.empty()) {
+    for (size_t j = 0; j + 1 < k; ++j) rows_.push_back(z);  // pad as the offline path does
+  }
+  rows_.push_back(std::move(z));
+  while (rows_.size() > k) rows_.pop_front();
+  window_.resize(k * f);
+  for (size_t j = 0; j < k; ++j)
+    std::copy(rows_[j].begin(), rows_[j].end(), window_.begin() + j * f);
+  double y = 0.0;
+  network_->predict(window_.data(), 1, &y);
+  return y * spec_.target_std + spec_.target_mean;
+}
+
+}  // namespace magcomp

@@ -1,0 +1,50 @@
+// magcomp: checks of the neural stage's settings.
+#include "magcomp/core/neural_spec.h"
+
+#include <set>
+
+#include "magcomp/core/error.h"
+
+namespace magcomp {
+
+std::vector<int> NeuralSpec::hidden_or_default() const {
+  if (!hidden.empty()) return hidden;
+  if (architecture == "cnn") return {16, 32};
+  if (architecture == "lstm") return {32, 32};
+  return {16, 4};
+}
+
+void validate_neural_spec(const NeuralSpec& s, const std::string& where) {
+  const std::string p = where + ": key 'neural.";
+  if (s.architecture != "mlp" && s.architecture != "cnn" && s.architecture != "lstm") {
+    throw Error(p + "architecture' must be mlp, cnn or lstm, not '" + s.architecture + "'");
+  }
+  if (s.mode != "anomaly" && s.mode != "residual" && s.mode != "joint") {
+    throw Error(p + "mode' must be anomaly, residual or joint, not '" + s.mode + "'");
+  }
+  if (s.features.empty()) throw Error(p + "features' must list at least one input");
+  std::set<std::string> seen;
+  for (const auto& f : s.features) {
+    if (!seen.insert(f).second) throw Error(p + "features' lists '" + f + "' twice");
+  }
+  if (s.window < 1 || s.window > 4096) throw Error(p + "window' must be in 1..4096 samples");
+  if (s.architecture == "cnn" && s.window < 4) throw Error(p + "window' must be >= 4 for a cnn");
+  for (int h : s.hidden_or_default()) {
+    if (h < 1 || h > 4096) throw Error(p + "hidden' sizes must be in 1..4096");
+  }
+  if (s.architecture == "cnn" && s.hidden_or_default().size() != 2) {
+    throw Error(p + "hidden' of a cnn is its two filter counts, e.g. [16, 32]");
+  }
+  if (s.reference.empty()) throw Error(p + "reference' must name the target field");
+  const NeuralTraining& t = s.training;
+  if (t.epochs < 1) throw Error(p + "training.epochs' must be >= 1");
+  if (t.batch < 1) throw Error(p + "training.batch' must be >= 1");
+  if (!(t.learning_rate > 0)) throw Error(p + "training.learning_rate' must be > 0");
+  if (!(t.lr_decay > 0 && t.lr_decay <= 1)) throw Error(p + "training.lr_decay' must be in (0, 1]");
+  if (!(t.weight_decay >= 0)) throw Error(p + "training.weight_decay' must be >= 0");
+  if (t.patience < 1) throw Error(p + "training.patience' must be >= 1");
+  if (t.stride < 1) throw Error(p + "training.stride' must be >= 1");
+  if (t.threads < 1) throw Error(p + "training.threads' must be >= 1");
+}
+
+}  // namespace magcomp

@@ -1,0 +1,117 @@
+// magcomp: network architectures and batch inference (libtorch), and the factory symbol that
+// magcomp_core finds with dlopen.
+#include "networks.h"
+
+#include <fstream>
+
+#include "magcomp/core/neural_network.h"
+
+namespace magcomp {
+
+CompensatorNetImpl::CompensatorNetImpl(const NeuralSpec& spec, int n_feat, int n_tl)
+    : architecture(spec.architecture), window(spec.window), n_features(n_feat) {
+  const std::vector<int> h = spec.hidden_or_default();
+  if (architecture == "mlp") {
+    // The seed's MLP: the window flattened, ReLU layers (16, 4), one output.
+    mlp = torch::nn::Sequential();
+    int in = window * n_features;
+    for (int width : h) {
+      mlp->push_back(torch::nn::Linear(in, width));
+      mlp->push_back(torch::nn::ReLU());
+      in = width;
+    }
+    mlp->push_back(torch::nn::Linear(in, 1));
+    register_module("mlp", mlp);
+  } else if (architecture == "cnn") {
+    // Two 1-D convolutions over time (filters h[0], h[1], kernel 5), each halved by max pooling.
+    conv1 = register_module(
+        "conv1", torch::nn::Conv1d(torch::nn::Conv1dOptions(n_features, h[0], 5).padding(2)));
+    conv2 = register_module("conv2",
+                            torch::nn::Conv1d(torch::nn::Conv1dOptions(h[0], h[1], 5).padding(2)));
+    const int len = window / 4;
+    cnn_fc1 = register_module("cnn_fc1", torch::nn::Linear(h[1] * len, 32));
+    cnn_fc2 = register_module("cnn_fc2", torch::nn::Linear(32, 1));
+  } else {
+    // LSTM layers of h[0] units (h.size() layers), the last step's output to one value.
+    lstm = register_module("lstm", torch::nn::LSTM(torch::nn::LSTMOptions(n_features, h[0])
+                                                       .num_layers(static_cast<int64_t>(h.size()))
+                                                       .batch_first(true)));
+    lstm_fc = register_module("lstm_fc", torch::nn::Linear(h[0], 1));
+  }
+  if (n_tl > 0) {
+    tl_linear = register_module("tl_linear",
+                                torch::nn::Linear(torch::nn::LinearOptions(n_tl, 1).bias(false)));
+    torch::NoGradGuard g;
+    tl_linear->weight.zero_();  // start from the calibrated TL coefficients
+  }
+}
+
+torch::Tensor CompensatorNetImpl::forward(const torch::Tensor& x, const torch::Tensor& tl) {
+  torch::Tensor y;
+  if (architecture == "mlp") {
+    y = mlp->forward(x.flatten(1));
+  } else if (architecture == "cnn") {
+    torch::Tensor z = x.transpose(1, 2);  // [B, F, k]
+    z = torch::max_pool1d(torch::relu(conv1->forward(z)), 2);
+    z = torch::max_pool1d(torch::relu(conv2->forward(z)), 2);
+    y = cnn_fc2->forward(torch::relu(cnn_fc1->forward(z.flatten(1))));
+  } else {
+    auto out = std::get<0>(lstm->forward(x));
+    y = lstm_fc->forward(out.select(1, out.size(1) - 1));
+  }
+  y = y.squeeze(1);
+  if (tl_linear && tl.defined()) y = y + tl_linear->forward(tl).squeeze(1);
+  return y;
+}
+
+namespace {
+
+/// A trained network for inference, in double precision, one thread.
+class TorchNetwork : public NeuralNetwork {
+ public:
+  TorchNetwork(const NeuralSpec& spec, int n_features)
+      : net_(spec, n_features, 0), k_(spec.window), f_(n_features) {
+    std::ifstream probe(spec.weights_path);
+    if (!probe) throw std::runtime_error("neural weights file not found or not readable");
+    // Saved with the TL layer in joint mode: load into a net that has it, then drop it (the core
+    // applies tl_delta itself).
+    CompensatorNet full(spec, n_features,
+                        spec.mode == "joint" ? static_cast<int>(spec.tl_delta.size()) : 0);
+    torch::load(full, spec.weights_path);
+    auto src = full->named_parameters();
+    torch::NoGradGuard g;
+    for (auto& p : net_->named_parameters()) p.value().copy_(src[p.key()]);
+    for (auto& b : net_->named_buffers()) b.value().copy_(full->named_buffers()[b.key()]);
+    net_->to(torch::kFloat64);
+    net_->eval();
+  }
+  void predict(const double* windows, std::int64_t count, double* out) override {
+    torch::InferenceMode guard;
+    const torch::Tensor x =
+        torch::from_blob(const_cast<double*>(windows), {count, k_, f_}, torch::kFloat64);
+    const torch::Tensor y = net_->forward(x, torch::Tensor()).contiguous();
+    std::copy(y.data_ptr<double>(), y.data_ptr<double>() + count, out);
+  }
+
+ private:
+  CompensatorNet net_;
+  std::int64_t k_, f_;
+};
+
+}  // namespace
+}  // namespace magcomp
+
+extern "C" magcomp::NeuralNetwork* magcomp_create_network(const magcomp::NeuralSpec* spec,
+                                                          int n_features, std::string* error) {
+  try {
+    if (n_features != static_cast<int>(spec->feature_mean.size())) {
+      throw std::runtime_error("the model has " + std::to_string(spec->feature_mean.size()) +
+                               " normalised features, the data gives " +
+                               std::to_string(n_features));
+    }
+    return new magcomp::TorchNetwork(*spec, n_features);
+  } catch (const std::exception& e) {
+    if (error) *error = std::string("cannot load the network: ") + e.what();
+    return nullptr;
+  }
+}

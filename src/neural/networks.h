@@ -1,0 +1,27 @@
+// magcomp: the network architectures (libtorch). Private to libmagcomp_neural.
+#pragma once
+
+#include <torch/torch.h>
+
+#include "magcomp/core/neural_spec.h"
+
+namespace magcomp {
+
+/// One network of any architecture: forward(windows [B, k, F], tl [B, P] or undefined) -> [B].
+struct CompensatorNetImpl : torch::nn::Module {
+  CompensatorNetImpl(const NeuralSpec& spec, int n_features, int n_tl_columns);
+  torch::Tensor forward(const torch::Tensor& windows, const torch::Tensor& tl);
+
+  std::string architecture;
+  int window = 1;
+  int n_features = 0;
+  torch::nn::Sequential mlp{nullptr};
+  torch::nn::Conv1d conv1{nullptr}, conv2{nullptr};
+  torch::nn::Linear cnn_fc1{nullptr}, cnn_fc2{nullptr};
+  torch::nn::LSTM lstm{nullptr};
+  torch::nn::Linear lstm_fc{nullptr};
+  torch::nn::Linear tl_linear{nullptr};  // joint mode: weights on the scaled TL columns
+};
+TORCH_MODULE(CompensatorNet);
+
+}  // namespace magcomp

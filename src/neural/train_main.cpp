@@ -1,0 +1,123 @@
+// magcomp_train (also run as `magcomp train`): trains the neural stage of a model on whole
+// flights and writes a bundle: the model YAML (features, normalisation, window, terms, version)
+// and the weights file beside it.
+#include <CLI/CLI.hpp>
+#include <cmath>
+#include <iomanip>
+#include <iostream>
+
+#include "../cli/common.h"
+#include "magcomp/core/error.h"
+#include "magcomp/core/model.h"
+#include "magcomp/core/neural_network.h"
+#include "magcomp/neural/trainer.h"
+
+namespace {
+
+using namespace magcomp;
+
+std::string base_name(const std::string& p) {
+  const auto s = p.find_last_of('/');
+  return s == std::string::npos ? p : p.substr(s + 1);
+}
+
+double rms(const Eigen::VectorXd& v) {
+  double s = 0;
+  int n = 0;
+  for (Eigen::Index i = 0; i < v.size(); ++i)
+    if (std::isfinite(v[i])) s += v[i] * v[i], ++n;
+  return n ? std::sqrt(s / n) : NAN;
+}
+
+int run(int argc, char** argv) {
+  CLI::App app{"magcomp train: train the neural stage of a model on whole flights"};
+  std::vector<std::string> data, validation;
+  std::string model_path, out;
+  int epochs = 0;
+  long long seed = -1;
+  bool quiet = false;
+  app.add_option("--data", data, "training flight HDF5 file(s), comma-separated or repeated")
+      ->required()
+      ->delimiter(',');
+  app.add_option("--validation", validation,
+                 "validation flight(s) for early stopping (default: the last --data flight when "
+                 "there are two or more)")
+      ->delimiter(',');
+  app.add_option("--model", model_path, "model YAML with a neural: block (TL fitted or not)")
+      ->required();
+  app.add_option("--out", out,
+                 "OUT.yaml (weights in OUT.pt beside it) or a bundle directory (model.yaml + "
+                 "weights.pt)")
+      ->required();
+  app.add_option("--epochs", epochs, "override neural.training.epochs");
+  app.add_option("--seed", seed, "override neural.training.seed");
+  app.add_flag("--quiet", quiet, "no progress bar");
+  CLI11_PARSE(app, argc, argv);
+
+  Model model = load_model_yaml(model_path);
+  if (!model.neural) throw Error(model_path + ": key 'neural' missing: nothing to train");
+  NeuralSpec& spec = *model.neural;
+  if (epochs > 0) spec.training.epochs = epochs;
+  if (seed >= 0) spec.training.seed = static_cast<std::uint64_t>(seed);
+  validate_neural_spec(spec, model_path);
+  if (validation.empty() && data.size() >= 2) {
+    validation.push_back(data.back());
+    data.pop_back();
+  }
+  for (const auto& v : validation) {
+    for (const auto& d : data) {
+      if (v == d) throw Error("--validation: " + v + " is also a training flight (leakage)");
+    }
+  }
+  std::vector<FlightData> train_flights, val_flights;
+  for (const auto& p : data) train_flights.push_back(read_flight_h5(p));
+  for (const auto& p : validation) val_flights.push_back(read_flight_h5(p));
+  if (val_flights.empty()) {
+    std::cout << "warning: no validation flight: no early stopping, the last epoch is kept\n";
+  }
+  std::cout << "training " << spec.architecture << " (" << spec.mode << ", window " << spec.window
+            << ", " << spec.features.size() << " features) on " << train_flights.size()
+            << " flight(s), validation on " << val_flights.size() << " flight(s)" << std::endl;
+  const BundleReport rep = train_bundle(model, train_flights, val_flights, out, !quiet);
+  const TrainResult& r = rep.result;
+  const NeuralSpec& s = *model.neural;
+  if (rep.tl_fitted_here) {
+    std::cout << "TL calibrated on the training flights: " << model.coefficients.size()
+              << " coefficients, residual std " << std::setprecision(4)
+              << model.report.residual_std_nT << " nT\n";
+  }
+  std::cout << rep.train_windows << " training windows, " << rep.validation_windows
+            << " validation windows\n";
+  const std::string yaml_path = rep.yaml_path, weights_path = rep.weights_path;
+  std::cout << std::fixed << std::setprecision(3) << "trained " << r.epochs_run << " epoch(s) in "
+            << r.seconds << " s; kept epoch " << r.best_epoch;
+  if (!r.validation_rmse_nT.empty()) {
+    std::cout << " (validation rmse " << s.validation_rmse_nT << " nT)";
+    // The same validation flights with TL alone, for comparison.
+    for (size_t i = 0; i < val_flights.size(); ++i) {
+      const FlightData& f = val_flights[i];
+      if (!f.has(s.reference)) continue;
+      const Eigen::VectorXd tl_err = compensate(model, f) - f.column(s.reference);
+      const NeuralCompensation nc = neural_compensate(model, f);
+      const Eigen::VectorXd nn_err = nc.compensated_nT - f.column(s.reference);
+      std::cout << "\n  " << base_name(validation[i]) << ": TL rmse " << rms(tl_err)
+                << " nT, with the network " << rms(nn_err) << " nT";
+    }
+  }
+  std::cout << "\nwrote " << yaml_path << " and " << weights_path << "\n";
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    return run(argc, argv);
+  } catch (const magcomp::Error& e) {
+    std::cerr << "error: " << e.what() << "\n";
+    return 2;
+  } catch (const std::exception& e) {
+    std::cerr << "error: " << e.what() << "\n";
+    return 3;
+  }
+}

@@ -1,0 +1,215 @@
+// magcomp: the training loop (libtorch): Adam with weight decay, learning rate decayed per epoch,
+// MSE on standardised targets, shuffled windows, early stopping on validation flights.
+#include "magcomp/neural/trainer.h"
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <iostream>
+#include <random>
+
+#include "magcomp/core/error.h"
+#include "networks.h"
+
+namespace magcomp {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double since(Clock::time_point t0) {
+  return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+struct Tensors {
+  torch::Tensor x, target, tl, first;
+};
+
+Tensors tensors_of(const TrainingData& d) {
+  Tensors t;
+  const int64_t n = d.features.rows(), f = d.features.cols();
+  t.x = torch::from_blob(const_cast<float*>(d.features.data()), {n, f}, torch::kFloat32);
+  t.target = torch::from_blob(const_cast<float*>(d.target.data()), {n}, torch::kFloat32);
+  if (d.tl_columns.size() > 0) {
+    t.tl = torch::from_blob(const_cast<float*>(d.tl_columns.data()), {n, d.tl_columns.cols()},
+                            torch::kFloat32);
+  }
+  t.first = torch::from_blob(const_cast<int64_t*>(d.first_row.data()), {n}, torch::kInt64);
+  return t;
+}
+
+/// The windows ending at `ends` (a [B] int64 tensor): [B, k, F], padded at each flight's start.
+torch::Tensor gather_windows(const Tensors& t, const torch::Tensor& ends, int64_t k) {
+  const torch::Tensor offsets = torch::arange(-(k - 1), 1, torch::kInt64);  // [k]
+  torch::Tensor rows = ends.unsqueeze(1) + offsets.unsqueeze(0);            // [B, k]
+  rows = torch::max(rows, t.first.index_select(0, ends).unsqueeze(1));
+  return t.x.index_select(0, rows.flatten()).view({ends.size(0), k, t.x.size(1)});
+}
+
+double evaluate_rmse(CompensatorNet& net, const Tensors& t, const std::vector<int64_t>& ends,
+                     int64_t k) {
+  if (ends.empty()) return NAN;
+  torch::NoGradGuard g;
+  net->eval();
+  double sum = 0.0;
+  const int64_t chunk = 4096, n = static_cast<int64_t>(ends.size());
+  for (int64_t s = 0; s < n; s += chunk) {
+    const int64_t c = std::min(chunk, n - s);
+    const torch::Tensor e =
+        torch::from_blob(const_cast<int64_t*>(ends.data() + s), {c}, torch::kInt64);
+    const torch::Tensor tl = t.tl.defined() ? t.tl.index_select(0, e) : torch::Tensor();
+    const torch::Tensor err =
+        net->forward(gather_windows(t, e, k), tl) - t.target.index_select(0, e);
+    sum += err.pow(2).sum().item<double>();
+  }
+  net->train();
+  return std::sqrt(sum / static_cast<double>(n));
+}
+
+std::string clock_text(double s) {
+  char buf[32];
+  const int v = static_cast<int>(std::lround(std::max(0.0, s)));
+  std::snprintf(buf, sizeof(buf), "%d:%02d", v / 60, v % 60);
+  return buf;
+}
+
+/// One pass over the shuffled windows; returns the mean training MSE (standardised).
+double run_epoch(CompensatorNet& net, torch::optim::Adam& opt, const Tensors& t,
+                 std::vector<int64_t>& ends, const NeuralSpec& spec, std::mt19937_64& rng,
+                 const std::function<void(double, double)>& on_progress) {
+  std::shuffle(ends.begin(), ends.end(), rng);
+  const int64_t n = static_cast<int64_t>(ends.size()), b = spec.training.batch;
+  double sum = 0.0;
+  int64_t seen = 0;
+  for (int64_t s = 0; s < n; s += b) {
+    const int64_t c = std::min(b, n - s);
+    const torch::Tensor e = torch::from_blob(ends.data() + s, {c}, torch::kInt64);
+    const torch::Tensor tl = t.tl.defined() ? t.tl.index_select(0, e) : torch::Tensor();
+    const torch::Tensor pred = net->forward(gather_windows(t, e, spec.window), tl);
+    const torch::Tensor loss = torch::mse_loss(pred, t.target.index_select(0, e));
+    opt.zero_grad();
+    loss.backward();
+    opt.step();
+    sum += loss.item<double>() * static_cast<double>(c);
+    seen += c;
+    if (on_progress) on_progress(static_cast<double>(seen) / static_cast<double>(n), sum / seen);
+  }
+  return sum / static_cast<double>(std::max<int64_t>(seen, 1));
+}
+
+}  // namespace
+
+TrainResult train_network(const NeuralSpec& spec, const TrainingData& train,
+                          const TrainingData& validation, const std::string& weights_path,
+                          bool progress) {
+  if (train.ends.empty()) throw Error("train: no training windows (no finite target)");
+  torch::manual_seed(spec.training.seed);
+  torch::set_num_threads(spec.training.threads);
+  const int64_t k = spec.window;
+  const int n_tl = static_cast<int>(train.tl_columns.cols());
+  CompensatorNet net(spec, static_cast<int>(train.features.cols()), n_tl);
+  net->train();
+  torch::optim::Adam opt(net->parameters(), torch::optim::AdamOptions(spec.training.learning_rate)
+                                                .weight_decay(spec.training.weight_decay));
+  const Tensors tt = tensors_of(train);
+  const bool has_val = !validation.ends.empty();
+  const Tensors tv = has_val ? tensors_of(validation) : Tensors{};
+  std::mt19937_64 rng(spec.training.seed);
+  std::vector<int64_t> ends = train.ends;
+  TrainResult r;
+  double best = INFINITY, lr = spec.training.learning_rate;
+  int since_best = 0;
+  std::vector<torch::Tensor> best_state;
+  const bool tty = ::isatty(2);
+  const auto t0 = Clock::now();
+  const int epochs = spec.training.epochs;
+  for (int epoch = 1; epoch <= epochs; ++epoch) {
+    auto last_draw = Clock::now();
+    const auto on_progress = [&](double frac, double mse) {
+      if (!progress || !tty || since(last_draw) < 0.25) return;
+      last_draw = Clock::now();
+      const double done = (epoch - 1 + frac) / epochs;
+      const int bar = static_cast<int>(frac * 24);
+      std::fprintf(stderr, "\repoch %d/%d [%s%s] %3.0f%% loss %.4f ETA %s   ", epoch, epochs,
+                   std::string(static_cast<size_t>(bar), '#').c_str(),
+                   std::string(static_cast<size_t>(24 - bar), '.').c_str(), frac * 100, mse,
+                   clock_text(since(t0) / done * (1 - done)).c_str());
+    };
+    const double mse = run_epoch(net, opt, tt, ends, spec, rng, on_progress);
+    r.train_rmse_nT.push_back(std::sqrt(mse) * spec.target_std);
+    double val = NAN;
+    if (has_val) {
+      val = evaluate_rmse(net, tv, validation.ends, k) * spec.target_std;
+      r.validation_rmse_nT.push_back(val);
+    }
+    r.epochs_run = epoch;
+    const double score = has_val ? val : mse;
+    if (score < best) {
+      best = score;
+      r.best_epoch = epoch;
+      since_best = 0;
+      best_state.clear();
+      for (const auto& p : net->parameters()) best_state.push_back(p.detach().clone());
+    } else {
+      ++since_best;
+    }
+    if (progress) {
+      const double done = static_cast<double>(epoch) / epochs;
+      std::fprintf(stderr, "%sepoch %d/%d  train rmse %.3f nT", tty ? "\r" : "", epoch, epochs,
+                   r.train_rmse_nT.back());
+      if (has_val) std::fprintf(stderr, "  validation rmse %.3f nT", val);
+      std::fprintf(stderr, "  lr %.2e  %s elapsed, ETA %s%s\n", lr, clock_text(since(t0)).c_str(),
+                   clock_text(since(t0) / done * (1 - done)).c_str(), since_best == 0 ? "  *" : "");
+    }
+    if (has_val && since_best >= spec.training.patience) {
+      if (progress)
+        std::fprintf(stderr, "early stop: no better validation for %d epochs\n", since_best);
+      break;
+    }
+    lr *= spec.training.lr_decay;
+    for (auto& group : opt.param_groups()) {
+      static_cast<torch::optim::AdamOptions&>(group.options()).lr(lr);
+    }
+  }
+  {
+    torch::NoGradGuard g;
+    auto params = net->parameters();
+    for (size_t i = 0; i < params.size(); ++i) params[i].copy_(best_state[i]);
+  }
+  r.seconds = since(t0);
+  if (n_tl > 0) {
+    const torch::Tensor w = net->tl_linear->weight.detach().to(torch::kFloat64).contiguous();
+    r.tl_weights = Eigen::Map<const Eigen::VectorXd>(w.data_ptr<double>(), n_tl);
+  }
+  const std::string tmp = weights_path + ".tmp." + std::to_string(::getpid());
+  try {
+    torch::save(net, tmp);
+  } catch (const std::exception& e) {
+    std::remove(tmp.c_str());
+    throw Error(weights_path + ": cannot write the weights (" + e.what() + ")");
+  }
+  if (std::rename(tmp.c_str(), weights_path.c_str()) != 0) {
+    std::remove(tmp.c_str());
+    throw Error(weights_path + ": cannot rename the temporary weights file into place");
+  }
+  return r;
+}
+
+double time_one_epoch(const NeuralSpec& spec, const TrainingData& data) {
+  torch::manual_seed(spec.training.seed);
+  torch::set_num_threads(spec.training.threads);
+  CompensatorNet net(spec, static_cast<int>(data.features.cols()), 0);
+  net->train();
+  torch::optim::Adam opt(net->parameters(), torch::optim::AdamOptions(spec.training.learning_rate)
+                                                .weight_decay(spec.training.weight_decay));
+  const Tensors t = tensors_of(data);
+  std::mt19937_64 rng(spec.training.seed);
+  std::vector<int64_t> ends = data.ends;
+  const auto t0 = Clock::now();
+  run_epoch(net, opt, t, ends, spec, rng, nullptr);
+  return since(t0);
+}
+
+}  // namespace magcomp

@@ -1,0 +1,251 @@
+// The neural stage: bundle format, normalisation on training flights only, windows that never
+// cross flights, real training that beats TL on a held-out flight, reproducibility, causality,
+// streaming = offline, the joint TL change, and clear errors.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+
+#include "magcomp/core/error.h"
+#include "magcomp/core/evaluation.h"
+#include "magcomp/core/neural_dataset.h"
+#include "magcomp/core/neural_network.h"
+#include "magcomp/core/sim/simulator.h"
+#include "magcomp/core/streaming_compensator.h"
+#include "magcomp/neural/trainer.h"
+#include "test_util.h"
+
+namespace magcomp {
+namespace {
+
+/// rostest_short (strobe wire + 0.3 s lag on mag 5) with one aircraft and the given seed.
+const FlightData& flight(unsigned seed) {
+  static std::map<unsigned, FlightData> cache;
+  auto it = cache.find(seed);
+  if (it == cache.end()) {
+    sim::Scenario s =
+        sim::load_scenario(test::source_dir() + "/config/scenarios/rostest_short.yaml");
+    s.seed = seed;
+    s.aircraft_seed = 42;
+    FlightData f = sim::simulate(s).flight;
+    f.set_source("rostest_short_seed" + std::to_string(seed) + ".h5");
+    it = cache.emplace(seed, std::move(f)).first;
+  }
+  return it->second;
+}
+
+Model neural_model(const std::string& arch, const std::string& mode, int window, int epochs) {
+  Model m = load_model_yaml(test::source_dir() + "/config/models/tl_sim.yaml");
+  NeuralSpec s;
+  s.architecture = arch;
+  s.mode = mode;
+  s.window = window;
+  s.features = {"tl_anomaly", "tl_correction", "dir_x", "dir_y", "dir_z", "cur_strb", "ins_roll"};
+  s.training.epochs = epochs;
+  s.training.weight_decay = 1e-4;
+  s.training.patience = 100;
+  if (arch == "lstm") s.hidden = {8};
+  if (arch == "cnn") s.hidden = {4, 8};
+  m.neural = s;
+  return m;
+}
+
+double rms(const Eigen::VectorXd& v) {
+  double s = 0;
+  int n = 0;
+  for (Eigen::Index i = 0; i < v.size(); ++i)
+    if (std::isfinite(v[i])) s += v[i] * v[i], ++n;
+  return std::sqrt(s / n);
+}
+
+/// Sample i of a flight as the node builds it: scalar, vector, the compensator's channels, IGRF.
+StreamSample sample_of(const FlightData& f, const Eigen::VectorXd& igrf, Eigen::Index i,
+                       const std::vector<std::string>& channels) {
+  StreamSample s;
+  s.t_s = f.tt()[i];
+  s.scalar_nT = f.column("mag_5_uc")[i];
+  s.vector_nT = {f.column("flux_c_x")[i], f.column("flux_c_y")[i], f.column("flux_c_z")[i]};
+  for (const auto& c : channels) s.channels.push_back(f.has(c) ? f.column(c)[i] : NAN);
+  s.igrf_nT = igrf[i];
+  return s;
+}
+
+TEST(Neural, SpecRoundTripsThroughTheModelYaml) {
+  Model m = neural_model("cnn", "joint", 12, 3);
+  m.neural->feature_mean = Eigen::VectorXd::LinSpaced(7, 1, 7);
+  m.neural->feature_std = Eigen::VectorXd::Constant(7, 2.5);
+  m.neural->target_mean = -49.25;
+  m.neural->target_std = 8.125;
+  m.neural->weights = "w.pt";
+  fit_model(m, {&flight(11)});
+  m.neural->tl_delta = Eigen::VectorXd::LinSpaced(m.coefficients.size(), -1e-3, 1e-3);
+  const std::string dir = test::temp_dir("neural_yaml");
+  save_model_yaml(m, dir + "/model.yaml");
+  const Model r = load_model_yaml(dir);  // a bundle directory loads its model.yaml
+  ASSERT_TRUE(r.neural);
+  EXPECT_EQ(r.neural->architecture, "cnn");
+  EXPECT_EQ(r.neural->mode, "joint");
+  EXPECT_EQ(r.neural->window, 12);
+  EXPECT_EQ(r.neural->features, m.neural->features);
+  EXPECT_EQ(r.neural->hidden, (std::vector<int>{4, 8}));
+  EXPECT_EQ(r.neural->feature_mean, m.neural->feature_mean);
+  EXPECT_EQ(r.neural->tl_delta, m.neural->tl_delta);
+  EXPECT_EQ(r.neural->target_std, 8.125);
+  EXPECT_EQ(r.neural->weights_path, dir + "/w.pt");
+  // Bad values name the key.
+  std::ofstream(dir + "/bad.yaml") << "scalar: mag_5_uc\nvector: flux_c\nneural: {architecture: "
+                                      "gru, features: [cur_strb]}\n";
+  try {
+    load_model_yaml(dir + "/bad.yaml");
+    FAIL() << "a gru architecture was accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("neural.architecture"), std::string::npos) << e.what();
+  }
+  std::ofstream(dir + "/v2.yaml") << "scalar: mag_5_uc\nvector: flux_c\nneural: {version: 2, "
+                                     "features: [cur_strb]}\n";
+  EXPECT_THROW(load_model_yaml(dir + "/v2.yaml"), Error);
+}
+
+TEST(Neural, NormalisationComesFromTrainingFlightsOnlyAndWindowsStayInTheirFlight) {
+  Model m = neural_model("mlp", "residual", 5, 1);
+  fit_model(m, {&flight(11)});
+  std::vector<FlightSamples> tr(1), both(2);
+  tr[0].inputs = neural_inputs(m, flight(11));
+  tr[0].target_nT = neural_target(m, flight(11), tr[0].inputs);
+  both[0] = tr[0];
+  both[1].inputs = neural_inputs(m, flight(12));
+  both[1].target_nT = neural_target(m, flight(12), both[1].inputs);
+  fit_normalisation(*m.neural, tr);
+  // cur_strb (feature 5): the mean and population std of flight 11's samples, nothing else.
+  const Eigen::VectorXd& c = flight(11).column("cur_strb");
+  const double mean = c.mean();
+  const double sd = std::sqrt((c.array() - mean).square().mean());
+  EXPECT_NEAR(m.neural->feature_mean[5], mean, 1e-9 * std::abs(mean) + 1e-12);
+  EXPECT_NEAR(m.neural->feature_std[5], sd, 1e-9 * sd);
+  const double other = flight(12).column("cur_strb").mean();
+  EXPECT_GT(std::abs(other - mean), 1e-6);  // so the check above can tell the flights apart
+  // Target: TL-compensated - reference on flight 11.
+  const Eigen::VectorXd t = tr[0].target_nT;
+  EXPECT_NEAR(m.neural->target_mean, t.mean(), 1e-9);
+  const TrainingData d = make_training_data(*m.neural, both, Eigen::VectorXd(), 1);
+  const Eigen::Index n1 = flight(11).size();
+  ASSERT_EQ(d.features.rows(), n1 + flight(12).size());
+  EXPECT_EQ(d.first_row[static_cast<size_t>(n1 - 1)], 0);
+  EXPECT_EQ(d.first_row[static_cast<size_t>(n1)], n1);  // flight 12's windows pad, not reach back
+  EXPECT_NEAR(d.features(3, 5), (c[3] - mean) / sd, 1e-5);
+}
+
+TEST(Neural, ResidualNetworkHalvesTheTlErrorOnAHeldOutFlightAndIsReproducible) {
+  Model m = neural_model("mlp", "residual", 5, 12);
+  const std::string dir = test::temp_dir("neural_train");
+  Model a = m, b = m;
+  const BundleReport ra = train_bundle(a, {flight(11)}, {flight(13)}, dir + "/a", false);
+  const BundleReport rb = train_bundle(b, {flight(11)}, {flight(13)}, dir + "/b.yaml", false);
+  EXPECT_EQ(ra.result.validation_rmse_nT, rb.result.validation_rmse_nT);  // same seed, same run
+  const FlightData& held = flight(12);
+  const Model loaded = load_model_yaml(dir + "/a");
+  const NeuralCompensation na = neural_compensate(loaded, held);
+  const NeuralCompensation nb = neural_compensate(load_model_yaml(dir + "/b.yaml"), held);
+  double diff = 0;
+  for (Eigen::Index i = 0; i < held.size(); ++i)
+    diff = std::max(diff, std::abs(na.compensated_nT[i] - nb.compensated_nT[i]));
+  EXPECT_EQ(diff, 0.0);
+  const Eigen::VectorXd& ref = held.column("mag_1_c");
+  const Evaluation tl = evaluate_model(a, held, "mag_1_c");  // a: TL fitted, the stage trained...
+  Model tl_only = loaded;
+  tl_only.neural.reset();
+  const Evaluation tle = evaluate_model(tl_only, held, "mag_1_c");
+  const double nn_rmse = rms(na.compensated_nT - ref);
+  std::printf("  held-out flight: TL rmse %.3f std %.3f nT; residual MLP rmse %.3f std %.3f nT\n",
+              tle.rmse_nT, tle.std_nT, nn_rmse, tl.std_nT);
+  EXPECT_NEAR(tl.rmse_nT, nn_rmse, 1e-9);  // evaluate runs the network
+  EXPECT_LT(nn_rmse, 0.5 * tle.rmse_nT);
+  EXPECT_LT(tl.std_nT, 0.6 * tle.std_nT);
+}
+
+TEST(Neural, PredictionsAreCausalAndStreamingEqualsOffline) {
+  const std::string dir = test::temp_dir("neural_stream");
+  for (const char* arch : {"mlp", "cnn", "lstm"}) {
+    SCOPED_TRACE(arch);
+    Model m = neural_model(arch, "anomaly", std::string(arch) == "mlp" ? 5 : 8, 1);
+    train_bundle(m, {flight(11)}, {}, dir + "/" + arch, false);
+    const Model model = load_model_yaml(dir + "/" + arch);
+    const FlightData& f = flight(12);
+    const NeuralCompensation off = neural_compensate(model, f);
+    // Causal: changing the inputs after sample j leaves every output up to j unchanged.
+    FlightData g = f;
+    const Eigen::Index j = f.size() / 2;
+    g.column("cur_strb").tail(f.size() - j - 1).array() += 50.0;
+    g.column("ins_roll").tail(f.size() - j - 1).array() += 10.0;
+    const NeuralCompensation changed = neural_compensate(model, g);
+    EXPECT_EQ(changed.network_nT.head(j + 1), off.network_nT.head(j + 1));
+    EXPECT_NE(changed.network_nT[j + 1], off.network_nT[j + 1]);
+    // Streaming at batch 1 through a ring buffer = offline, sample for sample.
+    StreamingCompensator sc(model);
+    ASSERT_TRUE(sc.has_network());
+    ASSERT_TRUE(sc.needs_igrf());
+    const Eigen::VectorXd igrf = igrf_total_nT(f);
+    std::vector<StreamOutput> out;
+    for (Eigen::Index i = 0; i < f.size(); ++i) {
+      for (const auto& o : sc.push(sample_of(f, igrf, i, sc.required_channels()))) out.push_back(o);
+    }
+    for (const auto& o : sc.flush()) out.push_back(o);
+    ASSERT_EQ(static_cast<Eigen::Index>(out.size()), f.size());
+    double worst = 0;
+    int compared = 0;
+    for (Eigen::Index i = 0; i < f.size(); ++i) {
+      const double a = out[static_cast<size_t>(i)].compensated_nT, b = off.compensated_nT[i];
+      if (std::isnan(b)) continue;
+      worst = std::max(worst, std::abs(a - b));
+      ++compared;
+    }
+    std::printf("  %s: streaming vs offline max |diff| %.3g nT over %d samples\n", arch, worst,
+                compared);
+    EXPECT_GT(compared, f.size() - 10);
+    EXPECT_LT(worst, 1e-6);
+  }
+}
+
+TEST(Neural, JointModeMovesTheTlCoefficientsAndAppliesThem) {
+  Model m = neural_model("mlp", "joint", 5, 6);
+  const std::string dir = test::temp_dir("neural_joint");
+  train_bundle(m, {flight(11)}, {flight(13)}, dir + "/j", false);
+  const Model j = load_model_yaml(dir + "/j");
+  ASSERT_EQ(j.neural->tl_delta.size(), j.coefficients.size());
+  EXPECT_GT(j.neural->tl_delta.norm(), 0.0);
+  const FlightData& f = flight(12);
+  const NeuralCompensation nc = neural_compensate(j, f);
+  const Eigen::VectorXd expect =
+      design_matrix(j, f) * (j.coefficients + j.neural->tl_delta) + nc.network_nT;
+  for (Eigen::Index i = 0; i < f.size(); i += 97) {
+    if (std::isfinite(expect[i])) {
+      EXPECT_NEAR(nc.correction_nT[i], expect[i], 1e-6) << i;
+    }
+  }
+}
+
+TEST(Neural, MissingFeatureOrWeightsFailWithTheName) {
+  Model m = neural_model("mlp", "residual", 5, 1);
+  const std::string dir = test::temp_dir("neural_missing");
+  train_bundle(m, {flight(11)}, {}, dir + "/b", false);
+  FlightData f = flight(12);
+  f.remove("cur_strb");
+  try {
+    neural_compensate(load_model_yaml(dir + "/b"), f);
+    FAIL() << "no error for a missing feature";
+  } catch (const Error& e) {
+    const std::string w = e.what();
+    EXPECT_NE(w.find("cur_strb"), std::string::npos) << w;
+    EXPECT_NE(w.find("rostest_short_seed12.h5"), std::string::npos) << w;
+  }
+  std::remove((dir + "/b/weights.pt").c_str());
+  try {
+    neural_compensate(load_model_yaml(dir + "/b"), flight(12));
+    FAIL() << "no error for missing weights";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("weights.pt"), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace magcomp
