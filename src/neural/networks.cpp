@@ -2,6 +2,7 @@
 // magcomp_core finds with dlopen.
 #include "networks.h"
 
+#include <Eigen/Core>
 #include <fstream>
 
 #include "magcomp/core/neural_network.h"
@@ -84,8 +85,13 @@ class TorchNetwork : public NeuralNetwork {
     for (auto& b : net_->named_buffers()) b.value().copy_(full->named_buffers()[b.key()]);
     net_->to(torch::kFloat64);
     net_->eval();
+    if (spec.architecture == "lstm") export_lstm();
   }
   void predict(const double* windows, std::int64_t count, double* out) override {
+    if (!lstm_.empty() && count == 1) {  // batch 1: a plain loop beats libtorch's per-step ops
+      out[0] = lstm_one(windows);
+      return;
+    }
     torch::InferenceMode guard;
     const torch::Tensor x =
         torch::from_blob(const_cast<double*>(windows), {count, k_, f_}, torch::kFloat64);
@@ -94,8 +100,66 @@ class TorchNetwork : public NeuralNetwork {
   }
 
  private:
+  /// One LSTM layer's weights (torch's gate order: input, forget, cell, output).
+  struct LstmLayer {
+    Eigen::MatrixXd w_ih, w_hh;  // [4H, in], [4H, H]
+    Eigen::VectorXd bias;        // b_ih + b_hh
+  };
+
+  static Eigen::MatrixXd to_eigen(const torch::Tensor& t) {
+    const torch::Tensor c = t.to(torch::kFloat64).contiguous();
+    const int64_t rows = c.size(0), cols = c.dim() > 1 ? c.size(1) : 1;
+    Eigen::MatrixXd m(rows, cols);
+    for (int64_t r = 0; r < rows; ++r)
+      for (int64_t k = 0; k < cols; ++k) m(r, k) = c.data_ptr<double>()[r * cols + k];
+    return m;
+  }
+
+  void export_lstm() {
+    auto p = net_->named_parameters();
+    for (int64_t l = 0; l < net_->lstm->options.num_layers(); ++l) {
+      const std::string n = std::to_string(l);
+      LstmLayer layer;
+      layer.w_ih = to_eigen(p["lstm.weight_ih_l" + n]);
+      layer.w_hh = to_eigen(p["lstm.weight_hh_l" + n]);
+      layer.bias = to_eigen(p["lstm.bias_ih_l" + n]) + to_eigen(p["lstm.bias_hh_l" + n]);
+      lstm_.push_back(std::move(layer));
+    }
+    fc_w_ = to_eigen(p["lstm_fc.weight"]).row(0).transpose();
+    fc_b_ = p["lstm_fc.bias"].item<double>();
+  }
+
+  /// The LSTM over one window [k, F] from zero state, in double precision (as torch does).
+  double lstm_one(const double* window) const {
+    const Eigen::Index hsize = lstm_[0].w_hh.cols();
+    std::vector<Eigen::VectorXd> h(lstm_.size(), Eigen::VectorXd::Zero(hsize)),
+        c(lstm_.size(), Eigen::VectorXd::Zero(hsize));
+    Eigen::VectorXd gates(4 * hsize);
+    auto sigmoid = [](const auto& x) { return (1.0 + (-x).exp()).inverse(); };
+    for (std::int64_t t = 0; t < k_; ++t) {
+      Eigen::VectorXd in = Eigen::Map<const Eigen::VectorXd>(window + t * f_, f_);
+      for (size_t l = 0; l < lstm_.size(); ++l) {
+        const LstmLayer& w = lstm_[l];
+        gates.noalias() = w.w_ih * in;
+        gates.noalias() += w.w_hh * h[l];
+        gates += w.bias;
+        const Eigen::ArrayXd i = sigmoid(gates.segment(0, hsize).array());
+        const Eigen::ArrayXd f = sigmoid(gates.segment(hsize, hsize).array());
+        const Eigen::ArrayXd g = gates.segment(2 * hsize, hsize).array().tanh();
+        const Eigen::ArrayXd o = sigmoid(gates.segment(3 * hsize, hsize).array());
+        c[l] = (f * c[l].array() + i * g).matrix();
+        h[l] = (o * c[l].array().tanh()).matrix();
+        in = h[l];
+      }
+    }
+    return h.back().dot(fc_w_) + fc_b_;
+  }
+
   CompensatorNet net_;
   std::int64_t k_, f_;
+  std::vector<LstmLayer> lstm_;
+  Eigen::VectorXd fc_w_;
+  double fc_b_ = 0.0;
 };
 
 }  // namespace

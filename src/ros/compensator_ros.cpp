@@ -27,7 +27,7 @@ const std::set<std::string> kKnownParams = {
     "reference_topic", "output_topic",      "frame_id",        "max_gap_s",     "max_wait_s",
     "jump_back_s",     "buffer_s",          "watch_model",     "marker_stride", "expected_rate_hz",
     "flush_after_s",   "calibration_model", "calibration_out", "forgetting",    "auto_segments",
-    "imu_topic",       "base_frame"};
+    "imu_topic",       "base_frame",        "tcp_nodelay"};
 
 }  // namespace
 
@@ -141,7 +141,11 @@ CompensatorRos::CompensatorRos(ros::NodeHandle nh, ros::NodeHandle pnh)
   // Deep enough that a fast replay's bursts are never dropped by the transport.
   pub_out_ = nh_.advertise<magcomp::CompensatedField>(out_topic, 10000);
   pub_marker_ = nh_.advertise<visualization_msgs::Marker>(out_topic + "/track", 2, true);
-  const ros::TransportHints hints = ros::TransportHints().tcpNoDelay();
+  // TCP_NODELAY (default): lowest latency in flight. false: Nagle batches a flood of small
+  // messages (a bag played as fast as possible) into fewer packets and wake-ups.
+  bool nodelay = true;
+  pnh_.param("tcp_nodelay", nodelay, true);
+  const ros::TransportHints hints = ros::TransportHints().tcpNoDelay(nodelay);
   sub_scalar_ = nh_.subscribe(scalar_topic, 1000, &CompensatorRos::on_scalar, this, hints);
   sub_vector_ = nh_.subscribe(vector_topic, 1000, &CompensatorRos::on_vector, this, hints);
   sub_aux_ = nh_.subscribe(aux_topic, 1000, &CompensatorRos::on_aux, this, hints);
@@ -329,7 +333,9 @@ void CompensatorRos::on_vector(const sensor_msgs::MagneticField::ConstPtr& m) {
   // once; until it is known the vector is used as is and counted).
   const std::string& frame = m->header.frame_id;
   if (!frame.empty() && frame != base_frame_) {
-    if (!rotation_known_ || frame != vector_frame_) {
+    const double now = ros::WallTime::now().toSec();
+    if ((!rotation_known_ || frame != vector_frame_) && now - last_tf_try_wall_ > 0.2) {
+      last_tf_try_wall_ = now;  // a missing mount is retried 5 times a second, not per message
       try {
         const geometry_msgs::TransformStamped tf =
             tf_buffer_->lookupTransform(base_frame_, frame, ros::Time(0));
@@ -338,12 +344,15 @@ void CompensatorRos::on_vector(const sensor_msgs::MagneticField::ConstPtr& m) {
         vector_frame_ = frame;
         rotation_known_ = true;
       } catch (const tf2::TransformException& e) {
-        ++n_no_tf_;
         ROS_WARN_THROTTLE(10, "magcomp: no tf2 %s <- %s yet (%s): fluxgate used as is",
                           base_frame_.c_str(), frame.c_str(), e.what());
       }
     }
-    if (rotation_known_) b = vector_rotation_ * b;
+    if (rotation_known_ && frame == vector_frame_) {
+      b = vector_rotation_ * b;
+    } else {
+      ++n_no_tf_;
+    }
   }
   if (!append(vectors_, Timed3{t, b * 1e9})) return;  // REP 145 Tesla -> nT
   last_vector_t_ = t;

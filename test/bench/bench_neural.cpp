@@ -1,7 +1,8 @@
 // magcomp benchmark: (1) one training epoch of the seed's CNN (window 80) on N windows of
 // simulated flights with libtorch, writing the very same standardised data for the PyTorch script
 // (scripts/bench_neural_torch.py); (2) batch-1 streaming inference per sample (MLP, CNN, LSTM).
-// Usage: magcomp_bench_neural N_WINDOWS DATA_OUT.bin
+// Usage: magcomp_bench_neural N_WINDOWS DATA_OUT.bin     (simulate, write the data, time, latency)
+//        magcomp_bench_neural --epoch DATA.bin           (time one epoch on a written file)
 #include <torch/torch.h>
 #include <algorithm>
 #include <chrono>
@@ -43,7 +44,38 @@ void put(std::ofstream& o, const T* p, size_t n) {
 
 }  // namespace
 
+/// One CNN epoch on the data file another run wrote (the same bytes PyTorch reads).
+int epoch_from_file(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::int64_t head[5];
+  in.read(reinterpret_cast<char*>(head), sizeof(head));
+  TrainingData d;
+  d.features.resize(head[0], head[1]);
+  d.target.resize(head[0]);
+  d.first_row.resize(static_cast<size_t>(head[0]));
+  d.ends.resize(static_cast<size_t>(head[3]));
+  in.read(reinterpret_cast<char*>(d.features.data()), d.features.size() * 4);
+  in.read(reinterpret_cast<char*>(d.target.data()), d.target.size() * 4);
+  in.read(reinterpret_cast<char*>(d.first_row.data()), head[0] * 8);
+  in.read(reinterpret_cast<char*>(d.ends.data()), head[3] * 8);
+  if (!in) {
+    std::fprintf(stderr, "%s: short or unreadable benchmark data file\n", path.c_str());
+    return 2;
+  }
+  NeuralSpec s = *model_of("cnn").neural;
+  s.training.threads = 2;
+  s.feature_mean = Eigen::VectorXd::Zero(head[1]);
+  const double epoch_s = time_one_epoch(s, d);
+  std::printf(
+      "cpp_libtorch cnn_epoch windows %zu features %ld window %d batch %d threads %d seconds "
+      "%.2f\n",
+      d.ends.size(), static_cast<long>(d.features.cols()), s.window, s.training.batch,
+      s.training.threads, epoch_s);
+  return 0;
+}
+
 int main(int argc, char** argv) {
+  if (argc == 3 && std::string(argv[1]) == "--epoch") return epoch_from_file(argv[2]);
   if (argc < 3) {
     std::fprintf(stderr, "usage: %s N_WINDOWS DATA_OUT.bin\n", argv[0]);
     return 2;

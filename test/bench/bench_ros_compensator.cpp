@@ -33,6 +33,8 @@ int main(int argc, char** argv) {
   pnh.param("in_flight", window, 800);  // samples in flight at most (back-pressure, no drops)
   bool all_channels = true;             // false: the aux message carries only the model's channels
   pnh.param("all_channels", all_channels, true);
+  bool nodelay = true;  // false: Nagle on the output link too (flood throughput)
+  pnh.param("nodelay", nodelay, true);
   double rate_hz = 0.0;  // 0: as fast as possible (throughput); else paced (latency)
   pnh.param("rate_hz", rate_hz, 0.0);
   const magcomp::FlightData f = magcomp::read_flight_h5(h5);
@@ -53,7 +55,7 @@ int main(int argc, char** argv) {
         if (i >= 0 && i < n) g_recv_wall[static_cast<size_t>(i)] = ros::WallTime::now().toSec();
         ++g_received;
       },
-      ros::VoidConstPtr(), ros::TransportHints().tcpNoDelay());
+      ros::VoidConstPtr(), ros::TransportHints().tcpNoDelay(nodelay));
   ros::AsyncSpinner spinner(1);
   spinner.start();
   while ((scalar.getNumSubscribers() == 0 || vec.getNumSubscribers() == 0 ||

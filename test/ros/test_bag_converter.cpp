@@ -6,8 +6,8 @@
 #include <sensor_msgs/NavSatFix.h>
 
 #include <cstring>
-#include <map>
 #include <fstream>
+#include <map>
 
 #include "magcomp/core/error.h"
 #include "magcomp/ros/bag_converter.h"
@@ -57,9 +57,9 @@ TEST(BagConverter, RoundTripIsBitIdenticalWithNan) {
     ++total;
   }
   EXPECT_EQ(in_order, total);
-  for (const char* t : {"/magcomp/flight_record", "/magcomp/scalar/mag_5_uc", "/magcomp/reference",
-                        "/magcomp/fluxgate/flux_c", "/magcomp/ins/imu", "/magcomp/ins/fix",
-                        "/magcomp/aux"}) {
+  for (const char* t :
+       {"/magcomp/flight_record", "/magcomp/scalar/mag_5_uc", "/magcomp/reference",
+        "/magcomp/fluxgate/flux_c", "/magcomp/ins/imu", "/magcomp/ins/fix", "/magcomp/aux"}) {
     EXPECT_EQ(per_topic[t], a.size()) << t;
   }
   EXPECT_EQ(per_topic["/magcomp/flight_schema"], 1);

@@ -148,6 +148,7 @@ class CompensatorRos {
   std::string vector_frame_;
   Eigen::Matrix3d vector_rotation_ = Eigen::Matrix3d::Identity();
   bool rotation_known_ = false;
+  double last_tf_try_wall_ = -1e9;  // wall time of the last mount lookup, s
   long n_no_tf_ = 0;
   ros::Publisher pub_status_;
   ros::ServiceServer srv_start_, srv_stop_, srv_fit_, srv_save_, srv_reset_;
