@@ -20,6 +20,18 @@ void finite_mean_std(const Eigen::Ref<const Eigen::VectorXd>& v, double* sum, do
 
 }  // namespace
 
+std::vector<FlightSamples> flight_samples(const Model& model,
+                                          const std::vector<FlightData>& flights) {
+  std::vector<FlightSamples> v;
+  for (const auto& f : flights) {
+    FlightSamples fs;
+    fs.inputs = neural_inputs(model, f);
+    fs.target_nT = neural_target(model, f, fs.inputs);
+    v.push_back(std::move(fs));
+  }
+  return v;
+}
+
 void fit_normalisation(NeuralSpec& spec, const std::vector<FlightSamples>& training) {
   if (training.empty()) throw Error("train: no training flight");
   const Eigen::Index f = training[0].inputs.features.cols();

@@ -15,17 +15,6 @@ std::string base_name(const std::string& p) {
   return s == std::string::npos ? p : p.substr(s + 1);
 }
 
-std::vector<FlightSamples> samples_of(const Model& model, const std::vector<FlightData>& flights) {
-  std::vector<FlightSamples> v;
-  for (const auto& f : flights) {
-    FlightSamples fs;
-    fs.inputs = neural_inputs(model, f);
-    fs.target_nT = neural_target(model, f, fs.inputs);
-    v.push_back(std::move(fs));
-  }
-  return v;
-}
-
 }  // namespace
 
 BundleReport train_bundle(Model& model, const std::vector<FlightData>& train_flights,
@@ -52,8 +41,8 @@ BundleReport train_bundle(Model& model, const std::vector<FlightData>& train_fli
   }
   NeuralSpec& s = *model.neural;
   s.tl_delta.resize(0);
-  const std::vector<FlightSamples> tr = samples_of(model, train_flights);
-  const std::vector<FlightSamples> va = samples_of(model, validation_flights);
+  const std::vector<FlightSamples> tr = flight_samples(model, train_flights);
+  const std::vector<FlightSamples> va = flight_samples(model, validation_flights);
   fit_normalisation(s, tr);  // training flights only
   const Eigen::VectorXd tl_scale = s.mode == "joint" ? tl_column_scale(tr) : Eigen::VectorXd();
   const TrainingData td = make_training_data(s, tr, tl_scale, s.training.stride);

@@ -44,6 +44,14 @@ void put(std::ofstream& o, const T* p, size_t n) {
 
 }  // namespace
 
+void print_epoch(const NeuralSpec& s, const TrainingData& d, double epoch_s) {
+  std::printf(
+      "cpp_libtorch cnn_epoch windows %zu features %ld window %d batch %d threads %d seconds "
+      "%.2f\n",
+      d.ends.size(), static_cast<long>(d.features.cols()), s.window, s.training.batch,
+      s.training.threads, epoch_s);
+}
+
 /// One CNN epoch on the data file another run wrote (the same bytes PyTorch reads).
 int epoch_from_file(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
@@ -66,11 +74,7 @@ int epoch_from_file(const std::string& path) {
   s.training.threads = 2;
   s.feature_mean = Eigen::VectorXd::Zero(head[1]);
   const double epoch_s = time_one_epoch(s, d);
-  std::printf(
-      "cpp_libtorch cnn_epoch windows %zu features %ld window %d batch %d threads %d seconds "
-      "%.2f\n",
-      d.ends.size(), static_cast<long>(d.features.cols()), s.window, s.training.batch,
-      s.training.threads, epoch_s);
+  print_epoch(s, d, epoch_s);
   return 0;
 }
 
@@ -93,13 +97,7 @@ int main(int argc, char** argv) {
   fit_model(m, {&flights[0]});
   NeuralSpec& s = *m.neural;
   s.training.threads = 2;
-  std::vector<FlightSamples> fs;
-  for (const auto& f : flights) {
-    FlightSamples x;
-    x.inputs = neural_inputs(m, f);
-    x.target_nT = neural_target(m, f, x.inputs);
-    fs.push_back(std::move(x));
-  }
+  const std::vector<FlightSamples> fs = flight_samples(m, flights);
   fit_normalisation(s, fs);
   TrainingData d = make_training_data(s, fs, Eigen::VectorXd(), 1);
   if (static_cast<long long>(d.ends.size()) > want) d.ends.resize(static_cast<size_t>(want));
@@ -114,11 +112,7 @@ int main(int argc, char** argv) {
     put(o, d.ends.data(), d.ends.size());
   }
   const double epoch_s = time_one_epoch(s, d);
-  std::printf(
-      "cpp_libtorch cnn_epoch windows %zu features %ld window %d batch %d threads %d seconds "
-      "%.2f\n",
-      d.ends.size(), static_cast<long>(d.features.cols()), s.window, s.training.batch,
-      s.training.threads, epoch_s);
+  print_epoch(s, d, epoch_s);
   std::fflush(stdout);
 
   // Batch-1 streaming inference: per pushed sample (TL stage + features + network), one thread.

@@ -28,6 +28,10 @@ struct FlightSamples {
   Eigen::VectorXd target_nT;
 };
 
+/// Each flight's neural inputs and training target for the model (corrections first).
+std::vector<FlightSamples> flight_samples(const Model& model,
+                                          const std::vector<FlightData>& flights);
+
 /// Fits the spec's normalisation (feature mean and std, target mean and std) on the TRAINING
 /// flights only, ignoring NaN. A constant feature gets std 1. Throws magcomp::Error if a feature
 /// has no finite value.
