@@ -20,12 +20,15 @@ std::string FlightData::canonical_name(const std::string& name) {
   return it == kAliases.end() ? name : it->second;
 }
 
+// Keys are always stored canonical, so a name found as it is needs no alias lookup (the common
+// case, and a per-sample one for the streaming compensator).
 bool FlightData::has(const std::string& name) const {
-  return index_.count(canonical_name(name)) > 0;
+  return index_.count(name) > 0 || index_.count(canonical_name(name)) > 0;
 }
 
 const Eigen::VectorXd& FlightData::column(const std::string& name) const {
-  auto it = index_.find(canonical_name(name));
+  auto it = index_.find(name);
+  if (it == index_.end()) it = index_.find(canonical_name(name));
   if (it == index_.end()) {
     throw Error(source_ + ": field '" + name + "' not found");
   }

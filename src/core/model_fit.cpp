@@ -61,7 +61,7 @@ Eigen::MatrixXd design_matrix(const Model& model, const FlightData& data) {
 Eigen::MatrixXd design_matrix(const Model& model, const std::vector<std::unique_ptr<Term>>& terms,
                               const FlightData& data) {
   for (const auto& t : terms) {
-    for (const auto& f : t->required_fields()) {
+    for (const auto& f : t->fields()) {
       if (!data.has(f)) {
         throw Error(data.source() + ": field '" + f + "' needed by term '" + t->spec() +
                     "' not found");
@@ -70,11 +70,11 @@ Eigen::MatrixXd design_matrix(const Model& model, const std::vector<std::unique_
   }
   const TermInputs in = make_term_inputs(data, model.vector, model.bt_scale_nT);
   Eigen::Index cols = 0;
-  for (const auto& t : terms) cols += static_cast<Eigen::Index>(t->column_names().size());
+  for (const auto& t : terms) cols += t->columns();
   Eigen::MatrixXd a(data.size(), cols);
   Eigen::Index c = 0;
   for (const auto& t : terms) {
-    const auto w = static_cast<Eigen::Index>(t->column_names().size());
+    const Eigen::Index w = t->columns();
     t->build(in, a.middleCols(c, w));
     c += w;
   }

@@ -3,6 +3,7 @@
 
 #include <Eigen/Core>
 #include <memory>
+#include <mutex>
 #include <string>
 #include <vector>
 
@@ -50,6 +51,28 @@ class Term {
   virtual double scalar_lag_s() const { return 0.0; }
   /// Writes N x column_names().size() regressor columns (scalar-field nT per unit coefficient).
   virtual void build(const TermInputs& in, Eigen::Ref<Eigen::MatrixXd> out) const = 0;
+
+  /// column_names().size() and required_fields(), computed once (per-sample callers build the
+  /// design matrix thousands of times a second; the names are strings).
+  Eigen::Index columns() const {
+    cache();
+    return columns_;
+  }
+  const std::vector<std::string>& fields() const {
+    cache();
+    return fields_;
+  }
+
+ private:
+  void cache() const {
+    std::call_once(cache_once_, [this] {
+      columns_ = static_cast<Eigen::Index>(column_names().size());
+      fields_ = required_fields();
+    });
+  }
+  mutable std::once_flag cache_once_;
+  mutable Eigen::Index columns_ = 0;
+  mutable std::vector<std::string> fields_;
 };
 
 /// Parses a term spec. Known: permanent, induced, induced5, induced3, eddy, eddy8, eddy3, fdm,
