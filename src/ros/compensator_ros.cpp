@@ -27,7 +27,7 @@ const std::set<std::string> kKnownParams = {
     "reference_topic", "output_topic",      "frame_id",        "max_gap_s",     "max_wait_s",
     "jump_back_s",     "buffer_s",          "watch_model",     "marker_stride", "expected_rate_hz",
     "flush_after_s",   "calibration_model", "calibration_out", "forgetting",    "auto_segments",
-    "imu_topic",       "base_frame",        "tcp_nodelay"};
+    "imu_topic",       "base_frame",        "tcp_nodelay",     "queue_size"};
 
 }  // namespace
 
@@ -146,12 +146,21 @@ CompensatorRos::CompensatorRos(ros::NodeHandle nh, ros::NodeHandle pnh)
   bool nodelay = true;
   pnh_.param("tcp_nodelay", nodelay, true);
   const ros::TransportHints hints = ros::TransportHints().tcpNoDelay(nodelay);
-  sub_scalar_ = nh_.subscribe(scalar_topic, 1000, &CompensatorRos::on_scalar, this, hints);
-  sub_vector_ = nh_.subscribe(vector_topic, 1000, &CompensatorRos::on_vector, this, hints);
-  sub_aux_ = nh_.subscribe(aux_topic, 1000, &CompensatorRos::on_aux, this, hints);
-  sub_fix_ = nh_.subscribe(fix_topic, 1000, &CompensatorRos::on_fix, this, hints);
+  // Input queues: deep enough for a bag played with --immediate (roscpp drops the oldest message
+  // of a full queue without a word, so this is a parameter).
+  int queue = 1000;
+  pnh_.param("queue_size", queue, 1000);
+  if (queue < 1) {
+    ROS_FATAL("~queue_size: must be >= 1");
+    throw Error("~queue_size: must be >= 1");
+  }
+  const auto q = static_cast<uint32_t>(queue);
+  sub_scalar_ = nh_.subscribe(scalar_topic, q, &CompensatorRos::on_scalar, this, hints);
+  sub_vector_ = nh_.subscribe(vector_topic, q, &CompensatorRos::on_vector, this, hints);
+  sub_aux_ = nh_.subscribe(aux_topic, q, &CompensatorRos::on_aux, this, hints);
+  sub_fix_ = nh_.subscribe(fix_topic, q, &CompensatorRos::on_fix, this, hints);
   if (!ref_topic.empty()) {
-    sub_ref_ = nh_.subscribe(ref_topic, 1000, &CompensatorRos::on_reference, this, hints);
+    sub_ref_ = nh_.subscribe(ref_topic, q, &CompensatorRos::on_reference, this, hints);
   }
   srv_reload_ = pnh_.advertiseService("reload", &CompensatorRos::on_reload, this);
   pnh_.param<std::string>("base_frame", base_frame_, "base_link");
