@@ -1,9 +1,23 @@
 // magcomp CLI: helpers.
 #include "common.h"
 
+#include <iostream>
+
 #include "magcomp/core/error.h"
 
 namespace magcomp::cli {
+
+int run_reporting_errors(const std::function<int()>& body) {
+  try {
+    return body();
+  } catch (const Error& e) {
+    std::cerr << "error: " << e.what() << "\n";
+    return 2;
+  } catch (const std::exception& e) {
+    std::cerr << "error: " << e.what() << "\n";
+    return 3;
+  }
+}
 
 std::vector<std::string> split_commas(const std::string& s) {
   std::vector<std::string> out;

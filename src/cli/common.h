@@ -1,6 +1,7 @@
 // magcomp CLI: helpers shared by the subcommands.
 #pragma once
 
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -11,6 +12,10 @@ namespace magcomp::cli {
 
 /// Reads the comma-separated list of HDF5 flight files of a --data option.
 std::vector<FlightData> read_flights(const std::string& comma_list);
+
+/// Runs a program's body and turns an escaping exception into the one-line `error: ...` message
+/// and exit status every magcomp program uses (2: bad input, magcomp::Error; 3: anything else).
+int run_reporting_errors(const std::function<int()>& body);
 
 /// Splits "a,b,c".
 std::vector<std::string> split_commas(const std::string& s);

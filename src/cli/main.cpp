@@ -7,6 +7,7 @@
 #include <iostream>
 #include <string>
 
+#include "common.h"
 #include "magcomp/core/error.h"
 #include "subcommands.h"
 
@@ -45,16 +46,12 @@ int main(int argc, char** argv) {
   magcomp::cli::add_convert(app);
   app.add_subcommand("train",
                      "train a model's neural stage (runs magcomp_train; see magcomp train --help)");
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    return app.exit(e);
-  } catch (const magcomp::Error& e) {
-    std::cerr << "error: " << e.what() << "\n";
-    return 2;
-  } catch (const std::exception& e) {
-    std::cerr << "error: " << e.what() << "\n";
-    return 3;
-  }
-  return 0;
+  return magcomp::cli::run_reporting_errors([&] {
+    try {
+      app.parse(argc, argv);
+    } catch (const CLI::ParseError& e) {
+      return app.exit(e);
+    }
+    return 0;
+  });
 }
