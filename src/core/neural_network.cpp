@@ -113,16 +113,17 @@ NeuralStreamer::NeuralStreamer(const NeuralSpec& spec, std::shared_ptr<NeuralNet
 double NeuralStreamer::push(const double* raw_features) {
   const size_t f = static_cast<size_t>(spec_.feature_mean.size());
   const size_t k = static_cast<size_t>(spec_.window);
-  std::vector<double> z(f);
-  standardise_features(spec_, raw_features, z.data());
-  if (rows_.empty()) {
-    for (size_t j = 0; j + 1 < k; ++j) rows_.push_back(z);  // pad as the offline path does
+  if (!filled_) {
+    window_.resize(k * f);
+    standardise_features(spec_, raw_features, window_.data());
+    for (size_t j = 1; j < k; ++j) {  // pad with the first row, as the offline path does
+      std::copy(window_.begin(), window_.begin() + f, window_.begin() + j * f);
+    }
+    filled_ = true;
+  } else {
+    std::copy(window_.begin() + f, window_.end(), window_.begin());  // drop the oldest row
+    standardise_features(spec_, raw_features, window_.data() + (k - 1) * f);
   }
-  rows_.push_back(std::move(z));
-  while (rows_.size() > k) rows_.pop_front();
-  window_.resize(k * f);
-  for (size_t j = 0; j < k; ++j)
-    std::copy(rows_[j].begin(), rows_[j].end(), window_.begin() + j * f);
   double y = 0.0;
   network_->predict(window_.data(), 1, &y);
   return y * spec_.target_std + spec_.target_mean;

@@ -115,6 +115,7 @@ StreamOutput StreamingCompensator::emit(Eigen::Index index) {
   const Eigen::RowVectorXd a = design_matrix(model_, terms_, w).row(row);
   o.tl_correction_nT = a.dot(model_.coefficients);
   o.correction_nT = o.tl_correction_nT;
+  o.igrf_nT = buffer_[static_cast<size_t>(index)].igrf_nT;
   if (streamer_) {
     const StreamSample& x = buffer_[static_cast<size_t>(index)];
     const NeuralSpec& s = *model_.neural;

@@ -16,11 +16,6 @@ namespace {
 
 using namespace magcomp;
 
-std::string base_name(const std::string& p) {
-  const auto s = p.find_last_of('/');
-  return s == std::string::npos ? p : p.substr(s + 1);
-}
-
 double rms(const Eigen::VectorXd& v) {
   double s = 0;
   int n = 0;
@@ -100,7 +95,7 @@ int run(int argc, char** argv) {
       const Eigen::VectorXd tl_err = compensate(model, f) - f.column(s.reference);
       const NeuralCompensation nc = neural_compensate(model, f);
       const Eigen::VectorXd nn_err = nc.compensated_nT - f.column(s.reference);
-      std::cout << "\n  " << base_name(validation[i]) << ": TL rmse " << rms(tl_err)
+      std::cout << "\n  " << s.validation_flights[i] << ": TL rmse " << rms(tl_err)
                 << " nT, with the network " << rms(nn_err) << " nT";
     }
   }

@@ -342,8 +342,9 @@ void CompensatorRos::on_vector(const sensor_msgs::MagneticField::ConstPtr& m) {
   // once; until it is known the vector is used as is and counted).
   const std::string& frame = m->header.frame_id;
   if (!frame.empty() && frame != base_frame_) {
-    const double now = ros::WallTime::now().toSec();
-    if ((!rotation_known_ || frame != vector_frame_) && now - last_tf_try_wall_ > 0.2) {
+    const bool need_lookup = !rotation_known_ || frame != vector_frame_;
+    const double now = need_lookup ? ros::WallTime::now().toSec() : 0.0;
+    if (need_lookup && now - last_tf_try_wall_ > 0.2) {
       last_tf_try_wall_ = now;  // a missing mount is retried 5 times a second, not per message
       try {
         const geometry_msgs::TransformStamped tf =
@@ -495,7 +496,8 @@ void CompensatorRos::publish(const StreamOutput& o) {
     const double d = channels_at(o.t_s, {diurnal_index_})[0];
     if (std::isfinite(d)) diurnal = d;
   }
-  const double igrf = igrf_at(o.t_s);
+  // A neural stage already needed IGRF at this sample's input; otherwise compute it here.
+  const double igrf = std::isfinite(o.igrf_nT) ? o.igrf_nT : igrf_at(o.t_s);
   if (std::isfinite(igrf)) msg.anomaly_nT = o.compensated_nT - igrf - diurnal;
   msg.reference_nT = NAN;
   msg.error_nT = NAN;

@@ -8,10 +8,16 @@
 namespace magcomp {
 namespace {
 
+/// The shipped TL model plus the strobe current's term, uncalibrated.
+Model strobe_template() {
+  Model m = load_model_yaml(test::source_dir() + "/config/models/tl_sim.yaml");
+  m.add_term("current:cur_strb");
+  return m;
+}
+
 TEST(InflightCalibrator, BatchEqualsCalibrateAndRlsConvergesTowardIt) {
   const FlightData& f = test::scenario("wire_strobe").flight;
-  Model templ = load_model_yaml(test::source_dir() + "/config/models/tl_sim.yaml");
-  templ.add_term("current:cur_strb");
+  const Model templ = strobe_template();
   const Model cli = test::calibrated_tl(f, {"current:cur_strb"});
   InflightCalibrator cal(templ, 1.0);
   const auto in_box = f.select(templ.fit.lines, templ.fit.windows);
@@ -45,18 +51,11 @@ TEST(InflightCalibrator, BatchEqualsCalibrateAndRlsConvergesTowardIt) {
   EXPECT_LT(rls_std, 0.2 * test::tl_std(f));   // far below TL without the missing term
 }
 
-}  // namespace
-}  // namespace magcomp
-
-namespace magcomp {
-namespace {
-
 TEST(ManeuverDetector, FindsTheCalibrationManeuversFromTheRatesAlone) {
   // The detector sees only the INS rates; the simulator knows which lines are the box and the
   // cloverleaf. Calibrating on what it finds does as well as calibrating on the known lines.
   const FlightData& f = test::scenario("wire_strobe").flight;
-  Model templ = load_model_yaml(test::source_dir() + "/config/models/tl_sim.yaml");
-  templ.add_term("current:cur_strb");
+  const Model templ = strobe_template();
   ManeuverDetector det;
   InflightCalibrator cal(templ, 1.0);
   const auto known = f.select(templ.fit.lines, {});

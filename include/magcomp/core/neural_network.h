@@ -5,7 +5,6 @@
 
 #include <Eigen/Core>
 #include <cstdint>
-#include <deque>
 #include <memory>
 #include <string>
 #include <vector>
@@ -59,13 +58,13 @@ class NeuralStreamer {
   /// Adds a raw feature row and returns the network's prediction for it, nT.
   double push(const double* raw_features);
   /// Forgets the window (after a gap or a time jump); the next row is padded as at a start.
-  void reset() { rows_.clear(); }
+  void reset() { filled_ = false; }
 
  private:
   const NeuralSpec spec_;
   std::shared_ptr<NeuralNetwork> network_;
-  std::deque<std::vector<double>> rows_;
-  std::vector<double> window_;
+  std::vector<double> window_;  // window x features, oldest row first
+  bool filled_ = false;
 };
 
 }  // namespace magcomp

@@ -36,8 +36,9 @@ struct StreamOutput {
   double measured_nT = 0.0;     ///< the scalar, realigned by the model's lag
   double correction_nT = 0.0;   ///< A·c
   double compensated_nT = 0.0;  ///< measured - correction
-  double tl_correction_nT =
-      0.0;  ///< the terms' part A·c of the correction (all of it without a neural stage)
+  /// The terms' part A·c of the correction (all of it without a neural stage).
+  double tl_correction_nT = 0.0;
+  double igrf_nT = NAN;  ///< the sample's igrf_nT, passed through (NaN when not given)
 };
 
 /// Applies a fitted model to a stream of samples. Each output needs a few samples after it
