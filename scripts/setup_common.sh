@@ -20,7 +20,7 @@ MAGCOMP_APT_PACKAGES=(
   python3-scipy python3-matplotlib python3-yaml libdiagnostic-updater-dev python3-diagnostic-msgs
   libnodeletlib-dev libnodelet-dev ros-nav-msgs libnav-msgs-dev ros-visualization-msgs
   libvisualization-msgs-dev libstd-srvs-dev ros-std-srvs libyaml-cpp-dev nlohmann-json3-dev
-  libcli11-dev libtorch-dev
+  libcli11-dev libtorch-dev libros-rosgraph-msgs-dev
 )
 
 magcomp_install_packages() {

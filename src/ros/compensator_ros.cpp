@@ -12,6 +12,7 @@
 
 #include "magcomp/core/error.h"
 #include "magcomp/core/igrf.h"
+#include "magcomp/ros/params.h"
 
 namespace magcomp::rosio {
 namespace {
@@ -71,18 +72,7 @@ ros::Time CompensatorRos::stamp(double t) const {
 
 CompensatorRos::CompensatorRos(ros::NodeHandle nh, ros::NodeHandle pnh)
     : nh_(nh), pnh_(pnh), updater_(nh, pnh) {
-  // Unknown private parameters are warned about (typos are not silently ignored).
-  std::vector<std::string> names;
-  ros::param::getParamNames(names);
-  const std::string ns = pnh_.getNamespace() + "/";
-  for (const auto& n : names) {
-    if (n.rfind(ns, 0) == 0) {
-      const std::string key = n.substr(ns.size());
-      if (key.find('/') == std::string::npos && !kKnownParams.count(key)) {
-        ROS_WARN("%s: unknown parameter '%s' ignored", ns.c_str(), key.c_str());
-      }
-    }
-  }
+  warn_unknown_params(pnh_, kKnownParams);  // typos are not silently ignored
   std::string calibration_model;
   pnh_.param<std::string>("calibration_model", calibration_model, "");
   pnh_.param<std::string>("calibration_out", calibration_out_, "");
@@ -93,14 +83,12 @@ CompensatorRos::CompensatorRos(ros::NodeHandle nh, ros::NodeHandle pnh)
       calibration_template_ = std::make_unique<Model>(load_model_yaml(calibration_model));
       calibrator_ = std::make_unique<InflightCalibrator>(*calibration_template_, forgetting);
     } catch (const std::exception& e) {
-      ROS_FATAL("~calibration_model: %s", e.what());
-      throw Error(std::string("~calibration_model: ") + e.what());
+      reject_param("calibration_model", e.what());
     }
   }
   pnh_.param<std::string>("model_path", model_path_, "");
   if (model_path_.empty() && !calibrator_) {
-    ROS_FATAL("~model_path: required (a fitted model YAML written by magcomp calibrate)");
-    throw Error("~model_path: required");
+    reject_param("model_path", "required (a fitted model YAML written by magcomp calibrate)");
   }
   pnh_.param("max_gap_s", max_gap_s_, 1.0);
   pnh_.param("max_wait_s", max_wait_s_, 0.5);
@@ -114,8 +102,7 @@ CompensatorRos::CompensatorRos(ros::NodeHandle nh, ros::NodeHandle pnh)
   pnh_.param("expected_rate_hz", rate, 10.0);
   auto positive = [](double v, const char* key) {
     if (!(v > 0)) {
-      ROS_FATAL("~%s: must be > 0 (s or Hz), got %g", key, v);
-      throw Error(std::string("~") + key + ": must be > 0");
+      reject_param(key, "must be > 0 (s or Hz), got " + std::to_string(v));
     }
   };
   positive(max_gap_s_, "max_gap_s");
@@ -151,8 +138,7 @@ CompensatorRos::CompensatorRos(ros::NodeHandle nh, ros::NodeHandle pnh)
   int queue = 1000;
   pnh_.param("queue_size", queue, 1000);
   if (queue < 1) {
-    ROS_FATAL("~queue_size: must be >= 1");
-    throw Error("~queue_size: must be >= 1");
+    reject_param("queue_size", "must be >= 1, got " + std::to_string(queue));
   }
   const auto q = static_cast<uint32_t>(queue);
   sub_scalar_ = nh_.subscribe(scalar_topic, q, &CompensatorRos::on_scalar, this, hints);
@@ -483,7 +469,9 @@ double CompensatorRos::igrf_at(double t) {
 void CompensatorRos::publish(const StreamOutput& o) {
   if (o.t_s <= last_published_t_) return;
   last_published_t_ = o.t_s;
-  magcomp::CompensatedField msg;
+  // Published as a shared pointer: a subscriber in the same nodelet manager gets it without a copy.
+  const auto out = boost::make_shared<magcomp::CompensatedField>();
+  magcomp::CompensatedField& msg = *out;
   msg.header.stamp = stamp(o.t_s);
   msg.header.frame_id = comp_ ? comp_->model().scalar.substr(0, 5) : "";
   msg.measured_nT = o.measured_nT;
@@ -506,7 +494,7 @@ void CompensatorRos::publish(const StreamOutput& o) {
     msg.reference_nT = ref.v;
     msg.error_nT = msg.compensated_nT - msg.reference_nT;
   }
-  pub_out_.publish(msg);
+  pub_out_.publish(boost::shared_ptr<const magcomp::CompensatedField>(out));
   ++n_out_;
   freq_->tick();
   // rviz: the track in a local east-north-up frame, coloured by the error (or the anomaly).

@@ -5,15 +5,23 @@
 // With ~listen_only:=true it publishes nothing: `rosbag play` of the flight's bag feeds the node
 // (the benchmark's own definition: a bag played as fast as possible), and it measures the output
 // rate from the first to the last output.
+// With ~in_process:=true the compensator is the nodelet magcomp/Compensator loaded in this process
+// (as a nodelet manager does), so every message passes as a shared pointer: no serialisation, no
+// socket. With both, the nodelet magcomp/Player plays ~bag in this process too.
 #include <magcomp/AuxChannels.h>
 #include <magcomp/CompensatedField.h>
 #include <magcomp/ScalarMagnetometer.h>
+#include <nodelet/loader.h>
+#include <ros/callback_queue.h>
 #include <ros/ros.h>
 #include <sensor_msgs/MagneticField.h>
 
 #include <algorithm>
 #include <atomic>
+#include <chrono>
+#include <memory>
 #include <mutex>
+#include <thread>
 
 #include "magcomp/core/model.h"
 #include "magcomp/ros/bag_converter.h"
@@ -40,6 +48,21 @@ int main(int argc, char** argv) {
   pnh.param("nodelay", nodelay, true);
   double rate_hz = 0.0;  // 0: as fast as possible (throughput); else paced (latency)
   pnh.param("rate_hz", rate_hz, 0.0);
+  bool in_process = false;  // true: the compensator (and player) nodelets in this process
+  pnh.param("in_process", in_process, false);
+  bool listen_only = false;
+  pnh.param("listen_only", listen_only, false);
+  std::unique_ptr<nodelet::Loader> manager;
+  if (in_process) {
+    manager = std::make_unique<nodelet::Loader>(false);
+    ros::param::set("/magcomp_compensator/model_path", model_path);
+    ros::param::set("/magcomp_compensator/expected_rate_hz", 10000.0);
+    ros::param::set("/magcomp_compensator/queue_size", 200000);
+    if (!manager->load("/magcomp_compensator", "magcomp/Compensator", {}, {})) {
+      std::fprintf(stderr, "bench: could not load the nodelet magcomp/Compensator\n");
+      return 2;
+    }
+  }
   const magcomp::FlightData f = magcomp::read_flight_h5(h5);
   const magcomp::Model m = magcomp::load_model_yaml(model_path);
   const Eigen::Index n = f.size();
@@ -51,7 +74,13 @@ int main(int argc, char** argv) {
   auto scalar = nh.advertise<magcomp::ScalarMagnetometer>("/magcomp/scalar/" + m.scalar, 10000);
   auto vec = nh.advertise<sensor_msgs::MagneticField>("/magcomp/fluxgate/" + m.vector, 10000);
   auto aux = nh.advertise<magcomp::AuxChannels>("/magcomp/aux", 10000);
-  ros::Subscriber sub = nh.subscribe<magcomp::CompensatedField>(
+  // The outputs arrive on their own queue. Paced (latency), a spinner thread takes each at once;
+  // flooding (throughput), this thread drains them between publishes and while it waits, so the
+  // listener does not add a wake-up per output to what is measured.
+  ros::CallbackQueue out_queue;
+  ros::NodeHandle out_nh;
+  out_nh.setCallbackQueue(&out_queue);
+  ros::Subscriber sub = out_nh.subscribe<magcomp::CompensatedField>(
       "/magcomp/compensated", 100000,
       [&](const magcomp::CompensatedField::ConstPtr& o) {
         const long i = std::lround((o->header.stamp.toSec() - g_t0_stamp) * 10.0);
@@ -61,15 +90,33 @@ int main(int argc, char** argv) {
       ros::VoidConstPtr(), ros::TransportHints().tcpNoDelay(nodelay));
   ros::AsyncSpinner spinner(1);
   spinner.start();
-  bool listen_only = false;
-  pnh.param("listen_only", listen_only, false);
+  ros::AsyncSpinner out_spinner(1, &out_queue);
+  if (rate_hz > 0) out_spinner.start();
+  auto wait_s = [&](double s) {  // sleep, then take the outputs that came (when not paced)
+    if (s > 0) std::this_thread::sleep_for(std::chrono::duration<double>(s));
+    if (rate_hz <= 0) out_queue.callAvailable(ros::WallDuration(0));
+  };
   if (listen_only) {
     std::printf("ready\n");
     std::fflush(stdout);
+    if (in_process) {  // the bag played by the player nodelet, as fast as the compensator keeps up
+      std::string bag;
+      pnh.getParam("bag", bag);
+      ros::param::set("/magcomp_player/bag", bag);
+      ros::param::set("/magcomp_player/rate", 0.0);
+      ros::param::set("/magcomp_player/topics",
+                      std::vector<std::string>{"/magcomp/scalar/" + m.scalar,
+                                               "/magcomp/fluxgate/" + m.vector, "/magcomp/aux"});
+      ros::param::set("/magcomp_player/progress_topic", std::string("/magcomp/compensated"));
+      if (!manager->load("/magcomp_player", "magcomp/Player", {}, {})) {
+        std::fprintf(stderr, "bench: could not load the nodelet magcomp/Player\n");
+        return 2;
+      }
+    }
     double last_change = ros::WallTime::now().toSec();
     long seen = 0;
     while (ros::ok() && g_received < n) {
-      ros::WallDuration(0.01).sleep();
+      wait_s(0.001);
       if (g_received != seen) {
         seen = g_received;
         last_change = ros::WallTime::now().toSec();
@@ -105,33 +152,39 @@ int main(int argc, char** argv) {
       names.push_back(name);
   }
   const double start = ros::WallTime::now().toSec();
+  const auto steady_start = std::chrono::steady_clock::now();
   for (Eigen::Index i = 0; i < n && ros::ok(); ++i) {
-    while (i - g_received > window) ros::WallDuration(0.0001).sleep();  // back-pressure
-    if (rate_hz > 0) {
-      const double due = start + static_cast<double>(i) / rate_hz;
-      while (ros::WallTime::now().toSec() < due) ros::WallDuration(0.00005).sleep();
+    wait_s(0);
+    while (i - g_received > window) wait_s(0.0002);  // back-pressure
+    if (rate_hz > 0) {  // one sleep to the due time (no polling: the bench must stay quiet)
+      std::this_thread::sleep_until(steady_start + std::chrono::duration_cast<
+                                                       std::chrono::steady_clock::duration>(
+                                                       std::chrono::duration<double>(i / rate_hz)));
     }
     const ros::Time t = magcomp::rosio::stamp_of(year, doy, f.tt()[i]);
-    sensor_msgs::MagneticField v;
+    // Shared pointers: a subscriber in this process (~in_process) receives them without a copy.
+    const auto vp = boost::make_shared<sensor_msgs::MagneticField>();
+    sensor_msgs::MagneticField& v = *vp;
     v.header.stamp = t;
     v.magnetic_field.x = f.column(m.vector + "_x")[i] * 1e-9;
     v.magnetic_field.y = f.column(m.vector + "_y")[i] * 1e-9;
     v.magnetic_field.z = f.column(m.vector + "_z")[i] * 1e-9;
-    vec.publish(v);
-    magcomp::AuxChannels a;
+    vec.publish(sensor_msgs::MagneticField::ConstPtr(vp));
+    const auto ap = boost::make_shared<magcomp::AuxChannels>();
+    magcomp::AuxChannels& a = *ap;
     a.header.stamp = t;
     a.names = names;
     for (const auto& k : names) a.values.push_back(f.column(k)[i]);
-    aux.publish(a);
-    magcomp::ScalarMagnetometer s;
-    s.header.stamp = t;
-    s.field_nT = f.column(m.scalar)[i];
+    aux.publish(magcomp::AuxChannels::ConstPtr(ap));
+    const auto sp = boost::make_shared<magcomp::ScalarMagnetometer>();
+    sp->header.stamp = t;
+    sp->field_nT = f.column(m.scalar)[i];
     sent_wall[static_cast<size_t>(i)] = ros::WallTime::now().toSec();
-    scalar.publish(s);
+    scalar.publish(magcomp::ScalarMagnetometer::ConstPtr(sp));
   }
   const double published = ros::WallTime::now().toSec();  // wait for the flush after the last one
   while (g_received < n && ros::ok() && ros::WallTime::now().toSec() - published < 30) {
-    ros::WallDuration(0.01).sleep();
+    wait_s(0.001);
   }
   const double elapsed = ros::WallTime::now().toSec() - start;
   std::vector<double> lat;
