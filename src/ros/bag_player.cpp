@@ -41,7 +41,7 @@ BagPlayer::BagPlayer(ros::NodeHandle nh, ros::NodeHandle pnh) : nh_(nh), pnh_(pn
   pnh_.getParam("topics", topics_);
   pnh_.param("rate", rate_, 1.0);
   pnh_.param("start_delay_s", start_delay_s_, 0.0);
-  pnh_.param("wait_for_subscribers", wait_for_subscribers_, true);
+  pnh_.param("wait_for_subscribers", wait_for_subscribers_, false);
   pnh_.param("clock", publish_clock_, false);
   pnh_.param("max_lead_s", max_lead_s_, 30.0);
   pnh_.param("stall_timeout_s", stall_timeout_s_, 5.0);

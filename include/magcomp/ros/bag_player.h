@@ -43,8 +43,9 @@ class BagPlayer {
   };
   void run();
   void on_progress(const magcomp::CompensatedField::ConstPtr& m);
-  /// Blocks until the last output is within max_lead_s of data time t_s (s since the epoch), the
-  /// consumer stalls for stall_timeout_s of wall time, or the player stops. The progress messages
+  /// When data time t_s (s since the epoch) is more than max_lead_s past the last output, blocks
+  /// until it is within max_lead_s / 2, the consumer stalls for stall_timeout_s of wall time, or
+  /// the player stops. The progress messages
   /// are taken from their own queue in the player's thread: no other thread is woken per output.
   void wait_for_progress(double t_s);
 
@@ -53,7 +54,7 @@ class BagPlayer {
   std::unique_ptr<rosbag::Bag> bag_;
   std::vector<std::string> topics_;
   double rate_ = 1.0, start_delay_s_ = 0.0, max_lead_s_ = 30.0, stall_timeout_s_ = 5.0;
-  bool wait_for_subscribers_ = true, publish_clock_ = false;
+  bool wait_for_subscribers_ = false, publish_clock_ = false;
   int queue_size_ = 10000;
   ros::CallbackQueue progress_queue_;
   ros::Subscriber sub_progress_;
