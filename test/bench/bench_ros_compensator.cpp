@@ -129,9 +129,8 @@ int main(int argc, char** argv) {
       if (w > 0) first = std::min(first, w), last = std::max(last, w);
     }
     std::printf(
-        "rosbag play: samples %ld, received %ld (lost %ld), %.0f samples/s (first to last "
-        "output)\n",
-        static_cast<long>(n), static_cast<long>(g_received), static_cast<long>(n - g_received),
+        "%s: samples %ld, received %ld (lost %ld), %.0f samples/s (first to last output)\n",
+        in_process ? "player nodelet, rate 0" : "rosbag play", static_cast<long>(n), static_cast<long>(g_received), static_cast<long>(n - g_received),
         (g_received - 1) / (last - first));
     return g_received == n ? 0 : 1;
   }
