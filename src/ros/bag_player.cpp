@@ -20,8 +20,8 @@ namespace magcomp::rosio {
 namespace {
 
 const std::set<std::string> kKnownParams = {
-    "bag",        "topics",          "rate",        "start_delay_s", "wait_for_subscribers",
-    "clock",      "progress_topic",  "max_lead_s",  "stall_timeout_s", "queue_size"};
+    "bag",   "topics",         "rate",       "start_delay_s",   "wait_for_subscribers",
+    "clock", "progress_topic", "max_lead_s", "stall_timeout_s", "queue_size"};
 
 /// A publisher of M that hands subscribers in this process the instantiated message itself.
 template <typename M>
@@ -139,8 +139,8 @@ void BagPlayer::run() {
     }
   }
   for (const auto& topic : topics_) {
-    if (!out.count(topic)) ROS_WARN("magcomp player: topic %s is not in %s", topic.c_str(),
-                                    bag_path_.c_str());
+    if (!out.count(topic))
+      ROS_WARN("magcomp player: topic %s is not in %s", topic.c_str(), bag_path_.c_str());
   }
   if (wait_for_subscribers_) {
     auto last_log = std::chrono::steady_clock::now();
@@ -169,9 +169,9 @@ void BagPlayer::run() {
     const double t = m.getTime().toSec();
     if (bag_t0 < 0) bag_t0 = t;
     if (rate_ > 0) {
-      std::this_thread::sleep_until(
-          wall0 + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
-                      std::chrono::duration<double>((t - bag_t0) / rate_)));
+      std::this_thread::sleep_until(wall0 +
+                                    std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                                        std::chrono::duration<double>((t - bag_t0) / rate_)));
     }
     if (sub_progress_) wait_for_progress(t);
     if (publish_clock_ && t - last_clock >= 0.01) {

@@ -128,10 +128,10 @@ int main(int argc, char** argv) {
     for (double w : g_recv_wall) {
       if (w > 0) first = std::min(first, w), last = std::max(last, w);
     }
-    std::printf(
-        "%s: samples %ld, received %ld (lost %ld), %.0f samples/s (first to last output)\n",
-        in_process ? "player nodelet, rate 0" : "rosbag play", static_cast<long>(n), static_cast<long>(g_received), static_cast<long>(n - g_received),
-        (g_received - 1) / (last - first));
+    std::printf("%s: samples %ld, received %ld (lost %ld), %.0f samples/s (first to last output)\n",
+                in_process ? "player nodelet, rate 0" : "rosbag play", static_cast<long>(n),
+                static_cast<long>(g_received), static_cast<long>(n - g_received),
+                (g_received - 1) / (last - first));
     return g_received == n ? 0 : 1;
   }
   while ((scalar.getNumSubscribers() == 0 || vec.getNumSubscribers() == 0 ||
@@ -156,9 +156,9 @@ int main(int argc, char** argv) {
     wait_s(0);
     while (i - g_received > window) wait_s(0.0002);  // back-pressure
     if (rate_hz > 0) {  // one sleep to the due time (no polling: the bench must stay quiet)
-      std::this_thread::sleep_until(steady_start + std::chrono::duration_cast<
-                                                       std::chrono::steady_clock::duration>(
-                                                       std::chrono::duration<double>(i / rate_hz)));
+      std::this_thread::sleep_until(steady_start +
+                                    std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                                        std::chrono::duration<double>(i / rate_hz)));
     }
     const ros::Time t = magcomp::rosio::stamp_of(year, doy, f.tt()[i]);
     // Shared pointers: a subscriber in this process (~in_process) receives them without a copy.
