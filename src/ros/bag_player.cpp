@@ -39,13 +39,14 @@ BagPlayer::BagPlayer(ros::NodeHandle nh, ros::NodeHandle pnh) : nh_(nh), pnh_(pn
   if (!pnh_.getParam("bag", bag_path_) || bag_path_.empty())
     reject_param("bag", "required (a bag written by magcomp convert, or any bag)");
   pnh_.getParam("topics", topics_);
-  pnh_.param("rate", rate_, 1.0);
-  pnh_.param("start_delay_s", start_delay_s_, 0.0);
-  pnh_.param("wait_for_subscribers", wait_for_subscribers_, false);
-  pnh_.param("clock", publish_clock_, false);
-  pnh_.param("max_lead_s", max_lead_s_, 30.0);
-  pnh_.param("stall_timeout_s", stall_timeout_s_, 5.0);
-  pnh_.param("queue_size", queue_size_, 10000);
+  // Defaults: the members' initialisers in bag_player.h (one place).
+  pnh_.param("rate", rate_, rate_);
+  pnh_.param("start_delay_s", start_delay_s_, start_delay_s_);
+  pnh_.param("wait_for_subscribers", wait_for_subscribers_, wait_for_subscribers_);
+  pnh_.param("clock", publish_clock_, publish_clock_);
+  pnh_.param("max_lead_s", max_lead_s_, max_lead_s_);
+  pnh_.param("stall_timeout_s", stall_timeout_s_, stall_timeout_s_);
+  pnh_.param("queue_size", queue_size_, queue_size_);
   std::string progress_topic;
   pnh_.param<std::string>("progress_topic", progress_topic, "");
   if (!(rate_ >= 0)) reject_param("rate", "must be >= 0 (0: as fast as possible)");

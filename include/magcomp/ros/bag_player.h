@@ -45,8 +45,8 @@ class BagPlayer {
   void on_progress(const magcomp::CompensatedField::ConstPtr& m);
   /// When data time t_s (s since the epoch) is more than max_lead_s past the last output, blocks
   /// until it is within max_lead_s / 2, the consumer stalls for stall_timeout_s of wall time, or
-  /// the player stops. The progress messages
-  /// are taken from their own queue in the player's thread: no other thread is woken per output.
+  /// the player stops. The progress messages are taken from their own queue in the player's
+  /// thread: no other thread is woken per output.
   void wait_for_progress(double t_s);
 
   ros::NodeHandle nh_, pnh_;
