@@ -8,6 +8,7 @@
 #include <sensor_msgs/Imu.h>
 #include <sensor_msgs/MagneticField.h>
 #include <sensor_msgs/NavSatFix.h>
+#include <std_msgs/Time.h>
 
 #include <chrono>
 #include <map>
@@ -21,7 +22,7 @@ namespace {
 
 const std::set<std::string> kKnownParams = {
     "bag",   "topics",         "rate",       "start_delay_s",   "wait_for_subscribers",
-    "clock", "progress_topic", "max_lead_s", "stall_timeout_s", "queue_size"};
+    "clock", "progress_topic", "max_lead_s", "stall_timeout_s", "queue_size", "end_topic"};
 
 /// A publisher of M that hands subscribers in this process the instantiated message itself.
 template <typename M>
@@ -66,6 +67,9 @@ BagPlayer::BagPlayer(ros::NodeHandle nh, ros::NodeHandle pnh) : nh_(nh), pnh_(pn
                                           ros::TransportHints().tcpNoDelay());
   }
   if (publish_clock_) pub_clock_ = nh_.advertise<rosgraph_msgs::Clock>("/clock", 10);
+  std::string end_topic;
+  pnh_.param<std::string>("end_topic", end_topic, "/magcomp/end_of_stream");
+  if (!end_topic.empty()) pub_end_ = nh_.advertise<std_msgs::Time>(end_topic, 10, true);
   thread_ = std::thread([this] { run(); });
 }
 
@@ -165,6 +169,7 @@ void BagPlayer::run() {
   const auto wall0 = std::chrono::steady_clock::now();
   double bag_t0 = -1, last_clock = -1e300;
   long played = 0;
+  ros::Time last_stamp;
   for (const rosbag::MessageInstance& m : *view) {
     if (stop_ || !ros::ok()) break;
     const double t = m.getTime().toSec();
@@ -182,7 +187,13 @@ void BagPlayer::run() {
       last_clock = t;
     }
     out.at(m.getTopic()).publish(m);
+    last_stamp = m.getTime();
     ++played;
+  }
+  if (pub_end_ && !stop_ && ros::ok()) {  // latched: a late subscriber still learns of the end
+    std_msgs::Time end;
+    end.data = last_stamp;
+    pub_end_.publish(end);
   }
   const double wall_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();

@@ -28,7 +28,7 @@ const std::set<std::string> kKnownParams = {
     "reference_topic", "output_topic",      "frame_id",        "max_gap_s",     "max_wait_s",
     "jump_back_s",     "buffer_s",          "watch_model",     "marker_stride", "expected_rate_hz",
     "flush_after_s",   "calibration_model", "calibration_out", "forgetting",    "auto_segments",
-    "imu_topic",       "base_frame",        "tcp_nodelay",     "queue_size"};
+    "imu_topic",       "base_frame",        "tcp_nodelay",     "queue_size",    "end_of_stream_topic"};
 
 }  // namespace
 
@@ -109,7 +109,10 @@ CompensatorRos::CompensatorRos(ros::NodeHandle nh, ros::NodeHandle pnh)
   positive(max_wait_s_, "max_wait_s");
   positive(jump_back_s_, "jump_back_s");
   positive(buffer_s_, "buffer_s");
-  positive(flush_after_s_, "flush_after_s");
+  if (!(flush_after_s_ >= 0)) {
+    reject_param("flush_after_s", "must be >= 0 s (0: only on the end-of-stream topic), got " +
+                                      std::to_string(flush_after_s_));
+  }
   positive(rate, "expected_rate_hz");
   if (marker_stride_ < 1) marker_stride_ = 1;
   min_freq_ = 0.5 * rate;
@@ -148,6 +151,11 @@ CompensatorRos::CompensatorRos(ros::NodeHandle nh, ros::NodeHandle pnh)
   if (!ref_topic.empty()) {
     sub_ref_ = nh_.subscribe(ref_topic, q, &CompensatorRos::on_reference, this, hints);
   }
+  std::string end_topic;
+  pnh_.param<std::string>("end_of_stream_topic", end_topic, "/magcomp/end_of_stream");
+  if (!end_topic.empty()) {
+    sub_end_ = nh_.subscribe(end_topic, 10, &CompensatorRos::on_end_of_stream, this);
+  }
   srv_reload_ = pnh_.advertiseService("reload", &CompensatorRos::on_reload, this);
   pnh_.param<std::string>("base_frame", base_frame_, "base_link");
   tf_buffer_ = std::make_unique<tf2_ros::Buffer>();
@@ -174,14 +182,14 @@ CompensatorRos::CompensatorRos(ros::NodeHandle nh, ros::NodeHandle pnh)
   watch_timer_ = nh_.createWallTimer(ros::WallDuration(0.25), [this](const ros::WallTimerEvent&) {
     if (watch_model_) on_watch(ros::TimerEvent());
     process_ready(false);  // inputs that never came: hold the latest once max_wait_s has passed
-    // End of stream (bag finished, sensor stopped): emit what is pending instead of keeping it.
-    if ((ros::WallTime::now() - last_scalar_wall_).toSec() > flush_after_s_ &&
+    finish_end_of_stream();
+    // No scalar for flush_after_s of wall time (sensor stopped, bag finished without an end
+    // message): emit what is pending instead of keeping it. Remembered: if the stream goes on,
+    // those outputs were premature and that is counted.
+    if (flush_after_s_ > 0 && (ros::WallTime::now() - last_scalar_wall_).toSec() > flush_after_s_ &&
         (!pending_scalar_.empty() || (comp_ && comp_->pending() > 0))) {
-      process_ready(true);
-      if (comp_) {
-        for (const auto& o : comp_->flush()) publish(o);
-        history_.clear();
-      }
+      flushed_at_t_ = last_scalar_t_;
+      flush_all();
     }
   });
   updater_.setHardwareID("magcomp compensator: " + scalar + " with " + vector);
@@ -276,9 +284,45 @@ void CompensatorRos::reset_streams(const char* why) {
   ROS_WARN("magcomp: %s: compensator restarted", why);
 }
 
+void CompensatorRos::flush_all() {
+  process_ready(true);
+  if (comp_) {
+    for (const auto& o : comp_->flush()) publish(o);
+    history_.clear();
+  }
+}
+
+void CompensatorRos::on_end_of_stream(const std_msgs::Time::ConstPtr& m) {
+  ROS_INFO("magcomp: end of stream at data time %.3f s: %zu samples pending", m->data.toSec(),
+           pending_scalar_.size() + (comp_ ? comp_->pending() : 0));
+  ending_ = true;
+  process_ready(false);
+  finish_end_of_stream();
+}
+
+void CompensatorRos::finish_end_of_stream() {
+  if (!ending_ || !pending_scalar_.empty()) return;
+  ending_ = false;
+  if (comp_) {
+    for (const auto& o : comp_->flush()) publish(o);
+    history_.clear();
+  }
+}
+
 void CompensatorRos::on_scalar(const magcomp::ScalarMagnetometer::ConstPtr& m) {
   const double t = rel(m->header.stamp);
   ++n_in_;
+  ending_ = false;  // a new stream after an end message (a bag played again)
+  if (std::isfinite(flushed_at_t_)) {
+    if (t > flushed_at_t_ && t - flushed_at_t_ <= max_gap_s_) {
+      ++n_premature_flushes_;
+      ROS_WARN("magcomp: the input stalled for more than flush_after_s (%.2f s of wall time) and "
+               "then went on at data time %.3f s: the samples before it were flushed without "
+               "their successors (premature_flushes)",
+               flush_after_s_, t);
+    }
+    flushed_at_t_ = NAN;
+  }
   if (t == last_scalar_t_) {
     ++n_dup_;
     return;
@@ -310,10 +354,13 @@ void CompensatorRos::on_scalar(const magcomp::ScalarMagnetometer::ConstPtr& m) {
 }
 
 template <typename T>
-bool CompensatorRos::append(std::deque<T>& buf, T item) {
+bool CompensatorRos::append(std::deque<T>& buf, T item, long* late) {
   const double t = item.t;
   if (!buf.empty() && t <= buf.back().t) {
-    if (buf.back().t - t <= jump_back_s_) return false;
+    if (buf.back().t - t <= jump_back_s_) {
+      if (late) ++*late;
+      return false;
+    }
     buf.clear();
   }
   buf.push_back(std::move(item));
@@ -350,7 +397,7 @@ void CompensatorRos::on_vector(const sensor_msgs::MagneticField::ConstPtr& m) {
       ++n_no_tf_;
     }
   }
-  if (!append(vectors_, Timed3{t, b * 1e9})) return;  // REP 145 Tesla -> nT
+  if (!append(vectors_, Timed3{t, b * 1e9}, &n_late_inputs_)) return;  // REP 145 Tesla -> nT
   last_vector_t_ = t;
   process_ready(false);
 }
@@ -373,12 +420,13 @@ void CompensatorRos::on_aux(const magcomp::AuxChannels::ConstPtr& m) {
   }
   TimedValues tv{t, m->values};
   tv.v.resize(aux_all_names_.size(), NAN);
-  if (append(aux_, std::move(tv))) process_ready(false);
+  if (append(aux_, std::move(tv), &n_late_inputs_)) process_ready(false);
 }
 
 void CompensatorRos::on_fix(const sensor_msgs::NavSatFix::ConstPtr& m) {
   append(fixes_,
-         Timed3{rel(m->header.stamp), Eigen::Vector3d(m->latitude, m->longitude, m->altitude)});
+         Timed3{rel(m->header.stamp), Eigen::Vector3d(m->latitude, m->longitude, m->altitude)},
+         &n_late_inputs_);
 }
 
 void CompensatorRos::on_imu(const sensor_msgs::Imu::ConstPtr& m) {
@@ -388,11 +436,11 @@ void CompensatorRos::on_imu(const sensor_msgs::Imu::ConstPtr& m) {
   const bool on =
       detector_.update(t, -m->angular_velocity.y * kDegPerRad, m->angular_velocity.x * kDegPerRad,
                        -m->angular_velocity.z * kDegPerRad);
-  append(maneuver_, Timed1{t, on ? 1.0 : 0.0});
+  append(maneuver_, Timed1{t, on ? 1.0 : 0.0}, nullptr);
 }
 
 void CompensatorRos::on_reference(const magcomp::ScalarMagnetometer::ConstPtr& m) {
-  append(references_, Timed1{rel(m->header.stamp), m->field_nT});
+  append(references_, Timed1{rel(m->header.stamp), m->field_nT}, &n_late_inputs_);
 }
 
 void CompensatorRos::process_ready(bool force) {
@@ -414,7 +462,8 @@ void CompensatorRos::process_ready(bool force) {
                          (!need_fix || (!fixes_.empty() && fixes_.back().t >= t));
     // Hold the latest inputs only after waiting max_wait_s in data time AND in wall time (on a fast
     // replay data time runs ahead of the transport; in real time the two agree).
-    const bool waited_enough = last_scalar_t_ - t > max_wait_s_ &&
+    // After the end-of-stream message no later scalar will come: the wall time alone decides.
+    const bool waited_enough = (ending_ || last_scalar_t_ - t > max_wait_s_) &&
                                ros::WallTime::now().toSec() - arrived_wall > max_wait_s_;
     if (!covered && !waited_enough && !force) return;
     pending_scalar_.pop_front();
@@ -645,7 +694,9 @@ void CompensatorRos::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat)
     stat.summary(diagnostic_msgs::DiagnosticStatus::OK, "calibrating (no model applied)");
   } else if (!comp_) {
     stat.summary(diagnostic_msgs::DiagnosticStatus::ERROR, "no model: " + model_error_);
-  } else if (n_jumps_ + n_gaps_ + n_out_of_order_ + n_dup_ + n_nan_ + n_stale_ > 0) {
+  } else if (n_jumps_ + n_gaps_ + n_out_of_order_ + n_dup_ + n_nan_ + n_stale_ + n_late_inputs_ +
+                 n_premature_flushes_ >
+             0) {
     stat.summary(diagnostic_msgs::DiagnosticStatus::WARN,
                  "running; input faults seen (see counts)");
   } else {
@@ -680,6 +731,8 @@ void CompensatorRos::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat)
   stat.add("time_jumps_back", n_jumps_);
   stat.add("gaps", n_gaps_);
   stat.add("stale_inputs_held", n_stale_);
+  stat.add("late_inputs_dropped", n_late_inputs_);
+  stat.add("premature_flushes", n_premature_flushes_);
   stat.add("pending", static_cast<long>(pending_scalar_.size()) +
                           (comp_ ? static_cast<long>(comp_->pending()) : 0));
   stat.add("scalar_minus_vector_stamp_s",

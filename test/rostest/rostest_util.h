@@ -1,11 +1,19 @@
 // magcomp rostests: what every test node shares (collecting outputs, waiting, main).
 #pragma once
 
+#include <diagnostic_msgs/DiagnosticArray.h>
 #include <gtest/gtest.h>
 #include <magcomp/CompensatedField.h>
 #include <ros/ros.h>
 
+#include <chrono>
+#include <deque>
+#include <condition_variable>
+#include <atomic>
 #include <functional>
+#include <map>
+#include <random>
+#include <thread>
 #include <limits>
 #include <mutex>
 #include <string>
@@ -37,6 +45,109 @@ class OutputCollector {
   mutable std::mutex mutex_;
   std::vector<magcomp::CompensatedField> out_;
   ros::Subscriber sub_;
+};
+
+/// The latest key-values of the compensator's diagnostics status (the last message wins).
+class DiagnosticsCollector {
+ public:
+  explicit DiagnosticsCollector(ros::NodeHandle& nh, const std::string& status_name = "compensator")
+      : name_(status_name) {
+    sub_ = nh.subscribe("/diagnostics", 100, &DiagnosticsCollector::on, this);
+  }
+  /// The value of `key` as a number, -1 when not seen.
+  long count(const std::string& key) const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    auto it = values_.find(key);
+    return it == values_.end() ? -1 : std::stol(it->second);
+  }
+  std::map<std::string, std::string> values() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return values_;
+  }
+
+ private:
+  void on(const diagnostic_msgs::DiagnosticArray::ConstPtr& a) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    for (const auto& s : a->status) {
+      if (s.name.find(name_) == std::string::npos) continue;
+      for (const auto& kv : s.values) values_[kv.key] = kv.value;
+      values_["level"] = std::to_string(static_cast<int>(s.level));
+    }
+  }
+  std::string name_;
+  mutable std::mutex mutex_;
+  std::map<std::string, std::string> values_;
+  ros::Subscriber sub_;
+};
+
+/// Republishes every message M of `in` on `out` after a random wall delay drawn uniformly in
+/// [0, max_delay_s], keeping the topic's own order (fault injection: one late input). The output
+/// is advertised first and the input subscribed only once the output has a subscriber (within
+/// 20 s), so a player waiting for its subscribers starts only when nothing can be lost.
+template <typename M>
+class DelayRelay {
+ public:
+  DelayRelay(ros::NodeHandle& nh, const std::string& in, const std::string& out,
+             double max_delay_s, unsigned seed)
+      : max_delay_s_(max_delay_s), rng_(seed) {
+    pub_ = nh.advertise<M>(out, 100000);
+    const ros::WallTime t0 = ros::WallTime::now();
+    while (pub_.getNumSubscribers() == 0 && (ros::WallTime::now() - t0).toSec() < 20.0) {
+      ros::WallDuration(0.05).sleep();
+    }
+    thread_ = std::thread([this] { run(); });
+    sub_ = nh.subscribe(in, 100000, &DelayRelay::on, this);
+  }
+  ~DelayRelay() {
+    sub_.shutdown();
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      stop_ = true;
+    }
+    cv_.notify_all();
+    thread_.join();
+  }
+  long relayed() const { return relayed_; }
+
+ private:
+  using Clock = std::chrono::steady_clock;
+  void on(const typename M::ConstPtr& msg) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    auto at = Clock::now() + std::chrono::duration_cast<Clock::duration>(
+                                 std::chrono::duration<double>(
+                                     std::uniform_real_distribution<double>(0, max_delay_s_)(rng_)));
+    if (!queue_.empty() && at < queue_.back().first) at = queue_.back().first;  // keep order
+    queue_.emplace_back(at, msg);
+    cv_.notify_all();
+  }
+  void run() {
+    std::unique_lock<std::mutex> lock(mutex_);
+    while (!stop_) {
+      if (queue_.empty()) {
+        cv_.wait(lock);
+        continue;
+      }
+      const auto at = queue_.front().first;
+      if (Clock::now() < at) {
+        cv_.wait_until(lock, at);
+        continue;
+      }
+      auto msg = queue_.front().second;
+      queue_.pop_front();
+      pub_.publish(msg);
+      ++relayed_;
+    }
+  }
+  double max_delay_s_;
+  std::mt19937 rng_;
+  ros::Subscriber sub_;
+  ros::Publisher pub_;
+  std::mutex mutex_;
+  std::condition_variable cv_;
+  std::deque<std::pair<Clock::time_point, typename M::ConstPtr>> queue_;
+  bool stop_ = false;
+  std::atomic<long> relayed_{0};
+  std::thread thread_;
 };
 
 /// Polls count() every poll_s (wall time) until it reaches `expected`, or it has not grown for

@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 #include <magcomp/CompensatedField.h>
 #include <ros/ros.h>
+#include <sensor_msgs/MagneticField.h>
 
 #include <cmath>
 #include <mutex>
@@ -31,10 +32,33 @@ TEST(OnlineOffline, WholeReplayedFlightEqualsOfflineWithNoSampleLost) {
                 m.neural->mode.c_str(), m.neural->window);
   const Eigen::VectorXd& ref = f.column("mag_1_c");
   magcomp::rostest_util::OutputCollector collector(nh);
+  magcomp::rostest_util::DiagnosticsCollector diagnostics(nh);
+  // Fault injection: one input relayed with random wall delays (its order kept).
+  std::string relay_in, relay_out;
+  double relay_max_delay_s = 0.0;
+  pnh.param<std::string>("relay_in", relay_in, "");
+  pnh.param<std::string>("relay_out", relay_out, "");
+  pnh.param("relay_max_delay_s", relay_max_delay_s, 0.0);
+  using FluxgateRelay = magcomp::rostest_util::DelayRelay<sensor_msgs::MagneticField>;
+  std::unique_ptr<FluxgateRelay> relay;
+  if (!relay_in.empty()) {
+    relay = std::make_unique<FluxgateRelay>(nh, relay_in, relay_out, relay_max_delay_s, 7u);
+  }
   // Wait for the whole flight (the node flushes its last samples when the bag ends).
   magcomp::rostest_util::wait_until_settled([&] { return collector.size(); },
                                             static_cast<size_t>(f.size()), 8.0, 200.0, 0.2);
   const std::vector<magcomp::CompensatedField> g_out = collector.outputs();
+  ros::WallDuration(1.2).sleep();  // one more diagnostics period after the last output
+  for (const char* k : {"scalar_in", "published", "stale_inputs_held", "late_inputs_dropped",
+                        "premature_flushes", "gaps", "out_of_order_dropped"}) {
+    std::printf("  diagnostics %s = %ld\n", k, diagnostics.count(k));
+  }
+  if (relay) std::printf("  relayed %ld messages with delays up to %.2f s\n", relay->relayed(),
+                         relay_max_delay_s);
+  // Every input in time: a sample computed before its inputs arrived would differ from offline.
+  EXPECT_EQ(diagnostics.count("stale_inputs_held"), 0);
+  EXPECT_EQ(diagnostics.count("late_inputs_dropped"), 0);
+  EXPECT_EQ(diagnostics.count("premature_flushes"), 0);
   ASSERT_EQ(g_out.size(), static_cast<size_t>(f.size())) << "samples lost or duplicated";
   const int year = static_cast<int>(f.column("year")[0]),
             doy = static_cast<int>(f.column("doy")[0]);

@@ -24,7 +24,10 @@ namespace magcomp::rosio {
 /// published typed; any other topic is published as its serialised bytes.
 /// Back-pressure: with ~progress_topic (the compensator's output) the player stays at most
 /// ~max_lead_s of data time ahead of the last output, so however fast it plays nothing is dropped
-/// by a full subscriber queue. Parameters: see config/player.yaml.
+/// by a full subscriber queue. When the bag is played out it publishes std_msgs/Time (the data time
+/// of its last message) on ~end_topic: a compensator listening there flushes its last samples at
+/// once instead of after a wall-time silence, so a stalled player is never mistaken for the end.
+/// Parameters: see config/player.yaml.
 class BagPlayer {
  public:
   /// Reads and validates the private parameters, opens the bag (throws magcomp::Error naming the
@@ -58,7 +61,7 @@ class BagPlayer {
   int queue_size_ = 10000;
   ros::CallbackQueue progress_queue_;
   ros::Subscriber sub_progress_;
-  ros::Publisher pub_clock_;
+  ros::Publisher pub_clock_, pub_end_;
   double progress_t_s_ = -1.0;  // stamp of the last output seen (s since the epoch), -1: none yet
   long stalls_ = 0;
   std::atomic<bool> stop_{false};

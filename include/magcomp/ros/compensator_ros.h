@@ -10,6 +10,7 @@
 #include <sensor_msgs/Imu.h>
 #include <sensor_msgs/MagneticField.h>
 #include <sensor_msgs/NavSatFix.h>
+#include <std_msgs/Time.h>
 #include <std_srvs/Trigger.h>
 #include <tf2_ros/buffer.h>
 #include <tf2_ros/transform_listener.h>
@@ -59,6 +60,13 @@ class CompensatorRos {
   void on_fix(const sensor_msgs::NavSatFix::ConstPtr& m);
   void on_reference(const magcomp::ScalarMagnetometer::ConstPtr& m);
   void on_imu(const sensor_msgs::Imu::ConstPtr& m);
+  /// The source says it has nothing more (the player's end topic): emit every pending sample.
+  void on_end_of_stream(const std_msgs::Time::ConstPtr& m);
+  /// Emits what is pending: inputs not yet covering a sample are held (counted as stale).
+  void flush_all();
+  /// After the end-of-stream message: once every pending sample is out (each waits up to
+  /// max_wait_s of wall time for late inputs), emits the compensator's lookahead.
+  void finish_end_of_stream();
   bool on_reload(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res);
   void on_watch(const ros::TimerEvent&);
   void process_ready(bool force);
@@ -85,7 +93,7 @@ class CompensatorRos {
   /// Appends to an input buffer in stamp order: a stamp not after the last is dropped, one far
   /// back (jump_back_s) clears the buffer first; samples older than buffer_s are pruned.
   template <typename T>
-  bool append(std::deque<T>& buf, T item);
+  bool append(std::deque<T>& buf, T item, long* late);
   /// Seconds since the first stamp's whole second: exact to the nanosecond in a double.
   double rel(const ros::Time& stamp);
   /// The stamp of a relative time.
@@ -119,9 +127,17 @@ class CompensatorRos {
   // Counters for diagnostics.
   long n_in_ = 0, n_out_ = 0, n_nan_ = 0, n_dup_ = 0, n_out_of_order_ = 0, n_jumps_ = 0,
        n_gaps_ = 0, n_stale_ = 0, n_reloads_ = 0;
+  // Inputs (vector, aux, fix, reference) whose stamp is not after their topic's last one: they
+  // came too late to be used and are dropped.
+  long n_late_inputs_ = 0;
+  // Wall-time flushes (flush_after_s of silence) after which the stream went on: the outputs
+  // around them were computed without their successors, so they differ from the offline ones.
+  long n_premature_flushes_ = 0;
+  double flushed_at_t_ = NAN;  // data time of the last wall-time flush, NaN: none pending
+  bool ending_ = false;        // end-of-stream received, pending samples still going out
   double last_vector_t_ = NAN;
   // ROS plumbing.
-  ros::Subscriber sub_scalar_, sub_vector_, sub_aux_, sub_fix_, sub_ref_;
+  ros::Subscriber sub_scalar_, sub_vector_, sub_aux_, sub_fix_, sub_ref_, sub_end_;
   ros::Publisher pub_out_, pub_marker_;
   ros::ServiceServer srv_reload_;
   ros::WallTimer watch_timer_, diag_timer_;
