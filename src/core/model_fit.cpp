@@ -8,6 +8,8 @@
 #include "magcomp/core/butterworth.h"
 #include "magcomp/core/error.h"
 #include "magcomp/core/model.h"
+#include "magcomp/core/parameter_fit.h"
+#include "magcomp/core/terms_expr.h"
 #include "magcomp/core/timeseries.h"
 
 namespace magcomp {
@@ -45,6 +47,16 @@ Eigen::VectorXd aligned_scalar(const Model& model, const FlightData& data, doubl
 bool Model::add_term(const std::string& spec) {
   const std::string canonical = make_term(spec)->spec();
   if (std::find(terms.begin(), terms.end(), canonical) != terms.end()) return false;
+  if (const auto e = parse_expr_term(canonical)) {
+    for (auto& t : terms) {
+      const auto old = parse_expr_term(t);
+      if (old && old->shape() == e->shape() && old->spec().find('(') != std::string::npos) {
+        t = canonical;  // the same expression with new parameter values
+        coefficients.resize(0);
+        return true;
+      }
+    }
+  }
   if (canonical.rfind("lag:", 0) == 0) {  // one lag per model: a new one replaces the old
     terms.erase(std::remove_if(terms.begin(), terms.end(),
                                [](const std::string& t) { return t.rfind("lag:", 0) == 0; }),
@@ -108,7 +120,7 @@ double condition_number(Eigen::MatrixXd g) {
   for (Eigen::Index i = 0; i < g.rows(); ++i) {
     for (Eigen::Index j = 0; j < g.cols(); ++j) {
       const double s = norms[i] * norms[j];
-      g(i, j) = s > 0 ? g(i, j) / s : (i == j ? 0.0 : 0.0);
+      g(i, j) = s > 0 ? g(i, j) / s : 0.0;
     }
   }
   Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(g, Eigen::EigenvaluesOnly);
@@ -197,6 +209,7 @@ Eigen::VectorXd fit_target(const Model& model, const FlightData& data) {
 }
 
 void fit_model(Model& model, const std::vector<const FlightData*>& flights) {
+  const std::vector<std::string> estimates = estimate_free_parameters(model, flights);
   const FitSettings& s = model.fit;
   const bool bandpass = s.method == "bandpass";
   const auto terms = model.make_terms();
@@ -263,6 +276,7 @@ void fit_model(Model& model, const std::vector<const FlightData*>& flights) {
   report.samples = rows;
   report.condition_number = condition_number(g);
   report.residual_std_nT = std_dev(y - a * c_fit);
+  report.estimates = estimates;
   // Unexcited columns: no energy in the (filtered) calibration data.
   const Eigen::VectorXd norms = g.diagonal().cwiseMax(0.0).cwiseSqrt();
   const double max_norm = norms.maxCoeff();

@@ -324,6 +324,8 @@ void save_model_yaml(const Model& m, const std::string& path) {
     out << YAML::Key << "condition_number" << YAML::Value << m.report.condition_number;
     out << YAML::Key << "residual_std_nT" << YAML::Value << m.report.residual_std_nT;
     out << YAML::Key << "warnings" << YAML::Value << YAML::Flow << m.report.warnings;
+    if (!m.report.estimates.empty())
+      out << YAML::Key << "estimates" << YAML::Value << YAML::Flow << m.report.estimates;
     out << YAML::EndMap;
   }
   if (m.neural) emit_neural(out, *m.neural);

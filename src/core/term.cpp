@@ -5,6 +5,7 @@
 #include <cstdlib>
 
 #include "magcomp/core/error.h"
+#include "magcomp/core/terms_expr.h"
 #include "magcomp/core/terms_physical.h"
 #include "magcomp/core/terms_tl.h"
 
@@ -53,10 +54,8 @@ std::unique_ptr<Term> make_term(const std::string& spec) {
     if (kind == "fdm") return std::make_unique<FdmTerm>();
     if (kind == "bias") return std::make_unique<BiasTerm>();
     if (kind == "second_order") return std::make_unique<SecondOrderTerm>();
-  } else if (!arg.empty()) {
-    if (kind == "current") return std::make_unique<CurrentTerm>(arg, false);
-    if (kind == "dcurrent") return std::make_unique<CurrentTerm>(arg, true);
-    if (kind == "rate") return std::make_unique<CurrentTerm>(arg, false, true);
+  } else {
+    if (auto t = parse_expr_term(spec)) return t;
     if (kind == "lag") {
       char* end = nullptr;
       const double lag_s = std::strtod(arg.c_str(), &end);
@@ -69,21 +68,7 @@ std::unique_ptr<Term> make_term(const std::string& spec) {
   throw Error("term '" + spec +
               "': unknown (known: permanent, induced, induced5, induced3, eddy, " +
               "eddy8, eddy3, fdm, bias, second_order, lag:<seconds>, current:<channel>, " +
-              "dcurrent:<channel>, rate:<channel>)");
-}
-
-std::vector<std::pair<std::string, std::string>> term_catalogue() {
-  std::vector<std::pair<std::string, std::string>> out;
-  for (const char* s : {"permanent", "induced", "induced5", "induced3", "eddy", "eddy8", "eddy3",
-                        "fdm", "bias", "second_order"}) {
-    auto t = make_term(s);
-    out.emplace_back(t->spec(), t->effect());
-  }
-  out.emplace_back("current:<channel>", CurrentTerm("<channel>", false).effect());
-  out.emplace_back("dcurrent:<channel>", CurrentTerm("<channel>", true).effect());
-  out.emplace_back("rate:<channel>", CurrentTerm("<channel>", false, true).effect());
-  out.emplace_back("lag:<seconds>", LagTerm(0.0).effect());
-  return out;
+              "dcurrent:<channel>, rate:<channel>, and field:|induced:|scalar:<signal>)");
 }
 
 }  // namespace magcomp

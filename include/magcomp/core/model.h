@@ -35,6 +35,7 @@ struct FitReport {
   double condition_number = 0.0;      ///< of the column-normalised design matrix
   double residual_std_nT = 0.0;       ///< std of the fit residual (filtered for bandpass)
   std::vector<std::string> warnings;  ///< e.g. terms the segments do not excite
+  std::vector<std::string> estimates;  ///< free parameters (?) the fit estimated, in words
 };
 
 /// A compensation model. Terms are held as specs; the model builds them on demand.
@@ -58,7 +59,9 @@ struct Model {
   std::vector<std::string> make_column_names() const;
   /// Scalar lag behind the vector sensor the terms declare (lag:<s>), s.
   double scalar_lag_s() const;
-  /// Adds a term spec if not yet present (validated). Returns false if it was already there.
+  /// Adds a term spec if not yet present (validated). Returns false if it was already there. A
+  /// lag replaces the model's lag; a language term replaces one of the same shape (the same
+  /// expression with other parameter values, e.g. field:cur_heat|lp(80) replaces |lp(60)).
   bool add_term(const std::string& spec);
 };
 
@@ -76,8 +79,10 @@ Eigen::MatrixXd design_matrix(const Model& model, const FlightData& data);
 Eigen::MatrixXd design_matrix(const Model& model, const std::vector<std::unique_ptr<Term>>& terms,
                               const FlightData& data);
 
-/// Fits the model's coefficients on `flights` according to model.fit. Throws magcomp::Error when
-/// the selection is empty or too short. Stores coefficients, column names and the report.
+/// Fits the model's coefficients on `flights` according to model.fit. Free parameters (?) are
+/// estimated first (parameter_fit.h) and written into model.terms as numbers. Throws
+/// magcomp::Error when the selection is empty or too short. Stores coefficients, column names and
+/// the report.
 void fit_model(Model& model, const std::vector<const FlightData*>& flights);
 
 /// Contiguous calibration runs [first, last] of `data` selected by the fit settings (all samples

@@ -11,6 +11,7 @@
 #include "magcomp/core/model.h"
 #include "magcomp/core/neural_features.h"
 #include "magcomp/core/neural_network.h"
+#include "magcomp/core/signal.h"
 
 namespace magcomp {
 
@@ -43,8 +44,10 @@ struct StreamOutput {
 
 /// Applies a fitted model to a stream of samples. Each output needs a few samples after it
 /// (central differences, the lag realignment): lookahead() samples of latency. The terms'
-/// columns are built on a sliding window with the batch code, so a whole stream reproduces
-/// compensate() on the same flight exactly (one-sided differences at both ends included).
+/// columns are built on a sliding window with the batch code, and the signals of language terms
+/// with transforms (low-pass, integral, delay, ...) run through the same causal recursion as the
+/// batch one, kept from the stream's first sample, so a whole stream reproduces compensate() on
+/// the same flight exactly (one-sided differences at both ends included).
 class StreamingCompensator {
  public:
   /// Throws magcomp::Error if the model is not fitted. A model with a trained neural stage
@@ -57,7 +60,8 @@ class StreamingCompensator {
   bool needs_igrf() const { return plan_ && plan_->needs_igrf(); }
   /// True when the model has a neural stage.
   bool has_network() const { return static_cast<bool>(streamer_); }
-  /// Channels the model's terms and neural features need (e.g. cur_strb for current:cur_strb).
+  /// Channels the model's terms and neural features need (e.g. cur_strb for current:cur_strb);
+  /// the model's own scalar and vector fields are not among them (they come in every sample).
   const std::vector<std::string>& required_channels() const { return channels_; }
   /// Samples of latency (0 until the sample period is known, after the second sample).
   int lookahead() const { return half_; }
@@ -73,7 +77,21 @@ class StreamingCompensator {
 
  private:
   StreamOutput emit(Eigen::Index index);
+  /// Feeds a sample's sources to the streamed signals; their outputs land in derived_.
+  void feed_signals(const StreamSample& sample);
+  void store_signal(size_t signal, int component, double value);
 
+  /// A language term's signal computed by its causal chains (one per component).
+  struct StreamedSignal {
+    std::vector<std::string> sources;  // "B", "Bt", the scalar, vector components or channels
+    std::vector<int> source_kind;      // 0: channel (index in source_index), 1: B, 2: Bt,
+                                       // 3: scalar, 4..6: vector component x, y, z
+    std::vector<int> source_index;
+    std::vector<std::unique_ptr<TransformChain>> chains;
+    std::vector<long long> next_output;  // global sample index of each chain's next output
+    size_t first_column = 0;             // its first component's slot in derived_ rows
+    std::vector<std::string> columns;    // window column names (ExprTerm::stream_column)
+  };
   Model model_;
   std::vector<std::unique_ptr<Term>> terms_;  // built once: emit() runs per sample
   double lag_s_ = 0.0;
@@ -82,6 +100,11 @@ class StreamingCompensator {
   std::unique_ptr<NeuralStreamer> streamer_;  // neural stage only
   std::vector<double> feature_row_;
   std::deque<StreamSample> buffer_;
+  std::vector<StreamedSignal> signals_;
+  size_t derived_columns_ = 0;
+  std::deque<std::vector<double>> derived_;  // per buffer_ sample: the streamed signals' values
+  long long base_index_ = 0;                 // global index of buffer_[0]
+  int signal_lookahead_ = 0;
   Eigen::Index next_ = 0;  // index in buffer_ of the next sample to emit
   int half_ = 0;           // samples needed on each side of an emitted one
 };

@@ -76,11 +76,9 @@ class Term {
 };
 
 /// Parses a term spec. Known: permanent, induced, induced5, induced3, eddy, eddy8, eddy3, fdm,
-/// bias, second_order, current:, dcurrent:, rate:<channel>, lag:<seconds>. Throws magcomp::Error
-/// naming the spec otherwise.
+/// bias, second_order, lag:<seconds>, and the term language (terms_expr.h): field:, induced:,
+/// scalar:<signal> with the shorthands current:, dcurrent:, rate:<channel>. Throws
+/// magcomp::Error naming the spec otherwise.
 std::unique_ptr<Term> make_term(const std::string& spec);
-
-/// All specs make_term accepts without a channel, with their effect, for help texts.
-std::vector<std::pair<std::string, std::string>> term_catalogue();
 
 }  // namespace magcomp

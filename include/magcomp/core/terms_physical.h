@@ -1,32 +1,9 @@
-// magcomp: physical effects Tolles-Lawson does not model, as first-class terms.
+// magcomp: the second-order term and the scalar lag (the term language is in terms_expr.h).
 #pragma once
 
 #include "magcomp/core/term.h"
 
 namespace magcomp {
-
-/// A current-carrying source: its body-fixed field g·I (Biot-Savart, linear in the current I in A)
-/// projected on the Earth-field direction. 3 columns B̂i·I (coefficients in nT/A).
-/// With `rate` true, the inductive/eddy companion ∝ dI/dt: columns B̂i·dI/dt (dI/dt in A/s).
-/// With `attitude` true (spec rate:<channel>): a body-fixed field ∝ an attitude rate (deg/s):
-/// vibration or control-surface motion; columns B̂i·rate.
-class CurrentTerm : public Term {
- public:
-  CurrentTerm(std::string channel, bool rate, bool attitude = false)
-      : channel_(std::move(channel)), rate_(rate), attitude_(attitude) {}
-  std::string spec() const override {
-    return (attitude_ ? "rate:" : rate_ ? "dcurrent:" : "current:") + channel_;
-  }
-  std::string effect() const override;
-  std::vector<std::string> column_names() const override;
-  std::vector<std::string> required_fields() const override { return {channel_}; }
-  void build(const TermInputs& in, Eigen::Ref<Eigen::MatrixXd> out) const override;
-
- private:
-  std::string channel_;
-  bool rate_;
-  bool attitude_;
-};
 
 /// The dropped second-order term's part outside the TL span: with B_a = M B (induced), the
 /// expansion of |B + B_a| has (|B_a|² - (B̂·B_a)²) / (2|B|), quartic in B̂. 15 columns
