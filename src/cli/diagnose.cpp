@@ -1,14 +1,132 @@
-// magcomp diagnose: rank the physical effects the model misses, and say which --term to add.
+// magcomp diagnose: rank the physical effects the model misses, and say which --term to add;
+// with --apply, run the whole loop (diagnose, add, refit) and write the final model.
 #include <cstdio>
-#include <fstream>
 #include <iostream>
 #include <nlohmann/json.hpp>
 
+#include "common.h"
 #include "magcomp/core/diagnose.h"
+#include "magcomp/core/diagnose_loop.h"
 #include "magcomp/core/error.h"
+#include "magcomp/core/file_io.h"
 #include "subcommands.h"
 
 namespace magcomp::cli {
+namespace {
+
+void print_diagnosis(const Model& model, const Diagnosis& dx, int top, const std::string& data,
+                     const std::string& model_path) {
+  std::printf("model: %s with %s, terms:", model.scalar.c_str(), model.vector.c_str());
+  for (const auto& t : model.terms) std::printf(" %s", t.c_str());
+  std::printf("\nsplit: %s\n", dx.split.c_str());
+  std::printf("  selection lines:");
+  for (double l : dx.selection_lines) std::printf(" %g", l);
+  std::printf("\n  confirmation lines:");
+  for (double l : dx.confirmation_lines) std::printf(" %g", l);
+  std::printf(
+      "\nbaseline: held-out error std %.3f nT (selection %.3f, confirmation %.3f; line means "
+      "removed) on %ld samples; fit on %ld; %ld terms fitted in the search\n\n",
+      dx.baseline_std_nT, dx.baseline_selection_std_nT, dx.baseline_confirmation_std_nT,
+      static_cast<long>(dx.heldout_samples), static_cast<long>(dx.fit_samples),
+      dx.candidates_tried);
+  std::printf("%-4s %-34s %9s %9s %9s %8s  %-40s %s\n", "rank", "term (--term)", "std_after",
+              "explained", "selection", "confirm", "estimate", "effect");
+  for (size_t k = 0; k < dx.candidates.size() && static_cast<int>(k) < top; ++k) {
+    const Candidate& c = dx.candidates[k];
+    std::printf("%-4zu %-34s %9.3f %8.1f%% %8.1f%% %7.1f%%  %-40s %s%s\n", k + 1, c.term.c_str(),
+                c.std_after_nT, 100 * c.explained_fraction, 100 * c.explained_selection,
+                100 * c.explained_confirmation, c.estimate.c_str(), c.effect.c_str(),
+                c.accepted ? "" : "  [rejected: not confirmed]");
+  }
+  const ExplainableShare& x = dx.explainable;
+  if (x.computed) {
+    std::printf("\nwhat remains: a flexible model of all channels predicts %.1f%% ± %.1f%% of the "
+                "held-out residual (noise floor %.1f%%)\n",
+                100 * x.share, 100 * x.uncertainty, 100 * x.noise_floor);
+    std::printf("  channels (alone):");
+    for (size_t k = 0; k < x.channels.size() && k < 5; ++k)
+      std::printf(" %s %.1f%%", x.channels[k].first.c_str(), 100 * x.channels[k].second);
+    if (!x.time_scales.empty()) {
+      std::printf("\n  time scales of the predictable part:");
+      for (const auto& [band, v] : x.time_scales) std::printf(" %s %.0f%%", band.c_str(), 100 * v);
+    }
+    if (!x.lines.empty()) {
+      std::printf("\n  where:");
+      for (size_t k = 0; k < x.lines.size() && k < 4; ++k)
+        std::printf(" line %g %.0f%%", x.lines[k].first, 100 * x.lines[k].second);
+    }
+    std::printf("\n");
+  }
+  std::printf("\nverdict: %s\n", dx.verdict.c_str());
+  if (!dx.candidates.empty() && dx.candidates.front().accepted &&
+      dx.candidates.front().explained_fraction >= 0.05) {
+    std::printf("to add it:\n  magcomp calibrate --data %s --model %s --term '%s' --out NEW.yaml\n",
+                data.c_str(), model_path.c_str(), dx.candidates.front().term.c_str());
+  }
+  std::printf("\nresidual vs channel (held-out, line means removed), strongest first:\n");
+  std::printf("  %-14s %8s %9s %8s\n", "channel", "pearson", "spearman", "MI_bits");
+  for (size_t k = 0; k < dx.associations.size() && k < 8; ++k) {
+    const auto& a = dx.associations[k];
+    std::printf("  %-14s %8.3f %9.3f %8.3f\n", a.channel.c_str(), a.pearson, a.spearman,
+                a.mutual_information_bits);
+  }
+  for (const auto& note : dx.notes) std::printf("note: %s\n", note.c_str());
+}
+
+nlohmann::json to_json(const Diagnosis& dx) {
+  nlohmann::json j;
+  j["split"] = dx.split;
+  j["baseline_std_nT"] = dx.baseline_std_nT;
+  j["baseline_selection_std_nT"] = dx.baseline_selection_std_nT;
+  j["baseline_confirmation_std_nT"] = dx.baseline_confirmation_std_nT;
+  j["selection_lines"] = dx.selection_lines;
+  j["confirmation_lines"] = dx.confirmation_lines;
+  j["heldout_samples"] = dx.heldout_samples;
+  j["fit_samples"] = dx.fit_samples;
+  j["candidates_tried"] = dx.candidates_tried;
+  j["candidates"] = nlohmann::json::array();
+  for (const auto& c : dx.candidates) {
+    nlohmann::json p = nlohmann::json::object();
+    for (const auto& [k, v] : c.parameters) p[k] = v;
+    j["candidates"].push_back({{"term", c.term},
+                               {"effect", c.effect},
+                               {"channel", c.channel},
+                               {"family", c.family},
+                               {"std_after_nT", c.std_after_nT},
+                               {"explained_fraction", c.explained_fraction},
+                               {"explained_selection", c.explained_selection},
+                               {"explained_confirmation", c.explained_confirmation},
+                               {"accepted", c.accepted},
+                               {"estimate", c.estimate},
+                               {"parameters", p}});
+  }
+  const ExplainableShare& x = dx.explainable;
+  nlohmann::json e;
+  e["computed"] = x.computed;
+  e["share"] = x.share;
+  e["uncertainty"] = x.uncertainty;
+  e["noise_floor"] = x.noise_floor;
+  e["within_noise"] = x.within_noise;
+  e["channels"] = nlohmann::json::array();
+  for (const auto& [ch, v] : x.channels) e["channels"].push_back({{"channel", ch}, {"share", v}});
+  e["time_scales"] = nlohmann::json::object();
+  for (const auto& [band, v] : x.time_scales) e["time_scales"][band] = v;
+  e["lines"] = nlohmann::json::array();
+  for (const auto& [l, v] : x.lines) e["lines"].push_back({{"line", l}, {"fraction", v}});
+  j["explainable_share"] = e;
+  j["verdict"] = dx.verdict;
+  j["associations"] = nlohmann::json::array();
+  for (const auto& a : dx.associations) {
+    j["associations"].push_back({{"channel", a.channel},
+                                 {"pearson", a.pearson},
+                                 {"spearman", a.spearman},
+                                 {"mutual_information_bits", a.mutual_information_bits}});
+  }
+  j["notes"] = dx.notes;
+  return j;
+}
+
+}  // namespace
 
 void add_diagnose(CLI::App& app) {
   auto* cmd = app.add_subcommand("diagnose", "rank candidate missing effects on held-out data");
@@ -17,74 +135,98 @@ void add_diagnose(CLI::App& app) {
   auto truth = std::make_shared<std::string>("mag_1_c");
   auto json_path = std::make_shared<std::string>();
   auto top = std::make_shared<int>(10);
+  auto apply = std::make_shared<bool>(false);
+  auto out = std::make_shared<std::string>();
+  auto rounds = std::make_shared<int>(5);
+  auto min_share = std::make_shared<double>(0.05);
+  auto quick = std::make_shared<bool>(false);
   cmd->add_option("--data", *data, "flight HDF5 file")->required();
   cmd->add_option("--model", *model_path, "model YAML (fitted or not)")->required();
   cmd->add_option("--truth", *truth, "reference field (default mag_1_c)");
-  cmd->add_option("--json", *json_path, "write the diagnosis JSON here");
+  cmd->add_option("--json", *json_path, "write the diagnosis JSON here (with --apply: the rounds)");
   cmd->add_option("--top", *top, "rows to print (default 10)");
+  cmd->add_flag("--apply", *apply,
+                "run the loop: add the accepted top term while it explains --min-share, refit, "
+                "repeat (--rounds); write the final model to --out");
+  cmd->add_option("--out", *out, "with --apply: the final model YAML");
+  cmd->add_option("--rounds", *rounds, "with --apply: at most this many terms added (default 5)");
+  cmd->add_option("--min-share", *min_share,
+                  "with --apply: the share of the held-out error a term must explain (0.05)");
+  cmd->add_flag("--channels-only", *quick,
+                "search only the cur_/vol_ and attitude-rate channels (faster)");
   cmd->callback([=] {
+    if (*apply && out->empty()) throw Error("--apply needs --out (the final model YAML)");
+    if (!(*min_share >= 0 && *min_share < 1)) throw Error("--min-share: must be in [0, 1)");
+    if (*rounds < 1 || *rounds > 50) throw Error("--rounds: must be in 1..50");
+    if (*top < 0) throw Error("--top: must be >= 0");
     const Model model = load_model_yaml(*model_path);
     const FlightData flight = read_flight_h5(*data);
-    const Diagnosis dx = diagnose(model, flight, *truth);
-    std::printf("model: %s with %s, terms:", model.scalar.c_str(), model.vector.c_str());
-    for (const auto& t : model.terms) std::printf(" %s", t.c_str());
-    std::printf("\nsplit: %s\n", dx.split.c_str());
-    std::printf(
-        "baseline: held-out error std %.3f nT (line means removed) on %ld samples; fit on %ld\n\n",
-        dx.baseline_std_nT, static_cast<long>(dx.heldout_samples),
-        static_cast<long>(dx.fit_samples));
-    std::printf("%-4s %-22s %11s %11s %9s  %-26s %s\n", "rank", "term (--term)", "std_before",
-                "std_after", "explained", "estimate", "effect");
-    for (size_t k = 0; k < dx.candidates.size() && static_cast<int>(k) < *top; ++k) {
-      const Candidate& c = dx.candidates[k];
-      std::printf("%-4zu %-22s %11.3f %11.3f %8.1f%%  %-26s %s\n", k + 1, c.term.c_str(),
-                  dx.baseline_std_nT, c.std_after_nT, 100 * c.explained_fraction,
-                  c.estimate.c_str(), c.effect.c_str());
+    DiagnoseOptions options;
+    options.full_search = !*quick;
+    if (!*apply) {
+      if (!model.fitted()) {
+        Model fitted = model;
+        fit_model(fitted, {&flight});
+        const Diagnosis dx = diagnose(fitted, flight, *truth, options);
+        print_diagnosis(fitted, dx, *top, *data, *model_path);
+        if (!json_path->empty()) write_file_atomic(*json_path, to_json(dx).dump(2) + "\n", {*data});
+        return;
+      }
+      const Diagnosis dx = diagnose(model, flight, *truth, options);
+      print_diagnosis(model, dx, *top, *data, *model_path);
+      if (!json_path->empty()) {
+        nlohmann::json j = to_json(dx);
+        j["data"] = *data;
+        j["model"] = *model_path;
+        j["truth"] = *truth;
+        write_file_atomic(*json_path, j.dump(2) + "\n", {*data, *model_path});
+      }
+      return;
     }
-    if (!dx.candidates.empty()) {
-      const Candidate& best = dx.candidates.front();
-      std::printf(
-          "\nto add the top effect:\n  magcomp calibrate --data %s --model %s --term %s --out "
-          "NEW.yaml\n",
-          data->c_str(), model_path->c_str(), best.term.c_str());
+    const LoopResult r = diagnose_loop(
+        model, flight, *truth, *rounds, *min_share, options, [&](int round, const Diagnosis& dx) {
+          std::printf("== round %d\n", round);
+          std::printf("  held-out std %.3f nT; top: %s\n", dx.baseline_std_nT,
+                      dx.candidates.empty() ? "(none)" : dx.candidates.front().term.c_str());
+          for (size_t k = 0; k < dx.candidates.size() && static_cast<int>(k) < std::min(*top, 5);
+               ++k) {
+            const Candidate& c = dx.candidates[k];
+            std::printf("    %-34s %6.1f%% (selection %5.1f%%, confirmation %5.1f%%) %s%s\n",
+                        c.term.c_str(), 100 * c.explained_fraction, 100 * c.explained_selection,
+                        100 * c.explained_confirmation, c.estimate.c_str(),
+                        c.accepted ? "" : " [rejected]");
+          }
+          std::printf("  verdict: %s\n", dx.verdict.c_str());
+          std::fflush(stdout);
+        });
+    std::printf("\n%-6s %-36s %10s %14s %12s\n", "round", "added term", "explained",
+                "held-out std", "all-lines");
+    for (const auto& lr : r.rounds) {
+      std::printf("%-6d %-36s %9.1f%% %11.3f nT %9.3f nT\n", lr.round,
+                  lr.round == 0 ? "(the model as given)" : lr.added.c_str(), 100 * lr.explained,
+                  lr.heldout_std_nT, lr.all_std_nT);
     }
-    std::printf("\nresidual vs channel (held-out, line means removed), strongest first:\n");
-    std::printf("  %-14s %8s %9s %8s\n", "channel", "pearson", "spearman", "MI_bits");
-    for (size_t k = 0; k < dx.associations.size() && k < 8; ++k) {
-      const auto& a = dx.associations[k];
-      std::printf("  %-14s %8.3f %9.3f %8.3f\n", a.channel.c_str(), a.pearson, a.spearman,
-                  a.mutual_information_bits);
-    }
-    for (const auto& note : dx.notes) std::printf("note: %s\n", note.c_str());
+    std::printf("stop: %s\n", r.stop_reason.c_str());
+    save_model_yaml(r.model, *out);
+    std::printf("wrote %s (terms:", out->c_str());
+    for (const auto& t : r.model.terms) std::printf(" %s", t.c_str());
+    std::printf(")\n");
     if (!json_path->empty()) {
       nlohmann::json j;
       j["data"] = *data;
       j["model"] = *model_path;
-      j["truth"] = *truth;
-      j["split"] = dx.split;
-      j["baseline_std_nT"] = dx.baseline_std_nT;
-      j["heldout_samples"] = dx.heldout_samples;
-      j["fit_samples"] = dx.fit_samples;
-      j["candidates"] = nlohmann::json::array();
-      for (const auto& c : dx.candidates) {
-        j["candidates"].push_back({{"term", c.term},
-                                   {"effect", c.effect},
-                                   {"channel", c.channel},
-                                   {"std_after_nT", c.std_after_nT},
-                                   {"explained_fraction", c.explained_fraction},
-                                   {"estimate", c.estimate}});
+      j["out"] = *out;
+      j["rounds"] = nlohmann::json::array();
+      for (const auto& lr : r.rounds) {
+        j["rounds"].push_back({{"round", lr.round},
+                               {"added", lr.added},
+                               {"explained_fraction", lr.explained},
+                               {"heldout_std_nT", lr.heldout_std_nT},
+                               {"all_std_nT", lr.all_std_nT}});
       }
-      j["associations"] = nlohmann::json::array();
-      for (const auto& a : dx.associations) {
-        j["associations"].push_back({{"channel", a.channel},
-                                     {"pearson", a.pearson},
-                                     {"spearman", a.spearman},
-                                     {"mutual_information_bits", a.mutual_information_bits}});
-      }
-      j["notes"] = dx.notes;
-      std::ofstream f(*json_path);
-      if (!f) throw Error(*json_path + ": cannot write JSON");
-      f << j.dump(2) << "\n";
+      j["stop"] = r.stop_reason;
+      j["last_diagnosis"] = to_json(r.last);
+      write_file_atomic(*json_path, j.dump(2) + "\n", {*data, *model_path});
     }
   });
 }

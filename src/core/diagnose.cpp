@@ -1,154 +1,176 @@
-// magcomp: candidate ranking by held-out refits, and the residual-channel association view.
+// magcomp: diagnose: the nested split, the base refit, the search over the term language, the
+// verdict.
 #include "magcomp/core/diagnose.h"
 
 #include <Eigen/Dense>
 #include <algorithm>
+#include <atomic>
 #include <cmath>
+#include <cstdio>
+#include <future>
 #include <map>
-#include <numeric>
 #include <set>
 #include <sstream>
 
 #include "magcomp/core/error.h"
-#include "magcomp/core/evaluation.h"
+#include "magcomp/core/parameter_fit.h"
+#include "magcomp/core/terms_expr.h"
 #include "magcomp/core/timeseries.h"
 
 namespace magcomp {
 namespace {
 
-bool is_channel(const std::string& name) {
-  return name.rfind("cur_", 0) == 0 || name.rfind("vol_", 0) == 0;
+const std::set<std::string> kBookkeeping = {"tt", "line", "flight", "year", "doy", "N", "dt"};
+
+bool is_current(const std::string& n) { return n.rfind("cur_", 0) == 0; }
+bool is_electrical(const std::string& n) {
+  return n.rfind("cur_", 0) == 0 || n.rfind("vol_", 0) == 0;
+}
+bool is_rate(const std::string& n) {
+  return n.size() > 5 && n.compare(n.size() - 5, 5, "_rate") == 0;
 }
 
-std::string family(const std::string& spec) {
+// The shorthand a plain source is written with: current:X, rate:X, or field:X.
+std::string plain_spec(const std::string& x) {
+  if (is_electrical(x)) return "current:" + x;
+  if (is_rate(x)) return "rate:" + x;
+  return "field:" + x;
+}
+
+std::string family_of_tl(const std::string& spec) {
   for (const char* f : {"permanent", "induced", "eddy"}) {
-    if (spec.rfind(f, 0) == 0) return f;
+    if (spec.rfind(f, 0) == 0 && spec.find(':') == std::string::npos) return f;
   }
   return spec;
 }
 
-// Ranks with ties averaged (for Spearman).
-Eigen::VectorXd ranks(const Eigen::VectorXd& x) {
-  std::vector<Eigen::Index> order(static_cast<size_t>(x.size()));
-  std::iota(order.begin(), order.end(), 0);
-  std::sort(order.begin(), order.end(),
-            [&](Eigen::Index a, Eigen::Index b) { return x[a] < x[b]; });
-  Eigen::VectorXd r(x.size());
-  for (size_t i = 0; i < order.size();) {
-    size_t j = i;
-    while (j + 1 < order.size() && x[order[j + 1]] == x[order[i]]) ++j;
-    const double avg = 0.5 * static_cast<double>(i + j);
-    for (size_t k = i; k <= j; ++k) r[order[k]] = avg;
-    i = j + 1;
+// One term to try: its spec (free parameters as ?), what kind of effect, which channel.
+struct Job {
+  std::string spec;
+  std::string family;
+  std::string channel;
+};
+
+// Result of one job.
+struct Scored {
+  bool ok = false;
+  std::string spec;  // parameters as numbers
+  double sel = 0, conf = 0, held = 0;
+  Eigen::VectorXd coef;  // the candidate's coefficients
+  long fits = 0;
+  std::string note;
+};
+
+// Mean-removed RMS per line over the rows of one fold (-1: every held-out row).
+double fold_std(const Eigen::VectorXd& e, const std::vector<Eigen::Index>& held,
+                const std::vector<int>& fold, const Eigen::VectorXd& line, int which) {
+  std::map<double, std::pair<double, double>> acc;
+  for (Eigen::Index i : held) {
+    if (which >= 0 && fold[static_cast<size_t>(i)] != which) continue;
+    if (!std::isfinite(e[i])) continue;
+    auto& a = acc[line[i]];
+    a.first += e[i];
+    a.second += 1;
   }
-  return r;
+  double ss = 0, n = 0;
+  for (Eigen::Index i : held) {
+    if (which >= 0 && fold[static_cast<size_t>(i)] != which) continue;
+    if (!std::isfinite(e[i])) continue;
+    const auto& a = acc[line[i]];
+    const double d = e[i] - a.first / a.second;
+    ss += d * d;
+    n += 1;
+  }
+  return n > 1 ? std::sqrt(ss / n) : 0.0;
 }
 
-double pearson(const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
-  const Eigen::ArrayXd da = a.array() - a.mean(), db = b.array() - b.mean();
-  const double den = std::sqrt((da * da).sum() * (db * db).sum());
-  return den > 0 ? (da * db).sum() / den : 0.0;
-}
+// Everything a candidate is scored against: read-only once built, shared by the workers.
+class Search {
+ public:
+  Search(const Model& model, const FlightData& data, const std::string& truth_name,
+         Diagnosis* dx);
 
-// Mutual information in bits with equal-frequency bins on both variables.
-double mutual_information(const Eigen::VectorXd& a, const Eigen::VectorXd& b, int bins) {
-  const Eigen::Index n = a.size();
-  if (n < bins * 4) return 0.0;
-  const Eigen::VectorXd ra = ranks(a), rb = ranks(b);
-  Eigen::MatrixXd joint = Eigen::MatrixXd::Zero(bins, bins);
-  for (Eigen::Index i = 0; i < n; ++i) {
-    const int ia = std::min(bins - 1, static_cast<int>(ra[i] * bins / static_cast<double>(n)));
-    const int ib = std::min(bins - 1, static_cast<int>(rb[i] * bins / static_cast<double>(n)));
-    joint(ia, ib) += 1.0;
+  // Scores a term's columns (N x k): fit on the fit rows with the base columns, errors on the
+  // held-out rows of each fold.
+  Scored score(const Eigen::MatrixXd& cols) const;
+  // The fit's residual sum of squares with these columns added.
+  double fit_rss(const Eigen::MatrixXd& cols) const;
+  // Builds, scans (free parameters) and scores one job.
+  Scored run(const Job& job) const;
+  // The realigned-scalar lag scan, alone or with partner columns (N x k).
+  Scored lag_candidate(double* tau_out, const Eigen::MatrixXd& partner) const;
+  // The lag fixed at tau (s), with partner columns.
+  Scored lag_at(double tau, const Eigen::MatrixXd& partner) const;
+  // The columns of a term on this flight.
+  Eigen::MatrixXd columns_of(const std::string& spec) const {
+    const auto t = make_term(spec);
+    Eigen::MatrixXd c(data.size(), t->columns());
+    t->build(inputs, c);
+    return c;
   }
-  joint /= static_cast<double>(n);
-  const Eigen::VectorXd pa = joint.rowwise().sum(), pb = joint.colwise().sum().transpose();
-  double mi = 0;
-  for (int i = 0; i < bins; ++i)
-    for (int j = 0; j < bins; ++j)
-      if (joint(i, j) > 0) mi += joint(i, j) * std::log2(joint(i, j) / (pa[i] * pb[j]));
-  return mi;
-}
 
-}  // namespace
-
-std::vector<std::string> candidate_terms(const Model& model, const FlightData& data,
-                                         std::vector<std::string>* notes) {
-  std::set<std::string> have(model.terms.begin(), model.terms.end());
-  std::set<std::string> families;
-  for (const auto& t : model.terms) families.insert(family(t));
-  std::vector<std::string> out;
-  for (const char* f : {"permanent", "induced", "eddy"}) {
-    if (!families.count(f)) out.push_back(f);
-  }
-  if (!have.count("second_order")) out.push_back("second_order");
-  for (const char* rate : {"pitch_rate", "roll_rate", "yaw_rate"}) {
-    const std::string spec = std::string("rate:") + rate;
-    if (data.has(rate) && !have.count(spec)) out.push_back(spec);
-  }
-  for (const std::string& name : data.names()) {
-    if (!is_channel(name)) continue;
-    const Eigen::VectorXd& x = data.column(name);
-    double lo = INFINITY, hi = -INFINITY;
-    for (Eigen::Index i = 0; i < x.size(); ++i) {
-      if (std::isfinite(x[i])) {
-        lo = std::min(lo, x[i]);
-        hi = std::max(hi, x[i]);
-      }
-    }
-    if (!(hi > lo)) {
-      if (notes) notes->push_back("channel '" + name + "' is constant (or all NaN); skipped");
-      continue;
-    }
-    for (const char* kind : {"current:", "dcurrent:"}) {
-      const std::string spec = kind + name;
-      if (!have.count(spec)) out.push_back(spec);
-    }
-  }
-  return out;
-}
-
-Diagnosis diagnose(const Model& model, const FlightData& data, const std::string& truth_name) {
-  if (!data.has(truth_name)) {
-    throw Error(data.source() + ": reference field '" + truth_name + "' not found");
-  }
-  const Eigen::VectorXd& truth = data.column(truth_name);
-  if (!truth.array().isFinite().any()) {
-    throw Error(data.source() + ": reference field '" + truth_name + "' holds no finite sample");
-  }
-  Diagnosis dx;
-  const Eigen::MatrixXd a0 = design_matrix(model, data);  // names a missing sensor field
-  const Eigen::VectorXd scalar = aligned_scalar(model, data);
-  const Eigen::VectorXd line =
-      data.has("line") ? data.column("line") : Eigen::VectorXd::Zero(data.size());
-  const Eigen::Index n = data.size();
-  const double dt = data.dt_s();
-
-  // --- The split: fit rows and held-out rows.
-  FitSettings fs = model.fit;
-  std::vector<bool> in_fit(static_cast<size_t>(n), false);
+  const Model& model;
+  const FlightData& data;
+  Eigen::VectorXd scalar, truth, line;
+  FitSettings fs;
   std::vector<std::pair<Eigen::Index, Eigen::Index>> runs;
-  Eigen::VectorXd y;
-  bool own_calibration = false;
-  if (fs.method == "bandpass" && !(fs.lines.empty() && fs.windows.empty())) {
-    y = scalar;
-    runs = calibration_runs(fs, data, a0, y, nullptr);
-    own_calibration = !runs.empty();
+  std::vector<Eigen::Index> held;
+  std::vector<int> fold;  // per sample: 0 selection, 1 confirmation, -1 not held out
+  std::vector<int> unit;  // per sample: its held-out unit, in time order (-1: not held out)
+  TermInputs inputs;
+  Eigen::MatrixXd a0;  // the base's fittable columns, N x p
+  Eigen::MatrixXd af0;
+  Eigen::VectorXd yf;
+  std::unique_ptr<RidgeProfile> profile;
+  Eigen::VectorXd e0;  // base error, N
+  double base_std[3] = {0, 0, 0};  // selection, confirmation, all held out
+  double dt = 0.1, span = 1.0;
+
+ private:
+  Eigen::MatrixXd stacked(const Eigen::MatrixXd& cols) const {
+    const Eigen::MatrixXd z = cols.unaryExpr([](double v) { return std::isfinite(v) ? v : 0.0; });
+    return stack_runs(fs, dt, z, runs);
   }
-  if (own_calibration) {
+};
+
+Search::Search(const Model& m, const FlightData& d, const std::string& truth_name, Diagnosis* dx)
+    : model(m), data(d) {
+  truth = data.column(truth_name);
+  const auto terms = model.make_terms();
+  const Eigen::MatrixXd a_all = design_matrix(model, terms, data);  // names a missing field
+  scalar = aligned_scalar(model, data);
+  line = data.has("line") ? data.column("line") : Eigen::VectorXd::Zero(data.size());
+  const Eigen::Index n = data.size();
+  dt = data.dt_s();
+  span = n > 1 ? data.tt()[n - 1] - data.tt()[0] : 1.0;
+  // --- Fit rows: the model's own calibration when this flight holds it.
+  fs = model.fit;
+  Eigen::VectorXd y;
+  bool own = false;
+  if (!(fs.lines.empty() && fs.windows.empty())) {
+    if (fs.method == "reference" && !data.has(fs.reference)) {
+      throw Error(data.source() + ": field '" + fs.reference + "' (fit.reference) not found");
+    }
+    y = fs.method == "bandpass" ? scalar : Eigen::VectorXd(scalar - data.column(fs.reference));
+    runs = calibration_runs(fs, data, a_all, y, nullptr);
+    own = !runs.empty();
+  }
+  std::vector<bool> in_fit(static_cast<size_t>(n), false);
+  if (own) {
     for (Eigen::Index i : data.select(fs.lines, fs.windows)) in_fit[static_cast<size_t>(i)] = true;
-    dx.split = "fit on the model's calibration segments (band-pass), held out: every other line";
+    dx->split = fs.method == "bandpass"
+                    ? "fit on the model's calibration segments (band-pass)"
+                    : "fit on the model's fit lines (reference " + fs.reference + ")";
   } else {
     std::vector<double> lines;
     for (Eigen::Index i = 0; i < n; ++i) {
-      if (std::isfinite(line[i]) &&
-          (lines.empty() || std::find(lines.begin(), lines.end(), line[i]) == lines.end())) {
+      if (std::isfinite(line[i]) && std::find(lines.begin(), lines.end(), line[i]) == lines.end())
         lines.push_back(line[i]);
-      }
     }
     std::sort(lines.begin(), lines.end());
-    if (lines.size() < 2) {
-      throw Error(data.source() + ": diagnose needs two lines or the model's calibration segments");
+    if (lines.size() < 3) {
+      throw Error(data.source() +
+                  ": diagnose needs three lines, or the model's calibration segments and two more");
     }
     fs.method = "reference";
     fs.reference = truth_name;
@@ -156,194 +178,523 @@ Diagnosis diagnose(const Model& model, const FlightData& data, const std::string
     fs.lines.clear();
     for (size_t k = 0; k < lines.size(); k += 2) fs.lines.push_back(lines[k]);
     y = scalar - truth;
-    runs = calibration_runs(fs, data, a0, y, nullptr);
+    runs = calibration_runs(fs, data, a_all, y, nullptr);
     for (Eigen::Index i : data.select(fs.lines, {})) in_fit[static_cast<size_t>(i)] = true;
-    dx.split = "reference fit against " + truth_name + " on every other line, held out: the rest";
+    dx->split = "fit: reference fit against " + truth_name + " on every other line";
   }
   if (runs.empty()) throw Error(data.source() + ": no usable fit samples for diagnose");
-
-  // --- The base model, refitted; its normal equations are reused for every candidate.
-  const Eigen::MatrixXd af0 = stack_runs(fs, dt, a0, runs);
-  const Eigen::VectorXd yf = stack_runs(fs, dt, y, runs).col(0);
-  dx.fit_samples = yf.size();
-  const Eigen::Index p0 = a0.cols();
-  const Eigen::MatrixXd g00 = af0.transpose() * af0;
-  const Eigen::VectorXd b0 = af0.transpose() * yf;
-  const double jitter = 1e-12 * std::max(g00.trace() / static_cast<double>(p0), 1e-300);
-  auto solve = [&](const Eigen::MatrixXd& g, const Eigen::VectorXd& b) {
-    Eigen::MatrixXd r = g;
-    r.diagonal().array() += fs.lambda + jitter;
-    return Eigen::VectorXd(r.ldlt().solve(b));
-  };
-  const Eigen::VectorXd c0 = solve(g00, b0);
-  const Eigen::VectorXd e0 = scalar - truth - a0 * c0;  // error of the refitted model
-  std::vector<Eigen::Index> held;
+  // --- The base: the model's fittable columns, refitted.
+  const bool bandpass = fs.method == "bandpass";
+  std::vector<Eigen::Index> keep;
+  Eigen::Index c = 0;
+  for (const auto& t : terms) {
+    for (Eigen::Index k = 0; k < t->columns(); ++k, ++c) {
+      if (!bandpass || t->bandpass_observable()) keep.push_back(c);
+    }
+  }
+  a0.resize(n, static_cast<Eigen::Index>(keep.size()));
+  for (size_t k = 0; k < keep.size(); ++k) a0.col(static_cast<Eigen::Index>(k)) = a_all.col(keep[k]);
+  af0 = stack_runs(fs, dt, a0, runs);
+  yf = stack_runs(fs, dt, y, runs).col(0);
+  dx->fit_samples = yf.size();
+  profile = std::make_unique<RidgeProfile>(af0, yf, fs.lambda);
+  const Eigen::VectorXd c0 = profile->solve(Eigen::MatrixXd(yf.size(), 0), nullptr);
+  e0 = scalar - truth - a0 * c0;
+  // --- Held out: every other line, in units (a line, or each contiguous piece of a line flown in
+  // pieces) dealt in time order into selection and confirmation.
+  unit.assign(static_cast<size_t>(n), -1);
+  int units = 0;
+  Eigen::Index prev = -2;
   for (Eigen::Index i = 0; i < n; ++i) {
-    if (!in_fit[static_cast<size_t>(i)] && std::isfinite(e0[i]) && std::isfinite(line[i]))
-      held.push_back(i);
+    if (in_fit[static_cast<size_t>(i)] || !std::isfinite(e0[i]) || !std::isfinite(line[i]))
+      continue;
+    if (prev != i - 1 || line[i] != line[prev]) ++units;
+    unit[static_cast<size_t>(i)] = units - 1;
+    held.push_back(i);
+    prev = i;
   }
-  if (held.size() < 10) throw Error(data.source() + ": too few held-out samples for diagnose");
-  dx.heldout_samples = static_cast<Eigen::Index>(held.size());
-  auto heldout_std = [&](const Eigen::VectorXd& e) {
-    Eigen::VectorXd r(static_cast<Eigen::Index>(held.size())), g(r.size());
+  if (held.size() < 100) throw Error(data.source() + ": too few held-out samples for diagnose");
+  fold.assign(static_cast<size_t>(n), -1);
+  if (units >= 2) {
+    for (Eigen::Index i : held) fold[static_cast<size_t>(i)] = unit[static_cast<size_t>(i)] % 2;
+  } else {  // one held-out piece: its first and second halves
     for (size_t k = 0; k < held.size(); ++k) {
-      r[static_cast<Eigen::Index>(k)] = e[held[k]];
-      g[static_cast<Eigen::Index>(k)] = line[held[k]];
+      fold[static_cast<size_t>(held[k])] = k < held.size() / 2 ? 0 : 1;
+      unit[static_cast<size_t>(held[k])] = k < held.size() / 2 ? 0 : 1;
     }
-    return pooled_std(r, g);
-  };
-  dx.baseline_std_nT = heldout_std(e0);
-
-  // --- Every candidate: add its columns, refit, measure on the held-out samples.
-  const TermInputs inputs = make_term_inputs(data, model.vector, model.bt_scale_nT);
-  for (const std::string& spec : candidate_terms(model, data, &dx.notes)) {
-    const auto term = make_term(spec);
-    const auto k = static_cast<Eigen::Index>(term->column_names().size());
-    Eigen::MatrixXd c(n, k);
-    term->build(inputs, c);
-    bool nan_in_fit = false;
-    for (const auto& [first, last] : runs) {
-      if (!c.middleRows(first, last - first + 1).allFinite()) nan_in_fit = true;
-    }
-    if (nan_in_fit) {
-      dx.notes.push_back("candidate '" + spec + "' has NaN in the fit samples; skipped");
-      continue;
-    }
-    const Eigen::MatrixXd cf = stack_runs(fs, dt, c, runs);
-    if (!(cf.norm() > 0)) {
-      dx.notes.push_back("candidate '" + spec + "' is not excited in the fit samples; skipped");
-      continue;
-    }
-    Eigen::MatrixXd g(p0 + k, p0 + k);
-    g.topLeftCorner(p0, p0) = g00;
-    g.topRightCorner(p0, k) = af0.transpose() * cf;
-    g.bottomLeftCorner(k, p0) = g.topRightCorner(p0, k).transpose();
-    g.bottomRightCorner(k, k) = cf.transpose() * cf;
-    Eigen::VectorXd b(p0 + k);
-    b << b0, cf.transpose() * yf;
-    const Eigen::VectorXd coef = solve(g, b);
-    Eigen::VectorXd contribution = c * coef.tail(k);
-    for (Eigen::Index i = 0; i < n; ++i) {
-      if (!std::isfinite(contribution[i])) contribution[i] = 0.0;  // no data: no correction
-    }
-    const Eigen::VectorXd e = scalar - truth - a0 * coef.head(p0) - contribution;
-    Candidate cand;
-    cand.term = term->spec();
-    cand.effect = term->effect();
-    const auto colon = spec.find(':');
-    cand.channel = colon == std::string::npos ? "" : spec.substr(colon + 1);
-    cand.std_after_nT = heldout_std(e);
-    cand.explained_fraction =
-        dx.baseline_std_nT > 0 ? 1.0 - std::pow(cand.std_after_nT / dx.baseline_std_nT, 2) : 0.0;
-    std::ostringstream est;
-    est.precision(3);
-    if (spec.rfind("current:", 0) == 0) {
-      est << "body field " << coef.tail(k).norm() << " nT/A";
-    } else if (spec.rfind("dcurrent:", 0) == 0) {
-      est << "body field " << coef.tail(k).norm() << " nT per A/s";
-    }
-    cand.estimate = est.str();
-    dx.candidates.push_back(cand);
   }
-  // --- Lag: the raw scalar realigned by tau (absolute); only the target changes, so each trial is
-  // one filter of y and one small solve. Coarse grid over the model's lag +-1 s, then
-  // golden-section refinement. A model that has a lag gets it re-estimated (lag:<new> replaces it).
+  for (Eigen::Index i : held) {
+    auto& v = fold[static_cast<size_t>(i)] == 0 ? dx->selection_lines : dx->confirmation_lines;
+    if (std::find(v.begin(), v.end(), line[i]) == v.end()) v.push_back(line[i]);
+  }
+  dx->split += "; held out: the other lines, ranked on the selection lines and confirmed on the "
+               "confirmation lines (alternate lines, or pieces of a line, in time order)";
+  dx->heldout_samples = static_cast<Eigen::Index>(held.size());
+  for (int f = 0; f < 2; ++f) base_std[f] = fold_std(e0, held, fold, line, f);
+  base_std[2] = fold_std(e0, held, fold, line, -1);
+  dx->baseline_selection_std_nT = base_std[0];
+  dx->baseline_confirmation_std_nT = base_std[1];
+  dx->baseline_std_nT = base_std[2];
+  inputs = make_term_inputs(data, model.vector, model.bt_scale_nT);
+}
+
+double Search::fit_rss(const Eigen::MatrixXd& cols) const {
+  double rss = 0;
+  profile->solve(stacked(cols), &rss);
+  return std::isfinite(rss) ? rss : std::numeric_limits<double>::infinity();
+}
+
+Scored Search::score(const Eigen::MatrixXd& cols) const {
+  Scored s;
+  const Eigen::VectorXd coef = profile->solve(stacked(cols), nullptr);
+  const Eigen::Index p = a0.cols(), k = cols.cols();
+  Eigen::VectorXd e = Eigen::VectorXd::Constant(data.size(), NAN);
+  for (Eigen::Index i : held) {
+    double v = scalar[i] - truth[i] - a0.row(i).dot(coef.head(p));
+    for (Eigen::Index j = 0; j < k; ++j) {
+      if (std::isfinite(cols(i, j))) v -= cols(i, j) * coef[p + j];  // no data: no correction
+    }
+    e[i] = v;
+  }
+  s.sel = fold_std(e, held, fold, line, 0);
+  s.conf = fold_std(e, held, fold, line, 1);
+  s.held = fold_std(e, held, fold, line, -1);
+  s.coef = coef.tail(k);
+  s.ok = std::isfinite(s.sel) && std::isfinite(s.conf);
+  return s;
+}
+
+Scored Search::run(const Job& job) const {
+  auto term = make_term(job.spec);
+  auto columns = [&](const Term& t) {
+    Eigen::MatrixXd c(data.size(), t.columns());
+    t.build(inputs, c);
+    return c;
+  };
+  long fits = 0;
+  const auto* expr = dynamic_cast<const ExprTerm*>(term.get());
+  if (expr && expr->signal().has_free()) {
+    TransformKind kind = TransformKind::LowPass;
+    for (const auto& tr : expr->signal().transforms)
+      if (tr.free) kind = tr.kind;
+    std::vector<double> grid = parameter_grid(kind, dt, span);
+    if (kind == TransformKind::Delay) {  // delays up to 2 s at the grid's step: a periodic
+      grid.erase(std::remove_if(grid.begin(), grid.end(), [](double v) { return v > 2.0 + 1e-9; }),
+                 grid.end());  // source (a strobe) makes the objective many-valleyed
+    } else if (grid.size() > 12) {  // a coarser grid; the golden section refines it
+      std::vector<double> thin;
+      for (size_t k = 0; k < grid.size(); k += (grid.size() + 11) / 12) thin.push_back(grid[k]);
+      grid = thin;
+    }
+    const double v = scan_parameter(kind, grid, [&](double x) {
+      ++fits;
+      return fit_rss(columns(*make_term(expr->with_parameters({x}))));
+    });
+    term = make_term(expr->with_parameters({v}));
+  }
+  const Eigen::MatrixXd cols = columns(*term);
+  Scored s = score(cols);
+  s.spec = term->spec();
+  s.fits = fits + 1;
+  if (!(cols.array().isFinite().any())) s.ok = false;
+  return s;
+}
+
+Scored Search::lag_candidate(double* tau_out, const Eigen::MatrixXd& partner) const {
+  // The raw scalar realigned by tau (absolute); only the target changes, so each trial is one
+  // filter of y and one small solve. Coarse grid over the model's lag +-1 s, then golden-section
+  // refinement to 0.01 s. A model that has a lag gets it re-estimated. With partner columns
+  // (N x k) the lag is scanned and scored together with them: a lag moves the signature of every
+  // effect, so it is judged with the term whose timing it explains.
+  const Eigen::VectorXd& raw = data.column(model.scalar);
+  const double current = model.scalar_lag_s();
+  const Eigen::MatrixXd pf = stacked(partner);
+  Eigen::MatrixXd base(af0.rows(), af0.cols() + pf.cols());
+  base << af0, pf;
+  const Eigen::MatrixXd g = base.transpose() * base;
+  Eigen::MatrixXd r = g;
+  r.diagonal().array() +=
+      fs.lambda + 1e-12 * std::max(g.trace() / std::max<double>(g.cols(), 1), 1e-300);
+  const auto ldlt = r.ldlt();
+  const bool bandpass = fs.method == "bandpass";
+  const Eigen::MatrixXd partner0 =
+      partner.unaryExpr([](double v) { return std::isfinite(v) ? v : 0.0; });
+  auto errors = [&](double tau) {
+    const Eigen::VectorXd s = shift_samples(raw, -tau / dt);            // NaN past the ends
+    const Eigen::VectorXd s_held = shift_samples(raw, -tau / dt, true);  // filters need no NaN
+    const Eigen::VectorXd yl =
+        bandpass ? s_held : Eigen::VectorXd(s_held - data.column(fs.reference));
+    const Eigen::VectorXd ylf = stack_runs(fs, dt, yl, runs).col(0);
+    const Eigen::VectorXd c = ldlt.solve(base.transpose() * ylf);
+    Eigen::VectorXd e = s - truth - a0 * c.head(a0.cols());
+    if (partner.cols() > 0) e -= partner0 * c.tail(partner.cols());
+    return e;
+  };
+  auto cost = [&](double tau) {  // scored on the selection lines, as every candidate is ranked
+    return fold_std(errors(tau), held, fold, line, 0);
+  };
+  std::vector<double> grid;
+  for (double tau = current - 1.0; tau <= current + 1.0 + 1e-9; tau += 0.05) grid.push_back(tau);
+  const double tau = std::round(scan_parameter(TransformKind::Delay, grid, cost) * 100) / 100;
+  Scored s = lag_at(tau, partner);
+  s.fits = static_cast<long>(grid.size()) + 26;
+  *tau_out = tau;
+  return s;
+}
+
+Scored Search::lag_at(double tau, const Eigen::MatrixXd& partner) const {
+  const Eigen::VectorXd& raw = data.column(model.scalar);
+  const double current = model.scalar_lag_s();
+  const Eigen::MatrixXd pf = stacked(partner);
+  Eigen::MatrixXd base(af0.rows(), af0.cols() + pf.cols());
+  base << af0, pf;
+  const Eigen::MatrixXd g = base.transpose() * base;
+  Eigen::MatrixXd r = g;
+  r.diagonal().array() +=
+      fs.lambda + 1e-12 * std::max(g.trace() / std::max<double>(g.cols(), 1), 1e-300);
+  const bool bandpass = fs.method == "bandpass";
+  const Eigen::VectorXd sh = shift_samples(raw, -tau / dt);            // NaN past the ends
+  const Eigen::VectorXd s_held = shift_samples(raw, -tau / dt, true);  // filters need no NaN
+  const Eigen::VectorXd yl =
+      bandpass ? s_held : Eigen::VectorXd(s_held - data.column(fs.reference));
+  const Eigen::VectorXd ylf = stack_runs(fs, dt, yl, runs).col(0);
+  const Eigen::VectorXd c = r.ldlt().solve(base.transpose() * ylf);
+  Eigen::VectorXd e = sh - truth - a0 * c.head(a0.cols());
+  if (partner.cols() > 0) {
+    e -= partner.unaryExpr([](double v) { return std::isfinite(v) ? v : 0.0; }) *
+         c.tail(partner.cols());
+  }
+  Scored s;
+  s.ok = std::abs(tau - current) >= 0.005;
+  s.spec = "lag";
+  s.sel = fold_std(e, held, fold, line, 0);
+  s.conf = fold_std(e, held, fold, line, 1);
+  s.held = fold_std(e, held, fold, line, -1);
+  s.fits = 1;
+  return s;
+}
+
+// Candidate jobs for the sources and the model.
+std::vector<Job> make_jobs(const Model& model, const std::vector<std::string>& sources) {
+  std::vector<Job> jobs;
+  std::set<std::string> have(model.terms.begin(), model.terms.end());
+  std::set<std::string> shapes;  // a term of the model is re-estimated with ?, not searched again
+  for (const auto& t : model.terms) {
+    if (const auto e = parse_expr_term(t)) shapes.insert(e->shape());
+  }
+  std::set<std::string> families;
+  for (const auto& t : model.terms) families.insert(family_of_tl(t));
+  auto add = [&](const std::string& spec, const std::string& family, const std::string& ch) {
+    if (have.count(spec)) return;
+    if (const auto e = parse_expr_term(spec); e && shapes.count(e->shape())) return;
+    jobs.push_back({spec, family, ch});
+  };
+  for (const char* f : {"permanent", "induced", "eddy"}) {
+    if (!families.count(f)) add(f, "tolles-lawson", "");
+  }
+  add("second_order", "second order", "");
+  add("field:B|decay(?)", "eddy currents that decay", "");
+  add("scalar:Bt", "induced field scaling with |B|", "");
+  add("scalar:" + model.scalar + "|d", "scalar sensor response", model.scalar);
+  for (const std::string& x : sources) {
+    add(plain_spec(x), is_rate(x) ? "attitude rate" : "field of a channel", x);
+    add(is_electrical(x) ? "dcurrent:" + x : "field:" + x + "|d", "rate of change", x);
+    add("field:" + x + "|lp(?)", "slow response (thermal)", x);
+    add("field:" + x + "|delay(?)", "delayed response", x);
+    add("scalar:" + x + "|lp(?)", "drift of the reading", x);
+    if (is_current(x)) {
+      add("field:" + x + "|pow(2)|lp(?)", "heating (I²) response", x);
+      add("field:" + x + "|int", "state (integral of a current)", x);
+    }
+  }
+  return jobs;
+}
+
+// Runs jobs on `threads` workers.
+std::vector<Scored> run_jobs(const Search& search, const std::vector<Job>& jobs, int threads) {
+  std::vector<Scored> out(jobs.size());
+  std::atomic<size_t> next{0};
+  auto worker = [&] {
+    for (size_t k; (k = next++) < jobs.size();) {
+      try {
+        out[k] = search.run(jobs[k]);
+      } catch (const std::exception& e) {
+        out[k].ok = false;
+        out[k].note = "candidate '" + jobs[k].spec + "' skipped: " + e.what();
+      }
+    }
+  };
+  std::vector<std::future<void>> pool;
+  for (int t = 1; t < std::max(threads, 1); ++t) pool.push_back(std::async(std::launch::async, worker));
+  worker();
+  for (auto& f : pool) f.get();
+  return out;
+}
+
+// How much a term says: its sources and transforms (a shorthand or TL family counts 1).
+int complexity(const std::string& spec) {
+  const auto e = parse_expr_term(spec);
+  if (!e) return 1;
+  int n = static_cast<int>(e->signal().sources.size() + e->signal().transforms.size());
+  for (const auto& t : e->signal().transforms) n += t.has_param();
+  return n;
+}
+
+double share(double after, double before) {
+  return before > 0 ? 1.0 - (after / before) * (after / before) : 0.0;
+}
+
+}  // namespace
+
+std::vector<std::string> source_fields(const Model& model, const FlightData& data,
+                                       const std::string& truth, bool full_search,
+                                       std::vector<std::string>* notes) {
+  std::vector<std::string> out;
+  for (const std::string& name : data.names()) {
+    if (kBookkeeping.count(name) || name.rfind("mag_", 0) == 0 || name.rfind("flux_", 0) == 0 ||
+        name == truth || name == model.fit.reference || name == "diurnal" ||
+        name.rfind("ogs_", 0) == 0 || name == "drape" || name.front() == '~') {
+      continue;
+    }
+    if (!full_search && !is_electrical(name) && !is_rate(name)) continue;
+    const Eigen::VectorXd& x = data.column(name);
+    double lo = INFINITY, hi = -INFINITY;
+    Eigen::Index finite = 0;
+    for (Eigen::Index i = 0; i < x.size(); ++i) {
+      if (std::isfinite(x[i])) {
+        lo = std::min(lo, x[i]);
+        hi = std::max(hi, x[i]);
+        ++finite;
+      }
+    }
+    if (!(hi > lo)) {
+      if (notes) notes->push_back("channel '" + name + "' is constant (or all NaN); skipped");
+      continue;
+    }
+    if (finite < x.size() * 9 / 10) {
+      if (notes) notes->push_back("channel '" + name + "' is more than 10 % NaN; skipped");
+      continue;
+    }
+    out.push_back(name);
+  }
+  return out;
+}
+
+Diagnosis diagnose(const Model& model_in, const FlightData& data, const std::string& truth_name,
+                   const DiagnoseOptions& options) {
+  if (!data.has(truth_name)) {
+    throw Error(data.source() + ": reference field '" + truth_name + "' not found");
+  }
+  if (!data.column(truth_name).array().isFinite().any()) {
+    throw Error(data.source() + ": reference field '" + truth_name + "' holds no finite sample");
+  }
+  Model model = model_in;
+  for (const auto& t : model.terms) {  // a template with free parameters: estimate them first
+    if (t.find('?') != std::string::npos) {
+      fit_model(model, {&data});
+      break;
+    }
+  }
+  Diagnosis dx;
+  const Search search(model, data, truth_name, &dx);
+  const std::vector<std::string> sources =
+      source_fields(model, data, truth_name, options.full_search, &dx.notes);
+  std::vector<Job> jobs = make_jobs(model, sources);
+  std::vector<Scored> scored = run_jobs(search, jobs, options.threads);
+  // Products of the strongest sources (their best single form explains something on the
+  // selection lines).
+  std::map<std::string, double> best_by_source;
+  for (size_t k = 0; k < jobs.size(); ++k) {
+    if (!scored[k].ok || jobs[k].channel.empty() || jobs[k].channel == model.scalar) continue;
+    auto& b = best_by_source[jobs[k].channel];
+    b = std::max(b, share(scored[k].sel, search.base_std[0]));
+  }
+  std::vector<std::pair<double, std::string>> strongest;
+  for (const auto& [ch, v] : best_by_source) {
+    if (v > options.accept_fraction) strongest.emplace_back(v, ch);
+  }
+  std::sort(strongest.rbegin(), strongest.rend());
+  if (strongest.size() > 4) strongest.resize(4);
+  std::vector<Job> products;
+  for (size_t a = 0; a < strongest.size(); ++a) {
+    for (size_t b = a + 1; b < strongest.size(); ++b) {
+      const std::string& x = strongest[a].second;
+      const std::string& y = strongest[b].second;
+      products.push_back({"field:" + x + "*" + y, "product of two channels", x + "*" + y});
+    }
+  }
+  if (!products.empty()) {
+    std::vector<Scored> more = run_jobs(search, products, options.threads);
+    jobs.insert(jobs.end(), products.begin(), products.end());
+    scored.insert(scored.end(), more.begin(), more.end());
+  }
+  // Every scored job becomes a candidate.
+  std::set<std::string> seen;
+  for (size_t k = 0; k < jobs.size(); ++k) {
+    dx.candidates_tried += std::max(scored[k].fits, 1L);
+    if (!scored[k].note.empty()) dx.notes.push_back(scored[k].note);
+    if (!scored[k].ok || !seen.insert(scored[k].spec).second) continue;
+    const auto term = make_term(scored[k].spec);
+    Candidate c;
+    c.term = term->spec();
+    c.effect = term->effect();
+    c.channel = jobs[k].channel;
+    c.family = jobs[k].family;
+    c.std_after_nT = scored[k].held;
+    c.explained_selection = share(scored[k].sel, search.base_std[0]);
+    c.explained_confirmation = share(scored[k].conf, search.base_std[1]);
+    if (const auto* e = dynamic_cast<const ExprTerm*>(term.get())) {
+      c.estimate = e->size_in_words(scored[k].coef);
+      c.parameters = e->parameters();
+      c.parameters.emplace_back("gain_nT_per_unit", scored[k].coef.norm());
+    }
+    dx.candidates.push_back(c);
+  }
+  // The lag, alone; and, when the best candidate so far is a channel's term, together with that
+  // channel's term without a delay of its own: a scalar lag delays the channel's signature too,
+  // and the pair may explain more than the delayed term (round 1 adds the lag, round 2 the term).
   {
-    const Eigen::VectorXd& raw = data.column(model.scalar);
-    const double current_lag = model.scalar_lag_s();
-    auto lag_std = [&](double tau) {
-      const Eigen::VectorXd s = shift_samples(raw, -tau / dt);  // NaN past the ends: not scored
-      const Eigen::VectorXd s_held = shift_samples(raw, -tau / dt, true);  // filters need no NaN
-      const Eigen::VectorXd yl = own_calibration ? s_held : Eigen::VectorXd(s_held - truth);
-      const Eigen::VectorXd ylf = stack_runs(fs, dt, yl, runs).col(0);
-      const Eigen::VectorXd c = solve(g00, af0.transpose() * ylf);
-      return heldout_std(s - truth - a0 * c);
-    };
-    double best_tau = current_lag, best = dx.baseline_std_nT;
-    for (double tau = current_lag - 1.0; tau <= current_lag + 1.0 + 1e-9; tau += 0.05) {
-      const double v = lag_std(tau);
-      if (v < best) {
-        best = v;
-        best_tau = tau;
+    double tau = 0;
+    Scored lag = search.lag_candidate(&tau, Eigen::MatrixXd(data.size(), 0));
+    dx.candidates_tried += lag.fits;
+    double lag_pair_share = NAN;
+    std::string partner_note;
+    const Candidate* best = nullptr;
+    for (const auto& c : dx.candidates) {
+      if (!best || c.explained_selection > best->explained_selection) best = &c;
+    }
+    if (best && !best->channel.empty() && best->channel != model.scalar) {
+      std::string partner = best->term;
+      if (const auto e = parse_expr_term(partner)) {
+        SignalExpr sig = e->signal();
+        sig.transforms.erase(std::remove_if(sig.transforms.begin(), sig.transforms.end(),
+                                            [](const Transform& t) {
+                                              return t.kind == TransformKind::Delay;
+                                            }),
+                             sig.transforms.end());
+        partner = ExprTerm(e->projection(), sig).spec();
+        if (sig.transforms.empty() && sig.sources.size() == 1) partner = plain_spec(sig.sources[0]);
+      }
+      double tau2 = 0;
+      const Scored pair = search.lag_candidate(&tau2, search.columns_of(partner));
+      dx.candidates_tried += pair.fits;
+      const double pair_share = share(pair.sel, search.base_std[0]);
+      if (pair.ok && pair_share > best->explained_selection + 0.01) {
+        lag = search.lag_at(tau2, Eigen::MatrixXd(data.size(), 0));  // the lag by itself there
+        tau = tau2;
+        char buf[160];
+        std::snprintf(buf, sizeof(buf), "; with %s next: %.1f%% together", partner.c_str(),
+                      100 * pair_share);
+        partner_note = buf;
+        lag_pair_share = pair_share;
       }
     }
-    double lo = best_tau - 0.05, hi = best_tau + 0.05;
-    const double phi = 0.5 * (std::sqrt(5.0) - 1.0);
-    double x1 = hi - phi * (hi - lo), x2 = lo + phi * (hi - lo);
-    double f1 = lag_std(x1), f2 = lag_std(x2);
-    while (hi - lo > 0.002) {
-      if (f1 < f2) {
-        hi = x2;
-        x2 = x1;
-        f2 = f1;
-        x1 = hi - phi * (hi - lo);
-        f1 = lag_std(x1);
-      } else {
-        lo = x1;
-        x1 = x2;
-        f1 = f2;
-        x2 = lo + phi * (hi - lo);
-        f2 = lag_std(x2);
-      }
-    }
-    const double tau = std::round(0.5 * (lo + hi) * 100.0) / 100.0;  // 0.01 s, as the term says
-    if (std::abs(tau - current_lag) >= 0.005) {
+    if (lag.ok) {
       const auto term = make_term("lag:" + std::to_string(tau));
-      Candidate cand;
-      cand.term = term->spec();
-      cand.effect = term->effect();
-      cand.std_after_nT = lag_std(tau);
-      cand.explained_fraction =
-          dx.baseline_std_nT > 0 ? 1.0 - std::pow(cand.std_after_nT / dx.baseline_std_nT, 2) : 0.0;
+      Candidate c;
+      c.term = term->spec();
+      c.effect = term->effect();
+      c.family = "scalar lag";
+      c.std_after_nT = lag.held;
+      c.explained_selection = share(lag.sel, search.base_std[0]);
+      c.explained_confirmation = share(lag.conf, search.base_std[1]);
       std::ostringstream est;
       est.precision(3);
       est << "scalar late by " << tau << " s";
-      if (current_lag != 0.0) est << " (model: " << current_lag << ")";
-      cand.estimate = est.str();
-      dx.candidates.push_back(cand);
+      if (model.scalar_lag_s() != 0.0) est << " (model: " << model.scalar_lag_s() << ")";
+      c.estimate = est.str() + partner_note;
+      c.parameters = {{"lag_s", tau}};
+      c.ranking_share = std::isfinite(lag_pair_share) ? lag_pair_share : c.explained_selection;
+      dx.candidates.push_back(c);
     }
   }
-  std::sort(dx.candidates.begin(), dx.candidates.end(),
-            [](const Candidate& a, const Candidate& b) { return a.std_after_nT < b.std_after_nT; });
-
-  // --- Pre-selection view: the held-out residual (line means removed) against every channel.
-  std::map<double, std::pair<double, double>> line_mean;
-  for (Eigen::Index i : held) {
-    auto& m = line_mean[line[i]];
-    m.first += e0[i];
-    m.second += 1;
+  for (auto& c : dx.candidates) {
+    if (!std::isfinite(c.ranking_share)) c.ranking_share = c.explained_selection;
+    c.explained_fraction = std::min(c.explained_selection, c.explained_confirmation);
+    // The std it removes on each split, nT.
+    const double gain_sel = search.base_std[0] * (1 - std::sqrt(std::max(0.0, 1 - c.explained_selection)));
+    const double gain_conf =
+        search.base_std[1] * (1 - std::sqrt(std::max(0.0, 1 - c.explained_confirmation)));
+    c.accepted = c.explained_selection >= options.accept_fraction &&
+                 c.explained_confirmation >= options.accept_fraction &&
+                 gain_sel >= options.resolution_nT && gain_conf >= options.resolution_nT;
   }
-  const size_t stride = std::max<size_t>(1, held.size() / 20000);
-  std::vector<Eigen::Index> rows;
-  for (size_t k = 0; k < held.size(); k += stride) rows.push_back(held[k]);
-  Eigen::VectorXd r(static_cast<Eigen::Index>(rows.size()));
-  for (size_t k = 0; k < rows.size(); ++k) {
-    const auto& m = line_mean[line[rows[k]]];
-    r[static_cast<Eigen::Index>(k)] = e0[rows[k]] - m.first / m.second;
-  }
-  const Eigen::VectorXd rr = ranks(r);
-  static const std::set<std::string> kSkip = {"tt", "line", "flight", "year", "doy", "N", "dt"};
-  for (const std::string& name : data.names()) {
-    if (kSkip.count(name) || name.rfind("mag_", 0) == 0 || name == truth_name) continue;
-    const Eigen::VectorXd& x = data.column(name);
-    Eigen::VectorXd v(r.size());
-    bool finite = true;
-    for (size_t k = 0; k < rows.size(); ++k) {
-      v[static_cast<Eigen::Index>(k)] = x[rows[k]];
-      finite = finite && std::isfinite(x[rows[k]]);
+  std::stable_sort(dx.candidates.begin(), dx.candidates.end(),
+                   [](const Candidate& a, const Candidate& b) {
+                     if (a.accepted != b.accepted) return a.accepted;
+                     return a.ranking_share > b.ranking_share;
+                   });
+  // Parsimony: among the accepted candidates within one percentage point of the best on the
+  // selection lines, the simplest comes first (nrml_acc before nrml_acc*vol_res_p).
+  if (!dx.candidates.empty() && dx.candidates.front().accepted) {
+    const double best = dx.candidates.front().ranking_share;
+    size_t pick = 0;
+    for (size_t k = 1; k < dx.candidates.size(); ++k) {
+      const Candidate& c = dx.candidates[k];
+      if (!c.accepted || c.ranking_share < best - 0.01) break;
+      if (complexity(c.term) < complexity(dx.candidates[pick].term)) pick = k;
     }
-    if (!finite || !(v.maxCoeff() > v.minCoeff())) continue;
-    ChannelAssociation a;
-    a.channel = name;
-    a.pearson = pearson(r, v);
-    a.spearman = pearson(rr, ranks(v));
-    a.mutual_information_bits = mutual_information(r, v, 16);
-    dx.associations.push_back(a);
+    std::rotate(dx.candidates.begin(), dx.candidates.begin() + static_cast<long>(pick),
+                dx.candidates.begin() + static_cast<long>(pick) + 1);
   }
-  std::sort(dx.associations.begin(), dx.associations.end(),
-            [](const ChannelAssociation& a, const ChannelAssociation& b) {
-              return std::abs(a.spearman) > std::abs(b.spearman);
-            });
+  // --- What remains: the base residual on the held-out lines against a flexible model.
+  std::vector<Eigen::Index> held = search.held;
+  dx.associations = residual_associations(data, held, search.e0, search.line, truth_name);
+  if (options.explainable_share) {
+    Eigen::VectorXd r = Eigen::VectorXd::Constant(data.size(), NAN);
+    std::map<double, std::pair<double, double>> mean;
+    for (Eigen::Index i : held) {
+      auto& m = mean[search.line[i]];
+      m.first += search.e0[i];
+      m.second += 1;
+    }
+    for (Eigen::Index i : held) {
+      const auto& m = mean[search.line[i]];
+      r[i] = search.e0[i] - m.first / m.second;
+    }
+    std::vector<std::pair<std::string, const Eigen::VectorXd*>> channels;
+    for (const auto& s : sources) channels.emplace_back(s, &data.column(s));
+    dx.explainable = explainable_share(r, search.unit, search.line, data.tt(),
+                                       search.inputs.direction, channels);
+    // A predictable remainder below the resolution is noise for every practical purpose.
+    ExplainableShare& x = dx.explainable;
+    if (std::sqrt(std::max(0.0, x.share)) * dx.baseline_std_nT < options.resolution_nT) {
+      x.within_noise = true;
+    }
+  }
+  // --- The verdict.
+  char buf[512];
+  const ExplainableShare& x = dx.explainable;
+  if (!dx.candidates.empty() && dx.candidates.front().accepted &&
+      dx.candidates.front().explained_fraction >= 0.05) {
+    const Candidate& c = dx.candidates.front();
+    std::snprintf(buf, sizeof(buf),
+                  "add %s: it explains %.1f%% of the held-out error on the selection lines and "
+                  "%.1f%% on the confirmation lines",
+                  c.term.c_str(), 100 * c.explained_selection, 100 * c.explained_confirmation);
+    dx.verdict = buf;
+  } else if (x.computed && !x.within_noise) {
+    std::string chans;
+    for (size_t k = 0; k < x.channels.size() && k < 3; ++k) {
+      if (x.channels[k].second <= 0) break;
+      chans += (k ? ", " : "") + x.channels[k].first;
+    }
+    std::snprintf(buf, sizeof(buf),
+                  "structure remains: %.1f%% ± %.1f%% of the held-out residual is predictable "
+                  "(noise floor %.1f%%), mostly from %s, and no term of the search explains it",
+                  100 * x.share, 100 * x.uncertainty, 100 * x.noise_floor,
+                  chans.empty() ? "no single channel" : chans.c_str());
+    dx.verdict = buf;
+  } else if (x.computed) {
+    std::snprintf(buf, sizeof(buf),
+                  "complete: what remains is within noise (predictable share %.1f%% ± %.1f%%, "
+                  "noise floor %.1f%%; predictable part %.3f nT rms, resolution %.3f nT)",
+                  100 * x.share, 100 * x.uncertainty, 100 * x.noise_floor,
+                  std::sqrt(x.share) * dx.baseline_std_nT, options.resolution_nT);
+    dx.verdict = buf;
+  } else {
+    dx.verdict = "no candidate explains 5 % on both halves (the explainable share was not computed)";
+  }
   return dx;
 }
 

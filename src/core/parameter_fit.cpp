@@ -72,11 +72,20 @@ Eigen::VectorXd RidgeProfile::solve(const Eigen::MatrixXd& cand, double* rss) co
   Eigen::VectorXd b(p + k);
   b.head(p) = b0_;
   if (k > 0) b.tail(k) = cand.transpose() * y_;
-  const double jitter =
-      1e-12 * std::max(g.trace() / static_cast<double>(std::max<Eigen::Index>(p + k, 1)), 1e-300);
+  // (G + lambda I) c = b, solved on the column-normalised system by eigen-decomposition with
+  // directions below 1e-10 of the largest dropped: exactly collinear columns (second_order's
+  // quartics hold the induced quadratics) share their coefficients instead of blowing up.
   Eigen::MatrixXd r = g;
-  r.diagonal().array() += lambda_ + jitter;
-  const Eigen::VectorXd c = r.ldlt().solve(b);
+  r.diagonal().array() += lambda_;
+  const Eigen::VectorXd scale = r.diagonal().cwiseMax(1e-300).cwiseSqrt().cwiseInverse();
+  const Eigen::MatrixXd rn = scale.asDiagonal() * r * scale.asDiagonal();
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(rn);
+  const Eigen::VectorXd ev = es.eigenvalues();
+  const double cut = 1e-10 * std::max(ev.maxCoeff(), 1e-300);
+  const Eigen::VectorXd bn = es.eigenvectors().transpose() * scale.asDiagonal() * b;
+  Eigen::VectorXd z(bn.size());
+  for (Eigen::Index i = 0; i < bn.size(); ++i) z[i] = ev[i] > cut ? bn[i] / ev[i] : 0.0;
+  const Eigen::VectorXd c = scale.asDiagonal() * (es.eigenvectors() * z);
   if (rss) {
     Eigen::VectorXd e = y_ - base_ * c.head(p);
     if (k > 0) e -= cand * c.tail(k);
@@ -169,6 +178,10 @@ double scan_parameter(TransformKind kind, const std::vector<double>& grid,
       best = fr;
       best_x = r;
     }
+  }
+  if (round3(best_x) != best_x) {  // a grid value: written with 3 significant digits too
+    best_x = round3(best_x);
+    best = objective(best_x);
   }
   if (best_out) *best_out = best;
   return best_x;

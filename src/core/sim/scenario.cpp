@@ -4,6 +4,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
+#include <cmath>
 #include <set>
 
 #include "magcomp/core/error.h"
@@ -193,7 +194,8 @@ Scenario load_scenario(const std::string& path) {
       const std::string where = "hidden[" + std::to_string(i) + "]";
       r.check_keys(e,
                    {"type", "channel", "position_m", "direction", "length_m", "gain", "lag_s",
-                    "time_constant_s", "scale", "nonorthogonality_rad", "offset_nT", "sensors"},
+                    "time_constant_s", "scale", "nonorthogonality_rad", "offset_nT", "sensors",
+                    "exponent", "threshold"},
                    where);
       HiddenEffect x;
       r.get(e, "type", where, &x.type);
@@ -208,16 +210,40 @@ Scenario load_scenario(const std::string& path) {
       r.vec3(e, "nonorthogonality_rad", where, &x.nonorthogonality_rad);
       r.vec3(e, "offset_nT", where, &x.offset_nT);
       r.get(e, "sensors", where, &x.sensors);
-      static const std::set<std::string> kTypes = {"wire",     "inductive", "lag",
-                                                   "fluxgate", "heading",   "drift"};
+      r.get(e, "exponent", where, &x.exponent);
+      r.get(e, "threshold", where, &x.threshold);
+      static const std::set<std::string> kTypes = {"wire",    "inductive",  "lag",  "fluxgate",
+                                                   "heading", "drift",      "thermal",
+                                                   "flex",    "eddy_decay", "relay"};
       if (!kTypes.count(x.type)) {
         throw Error(path + ": key '" + where +
-                    ".type' must be wire, inductive, lag, fluxgate, heading or drift");
+                    ".type' must be wire, inductive, lag, fluxgate, heading, drift, thermal, "
+                    "eddy_decay, flex or relay");
       }
-      const bool needs_channel = x.type == "wire" || x.type == "inductive" || x.type == "drift";
+      if (x.type == "flex" && x.channel.empty()) x.channel = "nrml_acc";
+      if (x.type == "flex" && !e["time_constant_s"]) x.time_constant_s = 0.0;
+      const bool needs_channel = x.type == "wire" || x.type == "inductive" ||
+                                 x.type == "drift" || x.type == "thermal" || x.type == "relay";
       if (needs_channel && !channels.count(x.channel)) {
         throw Error(path + ": key '" + where + ".channel': unknown channel '" + x.channel + "'");
       }
+      static const std::set<std::string> kFlexChannels = {
+          "nrml_acc", "lgtl_acc", "ltrl_acc", "ins_acc_x", "ins_acc_y", "ins_acc_z",
+          "pitch_rate", "roll_rate", "yaw_rate"};
+      if (x.type == "flex" && !kFlexChannels.count(x.channel)) {
+        throw Error(path + ": key '" + where + ".channel': flex follows an INS channel (nrml_acc, "
+                    "ins_acc_*, *_rate), not '" + x.channel + "'");
+      }
+      for (const char* k : {"gain", "lag_s", "time_constant_s", "length_m", "exponent", "threshold"}) {
+        if (e[k] && !std::isfinite(e[k].as<double>())) {
+          throw Error(path + ": key '" + where + "." + k + "' must be finite");
+        }
+      }
+      if (x.type == "thermal" || x.type == "eddy_decay")
+        r.positive(x.time_constant_s, where + ".time_constant_s");
+      if (x.type == "flex") r.non_negative(x.time_constant_s, where + ".time_constant_s");
+      if (x.type == "thermal" && !(x.exponent > 0 && x.exponent <= 4))
+        throw Error(path + ": key '" + where + ".exponent' must be in (0, 4]");
       for (const auto& sensor : x.sensors) {
         if (!sensors.count(sensor)) {
           throw Error(path + ": key '" + where + ".sensors': unknown sensor '" + sensor + "'");

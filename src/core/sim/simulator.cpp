@@ -13,6 +13,7 @@
 
 #include "magcomp/core/error.h"
 #include "magcomp/core/igrf.h"
+#include "magcomp/core/signal.h"
 #include "magcomp/core/sim/anomaly_map.h"
 #include "magcomp/core/sim/electrical.h"
 #include "magcomp/core/sim/trajectory.h"
@@ -118,8 +119,33 @@ Simulation simulate(const Scenario& s) {
         (static_cast<double>(std::max<Eigen::Index>(b - a, 1)) * dt);
   }
 
-  // --- Electrical channels.
+  // --- Electrical channels, and the INS quantities a hidden effect may follow (no random draw).
   std::map<std::string, Eigen::VectorXd> channels = simulate_channels(tr, s.seed);
+  Eigen::VectorXd unwrapped_yaw = tr.yaw_rad;
+  for (Eigen::Index i = 1; i < n; ++i) {
+    unwrapped_yaw[i] =
+        unwrapped_yaw[i - 1] + std::remainder(tr.yaw_rad[i] - tr.yaw_rad[i - 1], 2 * M_PI);
+  }
+  std::map<std::string, Eigen::VectorXd> ins;
+  ins["pitch_rate"] = central_rate(tr.pitch_rad, dt) / kDeg;
+  ins["roll_rate"] = central_rate(tr.roll_rad, dt) / kDeg;
+  ins["yaw_rate"] = central_rate(unwrapped_yaw, dt) / kDeg;
+  {
+    const Eigen::VectorXd acc_fwd = central_rate(tr.speed_mps, dt);
+    const Eigen::VectorXd acc_up = central_rate(tr.vu_mps, dt);
+    const Eigen::VectorXd turn = central_rate(unwrapped_yaw, dt);
+    ins["ins_acc_x"] = acc_fwd;
+    ins["ins_acc_y"] = (turn.array() * tr.speed_mps.array()).matrix();
+    ins["ins_acc_z"] = (acc_up.array() + 9.80665).matrix();
+    ins["lgtl_acc"] = acc_fwd / 9.80665;
+    ins["ltrl_acc"] = Eigen::VectorXd::Zero(n);
+    ins["nrml_acc"] =
+        ((1.0 / tr.roll_rad.array().cos() - 1.0) + acc_up.array() / 9.80665).matrix();
+  }
+  auto source = [&](const std::string& name) -> const Eigen::VectorXd& {
+    auto it = channels.find(name);
+    return it != channels.end() ? it->second : ins.at(name);
+  };
 
   Simulation sim;
   FlightData& f = sim.flight;
@@ -240,6 +266,34 @@ Simulation simulate(const Scenario& s) {
           contrib[i] = (field[kk] + b).norm() - field[kk].norm();
           hidden_vec[kk] += b;
         }
+      } else if (e.type == "thermal" || e.type == "flex" || e.type == "relay" ||
+                 e.type == "eddy_decay") {
+        // A body-fixed field: b = gain · direction · s(t) (eddy_decay: gain · E · lp(dB/dt)).
+        const double alpha = e.time_constant_s > 0 ? std::exp(-dt / e.time_constant_s) : 0.0;
+        Eigen::Vector3d state = Eigen::Vector3d::Zero();
+        for (Eigen::Index i = 0; i < n; ++i) {
+          const auto kk = static_cast<size_t>(i);
+          Eigen::Vector3d b;
+          if (e.type == "eddy_decay") {
+            static const Eigen::Matrix3d kPattern =
+                (Eigen::Matrix3d() << 1.0, 0.5, 0.0, 0.3, -0.8, 0.4, 0.0, 0.6, 1.0).finished();
+            const Eigen::Vector3d& r = earth_rate[kk];
+            state = i == 0 ? r : Eigen::Vector3d(alpha * state + (1 - alpha) * r);
+            b = e.gain * (kPattern * state);
+          } else {
+            const double x = source(e.channel)[i];
+            double v = e.type == "thermal" ? std::pow(std::abs(x), e.exponent)
+                       : e.type == "relay" ? (x > e.threshold ? 1.0 : 0.0)
+                                           : x;
+            if (e.type != "relay" && e.time_constant_s > 0) {
+              state[0] = i == 0 ? v : alpha * state[0] + (1 - alpha) * v;
+              v = state[0];
+            }
+            b = e.gain * v * e.direction;
+          }
+          contrib[i] = (field[kk] + b).norm() - field[kk].norm();
+          hidden_vec[kk] += b;
+        }
       } else if (e.type == "heading") {
         for (Eigen::Index i = 0; i < n; ++i) {
           const auto kk = static_cast<size_t>(i);
@@ -309,8 +363,33 @@ Simulation simulate(const Scenario& s) {
       std::snprintf(lag_term, sizeof(lag_term), "lag:%g", e.lag_s);
       y << YAML::Key << "expected_term" << YAML::Value << lag_term;
     }
-    if (e.type == "heading" || e.type == "drift" || e.type == "inductive") {
+    if (e.type == "heading" || e.type == "drift" || e.type == "inductive" ||
+        e.type == "thermal" || e.type == "flex" || e.type == "relay" || e.type == "eddy_decay") {
       y << YAML::Key << "gain" << YAML::Value << e.gain;
+    }
+    if (e.type == "thermal" || e.type == "drift" || e.type == "eddy_decay" ||
+        (e.type == "flex" && e.time_constant_s > 0)) {
+      y << YAML::Key << "time_constant_s" << YAML::Value << e.time_constant_s;
+    }
+    const std::string lp = "|lp(" + format_param(e.time_constant_s) + ")";
+    if (e.type == "thermal") {
+      y << YAML::Key << "exponent" << YAML::Value << e.exponent;
+      y << YAML::Key << "expected_term" << YAML::Value
+        << "field:" + e.channel + "|pow(" + format_param(e.exponent) + ")" + lp;
+    }
+    if (e.type == "flex") {
+      y << YAML::Key << "expected_term" << YAML::Value
+        << "field:" + e.channel + (e.time_constant_s > 0 ? lp : "");
+    }
+    if (e.type == "eddy_decay") {
+      y << YAML::Key << "expected_term" << YAML::Value
+        << "field:B|decay(" + format_param(e.time_constant_s) + ")";
+    }
+    if (e.type == "relay") {
+      y << YAML::Key << "threshold" << YAML::Value << e.threshold;
+      y << YAML::Key << "expected_term" << YAML::Value
+        << "(none: a device switched on while " + e.channel + " > " +
+               format_param(e.threshold) + "; the term language has no threshold)";
     }
     y << YAML::EndMap;
   }
@@ -360,14 +439,9 @@ Simulation simulate(const Scenario& s) {
   f.set("ins_pitch", tr.pitch_rad / kDeg);
   f.set("ins_roll", tr.roll_rad / kDeg);
   f.set("ins_yaw", yaw_deg);
-  Eigen::VectorXd unwrapped_yaw = tr.yaw_rad;
-  for (Eigen::Index i = 1; i < n; ++i) {
-    unwrapped_yaw[i] =
-        unwrapped_yaw[i - 1] + std::remainder(tr.yaw_rad[i] - tr.yaw_rad[i - 1], 2 * M_PI);
-  }
-  f.set("pitch_rate", central_rate(tr.pitch_rad, dt) / kDeg);
-  f.set("roll_rate", central_rate(tr.roll_rad, dt) / kDeg);
-  f.set("yaw_rate", central_rate(unwrapped_yaw, dt) / kDeg);
+  f.set("pitch_rate", ins["pitch_rate"]);
+  f.set("roll_rate", ins["roll_rate"]);
+  f.set("yaw_rate", ins["yaw_rate"]);
   f.set("ins_vn", tr.vn_mps);
   f.set("ins_vw", -tr.ve_mps);
   f.set("ins_vu", tr.vu_mps);
@@ -375,15 +449,8 @@ Simulation simulate(const Scenario& s) {
   f.set("ins_lon", tr.lon_deg * kDeg);
   f.set("ins_alt", tr.alt_m);
   f.set("ins_wander", Eigen::VectorXd::Zero(n));
-  const Eigen::VectorXd acc_fwd = central_rate(tr.speed_mps, dt);
-  const Eigen::VectorXd acc_up = central_rate(tr.vu_mps, dt);
-  const Eigen::VectorXd turn = central_rate(unwrapped_yaw, dt);
-  f.set("ins_acc_x", acc_fwd);
-  f.set("ins_acc_y", (turn.array() * tr.speed_mps.array()).matrix());
-  f.set("ins_acc_z", (acc_up.array() + 9.80665).matrix());
-  f.set("lgtl_acc", acc_fwd / 9.80665);
-  f.set("ltrl_acc", Eigen::VectorXd::Zero(n));
-  f.set("nrml_acc", ((1.0 / tr.roll_rad.array().cos() - 1.0) + acc_up.array() / 9.80665).matrix());
+  for (const char* k : {"ins_acc_x", "ins_acc_y", "ins_acc_z", "lgtl_acc", "ltrl_acc", "nrml_acc"})
+    f.set(k, ins[k]);
   f.set("tas", tr.speed_mps);
   Eigen::VectorXd static_p(n), pitot_p(n), total_p(n);
   for (Eigen::Index i = 0; i < n; ++i) {

@@ -19,14 +19,22 @@ struct Segment {
 
 /// A hidden (or visible) physical effect the simulator adds to the scalar sensors.
 struct HiddenEffect {
-  std::string type;                     ///< wire | inductive | lag | fluxgate | heading | drift
+  /// wire | inductive | lag | fluxgate | heading | drift | thermal | eddy_decay | flex | relay
+  std::string type;
   std::string channel;                  ///< wire / inductive / drift: the current or other channel
   Eigen::Vector3d position_m{0, 0, 0};  ///< wire: midpoint in base_link (x fwd, y left, z up)
   Eigen::Vector3d direction{1, 0, 0};   ///< wire: along the wire; inductive/heading: field axis
   double length_m = 1.0;                ///< wire length
-  double gain = 0.0;   ///< inductive: nT per A/s at 1 m scale; heading: nT; drift: nT per unit
+  /// inductive: nT per A/s at 1 m scale; heading: nT; drift, flex: nT per unit of the channel;
+  /// thermal: nT per unit of lp(|I|^exponent); eddy_decay: s (scale of its 3x3 eddy matrix);
+  /// relay: nT while the channel is above the threshold
+  double gain = 0.0;
   double lag_s = 0.0;  ///< lag: scalar sensors read the field lag_s late
-  double time_constant_s = 300.0;                 ///< drift: low-pass of the channel
+  /// drift, thermal: low-pass of the channel; eddy_decay: decay of the eddy currents; flex: the
+  /// structure's response (0: none)
+  double time_constant_s = 300.0;
+  double exponent = 2.0;   ///< thermal: heating ∝ |I|^exponent (2: Joule heating)
+  double threshold = 0.0;  ///< relay: the channel value above which the device is on
   Eigen::Vector3d scale{0, 0, 0};                 ///< fluxgate: scale errors (fraction) per axis
   Eigen::Vector3d nonorthogonality_rad{0, 0, 0};  ///< fluxgate: xy, xz, yz angles
   Eigen::Vector3d offset_nT{0, 0, 0};             ///< fluxgate: offsets

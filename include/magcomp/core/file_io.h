@@ -1,0 +1,28 @@
+// magcomp: every file the tools write goes through here: checked, atomic, never over an input.
+#pragma once
+
+#include <string>
+#include <vector>
+
+namespace magcomp {
+
+/// Refuses an output path before any work is done: one that names one of `inputs` (the same
+/// file, by device and inode, or the same path), or an existing file that is not a regular file
+/// (a device, a directory, a pipe). Throws magcomp::Error naming the path and why.
+void check_output_path(const std::string& path, const std::vector<std::string>& inputs = {});
+
+/// A temporary path beside `path` (same directory, so the final rename is atomic).
+std::string temporary_path(const std::string& path);
+
+/// Moves a finished temporary file over `path` (after check_output_path); on failure removes the
+/// temporary file and throws magcomp::Error naming `path`.
+void commit_temporary(const std::string& tmp, const std::string& path,
+                      const std::vector<std::string>& inputs = {});
+
+/// Writes `content` to `path` atomically: checked path, temporary file, every write and the
+/// close checked, then renamed into place. A reader never sees half a file, and a failure leaves
+/// the old file as it was. Throws magcomp::Error naming the path.
+void write_file_atomic(const std::string& path, const std::string& content,
+                       const std::vector<std::string>& inputs = {});
+
+}  // namespace magcomp
