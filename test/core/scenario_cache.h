@@ -32,6 +32,12 @@ inline Model calibrated_tl(const FlightData& flight, const std::vector<std::stri
   return m;
 }
 
+/// The user's loop's starting model for the 1002 scenarios (config/models/tl_reference.yaml):
+/// TL fitted against mag_1_c on the training lines; not fitted yet.
+inline Model reference_tl(const FlightData&) {
+  return load_model_yaml(source_dir() + "/config/models/tl_reference.yaml");
+}
+
 /// Pooled std (line means removed) of the model's error against mag_1_c on the whole flight, nT.
 inline double tl_std(const FlightData& flight, const std::vector<std::string>& extra = {}) {
   return evaluate_model(calibrated_tl(flight, extra), flight, "mag_1_c").std_nT;

@@ -1,4 +1,6 @@
-// diagnose: every shipped hidden effect is found and fixed; no false discovery; bad input.
+// diagnose: every hidden effect is found with its parameters and the loop reaches the error the
+// truth gives; nothing is accepted where nothing is hidden; the inexpressible is reported as
+// structure that remains; bad input; the CLI's JSON and --apply.
 #include <gtest/gtest.h>
 
 #include <fstream>
@@ -7,7 +9,9 @@
 #include <set>
 
 #include "magcomp/core/diagnose.h"
+#include "magcomp/core/diagnose_loop.h"
 #include "magcomp/core/error.h"
+#include "magcomp/core/terms_expr.h"
 #include "scenario_cache.h"
 
 namespace magcomp {
@@ -15,7 +19,40 @@ namespace {
 
 double floor_std() { return test::tl_std(test::scenario("tl_only").flight); }
 
-TEST(Diagnose, EveryHiddenEffectIsRankedFirstAndAddingItRemovesTheExcess) {
+// Pooled std of a fitted model's error over the given lines, nT.
+double std_on(const Model& m, const FlightData& f, const std::vector<double>& lines) {
+  const Evaluation ev = evaluate_model(m, f, "mag_1_c");
+  double ss = 0, n = 0;
+  for (const auto& l : ev.per_line) {
+    if (std::find(lines.begin(), lines.end(), l.line) == lines.end()) continue;
+    ss += l.std_nT * l.std_nT * static_cast<double>(l.n);
+    n += static_cast<double>(l.n);
+  }
+  return std::sqrt(ss / n);
+}
+
+// The error the truth gives: the hidden effects subtracted from the scalar (truth file), then the
+// same TL fit, on the same held-out lines.
+double truth_std(const sim::Simulation& s, const Model& start, const std::vector<double>& lines) {
+  FlightData clean = s.flight;
+  Eigen::VectorXd& scalar = clean.column("mag_5_uc");
+  for (const auto& name : s.truth.names()) {
+    if (name.rfind("mag_5_uc.hidden.", 0) == 0) scalar -= s.truth.column(name);
+  }
+  Model m = start;
+  fit_model(m, {&clean});
+  return std_on(m, clean, lines);
+}
+
+double parameter(const std::string& term, TransformKind kind) {
+  const auto e = parse_expr_term(term);
+  if (!e) return NAN;
+  for (const auto& t : e->signal().transforms)
+    if (t.kind == kind) return t.param;
+  return NAN;
+}
+
+TEST(Diagnose, EveryShippedHiddenEffectIsRankedFirstAndAddingItRemovesTheExcess) {
   const std::vector<std::pair<std::string, std::string>> cases = {
       {"wire_strobe", "current:cur_strb"},
       {"fuel_pump_wire", "current:cur_tank"},
@@ -27,54 +64,157 @@ TEST(Diagnose, EveryHiddenEffectIsRankedFirstAndAddingItRemovesTheExcess) {
     const Model tl = test::calibrated_tl(f);
     const Diagnosis dx = diagnose(tl, f, "mag_1_c");
     ASSERT_FALSE(dx.candidates.empty());
-    EXPECT_EQ(dx.candidates.front().term, expected) << name;
+    const Candidate& top = dx.candidates.front();
+    if (expected.rfind("lag:", 0) == 0) {  // the lag to 0.02 s
+      ASSERT_EQ(top.term.rfind("lag:", 0), 0u) << top.term;
+      EXPECT_NEAR(std::stod(top.term.substr(4)), std::stod(expected.substr(4)), 0.02);
+    } else {
+      EXPECT_EQ(top.term, expected) << name;
+    }
+    EXPECT_TRUE(top.accepted) << name;
     const double before = evaluate_model(tl, f, "mag_1_c").std_nT;
-    const double after = test::tl_std(f, {dx.candidates.front().term});
-    std::printf("  %-18s top %-18s explains %5.1f%%: std %.3f -> %.3f nT (floor %.3f)\n",
-                name.c_str(), dx.candidates.front().term.c_str(),
-                100 * dx.candidates.front().explained_fraction, before, after, floor);
+    const double after = test::tl_std(f, {top.term});
+    std::printf("  %-18s top %-18s explains %5.1f%% (selection %5.1f%%, confirmation %5.1f%%): "
+                "std %.3f -> %.3f nT (floor %.3f); %ld terms fitted\n",
+                name.c_str(), top.term.c_str(), 100 * top.explained_fraction,
+                100 * top.explained_selection, 100 * top.explained_confirmation, before, after,
+                floor, dx.candidates_tried);
     EXPECT_TRUE(after * 5.0 <= before || after <= 1.5 * floor) << name;
-    // The runner-up explains little: the ranking is not a coin toss.
-    EXPECT_LT(dx.candidates[1].explained_fraction, 0.5 * dx.candidates[0].explained_fraction);
+    // The best candidate of another channel explains far less: the ranking is not a coin toss.
+    // (For the lag, the other timing errors are its near-equivalents: a first-order response
+    // of the scalar, or a response to the field's rate.)
+    const bool timing = top.family == "scalar lag";
+    for (const auto& c : dx.candidates) {
+      if (c.family == "scalar lag") continue;
+      if (timing && (c.family == "scalar sensor response" || c.channel.empty())) continue;
+      if (!top.channel.empty() && c.channel.find(top.channel) != std::string::npos) continue;
+      EXPECT_LT(c.explained_fraction, 0.5 * top.explained_fraction) << name << " " << c.term << " (" << c.family << ")";
+      break;
+    }
   }
 }
 
-TEST(Diagnose, TwoHiddenEffectsAreFoundInTwoRoundsAndThreeReachTheFloor) {
+TEST(Diagnose, TwoHiddenEffectsAreFoundInTwoRoundsAndReachTheFloor) {
   const FlightData& f = test::scenario("two_effects").flight;
-  std::vector<std::string> added;
-  std::vector<std::string> found;
-  for (int round = 0; round < 3; ++round) {
-    const Diagnosis dx = diagnose(test::calibrated_tl(f, added), f, "mag_1_c");
-    ASSERT_FALSE(dx.candidates.empty());
-    const std::string top = dx.candidates.front().term;
-    found.push_back(top.substr(0, top.find(':')) +
-                    (top.rfind("current:", 0) == 0 ? top.substr(top.find(':')) : ""));
-    added.push_back(top);
-    std::printf("  round %d: %s (%.1f%%)\n", round + 1, top.c_str(),
-                100 * dx.candidates.front().explained_fraction);
+  const LoopResult r = diagnose_loop(test::calibrated_tl(f), f, "mag_1_c", 5, 0.05, {});
+  std::set<std::string> added;
+  for (const auto& lr : r.rounds) {
+    std::printf("  round %d: %-22s held-out %.3f nT\n", lr.round, lr.added.c_str(),
+                lr.heldout_std_nT);
+    if (lr.round > 0) added.insert(lr.added.substr(0, lr.added.find(':')));
   }
-  // Rounds 1 and 2 name the two effects (lag and the strobe wire, in either order).
-  std::set<std::string> first_two(found.begin(), found.begin() + 2);
-  EXPECT_EQ(first_two, (std::set<std::string>{"lag", "current:cur_strb"}));
-  const double after = test::tl_std(f, added);
-  std::printf("  after three rounds: %.3f nT (floor %.3f)\n", after, floor_std());
-  EXPECT_LT(after, 1.5 * floor_std());
+  ASSERT_EQ(r.rounds.size(), 3u) << r.stop_reason;
+  EXPECT_EQ(added, (std::set<std::string>{"lag", "current"}));
+  EXPECT_LT(r.rounds.back().all_std_nT, 1.5 * floor_std());
 }
 
-TEST(Diagnose, NoFalseDiscoveryOnTheTlOnlyFlight) {
-  const FlightData& f = test::scenario("tl_only").flight;
-  const Diagnosis dx = diagnose(test::calibrated_tl(f), f, "mag_1_c");
-  ASSERT_GT(dx.candidates.size(), 40u);  // ~31 channels x 2 kinds + lag
-  std::printf("  best candidate on tl_only: %s, %.2f%%\n", dx.candidates.front().term.c_str(),
-              100 * dx.candidates.front().explained_fraction);
-  for (const auto& c : dx.candidates) EXPECT_LT(c.explained_fraction, 0.05) << c.term;
+// The user's loop on the scenarios whose hidden effect the old closed menu could not say: TL
+// against the reference on the training lines, then diagnose and add the top term while it is
+// accepted and explains 5 %, at most 5 rounds.
+TEST(Diagnose, TheLoopReachesTheTruthErrorWithTheRightParametersOnEveryNewEffect) {
+  struct Case {
+    std::string scenario;
+    std::vector<std::pair<TransformKind, double>> parameters;  // kind, truth
+    double lag_s;                                              // truth, NaN: none
+    size_t rounds;                                             // terms the loop should add
+  };
+  const std::vector<Case> cases = {
+      {"thermal_heater", {{TransformKind::LowPass, 150.0}}, NAN, 1},
+      {"eddy_decay", {{TransformKind::Decay, 0.8}}, NAN, 1},
+      {"flex_load", {}, NAN, 1},
+      {"wire_thermal_lag", {{TransformKind::LowPass, 150.0}}, 0.2, 3}};
+  for (const Case& c : cases) {
+    const sim::Simulation& s = test::scenario(c.scenario);
+    const Model start = test::reference_tl(s.flight);
+    const LoopResult r = diagnose_loop(start, s.flight, "mag_1_c", 5, 0.05, {});
+    std::vector<double> held;  // the lines the user never fitted on
+    for (const auto& l : evaluate_model(r.model, s.flight, "mag_1_c").per_line) {
+      if (std::find(start.fit.lines.begin(), start.fit.lines.end(), l.line) ==
+          start.fit.lines.end())
+        held.push_back(l.line);
+    }
+    Model tl = start;
+    fit_model(tl, {&s.flight});
+    const double truth = truth_std(s, start, held);
+    const double tl_err = std_on(tl, s.flight, held);
+    const double final_err = std_on(r.model, s.flight, held);
+    std::printf("  %-17s TL %.3f nT -> %.3f nT in %zu rounds (the truth gives %.3f; limit %.3f):",
+                c.scenario.c_str(), tl_err, final_err, r.rounds.size() - 1, truth,
+                1.5 * truth + 0.05);
+    for (const auto& lr : r.rounds) {
+      if (lr.round > 0) std::printf(" %s", lr.added.c_str());
+    }
+    std::printf("\n");
+    EXPECT_LE(final_err, 1.5 * truth + 0.05) << c.scenario;
+    EXPECT_LT(final_err, tl_err) << c.scenario;
+    EXPECT_EQ(r.rounds.size() - 1, c.rounds) << c.scenario << ": " << r.stop_reason;
+    for (const auto& [kind, value] : c.parameters) {
+      double found = NAN;
+      for (const auto& t : r.model.terms) {
+        if (std::isnan(found)) found = parameter(t, kind);
+      }
+      EXPECT_NEAR(found, value, 0.2 * value) << c.scenario;
+    }
+    if (!std::isnan(c.lag_s)) {
+      EXPECT_NEAR(r.model.scalar_lag_s(), c.lag_s, 0.2 * c.lag_s);
+    }
+  }
+}
+
+TEST(Diagnose, NothingIsAcceptedWhereNothingIsHiddenAndTheRestIsWithinNoise) {
+  // tl_only: nothing hidden, TL against the reference on its own training lines.
+  Model tl_only = test::reference_tl(test::scenario("tl_only").flight);
+  tl_only.fit.lines = {1001.02, 1001.04, 1001.10, 1001.12, 1001.14};
+  const std::vector<std::pair<std::string, Model>> cases = {
+      {"tl_only", tl_only}, {"noise_only", test::reference_tl(test::scenario("noise_only").flight)}};
+  for (const auto& [name, start] : cases) {
+    const FlightData& f = test::scenario(name).flight;
+    Model m = start;
+    fit_model(m, {&f});
+    const Diagnosis dx = diagnose(m, f, "mag_1_c");
+    size_t accepted = 0;
+    for (const auto& c : dx.candidates) accepted += c.accepted;
+    std::printf("  %-10s held-out %.3f nT, %zu candidates (%ld terms fitted), %zu accepted; "
+                "explainable share %.1f%% +- %.1f%% (floor %.1f%%)\n  verdict: %s\n",
+                name.c_str(), dx.baseline_std_nT, dx.candidates.size(), dx.candidates_tried,
+                accepted, 100 * dx.explainable.share, 100 * dx.explainable.uncertainty,
+                100 * dx.explainable.noise_floor, dx.verdict.c_str());
+    EXPECT_EQ(accepted, 0u) << name << ": " << dx.candidates.front().term;
+    EXPECT_GT(dx.candidates.size(), 200u);
+    EXPECT_TRUE(dx.explainable.computed);
+    EXPECT_TRUE(dx.explainable.within_noise) << name;
+    EXPECT_EQ(dx.verdict.rfind("complete", 0), 0u) << dx.verdict;
+  }
+}
+
+TEST(Diagnose, AnEffectTheLanguageCannotSayIsReportedAsStructureThatRemains) {
+  // A device switched on while the bus current cur_acpwr is above 21 A: a threshold.
+  const sim::Simulation& s = test::scenario("relay_bus");
+  const LoopResult r =
+      diagnose_loop(test::reference_tl(s.flight), s.flight, "mag_1_c", 5, 0.05, {});
+  const ExplainableShare& x = r.last.explainable;
+  std::printf("  stop: %s\n", r.stop_reason.c_str());
+  ASSERT_TRUE(x.computed);
+  EXPECT_FALSE(x.within_noise);
+  EXPECT_EQ(r.last.verdict.rfind("structure remains", 0), 0u) << r.last.verdict;
+  bool named = false;
+  for (size_t k = 0; k < x.channels.size() && k < 3; ++k) {
+    named = named || x.channels[k].first == "cur_acpwr" || x.channels[k].first == "cur_outpwr";
+  }
+  EXPECT_TRUE(named) << "the bus current is among the three channels named";
+  EXPECT_NE(r.last.verdict.find("cur_"), std::string::npos);
+  EXPECT_FALSE(x.time_scales.empty());
+  EXPECT_FALSE(x.lines.empty());
 }
 
 TEST(Diagnose, BadInputsGiveClearMessagesAndConstantChannelsAreSkipped) {
   FlightData f = test::scenario("wire_strobe").flight;
   Model tl = test::calibrated_tl(f);
   f.set("cur_dead", Eigen::VectorXd::Constant(f.size(), 0.0));
-  const Diagnosis dx = diagnose(tl, f, "mag_1_c");
+  DiagnoseOptions quick;
+  quick.full_search = false;
+  quick.explainable_share = false;
+  const Diagnosis dx = diagnose(tl, f, "mag_1_c", quick);
   bool noted = false;
   for (const auto& n : dx.notes)
     noted = noted || n.find("'cur_dead' is constant") != std::string::npos;
@@ -83,7 +223,7 @@ TEST(Diagnose, BadInputsGiveClearMessagesAndConstantChannelsAreSkipped) {
   nan_ref.set("mag_1_c",
               Eigen::VectorXd::Constant(f.size(), std::numeric_limits<double>::quiet_NaN()));
   try {
-    diagnose(tl, nan_ref, "mag_1_c");
+    diagnose(tl, nan_ref, "mag_1_c", quick);
     FAIL();
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("'mag_1_c' holds no finite sample"), std::string::npos);
@@ -91,14 +231,14 @@ TEST(Diagnose, BadInputsGiveClearMessagesAndConstantChannelsAreSkipped) {
   Model absent = tl;
   absent.vector = "flux_z";
   try {
-    diagnose(absent, f, "mag_1_c");
+    diagnose(absent, f, "mag_1_c", quick);
     FAIL();
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("flux_z_x"), std::string::npos) << e.what();
   }
 }
 
-TEST(Diagnose, CliWritesTheContractJson) {
+TEST(Diagnose, CliWritesTheContractJsonAndTheLoop) {
   const std::string dir = test::temp_dir("dx");
   sim::write_simulation(test::scenario("inductive_heater"), dir + "/f.h5");
   std::string out;
@@ -113,7 +253,7 @@ TEST(Diagnose, CliWritesTheContractJson) {
                       &out),
             0)
       << out;
-  EXPECT_NE(out.find("--term dcurrent:cur_heat"), std::string::npos) << out;
+  EXPECT_NE(out.find("--term 'dcurrent:cur_heat'"), std::string::npos) << out;
   nlohmann::json j;
   std::ifstream(dir + "/d.json") >> j;
   EXPECT_GT(j["baseline_std_nT"].get<double>(), 1.0);
@@ -123,19 +263,33 @@ TEST(Diagnose, CliWritesTheContractJson) {
   EXPECT_TRUE(top["effect"].is_string());
   EXPECT_LT(top["std_after_nT"].get<double>(), 0.5);
   EXPECT_GT(top["explained_fraction"].get<double>(), 0.9);
-  // The suggested term is accepted as is by calibrate, and the error falls.
-  ASSERT_EQ(test::run(test::cli() + " calibrate --data " + dir + "/f.h5 --model " + dir +
-                          "/m.yaml --term dcurrent:cur_heat --out " + dir + "/m2.yaml",
+  EXPECT_TRUE(top["accepted"].get<bool>());
+  EXPECT_TRUE(top["parameters"].is_object());
+  EXPECT_GT(top["parameters"]["gain_nT_per_unit"].get<double>(), 0.0);
+  EXPECT_TRUE(j["explainable_share"]["share"].is_number());
+  EXPECT_TRUE(j["explainable_share"]["within_noise"].is_boolean());
+  // Rejected candidates come after every accepted one.
+  bool seen_rejected = false;
+  for (const auto& c : j["candidates"]) {
+    if (!c["accepted"].get<bool>()) seen_rejected = true;
+    EXPECT_FALSE(seen_rejected && c["accepted"].get<bool>()) << c["term"];
+  }
+  // The loop as a command: it adds the term, refits and writes the final model.
+  ASSERT_EQ(test::run(test::cli() + " diagnose --apply --data " + dir + "/f.h5 --model " + dir +
+                          "/m.yaml --out " + dir + "/final.yaml --json " + dir + "/loop.json",
                       &out),
             0)
       << out;
-  ASSERT_EQ(test::run(test::cli() + " evaluate --data " + dir + "/f.h5 --model " + dir +
-                          "/m2.yaml --json " + dir + "/e.json",
-                      &out),
-            0);
-  nlohmann::json e;
-  std::ifstream(dir + "/e.json") >> e;
-  EXPECT_LT(e["std_nT"].get<double>(), 0.5);
+  EXPECT_NE(out.find("dcurrent:cur_heat"), std::string::npos) << out;
+  const Model final_model = load_model_yaml(dir + "/final.yaml");
+  EXPECT_TRUE(final_model.fitted());
+  EXPECT_NE(std::find(final_model.terms.begin(), final_model.terms.end(), "dcurrent:cur_heat"),
+            final_model.terms.end());
+  nlohmann::json loop;
+  std::ifstream(dir + "/loop.json") >> loop;
+  ASSERT_GE(loop["rounds"].size(), 2u);
+  EXPECT_LT(loop["rounds"].back()["heldout_std_nT"].get<double>(),
+            0.2 * loop["rounds"][0]["heldout_std_nT"].get<double>());
 }
 
 }  // namespace
