@@ -4,6 +4,7 @@
 
 #include "common.h"
 #include "magcomp/core/error.h"
+#include "magcomp/core/file_io.h"
 #include "magcomp/core/model.h"
 #include "subcommands.h"
 
@@ -20,6 +21,8 @@ void add_calibrate(CLI::App& app) {
   cmd->add_option("--term", *terms, "add a term, e.g. current:cur_strb (repeatable)");
   cmd->add_option("--out", *out, "fitted model YAML to write")->required();
   cmd->callback([=] {
+    const std::vector<std::string> inputs = split_commas(*data);
+    check_output_path(*out, inputs);  // before the work: never over a flight it reads
     Model model = load_model_yaml(*model_path);
     for (const std::string& t : *terms) {
       try {
@@ -32,13 +35,14 @@ void add_calibrate(CLI::App& app) {
     std::vector<const FlightData*> ptrs;
     for (const auto& f : flights) ptrs.push_back(&f);
     fit_model(model, ptrs);
-    save_model_yaml(model, *out);
+    save_model_yaml(model, *out, inputs);
     const FitReport& r = model.report;
     std::cout << "calibrated " << model.scalar << " with " << model.vector << ": "
               << model.coefficients.size() << " coefficients, " << r.samples << " samples in "
               << r.segments << " segment(s)\n"
               << std::setprecision(4) << "condition number " << r.condition_number
               << ", fit residual std " << r.residual_std_nT << " nT\n";
+    for (const auto& e : r.estimates) std::cout << "estimated: " << e << "\n";
     for (const auto& w : r.warnings) std::cout << "warning: " << w << "\n";
     std::cout << "wrote " << *out << "\n";
   });

@@ -33,9 +33,15 @@ std::vector<std::string> split_commas(const std::string& s) {
   return out;
 }
 
+FlightData read_flight(const std::string& path) {
+  FlightData f = read_flight_h5(path);
+  for (const std::string& note : f.read_notes()) std::cerr << "warning: " << note << "\n";
+  return f;
+}
+
 std::vector<FlightData> read_flights(const std::string& comma_list) {
   std::vector<FlightData> flights;
-  for (const std::string& path : split_commas(comma_list)) flights.push_back(read_flight_h5(path));
+  for (const std::string& path : split_commas(comma_list)) flights.push_back(read_flight(path));
   if (flights.empty()) throw Error("--data: no file given");
   return flights;
 }

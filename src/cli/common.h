@@ -10,7 +10,11 @@
 
 namespace magcomp::cli {
 
-/// Reads the comma-separated list of HDF5 flight files of a --data option.
+/// Reads one HDF5 flight file and prints what the reader left out or repaired as `warning:` lines
+/// on stderr (nothing is dropped without a word).
+FlightData read_flight(const std::string& path);
+
+/// Reads the comma-separated list of HDF5 flight files of a --data option (read_flight each).
 std::vector<FlightData> read_flights(const std::string& comma_list);
 
 /// Runs a program's body and turns an escaping exception into the one-line `error: ...` message

@@ -4,6 +4,7 @@
 #include <iostream>
 
 #include "magcomp/core/error.h"
+#include "magcomp/core/file_io.h"
 #include "magcomp/ros/bag_converter.h"
 #include "subcommands.h"
 
@@ -14,24 +15,40 @@ void add_convert(CLI::App& app) {
   auto in = std::make_shared<std::string>();
   auto out = std::make_shared<std::string>();
   auto force = std::make_shared<bool>(false);
+  auto allow_skip = std::make_shared<bool>(false);
   cmd->add_option("IN", *in, "input flight (.h5) or bag (.bag)")->required();
   cmd->add_option("OUT", *out, "output bag (.bag) or flight (.h5)")->required();
   cmd->add_flag("--force", *force, "overwrite OUT if it exists");
+  cmd->add_flag("--allow-skip", *allow_skip,
+                "convert even when IN holds objects outside the flight schema (groups, string or "
+                "boolean datasets): they are left out, each named in a warning");
   cmd->callback([=] {
     auto ends = [](const std::string& s, const std::string& e) {
       return s.size() >= e.size() && s.compare(s.size() - e.size(), e.size(), e) == 0;
     };
     const auto t0 = std::chrono::steady_clock::now();
     if (ends(*in, ".h5") && ends(*out, ".bag")) {
+      check_output_path(*out, {*in});
       const FlightData f = read_flight_h5(*in);
+      std::vector<std::string> left_out;
+      for (const auto& note : f.read_notes()) {
+        std::cerr << "warning: " << note << "\n";
+        if (note.find("left out") != std::string::npos) left_out.push_back(note);
+      }
+      if (!left_out.empty() && !*allow_skip) {
+        throw Error(*in + ": " + std::to_string(left_out.size()) +
+                    " object(s) outside the flight schema would be left out (listed above); "
+                    "convert is lossless, so it stops: pass --allow-skip to convert without them");
+      }
       const rosio::ConvertReport r = rosio::flight_to_bag(f, *out, *force);
       std::cout << "wrote " << *out << ": " << r.samples << " samples x " << r.fields << " fields, "
                 << r.messages << " messages";
     } else if (ends(*in, ".bag") && ends(*out, ".h5")) {
       if (!*force && std::ifstream(*out).good())
         throw Error(*out + ": exists; pass --force to overwrite");
+      check_output_path(*out, {*in});
       const FlightData f = rosio::bag_to_flight(*in);
-      write_flight_h5(f, *out);
+      write_flight_h5(f, *out, {*in});
       std::cout << "wrote " << *out << ": " << f.size() << " samples x " << f.names().size()
                 << " fields";
     } else {

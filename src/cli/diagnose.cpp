@@ -160,7 +160,7 @@ void add_diagnose(CLI::App& app) {
     if (*rounds < 1 || *rounds > 50) throw Error("--rounds: must be in 1..50");
     if (*top < 0) throw Error("--top: must be >= 0");
     const Model model = load_model_yaml(*model_path);
-    const FlightData flight = read_flight_h5(*data);
+    const FlightData flight = read_flight(*data);
     DiagnoseOptions options;
     options.full_search = !*quick;
     if (!*apply) {

@@ -10,6 +10,7 @@
 
 #include "common.h"
 #include "magcomp/core/error.h"
+#include "magcomp/core/file_io.h"
 #include "magcomp/core/evaluation.h"
 #include "magcomp/core/flight_conditions.h"
 #include "subcommands.h"
@@ -50,7 +51,8 @@ void print_groups(const char* title, const std::vector<GroupStats>& groups) {
 
 // The per-sample series the report plots, as an HDF5 file in the flight schema.
 void write_series(const std::string& path, const FlightData& flight, const Model& model,
-                  const Evaluation& ev, const std::string& truth, const Evaluation* baseline) {
+                  const Evaluation& ev, const std::string& truth, const Evaluation* baseline,
+                  const std::vector<std::string>& inputs) {
   FlightData s;
   s.set_source(path);
   for (const char* f :
@@ -76,7 +78,7 @@ void write_series(const std::string& path, const FlightData& flight, const Model
   for (const auto& name : flight.names()) {
     if (name.rfind("cur_", 0) == 0 || name.rfind("vol_", 0) == 0) s.set(name, flight.column(name));
   }
-  write_flight_h5(s, path);
+  write_flight_h5(s, path, inputs);
 }
 
 }  // namespace
@@ -97,9 +99,12 @@ void add_evaluate(CLI::App& app) {
   cmd->add_option("--baseline", *baseline_path,
                   "a second fitted model to compare with (before/after)");
   cmd->callback([=] {
+    std::vector<std::string> inputs = {*data, *model_path};
+    if (!baseline_path->empty()) inputs.push_back(*baseline_path);
+    if (!json_path->empty()) check_output_path(*json_path, inputs);
     const Model model = load_model_yaml(*model_path);
     if (!model.fitted()) throw Error(*model_path + ": model has no coefficients; run calibrate");
-    const FlightData flight = read_flight_h5(*data);
+    const FlightData flight = read_flight(*data);
     const Evaluation ev = evaluate_model(model, flight, *truth);
     std::unique_ptr<Evaluation> base;
     if (!baseline_path->empty()) {
@@ -135,15 +140,15 @@ void add_evaluate(CLI::App& app) {
       j["baseline"] = to_json(*base);
       j["baseline"]["model"] = *baseline_path;
     }
-    if (!json_path->empty()) {
-      std::ofstream f(*json_path);
-      if (!f) throw Error(*json_path + ": cannot write JSON");
-      f << j.dump(2) << "\n";
-    }
+    if (!json_path->empty()) write_file_atomic(*json_path, j.dump(2) + "\n", inputs);
     if (!report->empty()) {
-      ::mkdir(report->c_str(), 0755);
-      write_series(*report + "/series.h5", flight, model, ev, *truth, base.get());
-      std::ofstream(*report + "/evaluation.json") << j.dump(2) << "\n";
+      struct stat st {};
+      if (::mkdir(report->c_str(), 0755) != 0 &&
+          !(::stat(report->c_str(), &st) == 0 && S_ISDIR(st.st_mode))) {
+        throw Error(*report + ": cannot create the report directory");
+      }
+      write_series(*report + "/series.h5", flight, model, ev, *truth, base.get(), inputs);
+      write_file_atomic(*report + "/evaluation.json", j.dump(2) + "\n", inputs);
       const char* env = std::getenv("MAGCOMP_SCRIPTS_DIR");
       const std::string script =
           std::string(env && *env ? env : MAGCOMP_SCRIPTS_DIR) + "/magcomp_report.py";

@@ -1,6 +1,9 @@
 // magcomp: the command-line tool. Each subcommand is a thin shell over magcomp_core.
 #include <unistd.h>
 
+#include <console_bridge/console.h>
+#include <ros/console.h>
+
 #include <CLI/CLI.hpp>
 #include <climits>
 #include <cstring>
@@ -37,6 +40,12 @@ int exec_train(int argc, char** argv) {
 
 int main(int argc, char** argv) {
   if (argc >= 2 && std::string(argv[1]) == "train") return exec_train(argc, argv);
+  // The rosbag library logs through console_bridge and rosconsole; the CLI says what went wrong
+  // itself, in one line.
+  console_bridge::setLogLevel(console_bridge::CONSOLE_BRIDGE_LOG_NONE);
+  if (ros::console::set_logger_level(ROSCONSOLE_DEFAULT_NAME, ros::console::levels::Fatal)) {
+    ros::console::notifyLoggerLevelsChanged();
+  }
   CLI::App app{"magcomp: airborne magnetic compensation (Tolles-Lawson + physical terms)"};
   app.require_subcommand(1);
   magcomp::cli::add_simulate(app);

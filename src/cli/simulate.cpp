@@ -2,6 +2,7 @@
 #include <chrono>
 #include <iostream>
 
+#include "magcomp/core/file_io.h"
 #include "magcomp/core/sim/simulator.h"
 #include "subcommands.h"
 
@@ -19,10 +20,12 @@ void add_simulate(CLI::App& app) {
   cmd->add_option("--seed", *seed, "override the scenario's seed");
   cmd->callback([=] {
     const auto t0 = std::chrono::steady_clock::now();
+    for (const std::string& p : {*out, sim::truth_path(*out, "h5"), sim::truth_path(*out, "yaml")})
+      check_output_path(p, {*scenario});
     sim::Scenario s = sim::load_scenario(*scenario);
     if (*seed >= 0) s.seed = static_cast<unsigned>(*seed);
     const sim::Simulation result = sim::simulate(s);
-    sim::write_simulation(result, *out);
+    sim::write_simulation(result, *out, {*scenario});
     const double secs =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     std::cout << "simulated " << result.flight.size() << " samples ("

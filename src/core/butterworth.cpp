@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <complex>
 #include <thread>
 
@@ -54,9 +55,12 @@ Butterworth::Butterworth(FilterType type, int order, double low_hz, double high_
   if (!(fs > 0)) throw Error("filter: sample_rate_hz must be positive");
   const double nyq = fs / 2.0;
   auto check = [&](double f, const char* what) {
-    if (!(f > 0 && f < nyq)) {
-      throw Error(std::string("filter: ") + what + " = " + std::to_string(f) +
-                  " Hz must lie in (0, " + std::to_string(nyq) + ") Hz");
+    // Below 1e-6 of the Nyquist frequency the digital poles merge with z = 1 in double precision.
+    if (!(f >= 1e-6 * nyq && f < nyq)) {
+      char buf[200];
+      std::snprintf(buf, sizeof(buf), "filter: %s = %g Hz must lie in [%g, %g) Hz", what, f,
+                    1e-6 * nyq, nyq);
+      throw Error(buf);
     }
   };
   sample_rate_hz_ = fs;

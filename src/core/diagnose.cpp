@@ -286,10 +286,15 @@ Scored Search::run(const Job& job) const {
       for (size_t k = 0; k < grid.size(); k += (grid.size() + 11) / 12) thin.push_back(grid[k]);
       grid = thin;
     }
-    const double v = scan_parameter(kind, grid, [&](double x) {
+    double v = scan_parameter(kind, grid, [&](double x) {
       ++fits;
       return fit_rss(columns(*make_term(expr->with_parameters({x}))));
     });
+    if (kind == TransformKind::Delay && v < 0.5 * dt) {  // no delay: the plain form says it
+      Scored none;
+      none.fits = fits;
+      return none;
+    }
     term = make_term(expr->with_parameters({v}));
   }
   const Eigen::MatrixXd cols = columns(*term);

@@ -117,6 +117,11 @@ Evaluation evaluate_model(const Model& model, const FlightData& data, const std:
                                    ? neural_compensate(model, data).compensated_nT
                                    : compensate(model, data);
   Evaluation ev = error_statistics(data, comp - ref);
+  if (ev.n == 0) {
+    throw Error(data.source() + ": no sample has a finite compensated value and reference (" +
+                model.scalar + ", " + model.vector + "_x/_y/_z, the model's channels, " + truth +
+                "): nothing to score");
+  }
   ev.compensated_nT = comp;
   return ev;
 }

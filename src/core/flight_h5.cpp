@@ -1,14 +1,19 @@
 // magcomp: MIT challenge HDF5 flight files, read and write (HDF5 C API).
 #include <hdf5.h>
+#include <sys/wait.h>
 #include <unistd.h>
+
+#include <cerrno>
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <fstream>
 #include <numeric>
 
 #include "magcomp/core/error.h"
+#include "magcomp/core/file_io.h"
 #include "magcomp/core/flight_data.h"
 
 namespace magcomp {
@@ -38,57 +43,187 @@ struct Dataset {
   bool numeric = true;
 };
 
-Dataset read_dataset(hid_t file, const std::string& path, const std::string& name) {
+const char* class_name(H5T_class_t c) {
+  switch (c) {
+    case H5T_STRING:
+      return "string";
+    case H5T_COMPOUND:
+      return "compound";
+    case H5T_ENUM:
+      return "enum (boolean)";
+    case H5T_ARRAY:
+      return "array";
+    case H5T_BITFIELD:
+      return "bitfield";
+    case H5T_OPAQUE:
+      return "opaque";
+    case H5T_REFERENCE:
+      return "reference";
+    case H5T_VLEN:
+      return "variable-length";
+    default:
+      return "non-numeric";
+  }
+}
+
+// Opens a dataset and reads its shape; the values are read by read_values once the length is
+// checked against tt and the file.
+Dataset open_dataset(hid_t file, const std::string& path, const std::string& name,
+                     std::string* skip_reason) {
   Dataset d;
   d.name = name;
   H5Handle ds(H5Dopen2(file, name.c_str(), H5P_DEFAULT), H5Dclose);
-  if (ds.id < 0) throw Error(path + ": field '" + name + "' cannot be opened");
+  if (ds.id < 0) throw Error(path + ": field '" + name + "' cannot be opened (corrupt object)");
   H5Handle type(H5Dget_type(ds.id), H5Tclose);
+  if (type.id < 0) throw Error(path + ": field '" + name + "' has an unreadable type");
   const H5T_class_t cls = H5Tget_class(type.id);
   if (cls != H5T_FLOAT && cls != H5T_INTEGER) {
     d.numeric = false;
+    *skip_reason = class_name(cls);
     return d;
   }
   H5Handle space(H5Dget_space(ds.id), H5Sclose);
+  if (space.id < 0) throw Error(path + ": field '" + name + "' has an unreadable shape");
   const int rank = H5Sget_simple_extent_ndims(space.id);
-  d.dims.resize(static_cast<size_t>(std::max(rank, 0)));
-  if (rank > 0) H5Sget_simple_extent_dims(space.id, d.dims.data(), nullptr);
-  const hssize_t count = H5Sget_simple_extent_npoints(space.id);
-  d.values.resize(static_cast<size_t>(std::max<hssize_t>(count, 0)));
-  if (count > 0 &&
-      H5Dread(ds.id, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, d.values.data()) < 0) {
-    throw Error(path + ": field '" + name + "' cannot be read as float64");
+  if (rank < 0) throw Error(path + ": field '" + name + "' has an unreadable shape");
+  d.dims.resize(static_cast<size_t>(rank));
+  if (rank > 0 && H5Sget_simple_extent_dims(space.id, d.dims.data(), nullptr) < 0) {
+    throw Error(path + ": field '" + name + "' has an unreadable shape");
   }
   return d;
+}
+
+// Reads the values of a dataset whose element count is `count`, after checking that the file can
+// hold them (no allocation from a declared size alone).
+void read_values(hid_t file, const std::string& path, Dataset& d, hsize_t count,
+                 hsize_t file_bytes) {
+  H5Handle ds(H5Dopen2(file, d.name.c_str(), H5P_DEFAULT), H5Dclose);
+  if (ds.id < 0) throw Error(path + ": field '" + d.name + "' cannot be opened (corrupt object)");
+  const hsize_t stored = H5Dget_storage_size(ds.id);
+  // Stored bytes bound what can be real data: 1000x is beyond any compression of float samples.
+  if (count > 0 && (stored == 0 || count > stored * 1000 || count > file_bytes * 1000)) {
+    throw Error(path + ": field '" + d.name + "' declares " + std::to_string(count) +
+                " values but the file stores " + std::to_string(stored) + " bytes of it");
+  }
+  try {
+    d.values.resize(static_cast<size_t>(count));
+  } catch (const std::bad_alloc&) {
+    throw Error(path + ": field '" + d.name + "': not enough memory for " +
+                std::to_string(count) + " values");
+  }
+  if (count > 0 &&
+      H5Dread(ds.id, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, d.values.data()) < 0) {
+    throw Error(path + ": field '" + d.name + "' cannot be read as float64 (corrupt data)");
+  }
+}
+
+// The HDF5 library trusts sizes and addresses in a file's structure (B-trees, local heaps,
+// object headers); on some corrupt files it crashes instead of returning an error. The structure
+// is therefore walked first in a child process: if the child dies, the file is refused, and the
+// parent never calls the library on it. Returns "" when the walk completed.
+std::string probe_structure(const std::string& path) {
+  // MAGCOMP_HDF5_PROBE=0 turns the probe off: the fuzz target does, to feed libFuzzer fast and
+  // see the library's own crashes (scripts/fuzz replays them through the probe).
+  if (const char* env = std::getenv("MAGCOMP_HDF5_PROBE"); env && std::string(env) == "0") return "";
+  std::fflush(nullptr);
+  const pid_t pid = ::fork();
+  if (pid < 0) return "";  // no child: read without the probe
+  if (pid == 0) {
+    H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
+    const hid_t file = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+    if (file >= 0) {
+      std::vector<std::string> names;
+      H5Literate(file, H5_INDEX_NAME, H5_ITER_NATIVE, nullptr, collect_name, &names);
+      for (const std::string& name : names) {
+        H5O_info_t info;
+        if (H5Oget_info_by_name2(file, name.c_str(), &info, H5O_INFO_BASIC, H5P_DEFAULT) < 0 ||
+            info.type != H5O_TYPE_DATASET)
+          continue;
+        const hid_t ds = H5Dopen2(file, name.c_str(), H5P_DEFAULT);
+        if (ds < 0) continue;
+        const hid_t type = H5Dget_type(ds);
+        if (type >= 0) {
+          (void)H5Tget_class(type);
+          H5Tclose(type);
+        }
+        const hid_t space = H5Dget_space(ds);
+        if (space >= 0) {
+          hsize_t dims[8];
+          if (H5Sget_simple_extent_ndims(space) <= 8) H5Sget_simple_extent_dims(space, dims, nullptr);
+          H5Sclose(space);
+        }
+        (void)H5Dget_storage_size(ds);
+        H5Dclose(ds);
+      }
+      H5Fclose(file);
+    }
+    ::_exit(0);
+  }
+  int status = 0;
+  while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+  }
+  if (WIFSIGNALED(status)) return "signal " + std::to_string(WTERMSIG(status));
+  return "";
+}
+
+hsize_t element_count(const Dataset& d) {
+  hsize_t c = 1;
+  for (hsize_t x : d.dims) c *= x;
+  return c;
 }
 
 }  // namespace
 
 FlightData read_flight_h5(const std::string& path) {
   H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
+  hsize_t file_bytes = 0;
   {
-    std::ifstream probe(path);
+    std::ifstream probe(path, std::ios::binary | std::ios::ate);
     if (!probe.good()) throw Error(path + ": file not found or not readable");
+    file_bytes = static_cast<hsize_t>(std::max<std::streamoff>(probe.tellg(), 0));
   }
   if (H5Fis_hdf5(path.c_str()) <= 0) throw Error(path + ": not an HDF5 file");
+  const std::string crash = probe_structure(path);
+  if (!crash.empty()) {
+    throw Error(path + ": corrupt HDF5 file: the HDF5 library fails on its structure (" + crash +
+                " in a probe process)");
+  }
   H5Handle file(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
-  if (file.id < 0) throw Error(path + ": cannot open HDF5 file");
+  if (file.id < 0) throw Error(path + ": cannot open HDF5 file (corrupt superblock)");
 
   std::vector<std::string> names;
-  H5Literate(file.id, H5_INDEX_NAME, H5_ITER_NATIVE, nullptr, collect_name, &names);
-
+  if (H5Literate(file.id, H5_INDEX_NAME, H5_ITER_NATIVE, nullptr, collect_name, &names) < 0) {
+    throw Error(path + ": cannot list the fields (corrupt root group)");
+  }
+  FlightData data;
+  data.set_source(path);
   std::vector<Dataset> series;
   for (const std::string& name : names) {
     H5O_info_t info;
-    if (H5Oget_info_by_name2(file.id, name.c_str(), &info, H5O_INFO_BASIC, H5P_DEFAULT) < 0 ||
-        info.type != H5O_TYPE_DATASET) {
-      continue;  // groups and other objects are not part of the schema
+    if (H5Oget_info_by_name2(file.id, name.c_str(), &info, H5O_INFO_BASIC, H5P_DEFAULT) < 0) {
+      throw Error(path + ": field '" + name + "' cannot be read (corrupt object header)");
     }
-    Dataset d = read_dataset(file.id, path, name);
-    if (!d.numeric) continue;
-    const bool scalar =
-        d.dims.empty() || (d.dims.size() == 1 && d.dims[0] == 1 && (name == "N" || name == "dt"));
-    if (scalar) continue;  // `N`, `dt`: derived from tt instead (dt is wrong in some files)
+    if (info.type != H5O_TYPE_DATASET) {
+      data.add_read_note(path + ": '" + name + "' is a " +
+                       (info.type == H5O_TYPE_GROUP ? "group" : "named type") +
+                       ", not a dataset of the flight schema; left out");
+      continue;
+    }
+    std::string why;
+    Dataset d = open_dataset(file.id, path, name, &why);
+    if (!d.numeric) {
+      data.add_read_note(path + ": field '" + name + "' is a " + why +
+                       " dataset; the flight schema holds numbers only; left out");
+      continue;
+    }
+    const bool scalar = d.dims.empty() || (d.dims.size() == 1 && d.dims[0] == 1 &&
+                                           (name == "N" || name == "dt"));
+    if (scalar) {  // `N`, `dt`: derived from tt instead (dt is wrong in some files)
+      if (name != "N" && name != "dt") {
+        data.add_read_note(path + ": field '" + name + "' is a scalar, not a series; left out");
+      }
+      continue;
+    }
     if (d.dims.size() != 1) {
       if (d.dims.size() == 2 && (d.dims[0] == 1 || d.dims[1] == 1)) {
         d.dims = {d.dims[0] * d.dims[1]};
@@ -103,46 +238,72 @@ FlightData read_flight_h5(const std::string& path) {
   auto tt_it =
       std::find_if(series.begin(), series.end(), [](const Dataset& d) { return d.name == "tt"; });
   if (tt_it == series.end()) throw Error(path + ": field 'tt' not found");
+  const hsize_t n_declared = element_count(*tt_it);
+  if (n_declared == 0) throw Error(path + ": field 'tt' is empty");
+  // Every series must have tt's length: checked on the declared shapes, before any allocation.
+  for (const Dataset& d : series) {
+    if (element_count(d) != n_declared) {
+      throw Error(path + ": field '" + d.name + "' has " + std::to_string(element_count(d)) +
+                  " samples, 'tt' has " + std::to_string(n_declared));
+    }
+  }
+  read_values(file.id, path, *tt_it, n_declared, file_bytes);
   const size_t n = tt_it->values.size();
-  if (n == 0) throw Error(path + ": field 'tt' is empty");
-
-  // Sort by tt (stable, NaN last), as DATA.md prescribes.
+  const std::vector<double>& t = tt_it->values;
+  {
+    size_t bad = 0, first = n;
+    for (size_t k = 0; k < n; ++k) {
+      if (!std::isfinite(t[k])) {
+        if (!bad++) first = k;
+      }
+    }
+    if (bad) {
+      throw Error(path + ": field 'tt' has " + std::to_string(bad) + " non-finite value(s) (" +
+                  (std::isnan(t[first]) ? "NaN" : "Inf") + " at sample " + std::to_string(first) +
+                  "); samples without a time cannot be placed");
+    }
+  }
+  // Sort by tt (stable), as DATA.md prescribes.
   std::vector<size_t> order(n);
   std::iota(order.begin(), order.end(), 0);
-  const std::vector<double>& t = tt_it->values;
-  const bool sorted = std::is_sorted(t.begin(), t.end());
-  if (!sorted) {
-    std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) {
-      if (std::isnan(t[a])) return false;
-      if (std::isnan(t[b])) return true;
-      return t[a] < t[b];
-    });
+  if (!std::is_sorted(t.begin(), t.end())) {
+    std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return t[a] < t[b]; });
+    data.add_read_note(path + ": field 'tt' was not in time order; the samples were sorted by tt");
   }
-
-  FlightData data;
-  data.set_source(path);
+  for (Dataset& d : series) {
+    if (d.name != "tt") read_values(file.id, path, d, n_declared, file_bytes);
+  }
   auto add = [&](const Dataset& d) {
-    if (d.values.size() != n) {
-      throw Error(path + ": field '" + d.name + "' has " + std::to_string(d.values.size()) +
-                  " samples, 'tt' has " + std::to_string(n));
-    }
     Eigen::VectorXd v(static_cast<Eigen::Index>(n));
     for (size_t k = 0; k < n; ++k) v[static_cast<Eigen::Index>(k)] = d.values[order[k]];
     const std::string canonical = FlightData::canonical_name(d.name);
     // When both generations are present, the final name wins.
-    if (canonical != d.name && data.has(canonical)) return;
+    if (canonical != d.name && data.has(canonical)) {
+      data.add_read_note(path + ": field '" + d.name + "' is the older name of '" + canonical +
+                         "', which the file also holds; '" + canonical + "' is used");
+      return;
+    }
     data.set(canonical, std::move(v));
   };
   add(*tt_it);
   for (const Dataset& d : series) {
     if (d.name != "tt") add(d);
   }
+  if (n > 1) {
+    const double dt = data.dt_s();
+    if (!(dt >= 1e-6)) {
+      throw Error(path + ": field 'tt' steps by " + std::to_string(dt) +
+                  " s (median): below 1 microsecond, not a flight's sample period");
+    }
+  }
   return data;
 }
 
-void write_flight_h5(const FlightData& data, const std::string& path) {
+void write_flight_h5(const FlightData& data, const std::string& path,
+                     const std::vector<std::string>& inputs) {
   H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
-  const std::string tmp = path + ".tmp." + std::to_string(::getpid());
+  check_output_path(path, inputs);
+  const std::string tmp = temporary_path(path);
   {
     H5Handle file(H5Fcreate(tmp.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose);
     if (file.id < 0) throw Error(path + ": cannot create file");
@@ -170,11 +331,18 @@ void write_flight_h5(const FlightData& data, const std::string& path) {
       std::remove(tmp.c_str());
       throw;
     }
+    if (H5Fflush(file.id, H5F_SCOPE_GLOBAL) < 0) {
+      std::remove(tmp.c_str());
+      throw Error(path + ": write failed (flush)");
+    }
+    const hid_t id = file.id;
+    file.id = -1;
+    if (H5Fclose(id) < 0) {
+      std::remove(tmp.c_str());
+      throw Error(path + ": write failed (close)");
+    }
   }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-    std::remove(tmp.c_str());
-    throw Error(path + ": cannot rename temporary file into place");
-  }
+  commit_temporary(tmp, path, inputs);
 }
 
 }  // namespace magcomp

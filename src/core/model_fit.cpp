@@ -179,7 +179,16 @@ Eigen::MatrixXd stack_runs(const FitSettings& s, double dt_s, const Eigen::Matri
   for (const auto& [first, last] : runs) rows += (last - first + 1) - (bandpass ? 2 * s.trim : 0);
   Eigen::MatrixXd out(rows, x.cols());
   Eigen::Index r = 0;
-  const Butterworth bp = Butterworth::band_pass(s.order, s.band_low_hz, s.band_high_hz, 1.0 / dt_s);
+  if (!(dt_s > 0) || !std::isfinite(dt_s)) {
+    throw Error("fit: the flight's sample period (" + std::to_string(dt_s) + " s) is not positive");
+  }
+  const Butterworth bp = [&] {
+    try {
+      return Butterworth::band_pass(s.order, s.band_low_hz, s.band_high_hz, 1.0 / dt_s);
+    } catch (const Error& e) {
+      throw Error(std::string("fit.band_hz: ") + e.what());
+    }
+  }();
   for (const auto& [first, last] : runs) {
     const Eigen::Index len = last - first + 1;
     if (bandpass) {
@@ -209,6 +218,23 @@ Eigen::VectorXd fit_target(const Model& model, const FlightData& data) {
 }
 
 void fit_model(Model& model, const std::vector<const FlightData*>& flights) {
+  if (flights.empty()) throw Error("fit: no flight given");
+  {
+    const auto terms = model.make_terms();
+    Eigen::Index fittable = 0;
+    std::string list;
+    for (const auto& t : terms) {
+      if (model.fit.method != "bandpass" || t->bandpass_observable()) fittable += t->columns();
+      list += (list.empty() ? "" : ", ") + t->spec();
+    }
+    if (fittable == 0) {
+      throw Error("fit: the model has no column to fit (terms: [" + list + "]" +
+                  (model.fit.method == "bandpass" ? "; a band-pass fit cannot fit bias, and a lag "
+                                                    "is not a column"
+                                                  : "; a lag is not a column") +
+                  "): add a term, e.g. permanent, induced, eddy");
+    }
+  }
   const std::vector<std::string> estimates = estimate_free_parameters(model, flights);
   const FitSettings& s = model.fit;
   const bool bandpass = s.method == "bandpass";
@@ -266,8 +292,18 @@ void fit_model(Model& model, const std::vector<const FlightData*>& flights) {
     y.segment(r, blocks_y[b].size()) = blocks_y[b];
     r += blocks_y[b].size();
   }
+  if (!a.allFinite() || !y.allFinite()) {
+    throw Error("fit: the filtered calibration data hold NaN or Inf (fit.band_hz [" +
+                std::to_string(s.band_low_hz) + ", " + std::to_string(s.band_high_hz) +
+                "] Hz against the sample rate, or non-finite inputs) in " + sources);
+  }
   const Eigen::MatrixXd g = gram(a);
   const Eigen::VectorXd c_fit = ridge_from_normal(g, a.transpose() * y, s.lambda);
+  if (!c_fit.allFinite()) {
+    throw Error("fit: the solution is not finite (fit.lambda " + std::to_string(s.lambda) +
+                ", condition number of the data too high) in " + sources +
+                "; nothing written");
+  }
   model.coefficients = Eigen::VectorXd::Zero(p);
   for (Eigen::Index j = 0, c = 0; j < p; ++j) {
     if (keep[static_cast<size_t>(j)]) model.coefficients[j] = c_fit[c++];

@@ -3,12 +3,14 @@
 
 #include <sys/stat.h>
 #include <unistd.h>
+#include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <iostream>
 #include <set>
 
 #include "magcomp/core/error.h"
+#include "magcomp/core/file_io.h"
 #include "magcomp/core/model.h"
 
 namespace magcomp {
@@ -187,7 +189,7 @@ void emit_neural(YAML::Emitter& out, const NeuralSpec& s) {
 
 }  // namespace
 
-Model load_model_yaml(const std::string& path_in) {
+static Model load_model_yaml_unchecked(const std::string& path_in) {
   const std::string path = is_directory(path_in) ? path_in + "/model.yaml" : path_in;
   YAML::Node root;
   try {
@@ -222,7 +224,8 @@ Model load_model_yaml(const std::string& path_in) {
   }
   if (root["bt_scale_nT"]) {
     m.bt_scale_nT = get<double>(root["bt_scale_nT"], path, "bt_scale_nT");
-    if (!(m.bt_scale_nT > 0)) throw Error(path + ": key 'bt_scale_nT' must be positive");
+    if (!(m.bt_scale_nT > 0) || !std::isfinite(m.bt_scale_nT))
+      throw Error(path + ": key 'bt_scale_nT' must be positive and finite");
   }
   if (const YAML::Node f = root["fit"]) {
     if (!f.IsMap()) throw Error(path + ": key 'fit' must be a map");
@@ -236,10 +239,14 @@ Model load_model_yaml(const std::string& path_in) {
                   "'");
     }
     if (f["lines"]) s.lines = get<std::vector<double>>(f["lines"], path, "fit.lines");
+    for (double l : s.lines) {
+      if (!std::isfinite(l)) throw Error(path + ": key 'fit.lines' holds a non-finite line number");
+    }
     if (f["windows"]) {
       for (const auto& w : f["windows"]) {
         auto pair = get<std::vector<double>>(w, path, "fit.windows");
-        if (pair.size() != 2 || !(pair[1] >= pair[0])) {
+        if (pair.size() != 2 || !(pair[1] >= pair[0]) || !std::isfinite(pair[0]) ||
+            !std::isfinite(pair[1])) {
           throw Error(path + ": key 'fit.windows' entries must be [start_s, end_s]");
         }
         s.windows.push_back({pair[0], pair[1]});
@@ -247,8 +254,8 @@ Model load_model_yaml(const std::string& path_in) {
     }
     if (f["band_hz"]) {
       auto band = get<std::vector<double>>(f["band_hz"], path, "fit.band_hz");
-      if (band.size() != 2 || !(band[0] > 0) || !(band[1] > band[0])) {
-        throw Error(path + ": key 'fit.band_hz' must be [low, high] with 0 < low < high");
+      if (band.size() != 2 || !(band[0] > 0) || !(band[1] > band[0]) || !std::isfinite(band[1])) {
+        throw Error(path + ": key 'fit.band_hz' must be [low, high] with 0 < low < high, finite");
       }
       s.band_low_hz = band[0];
       s.band_high_hz = band[1];
@@ -258,7 +265,8 @@ Model load_model_yaml(const std::string& path_in) {
     if (f["trim"]) s.trim = get<int>(f["trim"], path, "fit.trim");
     if (s.trim < 0) throw Error(path + ": key 'fit.trim' must be >= 0");
     if (f["lambda"]) s.lambda = get<double>(f["lambda"], path, "fit.lambda");
-    if (!(s.lambda >= 0)) throw Error(path + ": key 'fit.lambda' must be >= 0");
+    if (!(s.lambda >= 0) || !(s.lambda <= 1e12))
+      throw Error(path + ": key 'fit.lambda' must be in [0, 1e12]");
     if (f["reference"]) s.reference = get<std::string>(f["reference"], path, "fit.reference");
     if (s.method == "reference" && s.reference.empty()) {
       throw Error(path + ": key 'fit.reference' is required when fit.method is reference");
@@ -274,6 +282,9 @@ Model load_model_yaml(const std::string& path_in) {
       }
       coef[static_cast<Eigen::Index>(i)] =
           get<double>(c[names[i]], path, "coefficients." + names[i]);
+      if (!std::isfinite(coef[static_cast<Eigen::Index>(i)])) {
+        throw Error(path + ": key 'coefficients." + names[i] + "' is not finite");
+      }
     }
     if (c.size() != names.size()) {
       throw Error(path + ": key 'coefficients' has " + std::to_string(c.size()) +
@@ -286,7 +297,8 @@ Model load_model_yaml(const std::string& path_in) {
   return m;
 }
 
-void save_model_yaml(const Model& m, const std::string& path) {
+void save_model_yaml(const Model& m, const std::string& path,
+                     const std::vector<std::string>& inputs) {
   YAML::Emitter out;
   out.SetDoublePrecision(17);
   out << YAML::BeginMap;
@@ -330,19 +342,20 @@ void save_model_yaml(const Model& m, const std::string& path) {
   }
   if (m.neural) emit_neural(out, *m.neural);
   out << YAML::EndMap;
-  const std::string tmp = path + ".tmp." + std::to_string(::getpid());
-  {
-    std::ofstream f(tmp);
-    if (!f) throw Error(path + ": cannot write model file");
-    f << "# magcomp model\n" << out.c_str() << "\n";
-    if (!f.good()) {
-      std::remove(tmp.c_str());
-      throw Error(path + ": write failed");
-    }
-  }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-    std::remove(tmp.c_str());
-    throw Error(path + ": cannot rename temporary file into place");
+  write_file_atomic(path, std::string("# magcomp model\n") + out.c_str() + "\n", inputs);
+}
+
+Model load_model_yaml(const std::string& path_in) {
+  // A YAML oddity the checks above do not foresee (a key that is a list, say) is still one line
+  // naming the file, never an escaping yaml-cpp exception.
+  try {
+    return load_model_yaml_unchecked(path_in);
+  } catch (const Error&) {
+    throw;
+  } catch (const YAML::Exception& e) {
+    throw Error(path_in + ": not a valid model file (" + e.msg + ", line " + std::to_string(e.mark.line + 1) + ")");
+  } catch (const std::exception& e) {
+    throw Error(path_in + ": cannot read the model file (" + e.what() + ")");
   }
 }
 

@@ -200,26 +200,32 @@ std::vector<std::pair<std::string, double>> ExprTerm::parameters() const {
 
 std::string ExprTerm::size_in_words(const Eigen::VectorXd& c) const {
   char buf[128];
-  const bool plain_current = signal_.sources.size() == 1 && is_current(signal_.sources[0]);
-  const double size = c.norm();
-  std::string unit = "nT per unit of " + signal_.str();
-  if (plain_current && signal_.transforms.empty()) {
-    unit = "nT/A";
-  } else if (plain_current && signal_.transforms.size() == 1 &&
-             signal_.transforms[0].kind == TransformKind::Derivative) {
-    unit = "nT per A/s";
-  }
   if (projection_ == Projection::Scalar && signal_.sources.size() == 1 &&
       signal_.transforms.size() == 1 && signal_.transforms[0].kind == TransformKind::Derivative &&
       c.size() == 1) {
     std::snprintf(buf, sizeof(buf), "first-order response, time constant %.3g s", -c[0]);
     return buf;
   }
-  std::snprintf(buf, sizeof(buf), "%.3g %s", size, unit.c_str());
+  const bool plain_current = signal_.sources.size() == 1 && is_current(signal_.sources[0]);
+  const bool has_param = !parameters().empty();
+  std::string unit = "nT per unit";
+  if (plain_current && signal_.transforms.empty()) {
+    unit = "nT/A";
+  } else if (plain_current && signal_.transforms.size() == 1 &&
+             signal_.transforms[0].kind == TransformKind::Derivative) {
+    unit = "nT per A/s";
+  }
+  std::snprintf(buf, sizeof(buf), "%.3g %s", c.norm(), unit.c_str());
   std::string out = buf;
-  for (const auto& [name, value] : parameters()) {
-    std::snprintf(buf, sizeof(buf), ", %s %.3g", name.c_str(), value);
-    out += buf;
+  if (has_param) {
+    for (const auto& t : signal_.transforms) {
+      if (!t.has_param() || t.free) continue;
+      const char* what = t.kind == TransformKind::Power   ? "exponent %.3g"
+                         : t.kind == TransformKind::Delay ? "delay %.3g s"
+                                                          : "time constant %.3g s";
+      std::snprintf(buf, sizeof(buf), what, t.param);
+      out += std::string(", ") + buf;
+    }
   }
   return out;
 }

@@ -65,8 +65,8 @@ int run(int argc, char** argv) {
     }
   }
   std::vector<FlightData> train_flights, val_flights;
-  for (const auto& p : data) train_flights.push_back(read_flight_h5(p));
-  for (const auto& p : validation) val_flights.push_back(read_flight_h5(p));
+  for (const auto& p : data) train_flights.push_back(cli::read_flight(p));
+  for (const auto& p : validation) val_flights.push_back(cli::read_flight(p));
   if (val_flights.empty()) {
     std::cout << "warning: no validation flight: no early stopping, the last epoch is kept\n";
   }

@@ -12,6 +12,7 @@
 #include <random>
 
 #include "magcomp/core/error.h"
+#include "magcomp/core/file_io.h"
 #include "networks.h"
 
 namespace magcomp {
@@ -183,17 +184,15 @@ TrainResult train_network(const NeuralSpec& spec, const TrainingData& train,
     const torch::Tensor w = net->tl_linear->weight.detach().to(torch::kFloat64).contiguous();
     r.tl_weights = Eigen::Map<const Eigen::VectorXd>(w.data_ptr<double>(), n_tl);
   }
-  const std::string tmp = weights_path + ".tmp." + std::to_string(::getpid());
+  check_output_path(weights_path);
+  const std::string tmp = temporary_path(weights_path);
   try {
     torch::save(net, tmp);
   } catch (const std::exception& e) {
     std::remove(tmp.c_str());
     throw Error(weights_path + ": cannot write the weights (" + e.what() + ")");
   }
-  if (std::rename(tmp.c_str(), weights_path.c_str()) != 0) {
-    std::remove(tmp.c_str());
-    throw Error(weights_path + ": cannot rename the temporary weights file into place");
-  }
+  commit_temporary(tmp, weights_path);
   return r;
 }
 

@@ -15,14 +15,75 @@
 #include <Eigen/Geometry>
 #include <array>
 #include <cmath>
+#include <cstring>
 #include <cstdio>
 #include <ctime>
 #include <fstream>
 
 #include "magcomp/core/error.h"
+#include "magcomp/core/file_io.h"
+#include "magcomp/ros/bag_check.h"
 #include "magcomp/ros/bag_writer.h"
 
 namespace magcomp::rosio {
+
+FlightData bag_to_flight_checked(const std::string& bag_path);
+
+namespace {
+
+// The serialised bytes of a bag message, read with every length checked against them (a
+// corrupt length in ROS's own deserialiser allocates whatever it says before failing).
+class RawMessage {
+ public:
+  explicit RawMessage(const rosbag::MessageInstance& m) : bytes_(m.size()) {
+    ros::serialization::OStream out(bytes_.data(), static_cast<uint32_t>(bytes_.size()));
+    m.write(out);
+  }
+  bool u32(uint32_t* v) {
+    if (bytes_.size() - pos_ < 4) return false;
+    std::memcpy(v, bytes_.data() + pos_, 4);
+    pos_ += 4;
+    return true;
+  }
+  bool skip_header() {  // std_msgs/Header: seq, stamp, frame_id; the seq is kept
+    uint32_t stamp[2], len;
+    if (!u32(&seq_) || !u32(&stamp[0]) || !u32(&stamp[1]) || !u32(&len)) return false;
+    return skip(len);
+  }
+  bool skip(uint64_t n) {
+    if (bytes_.size() - pos_ < n) return false;
+    pos_ += n;
+    return true;
+  }
+  bool doubles(std::vector<double>* out) {
+    uint32_t n;
+    if (!u32(&n) || (bytes_.size() - pos_) / 8 < n) return false;
+    out->resize(n);
+    std::memcpy(out->data(), bytes_.data() + pos_, 8ull * n);
+    pos_ += 8ull * n;
+    return true;
+  }
+  bool strings(std::vector<std::string>* out) {
+    uint32_t n;
+    if (!u32(&n) || (bytes_.size() - pos_) / 4 < n) return false;
+    out->clear();
+    for (uint32_t k = 0; k < n; ++k) {
+      uint32_t len;
+      if (!u32(&len) || bytes_.size() - pos_ < len) return false;
+      out->emplace_back(reinterpret_cast<const char*>(bytes_.data() + pos_), len);
+      pos_ += len;
+    }
+    return true;
+  }
+  uint32_t seq() const { return seq_; }
+
+ private:
+  std::vector<uint8_t> bytes_;
+  size_t pos_ = 0;
+  uint32_t seq_ = 0;
+};
+
+}  // namespace
 namespace {
 
 constexpr double kDeg = M_PI / 180.0;
@@ -72,7 +133,8 @@ ConvertReport flight_to_bag(const FlightData& f, const std::string& bag_path, bo
                   "; it cannot be stamped");
     }
   }
-  const std::string tmp = bag_path + ".tmp." + std::to_string(::getpid());
+  check_output_path(bag_path, {f.source()});
+  const std::string tmp = temporary_path(bag_path);
   ConvertReport rep;
   rep.samples = f.size();
   rep.fields = static_cast<long>(f.names().size());
@@ -216,15 +278,23 @@ ConvertReport flight_to_bag(const FlightData& f, const std::string& bag_path, bo
     std::remove(tmp.c_str());
     throw;
   }
-  if (std::rename(tmp.c_str(), bag_path.c_str()) != 0) {
-    std::remove(tmp.c_str());
-    throw Error(bag_path + ": cannot rename temporary file into place");
-  }
+  commit_temporary(tmp, bag_path, {f.source()});
   return rep;
 }
 
 FlightData bag_to_flight(const std::string& bag_path) {
+  try {
+    return bag_to_flight_checked(bag_path);
+  } catch (const Error&) {
+    throw;
+  } catch (const std::exception& e) {  // rosbag or deserialisation: name the file
+    throw Error(bag_path + ": not a readable rosbag (" + e.what() + ")");
+  }
+}
+
+FlightData bag_to_flight_checked(const std::string& bag_path) {
   if (!exists(bag_path)) throw Error(bag_path + ": file not found or not readable");
+  check_bag_structure(bag_path);
   rosbag::Bag bag;
   try {
     bag.open(bag_path, rosbag::bagmode::Read);
@@ -235,11 +305,12 @@ FlightData bag_to_flight(const std::string& bag_path) {
   {
     rosbag::View v(bag, rosbag::TopicQuery(std::string(BagTopics::kSchema)));
     for (const auto& m : v) {
-      auto s = m.instantiate<magcomp::FlightSchema>();
-      if (s) {
-        names = s->names;
-        break;
+      if (m.getDataType() != "magcomp/FlightSchema") continue;
+      RawMessage raw(m);
+      if (!raw.skip_header() || !raw.strings(&names)) {
+        throw Error(bag_path + ": the message on '" + BagTopics::kSchema + "' is corrupt");
       }
+      break;
     }
   }
   if (names.empty()) {
@@ -250,20 +321,25 @@ FlightData bag_to_flight(const std::string& bag_path) {
   std::vector<std::vector<double>> cols(names.size());
   rosbag::View v(bag, rosbag::TopicQuery(std::string(BagTopics::kRecord)));
   long expected_seq = 0;
+  std::vector<double> values;
   for (const auto& m : v) {
-    auto r = m.instantiate<magcomp::FlightRecord>();
-    if (!r) continue;
-    if (r->values.size() != names.size()) {
+    if (m.getDataType() != "magcomp/FlightRecord") continue;
+    RawMessage raw(m);
+    if (!raw.skip_header() || !raw.doubles(&values)) {
+      throw Error(bag_path + ": record " + std::to_string(expected_seq) + " on '" +
+                  BagTopics::kRecord + "' is corrupt");
+    }
+    if (values.size() != names.size()) {
       throw Error(bag_path + ": a record on '" + BagTopics::kRecord + "' has " +
-                  std::to_string(r->values.size()) + " values, the schema names " +
+                  std::to_string(values.size()) + " values, the schema names " +
                   std::to_string(names.size()));
     }
-    if (static_cast<long>(r->header.seq) != expected_seq) {
+    if (static_cast<long>(raw.seq()) != expected_seq) {
       throw Error(bag_path + ": record " + std::to_string(expected_seq) +
                   " missing or out of order on '" + BagTopics::kRecord + "'");
     }
     ++expected_seq;
-    for (size_t c = 0; c < names.size(); ++c) cols[c].push_back(r->values[c]);
+    for (size_t c = 0; c < names.size(); ++c) cols[c].push_back(values[c]);
   }
   bag.close();
   FlightData f;

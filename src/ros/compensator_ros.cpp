@@ -404,6 +404,12 @@ void CompensatorRos::on_vector(const sensor_msgs::MagneticField::ConstPtr& m) {
 
 void CompensatorRos::on_aux(const magcomp::AuxChannels::ConstPtr& m) {
   const double t = rel(m->header.stamp);
+  if (m->values.size() != m->names.size()) {  // which value is which cannot be known: dropped
+    ++n_aux_mismatch_;
+    ROS_WARN_THROTTLE(10, "magcomp: an AuxChannels message has %zu names and %zu values: dropped",
+                      m->names.size(), m->values.size());
+    return;
+  }
   if (m->names != aux_all_names_) {  // a new channel list: re-index (older values are dropped)
     aux_all_names_ = m->names;
     aux_.clear();
@@ -695,7 +701,7 @@ void CompensatorRos::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat)
   } else if (!comp_) {
     stat.summary(diagnostic_msgs::DiagnosticStatus::ERROR, "no model: " + model_error_);
   } else if (n_jumps_ + n_gaps_ + n_out_of_order_ + n_dup_ + n_nan_ + n_stale_ + n_late_inputs_ +
-                 n_premature_flushes_ >
+                 n_premature_flushes_ + n_aux_mismatch_ >
              0) {
     stat.summary(diagnostic_msgs::DiagnosticStatus::WARN,
                  "running; input faults seen (see counts)");
@@ -732,6 +738,7 @@ void CompensatorRos::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat)
   stat.add("gaps", n_gaps_);
   stat.add("stale_inputs_held", n_stale_);
   stat.add("late_inputs_dropped", n_late_inputs_);
+  stat.add("aux_length_mismatch_dropped", n_aux_mismatch_);
   stat.add("premature_flushes", n_premature_flushes_);
   stat.add("pending", static_cast<long>(pending_scalar_.size()) +
                           (comp_ ? static_cast<long>(comp_->pending()) : 0));

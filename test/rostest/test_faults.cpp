@@ -73,6 +73,13 @@ TEST(Faults, NodeSurvivesAndReportsEveryFault) {
     scalar.publish(s);
     ros::WallDuration(0.002).sleep();
   };
+  {  // an aux message whose names and values disagree: dropped and counted
+    magcomp::AuxChannels bad;
+    bad.header.stamp = ros::Time(base + 0.05);
+    bad.names = {"cur_strb", "cur_heat"};
+    bad.values = {1.0};
+    aux.publish(bad);
+  }
   for (Eigen::Index i = 0; i < 300; ++i) {
     if (i >= 250 && i < 280) continue;   // a 3 s gap
     send(i, -1, i == 100);               // NaN at 100
@@ -93,6 +100,7 @@ TEST(Faults, NodeSurvivesAndReportsEveryFault) {
   EXPECT_GE(count("out_of_order_dropped"), 1);
   EXPECT_GE(count("gaps"), 1);
   EXPECT_GE(count("time_jumps_back"), 1);
+  EXPECT_EQ(count("aux_length_mismatch_dropped"), 1);
   EXPECT_EQ(g_diag["level"], "1");  // WARN: running, with input faults seen
   for (const auto& [k, v] : g_diag) std::printf("  %s = %s\n", k.c_str(), v.c_str());
 }

@@ -56,6 +56,10 @@ class FlightData {
   /// Where the data came from (a file path), used in error messages.
   const std::string& source() const { return source_; }
   void set_source(std::string source) { source_ = std::move(source); }
+  /// What the reader left out or repaired and why (a string dataset, samples sorted by tt), one
+  /// line each, naming the file and the field.
+  const std::vector<std::string>& read_notes() const { return read_notes_; }
+  void add_read_note(std::string note) { read_notes_.push_back(std::move(note)); }
 
   /// Final MIT name for an older one (`tie_line` -> `line`, ...); the name itself otherwise.
   static std::string canonical_name(const std::string& name);
@@ -66,17 +70,23 @@ class FlightData {
   std::vector<Eigen::VectorXd> columns_;
   std::unordered_map<std::string, size_t> index_;
   std::string source_ = "<memory>";
+  std::vector<std::string> read_notes_;
 };
 
 /// Reads an MIT challenge HDF5 flight file: every top-level 1-D float dataset of length N becomes
 /// a column, older names are renamed, scalar `N` / `dt` datasets are tolerated (dt is derived from
-/// tt), and samples are sorted by tt. Throws magcomp::Error naming the file and field on any
-/// problem: missing file, not HDF5, no `tt`, wrong rank or length.
+/// tt), and samples are sorted by tt. Objects outside the schema (groups, string, boolean,
+/// compound datasets, other scalars) are listed in read_notes(), never dropped silently. Throws
+/// magcomp::Error naming the file and field on any problem: missing file, not HDF5, no `tt`, a
+/// non-finite or sub-microsecond `tt`, wrong rank or length, a size the file cannot hold, an
+/// object that cannot be read.
 FlightData read_flight_h5(const std::string& path);
 
 /// Writes a flight in the same schema (one float64 1-D dataset per column, plus scalar `N` and
 /// `dt`). Writes to a temporary file beside `path` and renames it, so a reader never sees half a
-/// file. Throws magcomp::Error naming the file on failure.
-void write_flight_h5(const FlightData& data, const std::string& path);
+/// file; refuses a path that is one of `inputs` or not a regular file (file_io.h). Throws
+/// magcomp::Error naming the file on failure.
+void write_flight_h5(const FlightData& data, const std::string& path,
+                     const std::vector<std::string>& inputs = {});
 
 }  // namespace magcomp

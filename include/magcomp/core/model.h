@@ -68,9 +68,11 @@ struct Model {
 /// Loads a model YAML (a plain or a fitted one), or a bundle directory holding model.yaml (and
 /// the neural stage's weights). Throws magcomp::Error naming file and key.
 Model load_model_yaml(const std::string& path);
-/// Writes the model (and coefficients, when fitted) atomically: temporary file + rename. A neural
-/// stage's weights are not written here (magcomp train writes them first, then this file).
-void save_model_yaml(const Model& model, const std::string& path);
+/// Writes the model (and coefficients, when fitted) atomically: temporary file + rename, never
+/// over one of `inputs` or a non-regular file (file_io.h). A neural stage's weights are not
+/// written here (magcomp train writes them first, then this file).
+void save_model_yaml(const Model& model, const std::string& path,
+                     const std::vector<std::string>& inputs = {});
 
 /// The N x P design matrix of the model's terms on a whole flight (rows may hold NaN where inputs
 /// are NaN). Throws magcomp::Error naming the file and the missing field.

@@ -133,6 +133,7 @@ class CompensatorRos {
   // Wall-time flushes (flush_after_s of silence) after which the stream went on: the outputs
   // around them were computed without their successors, so they differ from the offline ones.
   long n_premature_flushes_ = 0;
+  long n_aux_mismatch_ = 0;  // AuxChannels with names and values of different lengths (dropped)
   double flushed_at_t_ = NAN;  // data time of the last wall-time flush, NaN: none pending
   bool ending_ = false;        // end-of-stream received, pending samples still going out
   double last_vector_t_ = NAN;

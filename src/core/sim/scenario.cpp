@@ -6,6 +6,8 @@
 #include <algorithm>
 #include <cmath>
 #include <set>
+#include <type_traits>
+#include <cstdio>
 
 #include "magcomp/core/error.h"
 
@@ -56,12 +58,31 @@ struct Reader {
   template <typename T>
   void get(const YAML::Node& node, const std::string& key, const std::string& where, T* out) const {
     if (!node[key]) return;
+    const std::string name = (where.empty() ? "" : where + ".") + key;
     try {
       *out = node[key].as<T>();
     } catch (const YAML::Exception&) {
-      throw Error(path + ": key '" + (where.empty() ? "" : where + ".") + key +
-                  "' has the wrong type");
+      throw Error(path + ": key '" + name + "' has the wrong type");
     }
+    // Every number of a scenario is finite: a range check alone lets NaN through.
+    if constexpr (std::is_floating_point_v<T>) {
+      if (!std::isfinite(*out)) throw Error(path + ": key '" + name + "' must be finite");
+    } else if constexpr (std::is_same_v<T, std::vector<double>>) {
+      for (double v : *out) {
+        if (!std::isfinite(v)) throw Error(path + ": key '" + name + "' must hold finite numbers");
+      }
+    }
+  }
+  void range(double v, double lo, double hi, const std::string& key) const {
+    if (!(v >= lo && v <= hi)) {
+      throw Error(path + ": key '" + key + "' must be in [" + format(lo) + ", " + format(hi) +
+                  "], got " + format(v));
+    }
+  }
+  static std::string format(double v) {
+    char buf[32];
+    std::snprintf(buf, sizeof(buf), "%g", v);
+    return buf;
   }
   void vec3(const YAML::Node& node, const std::string& key, const std::string& where,
             Eigen::Vector3d* out) const {
@@ -83,7 +104,7 @@ struct Reader {
 
 }  // namespace
 
-Scenario load_scenario(const std::string& path) {
+static Scenario load_scenario_unchecked(const std::string& path) {
   YAML::Node root;
   try {
     root = YAML::LoadFile(path);
@@ -103,6 +124,8 @@ Scenario load_scenario(const std::string& path) {
   r.get(root, "flight", "", &s.flight);
   r.get(root, "start_tt_s", "", &s.start_tt_s);
   r.get(root, "start_altitude_m", "", &s.start_altitude_m);
+  r.range(s.start_tt_s, 0, 86400, "start_tt_s");
+  r.range(s.start_altitude_m, 0, 20000, "start_altitude_m");
   if (root["date"]) {
     r.check_keys(root["date"], {"year", "doy"}, "date");
     r.get(root["date"], "year", "date", &s.year);
@@ -115,6 +138,7 @@ Scenario load_scenario(const std::string& path) {
     r.get(root["origin"], "lon_deg", "origin", &s.origin_lon_deg);
     if (std::abs(s.origin_lat_deg) > 80)
       throw Error(path + ": key 'origin.lat_deg' must be within +-80");
+    r.range(s.origin_lon_deg, -360, 360, "origin.lon_deg");
   }
   if (const YAML::Node a = root["aircraft"]) {
     r.check_keys(
@@ -127,11 +151,11 @@ Scenario load_scenario(const std::string& path) {
     r.get(a, "field_scale", "aircraft", &s.aircraft_scale);
     r.get(a, "turbulence_deg", "aircraft", &s.turbulence_deg);
     r.get(a, "seed", "aircraft", &s.aircraft_seed);
-    r.positive(s.speed_mps, "aircraft.speed_mps");
-    r.positive(s.turn_bank_deg, "aircraft.turn_bank_deg");
-    r.positive(s.climb_rate_mps, "aircraft.climb_rate_mps");
-    r.non_negative(s.aircraft_scale, "aircraft.field_scale");
-    r.non_negative(s.turbulence_deg, "aircraft.turbulence_deg");
+    r.range(s.speed_mps, 1, 400, "aircraft.speed_mps");
+    r.range(s.turn_bank_deg, 1, 60, "aircraft.turn_bank_deg");
+    r.range(s.climb_rate_mps, 0.1, 50, "aircraft.climb_rate_mps");
+    r.range(s.aircraft_scale, 0, 1000, "aircraft.field_scale");
+    r.range(s.turbulence_deg, 0, 20, "aircraft.turbulence_deg");
   }
   if (const YAML::Node e = root["earth"]) {
     r.check_keys(e,
@@ -144,9 +168,11 @@ Scenario load_scenario(const std::string& path) {
     r.get(e, "anomaly_grid_n", "earth", &s.anomaly_grid_n);
     r.get(e, "terrain_m", "earth", &s.terrain_m);
     r.get(e, "diurnal_amplitude_nT", "earth", &s.diurnal_amplitude_nT);
-    r.non_negative(s.anomaly_rms_nT, "earth.anomaly_rms_nT");
-    r.positive(s.anomaly_grid_m, "earth.anomaly_grid_m");
-    r.non_negative(s.diurnal_amplitude_nT, "earth.diurnal_amplitude_nT");
+    r.range(s.anomaly_rms_nT, 0, 1e5, "earth.anomaly_rms_nT");
+    r.range(s.anomaly_spectral_slope, 0, 10, "earth.anomaly_spectral_slope");
+    r.range(s.anomaly_grid_m, 1, 1e5, "earth.anomaly_grid_m");
+    r.range(s.terrain_m, -500, 9000, "earth.terrain_m");
+    r.range(s.diurnal_amplitude_nT, 0, 1e4, "earth.diurnal_amplitude_nT");
     if (s.anomaly_grid_n < 16 || s.anomaly_grid_n > 4096 ||
         (s.anomaly_grid_n & (s.anomaly_grid_n - 1)) != 0) {
       throw Error(path + ": key 'earth.anomaly_grid_n' must be a power of two in 16..4096");
@@ -157,9 +183,9 @@ Scenario load_scenario(const std::string& path) {
     r.get(n, "scalar_noise_nT", "sensors", &s.scalar_noise_nT);
     r.get(n, "fluxgate_noise_nT", "sensors", &s.fluxgate_noise_nT);
     r.get(n, "sample_rate_hz", "sensors", &s.sample_rate_hz);
-    r.non_negative(s.scalar_noise_nT, "sensors.scalar_noise_nT");
-    r.non_negative(s.fluxgate_noise_nT, "sensors.fluxgate_noise_nT");
-    r.positive(s.sample_rate_hz, "sensors.sample_rate_hz");
+    r.range(s.scalar_noise_nT, 0, 1e4, "sensors.scalar_noise_nT");
+    r.range(s.fluxgate_noise_nT, 0, 1e4, "sensors.fluxgate_noise_nT");
+    r.range(s.sample_rate_hz, 0.1, 1000, "sensors.sample_rate_hz");
   }
   if (!root["plan"] || !root["plan"].IsSequence() || root["plan"].size() == 0) {
     throw Error(path + ": key 'plan' must be a non-empty list of segments");
@@ -180,9 +206,23 @@ Scenario load_scenario(const std::string& path) {
       throw Error(path + ": key '" + where +
                   ".type' must be box, cloverleaf, line, grid or figure8");
     }
-    r.positive(g.duration_s, where + ".duration_s");
-    if (g.lines < 1) throw Error(path + ": key '" + where + ".lines' must be >= 1");
+    r.range(g.duration_s, 1e-3, 86400, where + ".duration_s");
+    r.range(g.altitude_m, 0, 20000, where + ".altitude_m");
+    r.range(g.heading_deg, -360, 360, where + ".heading_deg");
+    if (g.lines < 1 || g.lines > 1000) throw Error(path + ": key '" + where + ".lines' must be in 1..1000");
     s.segments.push_back(g);
+  }
+  // The flight's length, before anything is allocated: segments (box and cloverleaf fly four
+  // legs, a grid `lines` lines) plus a generous allowance for the turns and climbs between them.
+  double seconds = 0;
+  for (const Segment& g : s.segments) {
+    const double legs = g.type == "box" || g.type == "cloverleaf" ? 4 : g.type == "grid" ? g.lines : 1;
+    seconds += g.duration_s * legs + 600.0;
+  }
+  constexpr double kMaxSamples = 5e6;  // ~140 h at 10 Hz: every field of it is ~4 GB
+  if (seconds * s.sample_rate_hz > kMaxSamples) {
+    throw Error(path + ": key 'plan' makes about " + Reader::format(seconds * s.sample_rate_hz) +
+                " samples; at most " + Reader::format(kMaxSamples) + " are simulated");
   }
   std::set<std::string> channels(simulated_channels().begin(), simulated_channels().end());
   std::set<std::string> sensors;
@@ -249,8 +289,10 @@ Scenario load_scenario(const std::string& path) {
           throw Error(path + ": key '" + where + ".sensors': unknown sensor '" + sensor + "'");
         }
       }
-      if (x.type == "wire") r.positive(x.length_m, where + ".length_m");
-      if (x.type == "lag") r.non_negative(x.lag_s, where + ".lag_s");
+      if (x.type == "wire") r.range(x.length_m, 1e-3, 100, where + ".length_m");
+      if (x.type == "lag") r.range(x.lag_s, 0, 60, where + ".lag_s");
+      r.range(x.gain, -1e6, 1e6, where + ".gain");
+      if (e["time_constant_s"]) r.range(x.time_constant_s, 0, 1e6, where + ".time_constant_s");
       if (x.type == "drift") r.positive(x.time_constant_s, where + ".time_constant_s");
       if (x.direction.norm() == 0) throw Error(path + ": key '" + where + ".direction' is zero");
       x.direction.normalize();
@@ -258,6 +300,20 @@ Scenario load_scenario(const std::string& path) {
     }
   }
   return s;
+}
+
+Scenario load_scenario(const std::string& path) {
+  // A YAML oddity the checks above do not foresee (a key that is a list, say) is still one line
+  // naming the file, never an escaping yaml-cpp exception.
+  try {
+    return load_scenario_unchecked(path);
+  } catch (const Error&) {
+    throw;
+  } catch (const YAML::Exception& e) {
+    throw Error(path + ": not a valid scenario (" + e.msg + ", line " + std::to_string(e.mark.line + 1) + ")");
+  } catch (const std::exception& e) {
+    throw Error(path + ": cannot read the scenario (" + e.what() + ")");
+  }
 }
 
 }  // namespace magcomp::sim

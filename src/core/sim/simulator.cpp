@@ -12,6 +12,7 @@
 #include <random>
 
 #include "magcomp/core/error.h"
+#include "magcomp/core/file_io.h"
 #include "magcomp/core/igrf.h"
 #include "magcomp/core/signal.h"
 #include "magcomp/core/sim/anomaly_map.h"
@@ -466,20 +467,13 @@ Simulation simulate(const Scenario& s) {
   return sim;
 }
 
-void write_simulation(const Simulation& sim, const std::string& out_h5) {
-  write_flight_h5(sim.flight, out_h5);
-  write_flight_h5(sim.truth, truth_path(out_h5, "h5"));
-  const std::string yaml_path = truth_path(out_h5, "yaml");
-  const std::string tmp = yaml_path + ".tmp." + std::to_string(::getpid());
-  {
-    std::ofstream out(tmp);
-    out << sim.truth_yaml;
-    if (!out.good()) throw Error(yaml_path + ": cannot write truth file");
-  }
-  if (std::rename(tmp.c_str(), yaml_path.c_str()) != 0) {
-    std::remove(tmp.c_str());
-    throw Error(yaml_path + ": cannot rename temporary file into place");
-  }
+void write_simulation(const Simulation& sim, const std::string& out_h5,
+                      const std::vector<std::string>& inputs) {
+  const std::string truth_h5 = truth_path(out_h5, "h5"), truth_yaml = truth_path(out_h5, "yaml");
+  for (const std::string& p : {out_h5, truth_h5, truth_yaml}) check_output_path(p, inputs);
+  write_flight_h5(sim.flight, out_h5, inputs);
+  write_flight_h5(sim.truth, truth_h5, inputs);
+  write_file_atomic(truth_yaml, sim.truth_yaml, inputs);
 }
 
 }  // namespace magcomp::sim

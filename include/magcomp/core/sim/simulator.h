@@ -24,7 +24,8 @@ struct Simulation {
 Simulation simulate(const Scenario& scenario);
 
 /// Writes F.h5 and, beside it, F.truth.h5 and F.truth.yaml (each atomically).
-void write_simulation(const Simulation& sim, const std::string& out_h5);
+void write_simulation(const Simulation& sim, const std::string& out_h5,
+                      const std::vector<std::string>& inputs = {});
 
 /// Path of the truth files for a flight file: `F.h5` -> `F.truth.yaml` / `F.truth.h5`.
 std::string truth_path(const std::string& out_h5, const std::string& extension);
