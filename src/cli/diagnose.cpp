@@ -1,5 +1,6 @@
 // magcomp diagnose: rank the physical effects the model misses, and say which --term to add;
 // with --apply, run the whole loop (diagnose, add, refit) and write the final model.
+#include <cmath>
 #include <cstdio>
 #include <iostream>
 #include <nlohmann/json.hpp>
@@ -199,12 +200,12 @@ void add_diagnose(CLI::App& app) {
           std::printf("  verdict: %s\n", dx.verdict.c_str());
           std::fflush(stdout);
         });
-    std::printf("\n%-6s %-36s %10s %14s %12s\n", "round", "added term", "explained",
-                "held-out std", "all-lines");
+    std::printf("\n%-6s %-36s %10s %14s %12s %12s\n", "round", "added term", "explained",
+                "held-out std", "all-lines", "FOM");
     for (const auto& lr : r.rounds) {
-      std::printf("%-6d %-36s %9.1f%% %11.3f nT %9.3f nT\n", lr.round,
+      std::printf("%-6d %-36s %9.1f%% %11.3f nT %9.3f nT %9.2f nT\n", lr.round,
                   lr.round == 0 ? "(the model as given)" : lr.added.c_str(), 100 * lr.explained,
-                  lr.heldout_std_nT, lr.all_std_nT);
+                  lr.heldout_std_nT, lr.all_std_nT, lr.fom_nT);
     }
     std::printf("stop: %s\n", r.stop_reason.c_str());
     save_model_yaml(r.model, *out);
@@ -222,7 +223,9 @@ void add_diagnose(CLI::App& app) {
                                {"added", lr.added},
                                {"explained_fraction", lr.explained},
                                {"heldout_std_nT", lr.heldout_std_nT},
-                               {"all_std_nT", lr.all_std_nT}});
+                               {"all_std_nT", lr.all_std_nT},
+                               {"fom_nT", std::isfinite(lr.fom_nT) ? nlohmann::json(lr.fom_nT)
+                                                                   : nlohmann::json()}});
       }
       j["stop"] = r.stop_reason;
       j["last_diagnosis"] = to_json(r.last);

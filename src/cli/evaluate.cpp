@@ -2,6 +2,7 @@
 // per heading sector; --report writes an HTML page with plots.
 #include <sys/stat.h>
 
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
@@ -11,13 +12,11 @@
 #include "common.h"
 #include "magcomp/core/error.h"
 #include "magcomp/core/file_io.h"
+#include "magcomp/core/paths.h"
 #include "magcomp/core/evaluation.h"
 #include "magcomp/core/flight_conditions.h"
 #include "subcommands.h"
 
-#ifndef MAGCOMP_SCRIPTS_DIR
-#define MAGCOMP_SCRIPTS_DIR "scripts"
-#endif
 
 namespace magcomp::cli {
 namespace {
@@ -28,11 +27,35 @@ nlohmann::json to_json(const Evaluation& ev) {
   j["nan_samples"] = ev.nan_samples;
   j["rmse_nT"] = ev.rmse_nT;
   j["std_nT"] = ev.std_nT;
+  auto num = [](double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(); };
+  j["uncompensated_std_nT"] = num(ev.uncompensated_std_nT);
+  j["improvement_ratio"] = num(ev.improvement_ratio);
+  j["coverage_1sigma"] = num(ev.coverage_1sigma);
+  j["coverage_2sigma"] = num(ev.coverage_2sigma);
   j["per_line"] = nlohmann::json::array();
   for (const auto& l : ev.per_line) {
-    j["per_line"].push_back(
-        {{"line", l.line}, {"n", l.n}, {"rmse_nT", l.rmse_nT}, {"std_nT", l.std_nT}});
+    j["per_line"].push_back({{"line", l.line},
+                             {"n", l.n},
+                             {"rmse_nT", l.rmse_nT},
+                             {"std_nT", l.std_nT},
+                             {"uncompensated_std_nT", num(l.uncompensated_std_nT)},
+                             {"improvement_ratio", num(l.improvement_ratio)}});
   }
+  nlohmann::json fom;
+  fom["fom_nT"] = ev.fom.fom_nT;
+  fom["uncompensated_fom_nT"] = ev.fom.uncompensated_fom_nT;
+  fom["maneuvers"] = ev.fom.signatures.size();
+  fom["where"] = ev.fom.where;
+  fom["signatures"] = nlohmann::json::array();
+  for (const auto& s : ev.fom.signatures) {
+    fom["signatures"].push_back({{"axis", s.axis},
+                                 {"heading", s.heading},
+                                 {"start_tt_s", s.start_tt_s},
+                                 {"end_tt_s", s.end_tt_s},
+                                 {"peak_to_peak_nT", s.peak_to_peak_nT},
+                                 {"uncompensated_peak_to_peak_nT", s.uncompensated_peak_to_peak_nT}});
+  }
+  j["fom"] = fom;
   for (const auto& [key, groups] :
        {std::pair{"per_condition", &ev.per_condition}, std::pair{"per_heading", &ev.per_heading}}) {
     j[key] = nlohmann::json::array();
@@ -65,6 +88,7 @@ void write_series(const std::string& path, const FlightData& flight, const Model
   s.set("correction", measured - ev.compensated_nT);
   s.set("truth", flight.column(truth));
   s.set("error", ev.error_nT);
+  if (ev.variance_nT2.size() == ev.error_nT.size()) s.set("variance", ev.variance_nT2);
   if (baseline) s.set("error_baseline", baseline->error_nT);
   const auto cond = classify_conditions(flight);
   const auto sector = heading_sectors(flight);
@@ -112,12 +136,12 @@ void add_evaluate(CLI::App& app) {
       if (!b.fitted()) throw Error(*baseline_path + ": model has no coefficients; run calibrate");
       base = std::make_unique<Evaluation>(evaluate_model(b, flight, *truth));
     }
-    std::printf("%-10s %8s %12s %10s%s\n", "line", "n", "rmse_nT", "std_nT",
-                base ? "   baseline_std_nT" : "");
+    std::printf("%-10s %8s %12s %10s %16s %9s%s\n", "line", "n", "rmse_nT", "std_nT",
+                "uncomp_std_nT", "IR", base ? "   baseline_std_nT" : "");
     for (size_t k = 0; k < ev.per_line.size(); ++k) {
       const auto& l = ev.per_line[k];
-      std::printf("%-10.2f %8ld %12.3f %10.3f", l.line, static_cast<long>(l.n), l.rmse_nT,
-                  l.std_nT);
+      std::printf("%-10.2f %8ld %12.3f %10.3f %16.3f %9.1f", l.line, static_cast<long>(l.n),
+                  l.rmse_nT, l.std_nT, l.uncompensated_std_nT, l.improvement_ratio);
       if (base && k < base->per_line.size()) std::printf(" %17.3f", base->per_line[k].std_nT);
       std::printf("\n");
     }
@@ -127,8 +151,24 @@ void add_evaluate(CLI::App& app) {
       std::printf("\n(%ld samples with NaN in the model inputs or the reference were skipped)\n",
                   static_cast<long>(ev.nan_samples));
     }
-    std::printf("\n%-10s %8ld %12.3f %10.3f", "all", static_cast<long>(ev.n), ev.rmse_nT,
-                ev.std_nT);
+    if (!ev.fom.signatures.empty()) {
+      std::printf("\nfigure of merit on %s: %zu maneuvers\n", ev.fom.where.c_str(),
+                  ev.fom.signatures.size());
+      std::printf("  %-6s %-7s %12s %12s %14s\n", "axis", "heading", "start_tt_s", "p-p_nT",
+                  "uncomp_p-p_nT");
+      for (const auto& s : ev.fom.signatures) {
+        std::printf("  %-6s %-7s %12.1f %12.3f %14.3f\n", s.axis.c_str(), s.heading.c_str(),
+                    s.start_tt_s, s.peak_to_peak_nT, s.uncompensated_peak_to_peak_nT);
+      }
+      std::printf("  FOM %.3f nT (uncompensated %.3f nT)\n", ev.fom.fom_nT,
+                  ev.fom.uncompensated_fom_nT);
+    }
+    if (std::isfinite(ev.coverage_1sigma)) {
+      std::printf("\nuncertainty: %.1f%% of the errors within 1 sigma, %.1f%% within 2 sigma\n",
+                  100 * ev.coverage_1sigma, 100 * ev.coverage_2sigma);
+    }
+    std::printf("\n%-10s %8ld %12.3f %10.3f %16.3f %9.1f", "all", static_cast<long>(ev.n),
+                ev.rmse_nT, ev.std_nT, ev.uncompensated_std_nT, ev.improvement_ratio);
     if (base) std::printf(" %17.3f", base->std_nT);
     std::printf("\n");
     nlohmann::json j = to_json(ev);
@@ -149,9 +189,7 @@ void add_evaluate(CLI::App& app) {
       }
       write_series(*report + "/series.h5", flight, model, ev, *truth, base.get(), inputs);
       write_file_atomic(*report + "/evaluation.json", j.dump(2) + "\n", inputs);
-      const char* env = std::getenv("MAGCOMP_SCRIPTS_DIR");
-      const std::string script =
-          std::string(env && *env ? env : MAGCOMP_SCRIPTS_DIR) + "/magcomp_report.py";
+      const std::string script = share_dir() + "/scripts/magcomp_report.py";
       const std::string cmdline = "/usr/bin/python3 '" + script + "' '" + *report + "'";
       if (std::system(cmdline.c_str()) != 0) {
         std::cerr << "warning: " << script << " failed; the report's data is in " << *report

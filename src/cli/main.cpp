@@ -12,6 +12,7 @@
 
 #include "common.h"
 #include "magcomp/core/error.h"
+#include "magcomp/core/paths.h"
 #include "subcommands.h"
 
 namespace {
@@ -19,14 +20,7 @@ namespace {
 /// `magcomp train ...` runs the magcomp_train executable beside this one (libtorch lives there,
 /// so the other subcommands start in a millisecond).
 int exec_train(int argc, char** argv) {
-  char buf[PATH_MAX];
-  const ssize_t n = ::readlink("/proc/self/exe", buf, sizeof(buf) - 1);
-  std::string dir = ".";
-  if (n > 0) {
-    const std::string self(buf, static_cast<size_t>(n));
-    dir = self.substr(0, self.find_last_of('/'));
-  }
-  const std::string train = dir + "/magcomp_train";
+  const std::string train = magcomp::executable_dir() + "/magcomp_train";
   std::vector<char*> args;
   args.push_back(const_cast<char*>(train.c_str()));
   for (int i = 2; i < argc; ++i) args.push_back(argv[i]);

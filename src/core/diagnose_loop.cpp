@@ -9,10 +9,8 @@
 namespace magcomp {
 namespace {
 
-// Pooled std of the model's error over the given lines (all lines when empty), nT.
-double std_on_lines(const Model& m, const FlightData& data, const std::string& truth,
-                    const std::vector<double>& lines) {
-  const Evaluation ev = evaluate_model(m, data, truth);
+// Pooled std of an evaluation's error over the given lines (all lines when empty), nT.
+double std_on_lines(const Evaluation& ev, const std::vector<double>& lines) {
   if (lines.empty()) return ev.std_nT;
   double ss = 0, n = 0;
   for (const auto& l : ev.per_line) {
@@ -38,8 +36,10 @@ LoopResult diagnose_loop(const Model& start, const FlightData& data, const std::
       held = dx.selection_lines;
       held.insert(held.end(), dx.confirmation_lines.begin(), dx.confirmation_lines.end());
       LoopRound r0;
-      r0.heldout_std_nT = std_on_lines(r.model, data, truth, held);
-      r0.all_std_nT = std_on_lines(r.model, data, truth, {});
+      const Evaluation ev = evaluate_model(r.model, data, truth);
+      r0.heldout_std_nT = std_on_lines(ev, held);
+      r0.all_std_nT = ev.std_nT;
+      r0.fom_nT = ev.fom.signatures.empty() ? NAN : ev.fom.fom_nT;
       r.rounds.push_back(r0);
     }
     if (on_round) on_round(round, dx);
@@ -62,8 +62,10 @@ LoopResult diagnose_loop(const Model& start, const FlightData& data, const std::
     lr.round = round;
     lr.added = top->term;
     lr.explained = top->explained_fraction;
-    lr.heldout_std_nT = std_on_lines(next, data, truth, held);
-    lr.all_std_nT = std_on_lines(next, data, truth, {});
+    const Evaluation ev = evaluate_model(next, data, truth);
+    lr.heldout_std_nT = std_on_lines(ev, held);
+    lr.all_std_nT = ev.std_nT;
+    lr.fom_nT = ev.fom.signatures.empty() ? NAN : ev.fom.fom_nT;
     if (!(lr.heldout_std_nT < r.rounds.back().heldout_std_nT)) {  // never worse on unseen lines
       r.stop_reason = "adding " + top->term + " would not lower the held-out error (" +
                       std::to_string(lr.heldout_std_nT) + " nT): stopped";

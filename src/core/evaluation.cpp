@@ -117,6 +117,35 @@ Evaluation evaluate_model(const Model& model, const FlightData& data, const std:
                                    ? neural_compensate(model, data).compensated_nT
                                    : compensate(model, data);
   Evaluation ev = error_statistics(data, comp - ref);
+  const Eigen::VectorXd uncompensated = aligned_scalar(model, data);
+  {
+    const Evaluation before = error_statistics(data, uncompensated - ref);
+    ev.uncompensated_std_nT = before.std_nT;
+    ev.improvement_ratio = ev.std_nT > 0 ? before.std_nT / ev.std_nT : NAN;
+    for (auto& l : ev.per_line) {
+      for (const auto& b : before.per_line) {
+        if (b.line != l.line) continue;
+        l.uncompensated_std_nT = b.std_nT;
+        l.improvement_ratio = l.std_nT > 0 ? b.std_nT / l.std_nT : NAN;
+      }
+    }
+  }
+  if (!(model.neural && model.neural->trained())) {
+    ev.variance_nT2 = compensation_variance_nT2(model, data);
+    long n = 0, in1 = 0, in2 = 0;
+    for (Eigen::Index i = 0; i < ev.error_nT.size(); ++i) {
+      const double e = ev.error_nT[i], v = ev.variance_nT2[i];
+      if (!std::isfinite(e) || !std::isfinite(v) || !(v > 0)) continue;
+      ++n;
+      in1 += e * e <= v;
+      in2 += e * e <= 4 * v;
+    }
+    if (n > 0) {
+      ev.coverage_1sigma = static_cast<double>(in1) / static_cast<double>(n);
+      ev.coverage_2sigma = static_cast<double>(in2) / static_cast<double>(n);
+    }
+  }
+  ev.fom = figure_of_merit(data, model.fit, comp, uncompensated);
   if (ev.n == 0) {
     throw Error(data.source() + ": no sample has a finite compensated value and reference (" +
                 model.scalar + ", " + model.vector + "_x/_y/_z, the model's channels, " + truth +

@@ -7,10 +7,8 @@
 #include <sstream>
 
 #include "magcomp/core/error.h"
+#include "magcomp/core/paths.h"
 
-#ifndef MAGCOMP_DEFAULT_IGRF_FILE
-#define MAGCOMP_DEFAULT_IGRF_FILE "config/igrf14.shc"
-#endif
 
 namespace magcomp {
 namespace {
@@ -99,7 +97,7 @@ Igrf Igrf::load(const std::string& path) {
 const Igrf& Igrf::shipped() {
   static const Igrf model = [] {
     const char* env = std::getenv("MAGCOMP_IGRF_FILE");
-    return Igrf::load(env && *env ? env : MAGCOMP_DEFAULT_IGRF_FILE);
+    return Igrf::load(env && *env ? std::string(env) : share_dir() + "/config/igrf14.shc");
   }();
   return model;
 }

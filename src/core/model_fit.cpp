@@ -2,6 +2,7 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <sstream>
 #include <thread>
 
@@ -311,8 +312,28 @@ void fit_model(Model& model, const std::vector<const FlightData*>& flights) {
   model.column_names = model.make_column_names();
   report.samples = rows;
   report.condition_number = condition_number(g);
-  report.residual_std_nT = std_dev(y - a * c_fit);
+  const Eigen::VectorXd residual = y - a * c_fit;
+  report.residual_std_nT = std_dev(residual);
   report.estimates = estimates;
+  {  // The coefficients' covariance (ridge sandwich) and the noise variance.
+    const double dof = static_cast<double>(std::max<Eigen::Index>(rows - fitted_cols, 1));
+    report.noise_variance_nT2 = residual.squaredNorm() / dof;
+    Eigen::MatrixXd gl = g;
+    gl.diagonal().array() += s.lambda;
+    const Eigen::MatrixXd inv =
+        gl.ldlt().solve(Eigen::MatrixXd::Identity(fitted_cols, fitted_cols));
+    const Eigen::MatrixXd cov_fit = report.noise_variance_nT2 * (inv * g * inv);
+    report.coefficient_covariance = Eigen::MatrixXd::Zero(p, p);
+    for (Eigen::Index i = 0, ci = 0; i < p; ++i) {
+      if (!keep[static_cast<size_t>(i)]) continue;
+      for (Eigen::Index j = 0, cj = 0; j < p; ++j) {
+        if (!keep[static_cast<size_t>(j)]) continue;
+        report.coefficient_covariance(i, j) = cov_fit(ci, cj++);
+      }
+      ++ci;
+    }
+    if (!report.coefficient_covariance.allFinite()) report.coefficient_covariance.resize(0, 0);
+  }
   // Unexcited columns: no energy in the (filtered) calibration data.
   const Eigen::VectorXd norms = g.diagonal().cwiseMax(0.0).cwiseSqrt();
   const double max_norm = norms.maxCoeff();
@@ -349,6 +370,22 @@ Eigen::VectorXd model_correction(const Model& model, const FlightData& data) {
 
 Eigen::VectorXd compensate(const Model& model, const FlightData& data) {
   return aligned_scalar(model, data) - model_correction(model, data);
+}
+
+double sample_variance_nT2(const Model& model, const Eigen::Ref<const Eigen::RowVectorXd>& row) {
+  const Eigen::MatrixXd& cov = model.report.coefficient_covariance;
+  if (cov.rows() != row.size() || !std::isfinite(model.report.noise_variance_nT2) ||
+      !row.allFinite()) {
+    return std::numeric_limits<double>::quiet_NaN();
+  }
+  return row.dot(cov * row.transpose()) + model.report.noise_variance_nT2;
+}
+
+Eigen::VectorXd compensation_variance_nT2(const Model& model, const FlightData& data) {
+  const Eigen::MatrixXd a = design_matrix(model, data);
+  Eigen::VectorXd v(a.rows());
+  for (Eigen::Index i = 0; i < a.rows(); ++i) v[i] = sample_variance_nT2(model, a.row(i));
+  return v;
 }
 
 }  // namespace magcomp

@@ -293,6 +293,37 @@ static Model load_model_yaml_unchecked(const std::string& path_in) {
     m.column_names = names;
     m.coefficients = coef;
   }
+  if (const YAML::Node r = root["fit_report"]; r && r.IsMap() && m.fitted()) {
+    // What the node needs of the report: the uncertainty of each sample.
+    if (r["noise_variance_nT2"]) {
+      m.report.noise_variance_nT2 =
+          get<double>(r["noise_variance_nT2"], path, "fit_report.noise_variance_nT2");
+      if (!(m.report.noise_variance_nT2 >= 0) || !std::isfinite(m.report.noise_variance_nT2))
+        throw Error(path + ": key 'fit_report.noise_variance_nT2' must be finite and >= 0");
+    }
+    if (r["residual_std_nT"])
+      m.report.residual_std_nT = get<double>(r["residual_std_nT"], path, "fit_report.residual_std_nT");
+    if (r["coefficient_covariance"]) {
+      const auto flat =
+          get<std::vector<double>>(r["coefficient_covariance"], path, "fit_report.coefficient_covariance");
+      const auto p = static_cast<size_t>(m.coefficients.size());
+      if (flat.size() != p * p) {
+        throw Error(path + ": key 'fit_report.coefficient_covariance' has " +
+                    std::to_string(flat.size()) + " values, the model needs " +
+                    std::to_string(p * p));
+      }
+      m.report.coefficient_covariance.resize(static_cast<Eigen::Index>(p),
+                                             static_cast<Eigen::Index>(p));
+      for (size_t i = 0; i < p; ++i)
+        for (size_t j = 0; j < p; ++j) {
+          const double v = flat[i * p + j];
+          if (!std::isfinite(v))
+            throw Error(path + ": key 'fit_report.coefficient_covariance' holds a non-finite value");
+          m.report.coefficient_covariance(static_cast<Eigen::Index>(i),
+                                          static_cast<Eigen::Index>(j)) = v;
+        }
+    }
+  }
   if (root["neural"]) m.neural = parse_neural(root["neural"], path, m.make_column_names().size());
   return m;
 }
@@ -338,6 +369,16 @@ void save_model_yaml(const Model& m, const std::string& path,
     out << YAML::Key << "warnings" << YAML::Value << YAML::Flow << m.report.warnings;
     if (!m.report.estimates.empty())
       out << YAML::Key << "estimates" << YAML::Value << YAML::Flow << m.report.estimates;
+    if (std::isfinite(m.report.noise_variance_nT2)) {
+      out << YAML::Key << "noise_variance_nT2" << YAML::Value << m.report.noise_variance_nT2;
+    }
+    const Eigen::MatrixXd& cov = m.report.coefficient_covariance;
+    if (cov.size() > 0) {  // row-major, P x P in column order
+      std::vector<double> flat;
+      for (Eigen::Index i = 0; i < cov.rows(); ++i)
+        for (Eigen::Index j = 0; j < cov.cols(); ++j) flat.push_back(cov(i, j));
+      out << YAML::Key << "coefficient_covariance" << YAML::Value << YAML::Flow << flat;
+    }
     out << YAML::EndMap;
   }
   if (m.neural) emit_neural(out, *m.neural);

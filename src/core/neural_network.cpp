@@ -11,18 +11,10 @@
 
 #include "magcomp/core/error.h"
 #include "magcomp/core/neural_features.h"
+#include "magcomp/core/paths.h"
 
 namespace magcomp {
 namespace {
-
-std::string executable_dir() {
-  char buf[PATH_MAX];
-  const ssize_t n = ::readlink("/proc/self/exe", buf, sizeof(buf) - 1);
-  if (n <= 0) return ".";
-  std::string p(buf, static_cast<size_t>(n));
-  const auto slash = p.find_last_of('/');
-  return slash == std::string::npos ? "." : p.substr(0, slash);
-}
 
 CreateNetworkFn create_function() {
   static std::mutex mutex;

@@ -236,6 +236,11 @@ StreamOutput StreamingCompensator::emit(Eigen::Index index) {
                                            plan_->diurnal_nT(x.channels.data()), y);
   }
   o.compensated_nT = o.measured_nT - o.correction_nT;
+  o.variance_nT2 = streamer_ ? (model_.neural->validation_rmse_nT > 0
+                                    ? model_.neural->validation_rmse_nT *
+                                          model_.neural->validation_rmse_nT
+                                    : NAN)
+                             : sample_variance_nT2(model_, a);
   return o;
 }
 

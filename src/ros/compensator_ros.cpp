@@ -3,7 +3,7 @@
 
 #include <magcomp/CompensatedField.h>
 #include <sys/stat.h>
-#include <visualization_msgs/Marker.h>
+#include <visualization_msgs/MarkerArray.h>
 
 #include <Eigen/Geometry>
 #include <algorithm>
@@ -28,7 +28,9 @@ const std::set<std::string> kKnownParams = {
     "reference_topic", "output_topic",      "frame_id",        "max_gap_s",     "max_wait_s",
     "jump_back_s",     "buffer_s",          "watch_model",     "marker_stride", "expected_rate_hz",
     "flush_after_s",   "calibration_model", "calibration_out", "forgetting",    "auto_segments",
-    "imu_topic",       "base_frame",        "tcp_nodelay",     "queue_size",    "end_of_stream_topic"};
+    "imu_topic",       "base_frame",        "tcp_nodelay",     "queue_size",    "end_of_stream_topic",
+    "publish_track_tf"};
+constexpr long kTrackTfEvery = 5;  // outputs between two poses of the aircraft on the track
 
 }  // namespace
 
@@ -97,7 +99,8 @@ CompensatorRos::CompensatorRos(ros::NodeHandle nh, ros::NodeHandle pnh)
   pnh_.param("watch_model", watch_model_, true);
   pnh_.param("marker_stride", marker_stride_, 10);
   pnh_.param("flush_after_s", flush_after_s_, 1.0);
-  pnh_.param<std::string>("frame_id", frame_id_, "map");
+  pnh_.param<std::string>("frame_id", frame_id_, "magcomp_track");
+  pnh_.param("publish_track_tf", publish_track_tf_, false);
   double rate = 10.0;
   pnh_.param("expected_rate_hz", rate, 10.0);
   auto positive = [](double v, const char* key) {
@@ -114,7 +117,8 @@ CompensatorRos::CompensatorRos(ros::NodeHandle nh, ros::NodeHandle pnh)
                                       std::to_string(flush_after_s_));
   }
   positive(rate, "expected_rate_hz");
-  if (marker_stride_ < 1) marker_stride_ = 1;
+  if (marker_stride_ < 1) reject_param("marker_stride", "must be >= 1 (outputs per track point)");
+  track_ = std::make_unique<TrackMarker>(frame_id_, marker_stride_);
   min_freq_ = 0.5 * rate;
   max_freq_ = 2.0 * rate;
   if (!model_path_.empty() && !load_model("start-up")) ROS_ERROR("%s", model_error_.c_str());
@@ -130,7 +134,7 @@ CompensatorRos::CompensatorRos(ros::NodeHandle nh, ros::NodeHandle pnh)
   pnh_.param<std::string>("output_topic", out_topic, "/magcomp/compensated");
   // Deep enough that a fast replay's bursts are never dropped by the transport.
   pub_out_ = nh_.advertise<magcomp::CompensatedField>(out_topic, 10000);
-  pub_marker_ = nh_.advertise<visualization_msgs::Marker>(out_topic + "/track", 2, true);
+  pub_marker_ = nh_.advertise<visualization_msgs::MarkerArray>(out_topic + "/track", 2, true);
   // TCP_NODELAY (default): lowest latency in flight. false: Nagle batches a flood of small
   // messages (a bag played as fast as possible) into fewer packets and wake-ups.
   bool nodelay = true;
@@ -159,6 +163,7 @@ CompensatorRos::CompensatorRos(ros::NodeHandle nh, ros::NodeHandle pnh)
   srv_reload_ = pnh_.advertiseService("reload", &CompensatorRos::on_reload, this);
   pnh_.param<std::string>("base_frame", base_frame_, "base_link");
   tf_buffer_ = std::make_unique<tf2_ros::Buffer>();
+  if (publish_track_tf_) tf_broadcaster_ = std::make_unique<tf2_ros::TransformBroadcaster>();
   tf_listener_ = std::make_unique<tf2_ros::TransformListener>(*tf_buffer_, nh_);
   pnh_.param("auto_segments", auto_segments_, false);
   if (calibrator_ && auto_segments_) {
@@ -337,7 +342,7 @@ void CompensatorRos::on_scalar(const magcomp::ScalarMagnetometer::ConstPtr& m) {
       fixes_.clear();
       references_.clear();
       last_published_t_ = -1e300;
-      track_.clear();
+      if (track_) track_->clear();
       if (calibrator_) calibrator_->reset();  // a replay starting over must not count twice
       detector_.reset();
       maneuver_.clear();
@@ -532,7 +537,7 @@ void CompensatorRos::publish(const StreamOutput& o) {
   msg.measured_nT = o.measured_nT;
   msg.aircraft_correction_nT = o.correction_nT;
   msg.compensated_nT = o.compensated_nT;
-  msg.variance_nT2 = comp_ ? std::pow(comp_->model().report.residual_std_nT, 2) : NAN;
+  msg.variance_nT2 = o.variance_nT2;
   msg.anomaly_nT = NAN;
   double diurnal = 0.0;
   if (diurnal_index_ >= 0) {
@@ -554,42 +559,14 @@ void CompensatorRos::publish(const StreamOutput& o) {
   freq_->tick();
   // rviz: the track in a local east-north-up frame, coloured by the error (or the anomaly).
   Timed3 fix{};
-  if (interpolate(fixes_, o.t_s, &fix)) {
-    if (!std::isfinite(origin_lat_)) {
-      origin_lat_ = fix.v.x();
-      origin_lon_ = fix.v.y();
+  if (track_ && interpolate(fixes_, o.t_s, &fix)) {
+    const bool due = track_->add(fix.v.x(), fix.v.y(), fix.v.z(),
+                                 std::isfinite(msg.error_nT) ? msg.error_nT : msg.anomaly_nT);
+    if (publish_track_tf_ && n_out_ % kTrackTfEvery == 0) {
+      tf_broadcaster_->sendTransform(track_->pose(msg.header.stamp, base_frame_));
     }
-    const double north = (fix.v.x() - origin_lat_) * M_PI / 180.0 * 6371000.0;
-    const double east =
-        (fix.v.y() - origin_lon_) * M_PI / 180.0 * 6371000.0 * std::cos(origin_lat_ * M_PI / 180.0);
-    if (n_out_ % marker_stride_ == 0 && track_.size() < 50000) {
-      track_.push_back(
-          {east, north, 0.0, std::isfinite(msg.error_nT) ? msg.error_nT : msg.anomaly_nT});
-    }
-    if (n_out_ % (marker_stride_ * 20) == 0 && pub_marker_.getNumSubscribers() > 0) {
-      visualization_msgs::Marker mk;
-      mk.header.frame_id = frame_id_;
-      mk.header.stamp = msg.header.stamp;
-      mk.ns = "magcomp_track";
-      mk.type = visualization_msgs::Marker::POINTS;
-      mk.scale.x = mk.scale.y = 30.0;
-      mk.pose.orientation.w = 1.0;
-      double lim = 1e-9;
-      for (const auto& p : track_) lim = std::max(lim, std::abs(p[3]));
-      for (const auto& p : track_) {
-        geometry_msgs::Point pt;
-        pt.x = p[0];
-        pt.y = p[1];
-        mk.points.push_back(pt);
-        std_msgs::ColorRGBA c;
-        const double u = std::isfinite(p[3]) ? 0.5 + 0.5 * p[3] / lim : 0.5;
-        c.r = static_cast<float>(u);
-        c.b = static_cast<float>(1 - u);
-        c.g = 0.2f;
-        c.a = 1.0f;
-        mk.colors.push_back(c);
-      }
-      pub_marker_.publish(mk);
+    if (due && pub_marker_.getNumSubscribers() > 0) {
+      pub_marker_.publish(track_->markers(msg.header.stamp));
     }
   }
 }

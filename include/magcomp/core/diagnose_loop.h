@@ -1,6 +1,7 @@
 // magcomp: the user's loop as one call: diagnose, add the accepted top term, refit, repeat.
 #pragma once
 
+#include <cmath>
 #include <functional>
 #include <string>
 #include <vector>
@@ -16,6 +17,7 @@ struct LoopRound {
   double explained = 0.0;       ///< its conservative explained share (Candidate)
   double heldout_std_nT = 0.0;  ///< error std (line means removed) on the held-out lines
   double all_std_nT = 0.0;      ///< the same on every line of the flight
+  double fom_nT = NAN;          ///< figure of merit on the model's calibration maneuvers
 };
 
 struct LoopResult {

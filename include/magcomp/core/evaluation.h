@@ -5,6 +5,7 @@
 #include <string>
 #include <vector>
 
+#include "magcomp/core/figure_of_merit.h"
 #include "magcomp/core/flight_data.h"
 #include "magcomp/core/model.h"
 
@@ -16,6 +17,8 @@ struct LineStats {
   Eigen::Index n = 0;  ///< finite samples
   double rmse_nT = 0.0;
   double std_nT = 0.0;
+  double uncompensated_std_nT = NAN;  ///< the same for the scalar before compensation
+  double improvement_ratio = NAN;     ///< uncompensated_std_nT / std_nT
 };
 
 /// Error statistics of a group of samples (a flight condition, a heading sector), nT. std_nT is
@@ -37,6 +40,16 @@ struct Evaluation {
   std::vector<GroupStats> per_heading;    ///< N, NE, ... NW
   Eigen::VectorXd compensated_nT;
   Eigen::VectorXd error_nT;
+  /// Uncompensated error std (the realigned scalar against the truth, line means removed) and
+  /// the improvement ratio uncompensated / compensated std, over every line.
+  double uncompensated_std_nT = NAN;
+  double improvement_ratio = NAN;
+  /// Per-sample variance of the compensated field (model.h sample_variance_nT2), nT², and the
+  /// fraction of finite errors within 1 and 2 sigma of it (NaN without an uncertainty).
+  Eigen::VectorXd variance_nT2;
+  double coverage_1sigma = NAN, coverage_2sigma = NAN;
+  /// The figure of merit on the model's calibration maneuvers.
+  FigureOfMerit fom;
 };
 
 /// Statistics of `error_nT` grouped by the flight's `line` column (one group if absent).

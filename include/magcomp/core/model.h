@@ -36,6 +36,14 @@ struct FitReport {
   double residual_std_nT = 0.0;       ///< std of the fit residual (filtered for bandpass)
   std::vector<std::string> warnings;  ///< e.g. terms the segments do not excite
   std::vector<std::string> estimates;  ///< free parameters (?) the fit estimated, in words
+  /// Variance of the fit's residual, nT² (residual sum of squares / (rows - coefficients)). For a
+  /// reference fit it is the noise of the compensated field; for a band-pass fit the noise in the
+  /// band only, which understates broadband noise.
+  double noise_variance_nT2 = NAN;
+  /// Covariance of the coefficients, nT² per (column unit)², P x P in column order: the ridge
+  /// estimator's noise_variance (A'A + lambda I)^-1 A'A (A'A + lambda I)^-1 (zero for the columns
+  /// the method cannot fit). Empty when unknown.
+  Eigen::MatrixXd coefficient_covariance;
 };
 
 /// A compensation model. Terms are held as specs; the model builds them on demand.
@@ -115,5 +123,12 @@ Eigen::VectorXd ridge_solve(const Eigen::MatrixXd& a, const Eigen::VectorXd& y, 
 Eigen::VectorXd model_correction(const Model& model, const FlightData& data);
 /// Compensated scalar field in nT: scalar - A c.
 Eigen::VectorXd compensate(const Model& model, const FlightData& data);
+
+/// Variance of one compensated sample, nT²: the coefficients' uncertainty propagated through the
+/// sample's design row (a Cov a') plus the fit's noise variance. NaN when the model has no
+/// uncertainty (fitted before it was recorded) or the row is not finite.
+double sample_variance_nT2(const Model& model, const Eigen::Ref<const Eigen::RowVectorXd>& row);
+/// The same for every sample of a flight, nT².
+Eigen::VectorXd compensation_variance_nT2(const Model& model, const FlightData& data);
 
 }  // namespace magcomp

@@ -40,6 +40,9 @@ struct StreamOutput {
   /// The terms' part A·c of the correction (all of it without a neural stage).
   double tl_correction_nT = 0.0;
   double igrf_nT = NAN;  ///< the sample's igrf_nT, passed through (NaN when not given)
+  /// Variance of compensated_nT, nT²: sample_variance_nT2 of the terms' row (model.h); with a
+  /// neural stage its validation error². NaN when the model carries no uncertainty.
+  double variance_nT2 = NAN;
 };
 
 /// Applies a fitted model to a stream of samples. Each output needs a few samples after it

@@ -13,6 +13,7 @@
 #include <std_msgs/Time.h>
 #include <std_srvs/Trigger.h>
 #include <tf2_ros/buffer.h>
+#include <tf2_ros/transform_broadcaster.h>
 #include <tf2_ros/transform_listener.h>
 
 #include <Eigen/Core>
@@ -23,6 +24,7 @@
 #include "magcomp/core/flight_conditions.h"
 #include "magcomp/core/inflight_calibrator.h"
 #include "magcomp/core/streaming_compensator.h"
+#include "magcomp/ros/track_marker.h"
 
 namespace magcomp::rosio {
 
@@ -147,7 +149,9 @@ class CompensatorRos {
   diagnostic_updater::Updater updater_;
   double min_freq_ = 5.0, max_freq_ = 50.0;
   std::unique_ptr<diagnostic_updater::FrequencyStatus> freq_;
-  std::vector<std::array<double, 4>> track_;  // east m, north m, up m, error nT
+  std::unique_ptr<TrackMarker> track_;
+  bool publish_track_tf_ = false;
+  std::unique_ptr<tf2_ros::TransformBroadcaster> tf_broadcaster_;
   std::unique_ptr<InflightCalibrator> calibrator_;
   std::unique_ptr<Model> calibration_template_, calibrated_;
   std::string calibration_out_;
@@ -170,7 +174,6 @@ class CompensatorRos {
   ros::Publisher pub_status_;
   ros::ServiceServer srv_start_, srv_stop_, srv_fit_, srv_save_, srv_reset_;
   ros::WallTimer status_timer_;
-  double origin_lat_ = NAN, origin_lon_ = NAN;
 };
 
 }  // namespace magcomp::rosio
