@@ -28,6 +28,7 @@ magcomp_build() {
   set +u
   source "$MAGCOMP_WS/devel/setup.bash"
   set -u
-  MAGCOMP_BIN="$MAGCOMP_WS/devel/lib/magcomp"
-  export MAGCOMP_BIN
+  MAGCOMP_BIN="$MAGCOMP_WS/devel/lib/magcomp"   # nodes, benchmarks
+  MAGCOMP_CLI="$MAGCOMP_WS/devel/bin/magcomp"   # the command-line tool (on PATH after setup.bash)
+  export MAGCOMP_BIN MAGCOMP_CLI
 }

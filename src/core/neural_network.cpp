@@ -26,6 +26,7 @@ CreateNetworkFn create_function() {
   const std::string dir = executable_dir();
   candidates.push_back(dir + "/libmagcomp_neural.so");     // installed beside lib/
   candidates.push_back(dir + "/../libmagcomp_neural.so");  // catkin: lib/magcomp/<exe>
+  candidates.push_back(dir + "/../lib/libmagcomp_neural.so");  // catkin: bin/<exe>
   candidates.push_back("libmagcomp_neural.so");            // LD_LIBRARY_PATH
   std::string errors;
   for (const auto& c : candidates) {

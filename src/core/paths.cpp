@@ -30,8 +30,11 @@ std::string executable_dir() {
 
 std::string share_dir() {
   if (const char* env = std::getenv("MAGCOMP_SHARE_DIR"); env && *env) return env;
-  const std::string installed = executable_dir() + "/../../share/magcomp";
-  if (is_directory(installed + "/config")) return installed;
+  // bin/<exe> (the command-line tools) or lib/magcomp/<exe> (the nodes).
+  for (const char* up : {"/../share/magcomp", "/../../share/magcomp"}) {
+    const std::string installed = executable_dir() + up;
+    if (is_directory(installed + "/config")) return installed;
+  }
   return MAGCOMP_BUILD_SOURCE_DIR;
 }
 

@@ -68,7 +68,7 @@ BagPlayer::BagPlayer(ros::NodeHandle nh, ros::NodeHandle pnh) : nh_(nh), pnh_(pn
   }
   if (publish_clock_) pub_clock_ = nh_.advertise<rosgraph_msgs::Clock>("/clock", 10);
   std::string end_topic;
-  pnh_.param<std::string>("end_topic", end_topic, "/magcomp/end_of_stream");
+  pnh_.param<std::string>("end_topic", end_topic, "magcomp/end_of_stream");
   if (!end_topic.empty()) pub_end_ = nh_.advertise<std_msgs::Time>(end_topic, 10, true);
   thread_ = std::thread([this] { run(); });
 }

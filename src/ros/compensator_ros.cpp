@@ -126,12 +126,14 @@ CompensatorRos::CompensatorRos(ros::NodeHandle nh, ros::NodeHandle pnh)
   const std::string scalar = sensors ? sensors->scalar : "mag_5_uc";
   const std::string vector = sensors ? sensors->vector : "flux_c";
   std::string scalar_topic, vector_topic, aux_topic, fix_topic, ref_topic, out_topic;
-  pnh_.param<std::string>("scalar_topic", scalar_topic, "/magcomp/scalar/" + scalar);
-  pnh_.param<std::string>("vector_topic", vector_topic, "/magcomp/fluxgate/" + vector);
-  pnh_.param<std::string>("aux_topic", aux_topic, "/magcomp/aux");
-  pnh_.param<std::string>("fix_topic", fix_topic, "/magcomp/ins/fix");
+  // Defaults are relative: a namespaced launch moves them all (magcomp convert's bags, played in
+  // the root namespace, use these names).
+  pnh_.param<std::string>("scalar_topic", scalar_topic, "magcomp/scalar/" + scalar);
+  pnh_.param<std::string>("vector_topic", vector_topic, "magcomp/fluxgate/" + vector);
+  pnh_.param<std::string>("aux_topic", aux_topic, "magcomp/aux");
+  pnh_.param<std::string>("fix_topic", fix_topic, "magcomp/ins/fix");
   pnh_.param<std::string>("reference_topic", ref_topic, "");
-  pnh_.param<std::string>("output_topic", out_topic, "/magcomp/compensated");
+  pnh_.param<std::string>("output_topic", out_topic, "magcomp/compensated");
   // Deep enough that a fast replay's bursts are never dropped by the transport.
   pub_out_ = nh_.advertise<magcomp::CompensatedField>(out_topic, 10000);
   pub_marker_ = nh_.advertise<visualization_msgs::MarkerArray>(out_topic + "/track", 2, true);
@@ -156,7 +158,7 @@ CompensatorRos::CompensatorRos(ros::NodeHandle nh, ros::NodeHandle pnh)
     sub_ref_ = nh_.subscribe(ref_topic, q, &CompensatorRos::on_reference, this, hints);
   }
   std::string end_topic;
-  pnh_.param<std::string>("end_of_stream_topic", end_topic, "/magcomp/end_of_stream");
+  pnh_.param<std::string>("end_of_stream_topic", end_topic, "magcomp/end_of_stream");
   if (!end_topic.empty()) {
     sub_end_ = nh_.subscribe(end_topic, 10, &CompensatorRos::on_end_of_stream, this);
   }
@@ -168,7 +170,7 @@ CompensatorRos::CompensatorRos(ros::NodeHandle nh, ros::NodeHandle pnh)
   pnh_.param("auto_segments", auto_segments_, false);
   if (calibrator_ && auto_segments_) {
     std::string imu_topic;
-    pnh_.param<std::string>("imu_topic", imu_topic, "/magcomp/ins/imu");
+    pnh_.param<std::string>("imu_topic", imu_topic, "magcomp/ins/imu");
     sub_imu_ = nh_.subscribe(imu_topic, 1000, &CompensatorRos::on_imu, this, hints);
   }
   if (calibrator_) {

@@ -9,8 +9,8 @@ namespace {
 constexpr double kEarthRadius_m = 6371000.0;  // local tangent plane: spherical Earth is enough
 constexpr double kDeg = M_PI / 180.0;
 constexpr int kPublishEvery = 20;  // points
-constexpr double kLineWidth_m = 40.0;
-constexpr double kTextHeight_m = 250.0;
+constexpr double kLineWidth_m = 120.0;
+constexpr double kTextHeight_m = 300.0;
 }  // namespace
 
 TrackMarker::TrackMarker(std::string frame, int stride, size_t max_points)
@@ -48,10 +48,20 @@ std::array<float, 3> TrackMarker::colour(double value, double limit) {
 visualization_msgs::MarkerArray TrackMarker::markers(const ros::Time& stamp) const {
   visualization_msgs::MarkerArray out;
   if (points_.empty()) return out;
-  // The scale: the 95th percentile of |value|, so one spike does not wash the colours out.
-  std::vector<double> mags;
+  // Colours show the value about its median (a constant offset, such as the bias a band-pass fit
+  // cannot see, would paint the whole track one colour); the scale is the 95th percentile of the
+  // deviation, so one spike does not wash the colours out.
+  std::vector<double> finite;
   for (const auto& p : points_)
-    if (std::isfinite(p[3])) mags.push_back(std::abs(p[3]));
+    if (std::isfinite(p[3])) finite.push_back(p[3]);
+  double centre = 0.0;
+  if (!finite.empty()) {
+    auto mid = finite.begin() + static_cast<std::ptrdiff_t>(finite.size() / 2);
+    std::nth_element(finite.begin(), mid, finite.end());
+    centre = *mid;
+  }
+  std::vector<double> mags;
+  for (double v : finite) mags.push_back(std::abs(v - centre));
   double limit = 1e-3;
   if (!mags.empty()) {
     auto k = mags.begin() + static_cast<std::ptrdiff_t>(0.95 * static_cast<double>(mags.size() - 1));
@@ -73,7 +83,7 @@ visualization_msgs::MarkerArray TrackMarker::markers(const ros::Time& stamp) con
     pt.x = p[0];
     pt.y = p[1];
     line.points.push_back(pt);
-    const auto c = colour(p[3], limit);
+    const auto c = colour(p[3] - centre, limit);
     std_msgs::ColorRGBA rgba;
     rgba.r = c[0];
     rgba.g = c[1];
@@ -92,7 +102,7 @@ visualization_msgs::MarkerArray TrackMarker::markers(const ros::Time& stamp) con
     t.type = visualization_msgs::Marker::TEXT_VIEW_FACING;
     t.action = visualization_msgs::Marker::ADD;
     t.pose.orientation.w = 1.0;
-    t.pose.position.x = points_.front()[0] - 2500.0;
+    t.pose.position.x = points_.front()[0] - 3000.0;
     t.pose.position.y = points_.front()[1] + 1.5 * kTextHeight_m * (1 - k);
     t.scale.z = kTextHeight_m;
     const auto c = colour(values[k], limit);
@@ -100,8 +110,9 @@ visualization_msgs::MarkerArray TrackMarker::markers(const ros::Time& stamp) con
     t.color.g = c[1];
     t.color.b = c[2];
     t.color.a = 1.0f;
-    char buf[64];
-    std::snprintf(buf, sizeof(buf), "%+.2f nT", values[k]);
+    char buf[96];
+    std::snprintf(buf, sizeof(buf), "%+.2f nT%s", centre + values[k],
+                  k == 1 ? " (median)" : "");
     t.text = buf;
     out.markers.push_back(t);
   }

@@ -21,7 +21,8 @@ class TrackMarker {
   /// Adds an output at (lat_deg, lon_deg, alt_m) with its value (the live error, or the anomaly
   /// without a reference), nT. Returns true when the caller should publish (every 20 points).
   bool add(double lat_deg, double lon_deg, double alt_m, double value_nT);
-  /// The track as a coloured line strip, and a legend: the scale's ends and its middle, in text.
+  /// The track as a line strip coloured by the value about its median (blue below, grey at,
+  /// red above), and a legend: the median and the scale's ends, in text, nT.
   visualization_msgs::MarkerArray markers(const ros::Time& stamp) const;
   /// The aircraft's last position in the local frame, as a transform frame -> child (translation
   /// only).
