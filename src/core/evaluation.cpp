@@ -4,9 +4,10 @@
 #include <cmath>
 #include <map>
 
+#include "magcomp/core/apply.h"
 #include "magcomp/core/error.h"
 #include "magcomp/core/flight_conditions.h"
-#include "magcomp/core/neural_network.h"
+#include "magcomp/neural/network.h"
 
 namespace magcomp {
 
@@ -113,9 +114,7 @@ Evaluation evaluate_model(const Model& model, const FlightData& data, const std:
   if (!ref.array().isFinite().any()) {
     throw Error(data.source() + ": reference field '" + truth + "' holds no finite sample");
   }
-  const Eigen::VectorXd comp = model.neural && model.neural->trained()
-                                   ? neural_compensate(model, data).compensated_nT
-                                   : compensate(model, data);
+  const Eigen::VectorXd comp = apply_model(model, data).compensated_nT;
   Evaluation ev = error_statistics(data, comp - ref);
   const Eigen::VectorXd uncompensated = aligned_scalar(model, data);
   {

@@ -368,10 +368,6 @@ Eigen::VectorXd model_correction(const Model& model, const FlightData& data) {
   return a * model.coefficients;
 }
 
-Eigen::VectorXd compensate(const Model& model, const FlightData& data) {
-  return aligned_scalar(model, data) - model_correction(model, data);
-}
-
 double sample_variance_nT2(const Model& model, const Eigen::Ref<const Eigen::RowVectorXd>& row) {
   const Eigen::MatrixXd& cov = model.report.coefficient_covariance;
   if (cov.rows() != row.size() || !std::isfinite(model.report.noise_variance_nT2) ||

@@ -5,7 +5,7 @@
 #include <Eigen/Core>
 #include <fstream>
 
-#include "magcomp/core/neural_network.h"
+#include "magcomp/neural/network.h"
 
 namespace magcomp {
 

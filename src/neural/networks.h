@@ -3,7 +3,7 @@
 
 #include <torch/torch.h>
 
-#include "magcomp/core/neural_spec.h"
+#include "magcomp/neural/spec.h"
 
 namespace magcomp {
 

@@ -9,7 +9,7 @@
 #include "../cli/common.h"
 #include "magcomp/core/error.h"
 #include "magcomp/core/model.h"
-#include "magcomp/core/neural_network.h"
+#include "magcomp/neural/network.h"
 #include "magcomp/neural/trainer.h"
 
 namespace {
@@ -92,7 +92,9 @@ int run(int argc, char** argv) {
     for (size_t i = 0; i < val_flights.size(); ++i) {
       const FlightData& f = val_flights[i];
       if (!f.has(s.reference)) continue;
-      const Eigen::VectorXd tl_err = compensate(model, f) - f.column(s.reference);
+      Model terms_only = model;
+      terms_only.neural.reset();
+      const Eigen::VectorXd tl_err = compensate(terms_only, f) - f.column(s.reference);
       const NeuralCompensation nc = neural_compensate(model, f);
       const Eigen::VectorXd nn_err = nc.compensated_nT - f.column(s.reference);
       std::cout << "\n  " << s.validation_flights[i] << ": TL rmse " << rms(tl_err)

@@ -22,6 +22,7 @@
 
 #include "magcomp/core/error.h"
 #include "magcomp/core/file_io.h"
+#include "magcomp/core/time_base.h"
 #include "magcomp/ros/bag_check.h"
 #include "magcomp/ros/bag_writer.h"
 
@@ -101,19 +102,11 @@ double first_finite(const FlightData& f, const std::string& name) {
 }  // namespace
 
 ros::Time stamp_of(int year, int doy, double tt_s) {
-  std::tm tm{};
-  tm.tm_year = year - 1900;
-  tm.tm_mon = 0;
-  tm.tm_mday = 1;
-  // Whole seconds and the fraction of tt kept apart: exact to the nanosecond (a double of
-  // ~1.6e9 s would only resolve 2.4e-7 s).
-  const double whole = std::floor(tt_s);
-  const int64_t sec =
-      static_cast<int64_t>(timegm(&tm)) + (doy - 1) * 86400LL + static_cast<int64_t>(whole);
-  int64_t nsec = std::llround((tt_s - whole) * 1e9);
+  int64_t sec = 0, nsec = 0;
+  epoch_of(year, doy, tt_s, &sec, &nsec);
   ros::Time t;
-  t.sec = static_cast<uint32_t>(sec + nsec / 1000000000LL);
-  t.nsec = static_cast<uint32_t>(nsec % 1000000000LL);
+  t.sec = static_cast<uint32_t>(sec);
+  t.nsec = static_cast<uint32_t>(nsec);
   return t;
 }
 

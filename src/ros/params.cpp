@@ -4,6 +4,7 @@
 #include <ros/console.h>
 #include <ros/param.h>
 
+#include <cmath>
 #include <vector>
 
 #include "magcomp/core/error.h"
@@ -20,6 +21,12 @@ void warn_unknown_params(const ros::NodeHandle& pnh, const std::set<std::string>
     if (key.find('/') == std::string::npos && !known.count(key)) {
       ROS_WARN("%s: unknown parameter '%s' ignored", ns.c_str(), key.c_str());
     }
+  }
+}
+
+void require_positive(double value, const std::string& key) {
+  if (!(value > 0) || !std::isfinite(value)) {
+    reject_param(key, "must be > 0 and finite, got " + std::to_string(value));
   }
 }
 

@@ -10,7 +10,7 @@
 #include <fstream>
 #include <string>
 
-#include "magcomp/core/neural_dataset.h"
+#include "magcomp/neural/dataset.h"
 #include "magcomp/core/sim/simulator.h"
 #include "magcomp/core/streaming_compensator.h"
 #include "magcomp/neural/trainer.h"

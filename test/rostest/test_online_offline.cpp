@@ -8,7 +8,7 @@
 #include <mutex>
 
 #include "magcomp/core/model.h"
-#include "magcomp/core/neural_network.h"
+#include "magcomp/neural/network.h"
 #include "magcomp/ros/bag_converter.h"
 #include "rostest_util.h"
 
@@ -25,8 +25,7 @@ TEST(OnlineOffline, WholeReplayedFlightEqualsOfflineWithNoSampleLost) {
   const magcomp::Model m = magcomp::load_model_yaml(model_path);
   // A model with a neural stage: the offline path is the batch inference (windows padded at
   // the flight's start, as the node's ring buffer is).
-  const Eigen::VectorXd offline =
-      m.neural ? magcomp::neural_compensate(m, f).compensated_nT : magcomp::compensate(m, f);
+  const Eigen::VectorXd offline = magcomp::compensate(m, f);  // the neural stage included
   if (m.neural)
     std::printf("  neural stage: %s, %s mode, window %d\n", m.neural->architecture.c_str(),
                 m.neural->mode.c_str(), m.neural->window);

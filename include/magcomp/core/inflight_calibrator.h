@@ -31,6 +31,9 @@ class InflightCalibrator {
   void end_segment();
   void reset();
 
+  /// The channels each sample must carry (StreamSample::channels), in this order.
+  const std::vector<std::string>& channels() const { return channels_; }
+  const Model& model() const { return model_; }
   int segments() const { return segments_; }
   Eigen::Index samples() const { return collected_in_segments_; }
   Eigen::Index rls_updates() const { return rls_updates_; }

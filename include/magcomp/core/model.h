@@ -10,7 +10,7 @@
 #include <vector>
 
 #include "magcomp/core/flight_data.h"
-#include "magcomp/core/neural_spec.h"
+#include "magcomp/neural/spec.h"
 #include "magcomp/core/term.h"
 
 namespace magcomp {
@@ -57,7 +57,7 @@ struct Model {
   std::vector<std::string> column_names;
   Eigen::VectorXd coefficients;
   FitReport report;
-  /// Optional neural stage on top of the terms (see neural_spec.h).
+  /// Optional neural stage on top of the terms (see magcomp/neural/spec.h).
   std::optional<NeuralSpec> neural;
 
   bool fitted() const { return coefficients.size() > 0; }
@@ -121,7 +121,8 @@ Eigen::VectorXd ridge_solve(const Eigen::MatrixXd& a, const Eigen::VectorXd& y, 
 
 /// Aircraft correction in nT at every sample: A c (compensated = scalar - correction).
 Eigen::VectorXd model_correction(const Model& model, const FlightData& data);
-/// Compensated scalar field in nT: scalar - A c.
+/// Compensated scalar field in nT: apply_model(model, data).compensated_nT (apply.h): the terms,
+/// and the neural stage when the model has a trained one.
 Eigen::VectorXd compensate(const Model& model, const FlightData& data);
 
 /// Variance of one compensated sample, nT²: the coefficients' uncertainty propagated through the

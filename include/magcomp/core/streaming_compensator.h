@@ -9,8 +9,8 @@
 #include <vector>
 
 #include "magcomp/core/model.h"
-#include "magcomp/core/neural_features.h"
-#include "magcomp/core/neural_network.h"
+#include "magcomp/neural/features.h"
+#include "magcomp/neural/network.h"
 #include "magcomp/core/signal.h"
 
 namespace magcomp {

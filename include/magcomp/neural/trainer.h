@@ -8,8 +8,8 @@
 #include <vector>
 
 #include "magcomp/core/model.h"
-#include "magcomp/core/neural_dataset.h"
-#include "magcomp/core/neural_spec.h"
+#include "magcomp/neural/dataset.h"
+#include "magcomp/neural/spec.h"
 
 namespace magcomp {
 

@@ -15,4 +15,7 @@ void warn_unknown_params(const ros::NodeHandle& pnh, const std::set<std::string>
 /// Fails start-up: ROS_FATAL and throws magcomp::Error, both "~key: why".
 [[noreturn]] void reject_param(const std::string& key, const std::string& why);
 
+/// Rejects a value that is not > 0 and finite (s, Hz, ...).
+void require_positive(double value, const std::string& key);
+
 }  // namespace magcomp::rosio

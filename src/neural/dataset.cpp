@@ -1,5 +1,5 @@
 // magcomp: normalisation and training windows.
-#include "magcomp/core/neural_dataset.h"
+#include "magcomp/neural/dataset.h"
 
 #include <cmath>
 

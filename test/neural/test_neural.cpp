@@ -8,8 +8,8 @@
 
 #include "magcomp/core/error.h"
 #include "magcomp/core/evaluation.h"
-#include "magcomp/core/neural_dataset.h"
-#include "magcomp/core/neural_network.h"
+#include "magcomp/neural/dataset.h"
+#include "magcomp/neural/network.h"
 #include "magcomp/core/sim/simulator.h"
 #include "magcomp/core/streaming_compensator.h"
 #include "magcomp/neural/trainer.h"

@@ -6,7 +6,7 @@
 #include <vector>
 
 #include "magcomp/core/model.h"
-#include "magcomp/core/neural_features.h"
+#include "magcomp/neural/features.h"
 
 namespace magcomp {
 

@@ -1,5 +1,5 @@
 // magcomp: neural features and target.
-#include "magcomp/core/neural_features.h"
+#include "magcomp/neural/features.h"
 
 #include <cmath>
 

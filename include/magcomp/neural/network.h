@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "magcomp/core/flight_data.h"
+#include "magcomp/core/apply.h"
 #include "magcomp/core/model.h"
 
 namespace magcomp {
@@ -33,16 +34,11 @@ using CreateNetworkFn = NeuralNetwork* (*)(const NeuralSpec* spec, int n_feature
                                            std::string* error);
 constexpr const char* kCreateNetworkSymbol = "magcomp_create_network";
 
-/// A model with a neural stage applied to a whole flight, nT.
-struct NeuralCompensation {
-  Eigen::VectorXd measured_nT;     ///< scalar realigned by the model's lag
-  Eigen::VectorXd correction_nT;   ///< total aircraft correction (TL + network)
-  Eigen::VectorXd compensated_nT;  ///< measured - correction
-  Eigen::VectorXd tl_correction_nT;
-  Eigen::VectorXd network_nT;  ///< the network's prediction, in target units
-};
-/// Offline inference: windows end at each sample and are padded at the flight's start by
-/// repeating its first sample (the online path does the same after each reset).
+/// A model with a neural stage applied to a whole flight (apply.h's Compensation), nT.
+using NeuralCompensation = Compensation;
+/// Offline inference (apply_model calls it for a model with a trained neural stage): windows end
+/// at each sample and are padded at the flight's start by repeating its first sample (the online
+/// path does the same after each reset).
 NeuralCompensation neural_compensate(const Model& model, const FlightData& data,
                                      std::shared_ptr<NeuralNetwork> network = nullptr);
 

@@ -1,5 +1,5 @@
 // magcomp: loading the neural library and running a trained network offline and online.
-#include "magcomp/core/neural_network.h"
+#include "magcomp/neural/network.h"
 
 #include <dlfcn.h>
 #include <unistd.h>
@@ -10,7 +10,7 @@
 #include <mutex>
 
 #include "magcomp/core/error.h"
-#include "magcomp/core/neural_features.h"
+#include "magcomp/neural/features.h"
 #include "magcomp/core/paths.h"
 
 namespace magcomp {
@@ -73,7 +73,7 @@ NeuralCompensation neural_compensate(const Model& model, const FlightData& data,
   }
   NeuralCompensation out;
   out.measured_nT = in.scalar_nT;
-  out.tl_correction_nT = in.correction_nT;
+  out.terms_correction_nT = in.correction_nT;
   out.network_nT.resize(n);
   const Eigen::Index chunk = 2048;
   std::vector<double> windows;

@@ -1,5 +1,5 @@
 // magcomp: checks of the neural stage's settings.
-#include "magcomp/core/neural_spec.h"
+#include "magcomp/neural/spec.h"
 
 #include <set>
 
