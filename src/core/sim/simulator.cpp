@@ -8,6 +8,8 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <functional>
+#include <limits>
 #include <map>
 #include <random>
 
@@ -18,12 +20,13 @@
 #include "magcomp/core/sim/anomaly_map.h"
 #include "magcomp/core/sim/electrical.h"
 #include "magcomp/core/sim/trajectory.h"
+#include "magcomp/core/time_base.h"
 #include "magcomp/core/timeseries.h"
 
 namespace magcomp::sim {
 namespace {
 
-constexpr double kDeg = M_PI / 180.0;
+constexpr double kDeg = kDegToRad;
 
 using Vectors = std::vector<Eigen::Vector3d>;
 
@@ -61,369 +64,453 @@ std::string truth_path(const std::string& out_h5, const std::string& extension) 
   return base + ".truth." + extension;
 }
 
-Simulation simulate(const Scenario& s) {
-  const Track tr = fly(s);
-  const Eigen::Index n = tr.size();
-  const double dt = 1.0 / s.sample_rate_hz;
-  std::mt19937_64 rng(s.seed * 2654435761ULL + 5);
-  std::normal_distribution<double> normal(0.0, 1.0);
-  Eigen::VectorXd tt = tr.t_s.array() + s.start_tt_s;
+namespace {
 
-  // --- Earth field in NED: IGRF (every second, interpolated) + anomaly + diurnal along B̂.
+// The Earth field along the track, in the body frame (FLU) and as totals, nT.
+struct EarthAlongTrack {
+  Eigen::VectorXd tt, anomaly, diurnal, igrf_total, earth_total;
+  Vectors body;  // Earth field in base_link
+  Vectors rate;  // its rate of change, nT/s
+};
+
+// One simulation's state: the steps below run in this order, and draw from one random stream in
+// this order (the same seed gives the same file).
+class Simulator {
+ public:
+  explicit Simulator(const Scenario& s)
+      : s_(s), tr_(fly(s)), n_(tr_.size()), dt_(1.0 / s.sample_rate_hz),
+        rng_(s.seed * 2654435761ULL + 5), normal_(0.0, 1.0) {}
+
+  Simulation run() {
+    earth_field();
+    channels_ = simulate_channels(tr_, s_.seed);
+    ins_ = ins_quantities();
+    begin_truth();
+    draw_aircraft();
+    y_ << YAML::Key << "sensors" << YAML::Value << YAML::BeginMap;
+    for (size_t k = 0; k < sensor_mounts().size(); ++k) sensor(k);
+    y_ << YAML::EndMap;
+    hidden_effects_truth();
+    reference_and_survey_fields();
+    return std::move(sim_);
+  }
+
+ private:
+  void earth_field();
+  std::map<std::string, Eigen::VectorXd> ins_quantities() const;
+  const Eigen::VectorXd& source(const std::string& name) const {
+    auto it = channels_.find(name);
+    return it != channels_.end() ? it->second : ins_.at(name);
+  }
+  void begin_truth();
+  void draw_aircraft();
+  Vectors sensor_field(const AircraftField& a) const;
+  void sensor(size_t index);
+  void fluxgate(const SensorMount& m, const Vectors& field);
+  void scalar(const SensorMount& m, const Vectors& field);
+  // One effect's contribution to a scalar sensor (nT), adding its body field to hidden_vec or
+  // its scalar part to scalar_extra.
+  Eigen::VectorXd hidden_contribution(const HiddenEffect& e, const SensorMount& m,
+                                      const Vectors& field, Vectors* hidden_vec,
+                                      Eigen::VectorXd* scalar_extra) const;
+  void hidden_effects_truth();
+  void hidden_effect_truth(const HiddenEffect& e);
+  void reference_and_survey_fields();
+  void ins_fields();
+
+  const Scenario& s_;
+  const Track tr_;
+  const Eigen::Index n_;
+  const double dt_;
+  std::mt19937_64 rng_;
+  std::normal_distribution<double> normal_;
+  EarthAlongTrack earth_;
+  std::map<std::string, Eigen::VectorXd> channels_, ins_;
+  std::vector<AircraftField> aircraft_;
+  Simulation sim_;
+  YAML::Emitter y_;
+};
+
+void Simulator::earth_field() {
+  // IGRF every second, interpolated; the crustal anomaly and the diurnal along B̂.
+  EarthAlongTrack& e = earth_;
+  e.tt = tr_.t_s.array() + s_.start_tt_s;
   const Igrf& igrf = Igrf::shipped();
-  const Eigen::Index step = std::max<Eigen::Index>(1, static_cast<Eigen::Index>(s.sample_rate_hz));
-  Vectors igrf_ned(static_cast<size_t>(n));
+  const Eigen::Index step = std::max<Eigen::Index>(1, static_cast<Eigen::Index>(s_.sample_rate_hz));
+  Vectors igrf_ned(static_cast<size_t>(n_));
   auto igrf_at = [&](Eigen::Index i) {
-    const double year = decimal_year(s.year, s.doy, tt[i]);
-    const FieldNED f = igrf.geodetic(tr.lat_deg[i], tr.lon_deg[i], tr.alt_m[i], year);
+    const double year = decimal_year(s_.year, s_.doy, e.tt[i]);
+    const FieldNED f = igrf.geodetic(tr_.lat_deg[i], tr_.lon_deg[i], tr_.alt_m[i], year);
     return Eigen::Vector3d(f.north_nT, f.east_nT, f.down_nT);
   };
-  for (Eigen::Index i0 = 0; i0 < n; i0 += step) {
-    const Eigen::Index i1 = std::min(i0 + step, n - 1);
+  for (Eigen::Index i0 = 0; i0 < n_; i0 += step) {
+    const Eigen::Index i1 = std::min(i0 + step, n_ - 1);
     const Eigen::Vector3d a = igrf_at(i0), b = igrf_at(i1);
     for (Eigen::Index i = i0; i <= i1; ++i) {
       const double w = i1 > i0 ? static_cast<double>(i - i0) / static_cast<double>(i1 - i0) : 0.0;
       igrf_ned[static_cast<size_t>(i)] = (1 - w) * a + w * b;
     }
   }
-  const AnomalyMap map = AnomalyMap::random(s.anomaly_grid_n, s.anomaly_grid_m, s.anomaly_rms_nT,
-                                            s.anomaly_spectral_slope, s.seed);
-  const double h_min = tr.alt_m.minCoeff() - s.terrain_m, h_max = tr.alt_m.maxCoeff() - s.terrain_m;
+  const AnomalyMap map = AnomalyMap::random(s_.anomaly_grid_n, s_.anomaly_grid_m,
+                                            s_.anomaly_rms_nT, s_.anomaly_spectral_slope, s_.seed);
+  const double h_min = tr_.alt_m.minCoeff() - s_.terrain_m;
+  const double h_max = tr_.alt_m.maxCoeff() - s_.terrain_m;
   const LayeredMap layers(map, h_min, h_max, 100.0);
-  Eigen::VectorXd anomaly(n), diurnal(n), igrf_total(n), earth_total(n);
-  const double phase = 2 * M_PI * std::uniform_real_distribution<double>(0, 1)(rng);
+  e.anomaly.resize(n_);
+  e.diurnal.resize(n_);
+  e.igrf_total.resize(n_);
+  e.earth_total.resize(n_);
+  const double phase = 2 * M_PI * std::uniform_real_distribution<double>(0, 1)(rng_);
   double walk = 0;
-  Vectors earth_body(static_cast<size_t>(n));
-  for (Eigen::Index i = 0; i < n; ++i) {
-    anomaly[i] = layers.at(tr.north_m[i], tr.east_m[i], tr.alt_m[i] - s.terrain_m);
-    walk = 0.9995 * walk + 0.02 * normal(rng);
-    diurnal[i] = s.diurnal_amplitude_nT * (std::sin(2 * M_PI * tt[i] / 86400.0 + phase) +
-                                           0.3 * std::sin(4 * M_PI * tt[i] / 86400.0 + 2 * phase)) +
-                 walk * s.diurnal_amplitude_nT / 15.0;
+  e.body.resize(static_cast<size_t>(n_));
+  for (Eigen::Index i = 0; i < n_; ++i) {
+    e.anomaly[i] = layers.at(tr_.north_m[i], tr_.east_m[i], tr_.alt_m[i] - s_.terrain_m);
+    walk = 0.9995 * walk + 0.02 * normal_(rng_);
+    e.diurnal[i] =
+        s_.diurnal_amplitude_nT * (std::sin(2 * M_PI * e.tt[i] / 86400.0 + phase) +
+                                   0.3 * std::sin(4 * M_PI * e.tt[i] / 86400.0 + 2 * phase)) +
+        walk * s_.diurnal_amplitude_nT / 15.0;
     const Eigen::Vector3d& g = igrf_ned[static_cast<size_t>(i)];
-    igrf_total[i] = g.norm();
-    const Eigen::Vector3d b_ned = g + (anomaly[i] + diurnal[i]) * g / g.norm();
-    earth_total[i] = b_ned.norm();
-    const Eigen::Matrix3d r_nb = (Eigen::AngleAxisd(tr.yaw_rad[i], Eigen::Vector3d::UnitZ()) *
-                                  Eigen::AngleAxisd(tr.pitch_rad[i], Eigen::Vector3d::UnitY()) *
-                                  Eigen::AngleAxisd(tr.roll_rad[i], Eigen::Vector3d::UnitX()))
+    e.igrf_total[i] = g.norm();
+    const Eigen::Vector3d b_ned = g + (e.anomaly[i] + e.diurnal[i]) * g / g.norm();
+    e.earth_total[i] = b_ned.norm();
+    const Eigen::Matrix3d r_nb = (Eigen::AngleAxisd(tr_.yaw_rad[i], Eigen::Vector3d::UnitZ()) *
+                                  Eigen::AngleAxisd(tr_.pitch_rad[i], Eigen::Vector3d::UnitY()) *
+                                  Eigen::AngleAxisd(tr_.roll_rad[i], Eigen::Vector3d::UnitX()))
                                      .toRotationMatrix();
     const Eigen::Vector3d frd = r_nb.transpose() * b_ned;
-    earth_body[static_cast<size_t>(i)] = Eigen::Vector3d(frd.x(), -frd.y(), -frd.z());  // to FLU
+    e.body[static_cast<size_t>(i)] = Eigen::Vector3d(frd.x(), -frd.y(), -frd.z());  // to FLU
   }
-  Vectors earth_rate(static_cast<size_t>(n));
-  for (Eigen::Index i = 0; i < n; ++i) {
+  e.rate.resize(static_cast<size_t>(n_));
+  for (Eigen::Index i = 0; i < n_; ++i) {
     const Eigen::Index a = std::max<Eigen::Index>(i - 1, 0),
-                       b = std::min<Eigen::Index>(i + 1, n - 1);
-    earth_rate[static_cast<size_t>(i)] =
-        (earth_body[static_cast<size_t>(b)] - earth_body[static_cast<size_t>(a)]) /
-        (static_cast<double>(std::max<Eigen::Index>(b - a, 1)) * dt);
+                       b = std::min<Eigen::Index>(i + 1, n_ - 1);
+    e.rate[static_cast<size_t>(i)] =
+        (e.body[static_cast<size_t>(b)] - e.body[static_cast<size_t>(a)]) /
+        (static_cast<double>(std::max<Eigen::Index>(b - a, 1)) * dt_);
   }
+}
 
-  // --- Electrical channels, and the INS quantities a hidden effect may follow (no random draw).
-  std::map<std::string, Eigen::VectorXd> channels = simulate_channels(tr, s.seed);
-  Eigen::VectorXd unwrapped_yaw = tr.yaw_rad;
-  for (Eigen::Index i = 1; i < n; ++i) {
+std::map<std::string, Eigen::VectorXd> Simulator::ins_quantities() const {
+  // The INS quantities a hidden effect may follow (no random draw).
+  Eigen::VectorXd unwrapped_yaw = tr_.yaw_rad;
+  for (Eigen::Index i = 1; i < n_; ++i) {
     unwrapped_yaw[i] =
-        unwrapped_yaw[i - 1] + std::remainder(tr.yaw_rad[i] - tr.yaw_rad[i - 1], 2 * M_PI);
+        unwrapped_yaw[i - 1] + std::remainder(tr_.yaw_rad[i] - tr_.yaw_rad[i - 1], 2 * M_PI);
   }
   std::map<std::string, Eigen::VectorXd> ins;
-  ins["pitch_rate"] = central_rate(tr.pitch_rad, dt) / kDeg;
-  ins["roll_rate"] = central_rate(tr.roll_rad, dt) / kDeg;
-  ins["yaw_rate"] = central_rate(unwrapped_yaw, dt) / kDeg;
-  {
-    const Eigen::VectorXd acc_fwd = central_rate(tr.speed_mps, dt);
-    const Eigen::VectorXd acc_up = central_rate(tr.vu_mps, dt);
-    const Eigen::VectorXd turn = central_rate(unwrapped_yaw, dt);
-    ins["ins_acc_x"] = acc_fwd;
-    ins["ins_acc_y"] = (turn.array() * tr.speed_mps.array()).matrix();
-    ins["ins_acc_z"] = (acc_up.array() + 9.80665).matrix();
-    ins["lgtl_acc"] = acc_fwd / 9.80665;
-    ins["ltrl_acc"] = Eigen::VectorXd::Zero(n);
-    ins["nrml_acc"] =
-        ((1.0 / tr.roll_rad.array().cos() - 1.0) + acc_up.array() / 9.80665).matrix();
-  }
-  auto source = [&](const std::string& name) -> const Eigen::VectorXd& {
-    auto it = channels.find(name);
-    return it != channels.end() ? it->second : ins.at(name);
-  };
+  ins["pitch_rate"] = central_rate(tr_.pitch_rad, dt_) / kDeg;
+  ins["roll_rate"] = central_rate(tr_.roll_rad, dt_) / kDeg;
+  ins["yaw_rate"] = central_rate(unwrapped_yaw, dt_) / kDeg;
+  const Eigen::VectorXd acc_fwd = central_rate(tr_.speed_mps, dt_);
+  const Eigen::VectorXd acc_up = central_rate(tr_.vu_mps, dt_);
+  const Eigen::VectorXd turn = central_rate(unwrapped_yaw, dt_);
+  ins["ins_acc_x"] = acc_fwd;
+  ins["ins_acc_y"] = (turn.array() * tr_.speed_mps.array()).matrix();
+  ins["ins_acc_z"] = (acc_up.array() + kStandardGravity_mps2).matrix();
+  ins["lgtl_acc"] = acc_fwd / kStandardGravity_mps2;
+  ins["ltrl_acc"] = Eigen::VectorXd::Zero(n_);
+  ins["nrml_acc"] =
+      ((1.0 / tr_.roll_rad.array().cos() - 1.0) + acc_up.array() / kStandardGravity_mps2).matrix();
+  return ins;
+}
 
-  Simulation sim;
-  FlightData& f = sim.flight;
-  FlightData& truth = sim.truth;
-  f.set_source("simulated:" + s.source);
-  f.set("tt", tt);
-  truth.set("tt", tt);
-  truth.set("earth_total", earth_total);
-  truth.set("igrf_total", igrf_total);
-  truth.set("anomaly", anomaly);
+void Simulator::begin_truth() {
+  FlightData& f = sim_.flight;
+  FlightData& truth = sim_.truth;
+  f.set_source("simulated:" + s_.source);
+  f.set("tt", earth_.tt);
+  truth.set("tt", earth_.tt);
+  truth.set("earth_total", earth_.earth_total);
+  truth.set("igrf_total", earth_.igrf_total);
+  truth.set("anomaly", earth_.anomaly);
+  y_.SetDoublePrecision(8);
+  y_ << YAML::BeginMap;
+  y_ << YAML::Key << "scenario" << YAML::Value << s_.source;
+  y_ << YAML::Key << "seed" << YAML::Value << s_.seed;
+  y_ << YAML::Key << "samples" << YAML::Value << static_cast<long long>(n_);
+  y_ << YAML::Key << "truth_field" << YAML::Value << "mag_1_c"
+     << YAML::Comment("= Earth total field at the aircraft + cesium noise");
+  y_ << YAML::Key << "noise" << YAML::Value << YAML::BeginMap;
+  y_ << YAML::Key << "scalar_nT" << YAML::Value << s_.scalar_noise_nT;
+  y_ << YAML::Key << "fluxgate_nT" << YAML::Value << s_.fluxgate_noise_nT;
+  y_ << YAML::EndMap;
+  y_ << YAML::Key << "earth" << YAML::Value << YAML::BeginMap;
+  y_ << YAML::Key << "anomaly_rms_at_flight_nT" << YAML::Value << rms(earth_.anomaly);
+  y_ << YAML::Key << "diurnal_std_nT" << YAML::Value << stdev(earth_.diurnal);
+  y_ << YAML::EndMap;
+}
 
-  YAML::Emitter y;
-  y.SetDoublePrecision(8);
-  y << YAML::BeginMap;
-  y << YAML::Key << "scenario" << YAML::Value << s.source;
-  y << YAML::Key << "seed" << YAML::Value << s.seed;
-  y << YAML::Key << "samples" << YAML::Value << static_cast<long long>(n);
-  y << YAML::Key << "truth_field" << YAML::Value << "mag_1_c"
-    << YAML::Comment("= Earth total field at the aircraft + cesium noise");
-  y << YAML::Key << "noise" << YAML::Value << YAML::BeginMap;
-  y << YAML::Key << "scalar_nT" << YAML::Value << s.scalar_noise_nT;
-  y << YAML::Key << "fluxgate_nT" << YAML::Value << s.fluxgate_noise_nT;
-  y << YAML::EndMap;
-  y << YAML::Key << "earth" << YAML::Value << YAML::BeginMap;
-  y << YAML::Key << "anomaly_rms_at_flight_nT" << YAML::Value << rms(anomaly);
-  y << YAML::Key << "diurnal_std_nT" << YAML::Value << stdev(diurnal);
-  y << YAML::EndMap;
-
-  // --- Sensors.
-  std::vector<AircraftField> aircraft;
-  std::mt19937_64 aircraft_rng(static_cast<unsigned long long>(s.aircraft_seed) * 40503ULL + 7);
-  std::mt19937_64& arng = s.aircraft_seed >= 0 ? aircraft_rng : rng;
+void Simulator::draw_aircraft() {
+  std::mt19937_64 aircraft_rng(static_cast<unsigned long long>(s_.aircraft_seed) * 40503ULL + 7);
+  std::mt19937_64& arng = s_.aircraft_seed >= 0 ? aircraft_rng : rng_;
   // Its own distribution: normal_distribution caches values between calls, which must not leak
   // from the flight's stream into the aircraft's.
   std::normal_distribution<double> anormal(0.0, 1.0);
-  std::normal_distribution<double>& an = s.aircraft_seed >= 0 ? anormal : normal;
+  std::normal_distribution<double>& an = s_.aircraft_seed >= 0 ? anormal : normal_;
   for (const SensorMount& m : sensor_mounts()) {
-    const double w = m.aircraft_weight * s.aircraft_scale;
+    const double w = m.aircraft_weight * s_.aircraft_scale;
     AircraftField a;
     for (int k = 0; k < 3; ++k) a.permanent_nT[k] = w * 200.0 * an(arng);
     for (int r = 0; r < 3; ++r)
       for (int c = 0; c < 3; ++c) a.induced(r, c) = w * 0.004 * an(arng);
     for (int r = 0; r < 3; ++r)
       for (int c = 0; c < 3; ++c) a.eddy_s(r, c) = w * 0.0008 * an(arng);
-    aircraft.push_back(a);
+    aircraft_.push_back(a);
   }
-  y << YAML::Key << "sensors" << YAML::Value << YAML::BeginMap;
-  const auto& mounts = sensor_mounts();
-  for (size_t si = 0; si < mounts.size(); ++si) {
-    const SensorMount& m = mounts[si];
-    const AircraftField& a = aircraft[si];
-    Vectors field(static_cast<size_t>(n));  // Earth + aircraft, body frame
-    for (Eigen::Index i = 0; i < n; ++i) {
-      const auto k = static_cast<size_t>(i);
-      field[k] =
-          earth_body[k] + a.permanent_nT + a.induced * earth_body[k] + a.eddy_s * earth_rate[k];
-    }
-    y << YAML::Key << m.name << YAML::Value << YAML::BeginMap;
-    y << YAML::Key << "position_m" << YAML::Value << YAML::Flow
-      << std::vector<double>{m.position_m.x(), m.position_m.y(), m.position_m.z()};
-    y << YAML::Key << "permanent_nT" << YAML::Value << YAML::Flow
-      << std::vector<double>{a.permanent_nT.x(), a.permanent_nT.y(), a.permanent_nT.z()};
-    if (m.vector) {
-      Eigen::MatrixX3d out(n, 3), clean(n, 3);
-      for (Eigen::Index i = 0; i < n; ++i) clean.row(i) = field[static_cast<size_t>(i)].transpose();
-      out = clean;
-      for (size_t k = 0; k < s.hidden.size(); ++k) {
-        const HiddenEffect& e = s.hidden[k];
-        if (e.type != "fluxgate" || !applies(e, m)) continue;
-        Eigen::Matrix3d t = Eigen::Matrix3d::Identity();
-        t.diagonal() += e.scale;
-        t(1, 0) = std::sin(e.nonorthogonality_rad[0]);  // y axis leans toward x
-        t(2, 0) = std::sin(e.nonorthogonality_rad[1]);  // z toward x
-        t(2, 1) = std::sin(e.nonorthogonality_rad[2]);  // z toward y
-        out = ((out * t.transpose()).rowwise() + e.offset_nT.transpose()).eval();
-      }
-      for (int c = 0; c < 3; ++c) {
-        for (Eigen::Index i = 0; i < n; ++i) out(i, c) += s.fluxgate_noise_nT * normal(rng);
-      }
-      const char* axis[3] = {"_x", "_y", "_z"};
-      for (int c = 0; c < 3; ++c) {
-        f.set(m.name + axis[c], out.col(c));
-        truth.set(m.name + ".clean" + axis[c], clean.col(c));
-      }
-      f.set(m.name + "_t", out.rowwise().norm());
-      y << YAML::EndMap;
-      continue;
-    }
-    // Scalar sensor: exact norm of Earth + aircraft + hidden vector fields, then scalar effects.
-    Eigen::VectorXd base(n);
-    for (Eigen::Index i = 0; i < n; ++i) base[i] = field[static_cast<size_t>(i)].norm();
-    truth.set(m.name + ".aircraft", base - earth_total);
-    y << YAML::Key << "aircraft_rms_nT" << YAML::Value << rms(base - earth_total);
-    y << YAML::Key << "aircraft_std_nT" << YAML::Value << stdev(base - earth_total);
-    Vectors hidden_vec(static_cast<size_t>(n), Eigen::Vector3d::Zero());
-    Eigen::VectorXd scalar_extra = Eigen::VectorXd::Zero(n);
-    std::vector<std::pair<size_t, Eigen::VectorXd>> contributions;
-    for (size_t k = 0; k < s.hidden.size(); ++k) {
-      const HiddenEffect& e = s.hidden[k];
-      if (!applies(e, m) || e.type == "fluxgate" || e.type == "lag") continue;
-      Eigen::VectorXd contrib(n);
-      if (e.type == "wire" || e.type == "inductive") {
-        const Eigen::VectorXd& current = channels.at(e.channel);
-        Eigen::Vector3d per_unit;
-        Eigen::VectorXd drive;
-        if (e.type == "wire") {
-          per_unit =
-              wire_field_per_ampere_nT(e.position_m - 0.5 * e.length_m * e.direction,
-                                       e.position_m + 0.5 * e.length_m * e.direction, m.position_m);
-          drive = current;
-        } else {
-          per_unit = e.gain * e.direction;
-          drive = central_rate(current, dt);
-        }
-        for (Eigen::Index i = 0; i < n; ++i) {
-          const auto kk = static_cast<size_t>(i);
-          const Eigen::Vector3d b = per_unit * drive[i];
-          contrib[i] = (field[kk] + b).norm() - field[kk].norm();
-          hidden_vec[kk] += b;
-        }
-      } else if (e.type == "thermal" || e.type == "flex" || e.type == "relay" ||
-                 e.type == "eddy_decay") {
-        // A body-fixed field: b = gain · direction · s(t) (eddy_decay: gain · E · lp(dB/dt)).
-        const double alpha = e.time_constant_s > 0 ? std::exp(-dt / e.time_constant_s) : 0.0;
-        Eigen::Vector3d state = Eigen::Vector3d::Zero();
-        for (Eigen::Index i = 0; i < n; ++i) {
-          const auto kk = static_cast<size_t>(i);
-          Eigen::Vector3d b;
-          if (e.type == "eddy_decay") {
-            static const Eigen::Matrix3d kPattern =
-                (Eigen::Matrix3d() << 1.0, 0.5, 0.0, 0.3, -0.8, 0.4, 0.0, 0.6, 1.0).finished();
-            const Eigen::Vector3d& r = earth_rate[kk];
-            state = i == 0 ? r : Eigen::Vector3d(alpha * state + (1 - alpha) * r);
-            b = e.gain * (kPattern * state);
-          } else {
-            const double x = source(e.channel)[i];
-            double v = e.type == "thermal" ? std::pow(std::abs(x), e.exponent)
-                       : e.type == "relay" ? (x > e.threshold ? 1.0 : 0.0)
-                                           : x;
-            if (e.type != "relay" && e.time_constant_s > 0) {
-              state[0] = i == 0 ? v : alpha * state[0] + (1 - alpha) * v;
-              v = state[0];
-            }
-            b = e.gain * v * e.direction;
-          }
-          contrib[i] = (field[kk] + b).norm() - field[kk].norm();
-          hidden_vec[kk] += b;
-        }
-      } else if (e.type == "heading") {
-        for (Eigen::Index i = 0; i < n; ++i) {
-          const auto kk = static_cast<size_t>(i);
-          contrib[i] = e.gain * field[kk].normalized().dot(e.direction);
-        }
-        scalar_extra += contrib;
-      } else if (e.type == "drift") {
-        const Eigen::VectorXd& x = channels.at(e.channel);
-        const double alpha = std::exp(-dt / e.time_constant_s);
-        double state = x[0];
-        for (Eigen::Index i = 0; i < n; ++i) {
-          state = alpha * state + (1 - alpha) * x[i];
-          contrib[i] = e.gain * (state - x[0]);
-        }
-        scalar_extra += contrib;
-      }
-      contributions.emplace_back(k, contrib);
-    }
-    Eigen::VectorXd clean(n);
-    for (Eigen::Index i = 0; i < n; ++i) {
-      const auto kk = static_cast<size_t>(i);
-      clean[i] = (field[kk] + hidden_vec[kk]).norm() + scalar_extra[i];
-    }
-    for (size_t k = 0; k < s.hidden.size(); ++k) {
-      const HiddenEffect& e = s.hidden[k];
-      if (e.type != "lag" || !applies(e, m)) continue;
-      // Before the flight's first sample the sensor read the field of the first sample.
-      const Eigen::VectorXd lagged = shift_samples(clean, e.lag_s / dt, true);
-      contributions.emplace_back(k, lagged - clean);
-      clean = lagged;
-    }
-    Eigen::VectorXd noise(n);
-    for (Eigen::Index i = 0; i < n; ++i) noise[i] = s.scalar_noise_nT * normal(rng);
-    f.set(m.name, clean + noise);
-    truth.set(m.name + ".clean", clean);
-    truth.set(m.name + ".noise", noise);
-    y << YAML::Key << "hidden" << YAML::Value << YAML::BeginSeq;
-    for (const auto& [k, contrib] : contributions) {
-      const std::string col = m.name + ".hidden." + std::to_string(k) + "." + s.hidden[k].type;
-      truth.set(col, contrib);
-      y << YAML::BeginMap << YAML::Key << "effect" << YAML::Value << static_cast<int>(k)
-        << YAML::Key << "type" << YAML::Value << s.hidden[k].type << YAML::Key << "column"
-        << YAML::Value << col << YAML::Key << "rms_nT" << YAML::Value << rms(contrib) << YAML::Key
-        << "std_nT" << YAML::Value << stdev(contrib) << YAML::EndMap;
-    }
-    y << YAML::EndSeq;
-    y << YAML::EndMap;
-  }
-  y << YAML::EndMap;
-  y << YAML::Key << "hidden_effects" << YAML::Value << YAML::BeginSeq;
-  for (size_t k = 0; k < s.hidden.size(); ++k) {
-    const HiddenEffect& e = s.hidden[k];
-    y << YAML::BeginMap << YAML::Key << "index" << YAML::Value << static_cast<int>(k);
-    y << YAML::Key << "type" << YAML::Value << e.type;
-    if (!e.channel.empty()) y << YAML::Key << "channel" << YAML::Value << e.channel;
-    if (e.type == "wire") {
-      y << YAML::Key << "position_m" << YAML::Value << YAML::Flow
-        << std::vector<double>{e.position_m.x(), e.position_m.y(), e.position_m.z()};
-      y << YAML::Key << "length_m" << YAML::Value << e.length_m;
-      y << YAML::Key << "expected_term" << YAML::Value << "current:" + e.channel;
-    }
-    if (e.type == "inductive")
-      y << YAML::Key << "expected_term" << YAML::Value << "dcurrent:" + e.channel;
-    if (e.type == "lag") {
-      y << YAML::Key << "lag_s" << YAML::Value << e.lag_s;
-      char lag_term[64];
-      std::snprintf(lag_term, sizeof(lag_term), "lag:%g", e.lag_s);
-      y << YAML::Key << "expected_term" << YAML::Value << lag_term;
-    }
-    if (e.type == "heading" || e.type == "drift" || e.type == "inductive" ||
-        e.type == "thermal" || e.type == "flex" || e.type == "relay" || e.type == "eddy_decay") {
-      y << YAML::Key << "gain" << YAML::Value << e.gain;
-    }
-    if (e.type == "thermal" || e.type == "drift" || e.type == "eddy_decay" ||
-        (e.type == "flex" && e.time_constant_s > 0)) {
-      y << YAML::Key << "time_constant_s" << YAML::Value << e.time_constant_s;
-    }
-    const std::string lp = "|lp(" + format_param(e.time_constant_s) + ")";
-    if (e.type == "thermal") {
-      y << YAML::Key << "exponent" << YAML::Value << e.exponent;
-      y << YAML::Key << "expected_term" << YAML::Value
-        << "field:" + e.channel + "|pow(" + format_param(e.exponent) + ")" + lp;
-    }
-    if (e.type == "flex") {
-      y << YAML::Key << "expected_term" << YAML::Value
-        << "field:" + e.channel + (e.time_constant_s > 0 ? lp : "");
-    }
-    if (e.type == "eddy_decay") {
-      y << YAML::Key << "expected_term" << YAML::Value
-        << "field:B|decay(" + format_param(e.time_constant_s) + ")";
-    }
-    if (e.type == "relay") {
-      y << YAML::Key << "threshold" << YAML::Value << e.threshold;
-      y << YAML::Key << "expected_term" << YAML::Value
-        << "(none: a device switched on while " + e.channel + " > " +
-               format_param(e.threshold) + "; the term language has no threshold)";
-    }
-    y << YAML::EndMap;
-  }
-  y << YAML::EndSeq;
-  y << YAML::EndMap;
-  sim.truth_yaml = std::string("# magcomp simulation truth\n") + y.c_str() + "\n";
+}
 
-  // --- The reference stinger (mag_1_c: compensated by the survey company) and the rest.
+Vectors Simulator::sensor_field(const AircraftField& a) const {
+  Vectors field(static_cast<size_t>(n_));  // Earth + aircraft, body frame
+  for (Eigen::Index i = 0; i < n_; ++i) {
+    const auto k = static_cast<size_t>(i);
+    field[k] = earth_.body[k] + a.permanent_nT + a.induced * earth_.body[k] +
+               a.eddy_s * earth_.rate[k];
+  }
+  return field;
+}
+
+void Simulator::sensor(size_t index) {
+  const SensorMount& m = sensor_mounts()[index];
+  const AircraftField& a = aircraft_[index];
+  const Vectors field = sensor_field(a);
+  y_ << YAML::Key << m.name << YAML::Value << YAML::BeginMap;
+  y_ << YAML::Key << "position_m" << YAML::Value << YAML::Flow
+     << std::vector<double>{m.position_m.x(), m.position_m.y(), m.position_m.z()};
+  y_ << YAML::Key << "permanent_nT" << YAML::Value << YAML::Flow
+     << std::vector<double>{a.permanent_nT.x(), a.permanent_nT.y(), a.permanent_nT.z()};
+  if (m.vector) {
+    fluxgate(m, field);
+  } else {
+    scalar(m, field);
+  }
+  y_ << YAML::EndMap;
+}
+
+void Simulator::fluxgate(const SensorMount& m, const Vectors& field) {
+  Eigen::MatrixX3d out(n_, 3), clean(n_, 3);
+  for (Eigen::Index i = 0; i < n_; ++i) clean.row(i) = field[static_cast<size_t>(i)].transpose();
+  out = clean;
+  for (const HiddenEffect& e : s_.hidden) {
+    if (e.type != "fluxgate" || !applies(e, m)) continue;
+    Eigen::Matrix3d t = Eigen::Matrix3d::Identity();
+    t.diagonal() += e.scale;
+    t(1, 0) = std::sin(e.nonorthogonality_rad[0]);  // y axis leans toward x
+    t(2, 0) = std::sin(e.nonorthogonality_rad[1]);  // z toward x
+    t(2, 1) = std::sin(e.nonorthogonality_rad[2]);  // z toward y
+    out = ((out * t.transpose()).rowwise() + e.offset_nT.transpose()).eval();
+  }
+  for (int c = 0; c < 3; ++c) {
+    for (Eigen::Index i = 0; i < n_; ++i) out(i, c) += s_.fluxgate_noise_nT * normal_(rng_);
+  }
+  const char* axis[3] = {"_x", "_y", "_z"};
+  for (int c = 0; c < 3; ++c) {
+    sim_.flight.set(m.name + axis[c], out.col(c));
+    sim_.truth.set(m.name + ".clean" + axis[c], clean.col(c));
+  }
+  sim_.flight.set(m.name + "_t", out.rowwise().norm());
+}
+
+Eigen::VectorXd Simulator::hidden_contribution(const HiddenEffect& e, const SensorMount& m,
+                                               const Vectors& field, Vectors* hidden_vec,
+                                               Eigen::VectorXd* scalar_extra) const {
+  Eigen::VectorXd contrib(n_);
+  // A body field b(t): its effect on the scalar is the exact change of the norm.
+  auto body_field = [&](const std::function<Eigen::Vector3d(Eigen::Index)>& b_of) {
+    for (Eigen::Index i = 0; i < n_; ++i) {
+      const auto kk = static_cast<size_t>(i);
+      const Eigen::Vector3d b = b_of(i);
+      contrib[i] = (field[kk] + b).norm() - field[kk].norm();
+      (*hidden_vec)[kk] += b;
+    }
+  };
+  if (e.type == "wire") {
+    const Eigen::Vector3d per_ampere =
+        wire_field_per_ampere_nT(e.position_m - 0.5 * e.length_m * e.direction,
+                                 e.position_m + 0.5 * e.length_m * e.direction, m.position_m);
+    const Eigen::VectorXd& current = channels_.at(e.channel);
+    body_field([&](Eigen::Index i) { return Eigen::Vector3d(per_ampere * current[i]); });
+  } else if (e.type == "inductive") {
+    const Eigen::VectorXd rate = central_rate(channels_.at(e.channel), dt_);
+    body_field([&](Eigen::Index i) { return Eigen::Vector3d(e.gain * e.direction * rate[i]); });
+  } else if (e.type == "thermal" || e.type == "flex" || e.type == "relay" ||
+             e.type == "eddy_decay") {
+    // b = gain · direction · s(t) (eddy_decay: gain · E · lp(dB/dt)); s low-passed by the
+    // effect's time constant (none for a relay).
+    const double alpha = e.time_constant_s > 0 ? std::exp(-dt_ / e.time_constant_s) : 0.0;
+    static const Eigen::Matrix3d kEddyPattern =
+        (Eigen::Matrix3d() << 1.0, 0.5, 0.0, 0.3, -0.8, 0.4, 0.0, 0.6, 1.0).finished();
+    Eigen::Vector3d state = Eigen::Vector3d::Zero();
+    body_field([&](Eigen::Index i) -> Eigen::Vector3d {
+      if (e.type == "eddy_decay") {
+        const Eigen::Vector3d& r = earth_.rate[static_cast<size_t>(i)];
+        state = i == 0 ? r : Eigen::Vector3d(alpha * state + (1 - alpha) * r);
+        return e.gain * (kEddyPattern * state);
+      }
+      const double x = source(e.channel)[i];
+      double v = e.type == "thermal" ? std::pow(std::abs(x), e.exponent)
+                 : e.type == "relay" ? (x > e.threshold ? 1.0 : 0.0)
+                                     : x;
+      if (e.type != "relay" && e.time_constant_s > 0) {
+        state[0] = i == 0 ? v : alpha * state[0] + (1 - alpha) * v;
+        v = state[0];
+      }
+      return e.gain * v * e.direction;
+    });
+  } else if (e.type == "heading") {
+    for (Eigen::Index i = 0; i < n_; ++i) {
+      contrib[i] = e.gain * field[static_cast<size_t>(i)].normalized().dot(e.direction);
+    }
+    *scalar_extra += contrib;
+  } else if (e.type == "drift") {
+    const Eigen::VectorXd& x = channels_.at(e.channel);
+    const double alpha = std::exp(-dt_ / e.time_constant_s);
+    double state = x[0];
+    for (Eigen::Index i = 0; i < n_; ++i) {
+      state = alpha * state + (1 - alpha) * x[i];
+      contrib[i] = e.gain * (state - x[0]);
+    }
+    *scalar_extra += contrib;
+  }
+  return contrib;
+}
+
+void Simulator::scalar(const SensorMount& m, const Vectors& field) {
+  // The exact norm of Earth + aircraft + hidden body fields, then the scalar effects, the lag
+  // and the noise.
+  Eigen::VectorXd base(n_);
+  for (Eigen::Index i = 0; i < n_; ++i) base[i] = field[static_cast<size_t>(i)].norm();
+  sim_.truth.set(m.name + ".aircraft", base - earth_.earth_total);
+  y_ << YAML::Key << "aircraft_rms_nT" << YAML::Value << rms(base - earth_.earth_total);
+  y_ << YAML::Key << "aircraft_std_nT" << YAML::Value << stdev(base - earth_.earth_total);
+  Vectors hidden_vec(static_cast<size_t>(n_), Eigen::Vector3d::Zero());
+  Eigen::VectorXd scalar_extra = Eigen::VectorXd::Zero(n_);
+  std::vector<std::pair<size_t, Eigen::VectorXd>> contributions;
+  for (size_t k = 0; k < s_.hidden.size(); ++k) {
+    const HiddenEffect& e = s_.hidden[k];
+    if (!applies(e, m) || e.type == "fluxgate" || e.type == "lag") continue;
+    contributions.emplace_back(k, hidden_contribution(e, m, field, &hidden_vec, &scalar_extra));
+  }
+  Eigen::VectorXd clean(n_);
+  for (Eigen::Index i = 0; i < n_; ++i) {
+    const auto kk = static_cast<size_t>(i);
+    clean[i] = (field[kk] + hidden_vec[kk]).norm() + scalar_extra[i];
+  }
+  for (size_t k = 0; k < s_.hidden.size(); ++k) {
+    const HiddenEffect& e = s_.hidden[k];
+    if (e.type != "lag" || !applies(e, m)) continue;
+    // Before the flight's first sample the sensor read the field of the first sample.
+    const Eigen::VectorXd lagged = shift_samples(clean, e.lag_s / dt_, true);
+    contributions.emplace_back(k, lagged - clean);
+    clean = lagged;
+  }
+  Eigen::VectorXd noise(n_);
+  for (Eigen::Index i = 0; i < n_; ++i) noise[i] = s_.scalar_noise_nT * normal_(rng_);
+  sim_.flight.set(m.name, clean + noise);
+  sim_.truth.set(m.name + ".clean", clean);
+  sim_.truth.set(m.name + ".noise", noise);
+  y_ << YAML::Key << "hidden" << YAML::Value << YAML::BeginSeq;
+  for (const auto& [k, contrib] : contributions) {
+    const std::string col = m.name + ".hidden." + std::to_string(k) + "." + s_.hidden[k].type;
+    sim_.truth.set(col, contrib);
+    y_ << YAML::BeginMap << YAML::Key << "effect" << YAML::Value << static_cast<int>(k)
+       << YAML::Key << "type" << YAML::Value << s_.hidden[k].type << YAML::Key << "column"
+       << YAML::Value << col << YAML::Key << "rms_nT" << YAML::Value << rms(contrib)
+       << YAML::Key << "std_nT" << YAML::Value << stdev(contrib) << YAML::EndMap;
+  }
+  y_ << YAML::EndSeq;
+}
+
+void Simulator::hidden_effects_truth() {
+  y_ << YAML::Key << "hidden_effects" << YAML::Value << YAML::BeginSeq;
+  for (size_t k = 0; k < s_.hidden.size(); ++k) {
+    y_ << YAML::BeginMap << YAML::Key << "index" << YAML::Value << static_cast<int>(k);
+    hidden_effect_truth(s_.hidden[k]);
+    y_ << YAML::EndMap;
+  }
+  y_ << YAML::EndSeq;
+  y_ << YAML::EndMap;
+  sim_.truth_yaml = std::string("# magcomp simulation truth\n") + y_.c_str() + "\n";
+}
+
+void Simulator::hidden_effect_truth(const HiddenEffect& e) {
+  YAML::Emitter& y = y_;
+  y << YAML::Key << "type" << YAML::Value << e.type;
+  if (!e.channel.empty()) y << YAML::Key << "channel" << YAML::Value << e.channel;
+  if (e.type == "wire") {
+    y << YAML::Key << "position_m" << YAML::Value << YAML::Flow
+      << std::vector<double>{e.position_m.x(), e.position_m.y(), e.position_m.z()};
+    y << YAML::Key << "length_m" << YAML::Value << e.length_m;
+    y << YAML::Key << "expected_term" << YAML::Value << "current:" + e.channel;
+  }
+  if (e.type == "inductive")
+    y << YAML::Key << "expected_term" << YAML::Value << "dcurrent:" + e.channel;
+  if (e.type == "lag") {
+    y << YAML::Key << "lag_s" << YAML::Value << e.lag_s;
+    char lag_term[64];
+    std::snprintf(lag_term, sizeof(lag_term), "lag:%g", e.lag_s);
+    y << YAML::Key << "expected_term" << YAML::Value << lag_term;
+  }
+  if (e.type == "heading" || e.type == "drift" || e.type == "inductive" || e.type == "thermal" ||
+      e.type == "flex" || e.type == "relay" || e.type == "eddy_decay") {
+    y << YAML::Key << "gain" << YAML::Value << e.gain;
+  }
+  if (e.type == "thermal" || e.type == "drift" || e.type == "eddy_decay" ||
+      (e.type == "flex" && e.time_constant_s > 0)) {
+    y << YAML::Key << "time_constant_s" << YAML::Value << e.time_constant_s;
+  }
+  const std::string lp = "|lp(" + format_param(e.time_constant_s) + ")";
+  if (e.type == "thermal") {
+    y << YAML::Key << "exponent" << YAML::Value << e.exponent;
+    y << YAML::Key << "expected_term" << YAML::Value
+      << "field:" + e.channel + "|pow(" + format_param(e.exponent) + ")" + lp;
+  }
+  if (e.type == "flex") {
+    y << YAML::Key << "expected_term" << YAML::Value
+      << "field:" + e.channel + (e.time_constant_s > 0 ? lp : "");
+  }
+  if (e.type == "eddy_decay") {
+    y << YAML::Key << "expected_term" << YAML::Value
+      << "field:B|decay(" + format_param(e.time_constant_s) + ")";
+  }
+  if (e.type == "relay") {
+    y << YAML::Key << "threshold" << YAML::Value << e.threshold;
+    y << YAML::Key << "expected_term" << YAML::Value
+      << "(none: a device switched on while " + e.channel + " > " + format_param(e.threshold) +
+             "; the term language has no threshold)";
+  }
+}
+
+void Simulator::reference_and_survey_fields() {
+  // The reference stinger (mag_1_c: compensated by the survey company), positions, altitudes.
+  FlightData& f = sim_.flight;
+  const Eigen::Index n = n_;
   Eigen::VectorXd mag1c(n);
-  for (Eigen::Index i = 0; i < n; ++i) mag1c[i] = earth_total[i] + s.scalar_noise_nT * normal(rng);
+  for (Eigen::Index i = 0; i < n; ++i)
+    mag1c[i] = earth_.earth_total[i] + s_.scalar_noise_nT * normal_(rng_);
   f.set("mag_1_c", mag1c);
   f.set("mag_1_lag", mag1c);
-  f.set("mag_1_dc", mag1c - diurnal);
-  f.set("mag_1_igrf", mag1c - diurnal - igrf_total);
-  f.set("diurnal", diurnal);
-  f.set("line", tr.line);
-  f.set("flight", Eigen::VectorXd::Constant(n, std::floor(s.flight)));
-  f.set("year", Eigen::VectorXd::Constant(n, s.year));
-  f.set("doy", Eigen::VectorXd::Constant(n, s.doy));
-  f.set("lat", tr.lat_deg);
-  f.set("lon", tr.lon_deg);
-  f.set("utm_x", (445000.0 + tr.east_m.array()).matrix());
-  f.set("utm_y", (5020000.0 + tr.north_m.array()).matrix());
-  f.set("utm_z", tr.alt_m);
+  f.set("mag_1_dc", mag1c - earth_.diurnal);
+  f.set("mag_1_igrf", mag1c - earth_.diurnal - earth_.igrf_total);
+  f.set("diurnal", earth_.diurnal);
+  f.set("line", tr_.line);
+  f.set("flight", Eigen::VectorXd::Constant(n, std::floor(s_.flight)));
+  f.set("year", Eigen::VectorXd::Constant(n, s_.year));
+  f.set("doy", Eigen::VectorXd::Constant(n, s_.doy));
+  f.set("lat", tr_.lat_deg);
+  f.set("lon", tr_.lon_deg);
+  f.set("utm_x", (445000.0 + tr_.east_m.array()).matrix());
+  f.set("utm_y", (5020000.0 + tr_.north_m.array()).matrix());
+  f.set("utm_z", tr_.alt_m);
   const double geoid_m = -33.5;  // EGM2008 undulation near Ottawa: msl = h - N
-  const Eigen::VectorXd msl = tr.alt_m.array() - geoid_m;
+  const Eigen::VectorXd msl = tr_.alt_m.array() - geoid_m;
   f.set("msl", msl);
   Eigen::VectorXd baro(n), topo(n), radar(n);
   for (Eigen::Index i = 0; i < n; ++i) {
-    topo[i] = s.terrain_m - geoid_m +
-              15.0 * std::sin(tr.north_m[i] / 3000.0) * std::cos(tr.east_m[i] / 4000.0);
-    baro[i] = msl[i] + 6.0 + 0.5 * normal(rng);
-    radar[i] = msl[i] - topo[i] + 0.3 * normal(rng);
+    topo[i] = s_.terrain_m - geoid_m +
+              15.0 * std::sin(tr_.north_m[i] / 3000.0) * std::cos(tr_.east_m[i] / 4000.0);
+    baro[i] = msl[i] + 6.0 + 0.5 * normal_(rng_);
+    radar[i] = msl[i] - topo[i] + 0.3 * normal_(rng_);
   }
   f.set("baro", baro);
   f.set("topo", topo);
@@ -433,39 +520,45 @@ Simulation simulate(const Scenario& s) {
   f.set("drape", Eigen::VectorXd::Constant(n, nan));
   f.set("ogs_mag", Eigen::VectorXd::Constant(n, nan));
   f.set("ogs_alt", Eigen::VectorXd::Constant(n, nan));
-  Eigen::VectorXd yaw_deg(n);
-  for (Eigen::Index i = 0; i < n; ++i) {
-    yaw_deg[i] = std::fmod(tr.yaw_rad[i] / kDeg + 360.0, 360.0);
-  }
-  f.set("ins_pitch", tr.pitch_rad / kDeg);
-  f.set("ins_roll", tr.roll_rad / kDeg);
-  f.set("ins_yaw", yaw_deg);
-  f.set("pitch_rate", ins["pitch_rate"]);
-  f.set("roll_rate", ins["roll_rate"]);
-  f.set("yaw_rate", ins["yaw_rate"]);
-  f.set("ins_vn", tr.vn_mps);
-  f.set("ins_vw", -tr.ve_mps);
-  f.set("ins_vu", tr.vu_mps);
-  f.set("ins_lat", tr.lat_deg * kDeg);
-  f.set("ins_lon", tr.lon_deg * kDeg);
-  f.set("ins_alt", tr.alt_m);
-  f.set("ins_wander", Eigen::VectorXd::Zero(n));
-  for (const char* k : {"ins_acc_x", "ins_acc_y", "ins_acc_z", "lgtl_acc", "ltrl_acc", "nrml_acc"})
-    f.set(k, ins[k]);
-  f.set("tas", tr.speed_mps);
+  ins_fields();
   Eigen::VectorXd static_p(n), pitot_p(n), total_p(n);
   for (Eigen::Index i = 0; i < n; ++i) {
     static_p[i] = 101.325 * std::pow(1 - 2.25577e-5 * msl[i], 5.25588);  // ISA, kPa
     const double rho = 1.225 * std::pow(1 - 2.25577e-5 * msl[i], 4.25588);
-    pitot_p[i] = 0.5 * rho * tr.speed_mps[i] * tr.speed_mps[i] / 1000.0;
+    pitot_p[i] = 0.5 * rho * tr_.speed_mps[i] * tr_.speed_mps[i] / 1000.0;
     total_p[i] = static_p[i] + pitot_p[i];
   }
   f.set("static_p", static_p);
   f.set("pitot_p", pitot_p);
   f.set("total_p", total_p);
-  for (const std::string& c : simulated_channels()) f.set(c, channels.at(c));
-  return sim;
+  for (const std::string& c : simulated_channels()) f.set(c, channels_.at(c));
 }
+
+void Simulator::ins_fields() {
+  FlightData& f = sim_.flight;
+  Eigen::VectorXd yaw_deg(n_);
+  for (Eigen::Index i = 0; i < n_; ++i) yaw_deg[i] = std::fmod(tr_.yaw_rad[i] / kDeg + 360.0, 360.0);
+  f.set("ins_pitch", tr_.pitch_rad / kDeg);
+  f.set("ins_roll", tr_.roll_rad / kDeg);
+  f.set("ins_yaw", yaw_deg);
+  f.set("pitch_rate", ins_.at("pitch_rate"));
+  f.set("roll_rate", ins_.at("roll_rate"));
+  f.set("yaw_rate", ins_.at("yaw_rate"));
+  f.set("ins_vn", tr_.vn_mps);
+  f.set("ins_vw", -tr_.ve_mps);
+  f.set("ins_vu", tr_.vu_mps);
+  f.set("ins_lat", tr_.lat_deg * kDeg);
+  f.set("ins_lon", tr_.lon_deg * kDeg);
+  f.set("ins_alt", tr_.alt_m);
+  f.set("ins_wander", Eigen::VectorXd::Zero(n_));
+  for (const char* k : {"ins_acc_x", "ins_acc_y", "ins_acc_z", "lgtl_acc", "ltrl_acc", "nrml_acc"})
+    f.set(k, ins_.at(k));
+  f.set("tas", tr_.speed_mps);
+}
+
+}  // namespace
+
+Simulation simulate(const Scenario& s) { return Simulator(s).run(); }
 
 void write_simulation(const Simulation& sim, const std::string& out_h5,
                       const std::vector<std::string>& inputs) {
