@@ -32,7 +32,47 @@ const Eigen::VectorXd& FlightData::column(const std::string& name) const {
   if (it == index_.end()) {
     throw Error(source_ + ": field '" + name + "' not found");
   }
+  ensure_loaded(it->second);
   return columns_[it->second];
+}
+
+void FlightData::ensure_loaded(size_t i) const {
+  std::lock_guard<std::mutex> lock(*load_mutex_);
+  Lazy& z = lazy_[i];
+  if (!z.loader) return;
+  Eigen::VectorXd v = z.loader->load(z.stored_name);
+  if (v.size() != size_) {
+    throw Error(source_ + ": field '" + names_[i] + "' has " + std::to_string(v.size()) +
+                " samples, expected " + std::to_string(size_));
+  }
+  columns_[i] = std::move(v);
+  z.loader.reset();
+}
+
+void FlightData::set_lazy(const std::string& name, std::string stored_name,
+                          std::shared_ptr<const ColumnLoader> loader) {
+  if (size_ < 0) throw Error(source_ + ": field '" + name + "' declared before the time base");
+  const std::string key = canonical_name(name);
+  auto it = index_.find(key);
+  size_t i;
+  if (it != index_.end()) {
+    i = it->second;
+  } else {
+    i = names_.size();
+    index_[key] = i;
+    names_.push_back(key);
+    columns_.emplace_back();
+    lazy_.emplace_back();
+  }
+  columns_[i] = Eigen::VectorXd();
+  lazy_[i] = {std::move(stored_name), std::move(loader)};
+}
+
+size_t FlightData::loaded_columns() const {
+  std::lock_guard<std::mutex> lock(*load_mutex_);
+  size_t n = 0;
+  for (const auto& z : lazy_) n += !z.loader;
+  return n;
 }
 
 Eigen::VectorXd& FlightData::column(const std::string& name) {
@@ -50,11 +90,13 @@ void FlightData::set(const std::string& name, Eigen::VectorXd values) {
   auto it = index_.find(key);
   if (it != index_.end()) {
     columns_[it->second] = std::move(values);
+    lazy_[it->second] = Lazy{};
     return;
   }
   index_[key] = names_.size();
   names_.push_back(key);
   columns_.push_back(std::move(values));
+  lazy_.emplace_back();
 }
 
 void FlightData::remove(const std::string& name) {
@@ -63,6 +105,7 @@ void FlightData::remove(const std::string& name) {
   const size_t pos = it->second;
   names_.erase(names_.begin() + static_cast<std::ptrdiff_t>(pos));
   columns_.erase(columns_.begin() + static_cast<std::ptrdiff_t>(pos));
+  lazy_.erase(lazy_.begin() + static_cast<std::ptrdiff_t>(pos));
   index_.clear();
   for (size_t i = 0; i < names_.size(); ++i) index_[names_[i]] = i;
 }
@@ -114,6 +157,7 @@ FlightData FlightData::subset(const std::vector<Eigen::Index>& indices) const {
   out.source_ = source_;
   const Eigen::Index n = static_cast<Eigen::Index>(indices.size());
   for (size_t c = 0; c < names_.size(); ++c) {
+    ensure_loaded(c);
     Eigen::VectorXd v(n);
     for (Eigen::Index k = 0; k < n; ++k) v[k] = columns_[c][indices[static_cast<size_t>(k)]];
     out.set(names_[c], std::move(v));

@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
+#include <mutex>
 #include <numeric>
 
 #include "magcomp/core/error.h"
@@ -166,6 +167,46 @@ std::string probe_structure(const std::string& path) {
   return "";
 }
 
+// libhdf5 (Debian's serial build) is not thread-safe: every call from a column loader holds this.
+std::mutex& hdf5_mutex() {
+  static std::mutex m;
+  return m;
+}
+
+// Reads the other columns of an open file on first use, in the flight's sample order.
+class H5ColumnLoader : public ColumnLoader {
+ public:
+  H5ColumnLoader(hid_t file, std::string path, std::vector<size_t> order, hsize_t n,
+                 hsize_t file_bytes)
+      : file_(file), path_(std::move(path)), order_(std::move(order)), n_(n),
+        file_bytes_(file_bytes) {}
+  ~H5ColumnLoader() override {
+    std::lock_guard<std::mutex> lock(hdf5_mutex());
+    H5Fclose(file_);
+  }
+  Eigen::VectorXd load(const std::string& name) const override {
+    Dataset d;
+    d.name = name;
+    {
+      std::lock_guard<std::mutex> lock(hdf5_mutex());
+      read_values(file_, path_, d, n_, file_bytes_);
+    }
+    Eigen::VectorXd v(static_cast<Eigen::Index>(n_));
+    if (order_.empty()) {
+      for (size_t k = 0; k < n_; ++k) v[static_cast<Eigen::Index>(k)] = d.values[k];
+    } else {
+      for (size_t k = 0; k < n_; ++k) v[static_cast<Eigen::Index>(k)] = d.values[order_[k]];
+    }
+    return v;
+  }
+
+ private:
+  hid_t file_;
+  std::string path_;
+  std::vector<size_t> order_;  // empty: already in time order
+  hsize_t n_, file_bytes_;
+};
+
 hsize_t element_count(const Dataset& d) {
   hsize_t c = 1;
   for (hsize_t x : d.dims) c *= x;
@@ -270,24 +311,30 @@ FlightData read_flight_h5(const std::string& path) {
     std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return t[a] < t[b]; });
     data.add_read_note(path + ": field 'tt' was not in time order; the samples were sorted by tt");
   }
-  for (Dataset& d : series) {
-    if (d.name != "tt") read_values(file.id, path, d, n_declared, file_bytes);
-  }
-  auto add = [&](const Dataset& d) {
+  // tt now; every other column on first use (a command reads only what it touches).
+  {
     Eigen::VectorXd v(static_cast<Eigen::Index>(n));
-    for (size_t k = 0; k < n; ++k) v[static_cast<Eigen::Index>(k)] = d.values[order[k]];
+    for (size_t k = 0; k < n; ++k) v[static_cast<Eigen::Index>(k)] = t[order[k]];
+    data.set("tt", std::move(v));
+  }
+  const bool sorted = std::is_sorted(t.begin(), t.end());
+  const hid_t file_id = file.id;
+  file.id = -1;  // the loader owns the open file now
+  auto loader = std::make_shared<H5ColumnLoader>(file_id, path,
+                                                 sorted ? std::vector<size_t>() : order,
+                                                 n_declared, file_bytes);
+  for (const Dataset& d : series) {
+    if (d.name == "tt") continue;
     const std::string canonical = FlightData::canonical_name(d.name);
     // When both generations are present, the final name wins.
-    if (canonical != d.name && data.has(canonical)) {
+    if (canonical != d.name && std::any_of(series.begin(), series.end(), [&](const Dataset& e) {
+          return e.name == canonical;
+        })) {
       data.add_read_note(path + ": field '" + d.name + "' is the older name of '" + canonical +
                          "', which the file also holds; '" + canonical + "' is used");
-      return;
+      continue;
     }
-    data.set(canonical, std::move(v));
-  };
-  add(*tt_it);
-  for (const Dataset& d : series) {
-    if (d.name != "tt") add(d);
+    data.set_lazy(canonical, d.name, loader);
   }
   if (n > 1) {
     const double dt = data.dt_s();

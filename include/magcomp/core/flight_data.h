@@ -2,6 +2,8 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <memory>
+#include <mutex>
 #include <string>
 #include <unordered_map>
 #include <utility>
@@ -15,8 +17,18 @@ struct TimeWindow {
   double end_s = 0.0;
 };
 
+/// Reads the values of a column on first use (a file opened by read_flight_h5), in the flight's
+/// sample order. Throws magcomp::Error naming the file and field.
+class ColumnLoader {
+ public:
+  virtual ~ColumnLoader() = default;
+  virtual Eigen::VectorXd load(const std::string& stored_name) const = 0;
+};
+
 /// One flight: N samples of named float64 columns, one of which is `tt` (s past midnight UTC).
 /// Column names are the final MIT names (DATA.md); older names are renamed on read. NaN is kept.
+/// A flight read from a file loads each column on first use: a command reads only the fields it
+/// touches (thread-safe).
 class FlightData {
  public:
   FlightData() = default;
@@ -34,6 +46,12 @@ class FlightData {
   Eigen::VectorXd& column(const std::string& name);
   /// Adds or replaces a column; its length must equal size() (the first column fixes the size).
   void set(const std::string& name, Eigen::VectorXd values);
+  /// Declares a column whose values `loader` reads on first use (stored_name: its name in the
+  /// source). The size must already be known (set tt first).
+  void set_lazy(const std::string& name, std::string stored_name,
+                std::shared_ptr<const ColumnLoader> loader);
+  /// Columns whose values are in memory.
+  size_t loaded_columns() const;
   /// Removes a column if present.
   void remove(const std::string& name);
 
@@ -65,9 +83,18 @@ class FlightData {
   static std::string canonical_name(const std::string& name);
 
  private:
+  /// Loads column i if it is lazy and not loaded yet.
+  void ensure_loaded(size_t i) const;
+
   Eigen::Index size_ = -1;
   std::vector<std::string> names_;
-  std::vector<Eigen::VectorXd> columns_;
+  mutable std::vector<Eigen::VectorXd> columns_;
+  struct Lazy {
+    std::string stored_name;
+    std::shared_ptr<const ColumnLoader> loader;  // null: in memory
+  };
+  mutable std::vector<Lazy> lazy_;
+  std::shared_ptr<std::mutex> load_mutex_ = std::make_shared<std::mutex>();
   std::unordered_map<std::string, size_t> index_;
   std::string source_ = "<memory>";
   std::vector<std::string> read_notes_;
