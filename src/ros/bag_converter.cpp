@@ -60,7 +60,7 @@ class RawMessage {
     uint32_t n;
     if (!u32(&n) || (bytes_.size() - pos_) / 8 < n) return false;
     out->resize(n);
-    std::memcpy(out->data(), bytes_.data() + pos_, 8ull * n);
+    if (n > 0) std::memcpy(out->data(), bytes_.data() + pos_, 8ull * n);  // empty: no pointer
     pos_ += 8ull * n;
     return true;
   }
