@@ -2,6 +2,7 @@
 #include "magcomp/core/evaluation.h"
 
 #include <cmath>
+#include <limits>
 #include <map>
 
 #include "magcomp/core/apply.h"
@@ -11,24 +12,33 @@
 
 namespace magcomp {
 
-Evaluation error_statistics(const FlightData& data, const Eigen::VectorXd& error_nT) {
+Evaluation error_statistics(const FlightData& data, Eigen::VectorXd error,
+                            bool by_condition, const std::vector<FlightCondition>* conditions) {
   Evaluation ev;
-  ev.error_nT = error_nT;
+  ev.error_nT = std::move(error);
+  const Eigen::VectorXd& error_nT = ev.error_nT;
   const bool has_line = data.has("line");
+  const Eigen::VectorXd* line_column = has_line ? &data.column("line") : nullptr;
   struct Acc {
     Eigen::Index n = 0;
     double sum = 0, sum_sq = 0;
   };
   std::map<double, Acc> groups;
+  double last_line = std::numeric_limits<double>::quiet_NaN();
+  Acc* last = nullptr;  // consecutive samples are mostly on one line
   for (Eigen::Index i = 0; i < error_nT.size(); ++i) {
     const double e = error_nT[i];
     if (!std::isfinite(e)) {
       ev.nan_samples++;
       continue;
     }
-    double line = has_line ? data.column("line")[i] : 0.0;
+    double line = has_line ? (*line_column)[i] : 0.0;
     if (!std::isfinite(line)) line = -1.0;
-    Acc& a = groups[line];
+    if (!last || line != last_line) {
+      last = &groups[line];
+      last_line = line;
+    }
+    Acc& a = *last;
     a.n++;
     a.sum += e;
     a.sum_sq += e * e;
@@ -52,16 +62,24 @@ Evaluation error_statistics(const FlightData& data, const Eigen::VectorXd& error
     ev.std_nT = std::sqrt(total_var / static_cast<double>(ev.n));
   }
   // By flight condition and heading sector, each line's mean removed first.
-  if (data.has("tt") && data.size() > 2) {
-    const std::vector<FlightCondition> cond = classify_conditions(data);
+  if (by_condition && data.has("tt") && data.size() > 2) {
+    std::vector<FlightCondition> classified;
+    if (!conditions) classified = classify_conditions(data);
+    const std::vector<FlightCondition>& cond = conditions ? *conditions : classified;
     const std::vector<int> sector = heading_sectors(data);
     std::vector<double> ss_c(kConditionCount, 0), ss_h(8, 0);
     std::vector<Eigen::Index> n_c(kConditionCount, 0), n_h(8, 0);
+    double last_line = std::numeric_limits<double>::quiet_NaN();
+    const Acc* last = nullptr;
     for (Eigen::Index i = 0; i < error_nT.size(); ++i) {
       if (!std::isfinite(error_nT[i])) continue;
-      double line = has_line ? data.column("line")[i] : 0.0;
+      double line = has_line ? (*line_column)[i] : 0.0;
       if (!std::isfinite(line)) line = -1.0;
-      const Acc& a = groups[line];
+      if (!last || line != last_line) {
+        last = &groups[line];
+        last_line = line;
+      }
+      const Acc& a = *last;
       const double d = error_nT[i] - a.sum / static_cast<double>(a.n);
       const int c = static_cast<int>(cond[static_cast<size_t>(i)]);
       ss_c[static_cast<size_t>(c)] += d * d;
@@ -114,11 +132,21 @@ Evaluation evaluate_model(const Model& model, const FlightData& data, const std:
   if (!ref.array().isFinite().any()) {
     throw Error(data.source() + ": reference field '" + truth + "' holds no finite sample");
   }
-  const Eigen::VectorXd comp = apply_model(model, data).compensated_nT;
-  Evaluation ev = error_statistics(data, comp - ref);
+  const bool neural = model.neural && model.neural->trained();
+  // The terms' correction and its variance in one pass (the neural stage: apply_model).
+  Eigen::VectorXd comp, variance;
   const Eigen::VectorXd uncompensated = aligned_scalar(model, data);
+  if (neural) {
+    comp = apply_model(model, data).compensated_nT;
+  } else {
+    model_correction_and_variance(model, data, &comp, &variance);
+    comp = uncompensated - comp;  // coefficient-wise: in place
+  }
+  const std::vector<FlightCondition> conditions =
+      data.has("tt") && data.size() > 2 ? classify_conditions(data) : std::vector<FlightCondition>();
+  Evaluation ev = error_statistics(data, comp - ref, true, &conditions);
   {
-    const Evaluation before = error_statistics(data, uncompensated - ref);
+    const Evaluation before = error_statistics(data, uncompensated - ref, false);
     ev.uncompensated_std_nT = before.std_nT;
     ev.improvement_ratio = ev.std_nT > 0 ? before.std_nT / ev.std_nT : NAN;
     for (auto& l : ev.per_line) {
@@ -129,8 +157,8 @@ Evaluation evaluate_model(const Model& model, const FlightData& data, const std:
       }
     }
   }
-  if (!(model.neural && model.neural->trained())) {
-    ev.variance_nT2 = compensation_variance_nT2(model, data);
+  if (!neural) {
+    ev.variance_nT2 = std::move(variance);
     long n = 0, in1 = 0, in2 = 0;
     for (Eigen::Index i = 0; i < ev.error_nT.size(); ++i) {
       const double e = ev.error_nT[i], v = ev.variance_nT2[i];
@@ -144,13 +172,14 @@ Evaluation evaluate_model(const Model& model, const FlightData& data, const std:
       ev.coverage_2sigma = static_cast<double>(in2) / static_cast<double>(n);
     }
   }
-  ev.fom = figure_of_merit(data, model.fit, comp, uncompensated);
+  ev.fom = figure_of_merit(data, model.fit, comp, uncompensated,
+                           conditions.empty() ? nullptr : &conditions);
   if (ev.n == 0) {
     throw Error(data.source() + ": no sample has a finite compensated value and reference (" +
                 model.scalar + ", " + model.vector + "_x/_y/_z, the model's channels, " + truth +
                 "): nothing to score");
   }
-  ev.compensated_nT = comp;
+  ev.compensated_nT = std::move(comp);
   return ev;
 }
 

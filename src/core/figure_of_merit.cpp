@@ -46,7 +46,8 @@ double peak_to_peak(const Eigen::VectorXd& x, Eigen::Index a, Eigen::Index b) {
 
 FigureOfMerit figure_of_merit(const FlightData& data, const FitSettings& fit,
                               const Eigen::VectorXd& compensated,
-                              const Eigen::VectorXd& uncompensated) {
+                              const Eigen::VectorXd& uncompensated,
+                              const std::vector<FlightCondition>* known_conditions) {
   FigureOfMerit out;
   const Eigen::Index n = data.size();
   if (n < 10 || !data.has("ins_yaw")) return out;
@@ -57,7 +58,9 @@ FigureOfMerit figure_of_merit(const FlightData& data, const FitSettings& fit,
     for (Eigen::Index i = 0; i < n; ++i) selected[static_cast<size_t>(i)] = i;
   }
   const double dt = data.dt_s();
-  const auto conditions = classify_conditions(data);
+  std::vector<FlightCondition> classified;
+  if (!known_conditions) classified = classify_conditions(data);
+  const std::vector<FlightCondition>& conditions = known_conditions ? *known_conditions : classified;
   const Eigen::VectorXd& yaw = data.column("ins_yaw");
   const Butterworth bp = Butterworth::band_pass(fit.order, fit.band_low_hz,
                                                 std::min(fit.band_high_hz, 0.45 / dt), 1.0 / dt);

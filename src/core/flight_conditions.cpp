@@ -1,7 +1,9 @@
 // magcomp: flight-condition classification.
 #include "magcomp/core/flight_conditions.h"
 
+#include <algorithm>
 #include <cmath>
+#include <vector>
 
 namespace magcomp {
 
@@ -30,54 +32,76 @@ const char* sector_name(int s) {
 
 namespace {
 
-// Centred moving mean and rms-about-mean over w samples (NaN treated as 0).
-void window_stats(const Eigen::VectorXd& x, Eigen::Index w, Eigen::VectorXd* mean,
-                  Eigen::VectorXd* rms) {
-  const Eigen::Index n = x.size();
-  Eigen::VectorXd s1 = Eigen::VectorXd::Zero(n + 1), s2 = Eigen::VectorXd::Zero(n + 1);
-  for (Eigen::Index i = 0; i < n; ++i) {
-    const double v = std::isfinite(x[i]) ? x[i] : 0.0;
-    s1[i + 1] = s1[i] + v;
-    s2[i + 1] = s2[i] + v * v;
+// Centred moving mean and rms-about-mean over w samples (NaN treated as 0), one sample at a time
+// in order: the prefix sums are kept only over the window, with the same
+// arithmetic as whole-series prefix sums; the ring holds at least w + 2.
+class WindowStats {
+ public:
+  WindowStats(const Eigen::VectorXd* x, Eigen::Index w)
+      : x_(x), n_(x ? x->size() : 0), w_(w) {
+    size_t size = 1;
+    while (size < static_cast<size_t>(w + 2)) size *= 2;  // a power of two: the slot is a mask
+    ring_.resize(size);
+    mask_ = size - 1;
+    ring_[0] = {0.0, 0.0};
   }
-  mean->resize(n);
-  rms->resize(n);
-  for (Eigen::Index i = 0; i < n; ++i) {
-    const Eigen::Index a = std::max<Eigen::Index>(0, i - w / 2), b = std::min(n, i + w / 2 + 1);
+  // Mean and rms about it of the window centred on sample i (i = 0, 1, ... in order).
+  void at(Eigen::Index i, double* mean, double* rms) {
+    if (!x_) {  // a missing channel reads as zeros
+      *mean = 0.0;
+      *rms = 0.0;
+      return;
+    }
+    const Eigen::Index a = std::max<Eigen::Index>(0, i - w_ / 2), b = std::min(n_, i + w_ / 2 + 1);
+    while (filled_ < b) {  // prefix sums up to index b
+      const double v = std::isfinite((*x_)[filled_]) ? (*x_)[filled_] : 0.0;
+      const Sums& p = ring_[slot(filled_)];
+      ring_[slot(filled_ + 1)] = {p.s1 + v, p.s2 + v * v};
+      ++filled_;
+    }
     const double k = static_cast<double>(b - a);
-    const double m = (s1[b] - s1[a]) / k;
-    (*mean)[i] = m;
-    (*rms)[i] = std::sqrt(std::max(0.0, (s2[b] - s2[a]) / k - m * m));
+    const Sums& sb = ring_[slot(b)];
+    const Sums& sa = ring_[slot(a)];
+    const double m = (sb.s1 - sa.s1) / k;
+    *mean = m;
+    *rms = std::sqrt(std::max(0.0, (sb.s2 - sa.s2) / k - m * m));
   }
-}
+
+ private:
+  struct Sums {
+    double s1, s2;
+  };
+  size_t slot(Eigen::Index i) const { return static_cast<size_t>(i) & mask_; }
+  const Eigen::VectorXd* x_;
+  Eigen::Index n_, w_, filled_ = 0;
+  std::vector<Sums> ring_;
+  size_t mask_ = 0;
+};
 
 }  // namespace
 
 std::vector<FlightCondition> classify_conditions(const FlightData& data, double window_s) {
   const Eigen::Index n = data.size();
   const Eigen::Index w = std::max<Eigen::Index>(3, std::llround(window_s / data.dt_s()));
-  auto col = [&](const char* name) {
-    return data.has(name) ? data.column(name) : Eigen::VectorXd(Eigen::VectorXd::Zero(n));
-  };
-  Eigen::VectorXd pm, pr, rm, rr, ym, yr, vm, vr;
-  window_stats(col("pitch_rate"), w, &pm, &pr);
-  window_stats(col("roll_rate"), w, &rm, &rr);
-  window_stats(col("yaw_rate"), w, &ym, &yr);
-  window_stats(col("ins_vu"), w, &vm, &vr);
+  auto col = [&](const char* name) { return data.has(name) ? &data.column(name) : nullptr; };
+  WindowStats pitch(col("pitch_rate"), w), roll(col("roll_rate"), w), yaw(col("yaw_rate"), w),
+      vertical(col("ins_vu"), w);
   std::vector<FlightCondition> out(static_cast<size_t>(n), FlightCondition::kStraightLevel);
   for (Eigen::Index i = 0; i < n; ++i) {
+    double pm, p, rm, r, ym, y, vm, vr;
+    pitch.at(i, &pm, &p);
+    roll.at(i, &rm, &r);
+    yaw.at(i, &ym, &y);
+    vertical.at(i, &vm, &vr);
     FlightCondition c = FlightCondition::kStraightLevel;
-    if (std::abs(ym[i]) > 1.5) {
+    if (std::abs(ym) > 1.5) {
       c = FlightCondition::kTurn;
-    } else if (std::abs(vm[i]) > 2.0) {
+    } else if (std::abs(vm) > 2.0) {
       c = FlightCondition::kClimbDescent;
-    } else {
-      const double p = pr[i], r = rr[i], y = yr[i];
-      if (std::max({p, r, y}) > 1.0) {
-        c = (p >= r && p >= y) ? FlightCondition::kPitchManeuver
-            : (r >= y)         ? FlightCondition::kRollManeuver
-                               : FlightCondition::kYawManeuver;
-      }
+    } else if (std::max({p, r, y}) > 1.0) {
+      c = (p >= r && p >= y) ? FlightCondition::kPitchManeuver
+          : (r >= y)         ? FlightCondition::kRollManeuver
+                             : FlightCondition::kYawManeuver;
     }
     out[static_cast<size_t>(i)] = c;
   }

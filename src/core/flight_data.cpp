@@ -36,6 +36,39 @@ const Eigen::VectorXd& FlightData::column(const std::string& name) const {
   return columns_[it->second];
 }
 
+Eigen::VectorXd FlightData::column_rows(const std::string& name, Eigen::Index first,
+                                        Eigen::Index count) const {
+  auto it = index_.find(name);
+  if (it == index_.end()) it = index_.find(canonical_name(name));
+  if (it == index_.end()) throw Error(source_ + ": field '" + name + "' not found");
+  if (first < 0 || count < 0 || first + count > size_) {
+    throw Error(source_ + ": field '" + name + "': rows outside the flight");
+  }
+  const size_t i = it->second;
+  std::shared_ptr<const ColumnLoader> loader;
+  std::string stored;
+  {
+    std::lock_guard<std::mutex> lock(*load_mutex_);
+    Lazy& z = lazy_[i];
+    // Up to twice the column in parts (blocks overlap by their margins), then it is loaded.
+    if (z.loader && z.loader->reads_rows() && z.rows_read_in_part + count <= 2 * size_) {
+      z.rows_read_in_part += count;
+      loader = z.loader;
+      stored = z.stored_name;
+    }
+  }
+  if (loader) {
+    Eigen::VectorXd v = loader->load_rows(stored, first, count);
+    if (v.size() != count) {
+      throw Error(source_ + ": field '" + names_[i] + "': " + std::to_string(v.size()) +
+                  " samples read, expected " + std::to_string(count));
+    }
+    return v;
+  }
+  ensure_loaded(i);
+  return columns_[i].segment(first, count);
+}
+
 void FlightData::ensure_loaded(size_t i) const {
   std::lock_guard<std::mutex> lock(*load_mutex_);
   Lazy& z = lazy_[i];
@@ -76,11 +109,13 @@ size_t FlightData::loaded_columns() const {
 }
 
 Eigen::VectorXd& FlightData::column(const std::string& name) {
+  if (name == "tt") dt_cache_.s.store(std::numeric_limits<double>::quiet_NaN());
   return const_cast<Eigen::VectorXd&>(static_cast<const FlightData&>(*this).column(name));
 }
 
 void FlightData::set(const std::string& name, Eigen::VectorXd values) {
   const std::string key = canonical_name(name);
+  if (key == "tt") dt_cache_.s.store(std::numeric_limits<double>::quiet_NaN());
   if (size_ < 0 || names_.empty()) {
     size_ = values.size();
   } else if (values.size() != size_) {
@@ -102,6 +137,7 @@ void FlightData::set(const std::string& name, Eigen::VectorXd values) {
 void FlightData::remove(const std::string& name) {
   auto it = index_.find(canonical_name(name));
   if (it == index_.end()) return;
+  if (it->first == "tt") dt_cache_.s.store(std::numeric_limits<double>::quiet_NaN());
   const size_t pos = it->second;
   names_.erase(names_.begin() + static_cast<std::ptrdiff_t>(pos));
   columns_.erase(columns_.begin() + static_cast<std::ptrdiff_t>(pos));
@@ -111,6 +147,8 @@ void FlightData::remove(const std::string& name) {
 }
 
 double FlightData::dt_s() const {
+  const double cached = dt_cache_.s.load();
+  if (!std::isnan(cached)) return cached;
   const Eigen::VectorXd& t = tt();
   std::vector<double> diffs;
   diffs.reserve(static_cast<size_t>(std::max<Eigen::Index>(0, t.size() - 1)));
@@ -121,6 +159,7 @@ double FlightData::dt_s() const {
   if (diffs.empty()) throw Error(source_ + ": field 'tt' has no two increasing samples");
   auto mid = diffs.begin() + static_cast<std::ptrdiff_t>(diffs.size() / 2);
   std::nth_element(diffs.begin(), mid, diffs.end());
+  dt_cache_.s.store(*mid);
   return *mid;
 }
 
@@ -163,6 +202,38 @@ FlightData FlightData::subset(const std::vector<Eigen::Index>& indices) const {
     out.set(names_[c], std::move(v));
   }
   if (names_.empty()) out.size_ = 0;
+  return out;
+}
+
+namespace {
+// Reads a column's rows [first, first + count) from the flight a slice came from.
+class RowsLoader : public ColumnLoader {
+ public:
+  RowsLoader(const FlightData* parent, Eigen::Index first, Eigen::Index count)
+      : parent_(parent), first_(first), count_(count) {}
+  Eigen::VectorXd load(const std::string& name) const override {
+    return parent_->column_rows(name, first_, count_);
+  }
+
+ private:
+  const FlightData* parent_;
+  Eigen::Index first_, count_;
+};
+}  // namespace
+
+FlightData FlightData::rows(Eigen::Index first, Eigen::Index count) const {
+  if (first < 0 || count < 0 || first + count > size_) {
+    throw Error(source_ + ": rows [" + std::to_string(first) + ", " +
+                std::to_string(first + count) + ") outside the flight's " +
+                std::to_string(size_) + " samples");
+  }
+  FlightData out;
+  out.source_ = source_;
+  out.size_ = count;
+  const double dt = dt_s();
+  auto loader = std::make_shared<const RowsLoader>(this, first, count);
+  for (const std::string& name : names_) out.set_lazy(name, name, loader);
+  out.dt_cache_.s.store(dt);
   return out;
 }
 

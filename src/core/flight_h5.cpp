@@ -185,22 +185,52 @@ class H5ColumnLoader : public ColumnLoader {
     H5Fclose(file_);
   }
   Eigen::VectorXd load(const std::string& name) const override {
+    Eigen::VectorXd v(static_cast<Eigen::Index>(n_));
+    if (order_.empty()) {  // in time order: straight into the column
+      std::lock_guard<std::mutex> lock(hdf5_mutex());
+      read_rows(name, 0, n_, v.data());
+      return v;
+    }
     Dataset d;
     d.name = name;
     {
       std::lock_guard<std::mutex> lock(hdf5_mutex());
       read_values(file_, path_, d, n_, file_bytes_);
     }
-    Eigen::VectorXd v(static_cast<Eigen::Index>(n_));
-    if (order_.empty()) {
-      for (size_t k = 0; k < n_; ++k) v[static_cast<Eigen::Index>(k)] = d.values[k];
-    } else {
-      for (size_t k = 0; k < n_; ++k) v[static_cast<Eigen::Index>(k)] = d.values[order_[k]];
-    }
+    for (size_t k = 0; k < n_; ++k) v[static_cast<Eigen::Index>(k)] = d.values[order_[k]];
+    return v;
+  }
+  bool reads_rows() const override { return order_.empty(); }
+  Eigen::VectorXd load_rows(const std::string& name, Eigen::Index first,
+                            Eigen::Index count) const override {
+    if (!order_.empty()) return load(name).segment(first, count);
+    Eigen::VectorXd v(count);
+    std::lock_guard<std::mutex> lock(hdf5_mutex());
+    read_rows(name, static_cast<hsize_t>(first), static_cast<hsize_t>(count), v.data());
     return v;
   }
 
  private:
+  // Rows [first, first + count) of a 1-D dataset of n_ values (a hyperslab), under the caller's
+  // hold of the HDF5 lock.
+  void read_rows(const std::string& name, hsize_t first, hsize_t count, double* out) const {
+    H5Handle ds(H5Dopen2(file_, name.c_str(), H5P_DEFAULT), H5Dclose);
+    if (ds.id < 0) throw Error(path_ + ": field '" + name + "' cannot be opened (corrupt object)");
+    const hsize_t stored = H5Dget_storage_size(ds.id);
+    if (n_ > 0 && (stored == 0 || n_ > stored * 1000 || n_ > file_bytes_ * 1000)) {
+      throw Error(path_ + ": field '" + name + "' declares " + std::to_string(n_) +
+                  " values but the file stores " + std::to_string(stored) + " bytes of it");
+    }
+    if (count == 0) return;
+    H5Handle file_space(H5Dget_space(ds.id), H5Sclose);
+    H5Handle memory_space(H5Screate_simple(1, &count, nullptr), H5Sclose);
+    if (file_space.id < 0 || memory_space.id < 0 ||
+        H5Sselect_hyperslab(file_space.id, H5S_SELECT_SET, &first, nullptr, &count, nullptr) < 0 ||
+        H5Dread(ds.id, H5T_NATIVE_DOUBLE, memory_space.id, file_space.id, H5P_DEFAULT, out) < 0) {
+      throw Error(path_ + ": field '" + name + "' cannot be read as float64 (corrupt data)");
+    }
+  }
+
   hid_t file_;
   std::string path_;
   std::vector<size_t> order_;  // empty: already in time order

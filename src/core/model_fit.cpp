@@ -141,16 +141,22 @@ double std_dev(const Eigen::VectorXd& v) {
 std::vector<std::pair<Eigen::Index, Eigen::Index>> calibration_runs(
     const FitSettings& s, const FlightData& data, const Eigen::MatrixXd& a,
     const Eigen::VectorXd& y, std::vector<std::string>* warnings) {
-  const bool bandpass = s.method == "bandpass";
   std::vector<Eigen::Index> selected;
   if (s.lines.empty() && s.windows.empty()) {
-    if (bandpass)
+    if (s.method == "bandpass")
       throw Error("fit: bandpass needs calibration segments (fit.lines or fit.windows)");
     selected.resize(static_cast<size_t>(data.size()));
     for (Eigen::Index i = 0; i < data.size(); ++i) selected[static_cast<size_t>(i)] = i;
   } else {
     selected = data.select(s.lines, s.windows);
   }
+  return calibration_runs(s, data, std::move(selected), a, y, warnings);
+}
+
+std::vector<std::pair<Eigen::Index, Eigen::Index>> calibration_runs(
+    const FitSettings& s, const FlightData& data, std::vector<Eigen::Index> selected,
+    const Eigen::MatrixXd& a, const Eigen::VectorXd& y, std::vector<std::string>* warnings) {
+  const bool bandpass = s.method == "bandpass";
   // Rows with NaN anywhere in the regression are dropped: a segment is split there.
   selected.erase(
       std::remove_if(selected.begin(), selected.end(),
@@ -171,6 +177,41 @@ std::vector<std::pair<Eigen::Index, Eigen::Index>> calibration_runs(
     }
   }
   return kept;
+}
+
+Eigen::Index slice_margin(const Model& model, const std::vector<std::unique_ptr<Term>>& terms,
+                          double dt_s) {
+  int reach = 0;
+  for (const auto& t : terms) {
+    const int r = t->row_reach();
+    if (r < 0) return -1;
+    reach = std::max(reach, r);
+  }
+  const double lag_samples = std::abs(model.scalar_lag_s()) / dt_s;
+  if (!std::isfinite(lag_samples) || lag_samples > 1e6) return -1;
+  // +2: the cubic interpolation of a fractional shift reads two samples past the shifted one.
+  return reach + static_cast<Eigen::Index>(std::ceil(lag_samples)) + 2;
+}
+
+void for_each_design_block(
+    const Model& model, const FlightData& data,
+    const std::function<void(Eigen::Index, const Eigen::MatrixXd&)>& block) {
+  const auto terms = model.make_terms();
+  const Eigen::Index n = data.size();
+  const Eigen::Index margin = n > 1 ? slice_margin(model, terms, data.dt_s()) : -1;
+  constexpr Eigen::Index kBlockRows = 16384;  // ~2.4 MB for 18 columns: stays in cache
+  if (margin < 0 || n <= 2 * kBlockRows) {
+    block(0, design_matrix(model, terms, data));
+    return;
+  }
+  for (Eigen::Index first = 0; first < n; first += kBlockRows) {
+    const Eigen::Index count = std::min(kBlockRows, n - first);
+    const Eigen::Index lo = std::max<Eigen::Index>(0, first - margin);
+    const Eigen::Index hi = std::min(n, first + count + margin);
+    const FlightData part = data.rows(lo, hi - lo);
+    const Eigen::MatrixXd a = design_matrix(model, terms, part);
+    block(first, a.middleRows(first - lo, count));
+  }
 }
 
 Eigen::MatrixXd stack_runs(const FitSettings& s, double dt_s, const Eigen::MatrixXd& x,
@@ -253,13 +294,35 @@ void fit_model(Model& model, const std::vector<const FlightData*>& flights) {
   for (const FlightData* flight : flights) {
     const FlightData& data = *flight;
     sources += (sources.empty() ? "" : ",") + data.source();
-    const Eigen::MatrixXd a = design_matrix(model, data);
-    const Eigen::VectorXd y = fit_target(model, data);
-    const auto runs = calibration_runs(s, data, a, y, &report.warnings);
-    if (runs.empty()) continue;
-    blocks_a.push_back(stack_runs(s, data.dt_s(), a, runs));
-    blocks_y.push_back(stack_runs(s, data.dt_s(), y, runs).col(0));
-    report.segments += static_cast<int>(runs.size());
+    const Eigen::Index margin =
+        data.size() > 1 ? slice_margin(model, terms, data.dt_s()) : Eigen::Index(-1);
+    if (margin < 0 || (s.lines.empty() && s.windows.empty())) {
+      const Eigen::MatrixXd a = design_matrix(model, terms, data);
+      const Eigen::VectorXd y = fit_target(model, data);
+      const auto runs = calibration_runs(s, data, a, y, &report.warnings);
+      if (runs.empty()) continue;
+      blocks_a.push_back(stack_runs(s, data.dt_s(), a, runs));
+      blocks_y.push_back(stack_runs(s, data.dt_s(), y, runs).col(0));
+      report.segments += static_cast<int>(runs.size());
+      continue;
+    }
+    // Only the calibration segments (and a margin) are built: the same rows as on the whole
+    // flight, at the cost of the segments alone.
+    const std::vector<Eigen::Index> selected = data.select(s.lines, s.windows);
+    for (const auto& [first, last] : data.contiguous_runs(selected, 1.5 * data.dt_s())) {
+      const Eigen::Index lo = std::max<Eigen::Index>(0, first - margin);
+      const Eigen::Index hi = std::min(data.size(), last + 1 + margin);
+      const FlightData part = data.rows(lo, hi - lo);
+      const Eigen::MatrixXd a = design_matrix(model, terms, part);
+      const Eigen::VectorXd y = fit_target(model, part);
+      std::vector<Eigen::Index> rows(static_cast<size_t>(last - first + 1));
+      for (size_t k = 0; k < rows.size(); ++k) rows[k] = first - lo + static_cast<Eigen::Index>(k);
+      const auto runs = calibration_runs(s, part, std::move(rows), a, y, &report.warnings);
+      if (runs.empty()) continue;
+      blocks_a.push_back(stack_runs(s, data.dt_s(), a, runs));
+      blocks_y.push_back(stack_runs(s, data.dt_s(), y, runs).col(0));
+      report.segments += static_cast<int>(runs.size());
+    }
   }
   Eigen::Index rows = 0;
   for (const auto& b : blocks_y) rows += b.size();
@@ -359,29 +422,53 @@ void fit_model(Model& model, const std::vector<const FlightData*>& flights) {
 }
 
 Eigen::VectorXd model_correction(const Model& model, const FlightData& data) {
-  if (!model.fitted()) throw Error("model: not calibrated (no coefficients)");
-  const Eigen::MatrixXd a = design_matrix(model, data);
-  if (a.cols() != model.coefficients.size()) {
-    throw Error("model: " + std::to_string(model.coefficients.size()) + " coefficients for " +
-                std::to_string(a.cols()) + " columns");
-  }
-  return a * model.coefficients;
+  Eigen::VectorXd correction;
+  model_correction_and_variance(model, data, &correction, nullptr);
+  return correction;
 }
 
-double sample_variance_nT2(const Model& model, const Eigen::Ref<const Eigen::RowVectorXd>& row) {
+namespace {
+// sample_variance_nT2 with the product's buffer given (per-sample callers).
+double row_variance_nT2(const Model& model, const Eigen::Ref<const Eigen::RowVectorXd>& row,
+                        Eigen::VectorXd* buffer) {
   const Eigen::MatrixXd& cov = model.report.coefficient_covariance;
   if (cov.rows() != row.size() || !std::isfinite(model.report.noise_variance_nT2) ||
       !row.allFinite()) {
     return std::numeric_limits<double>::quiet_NaN();
   }
-  return row.dot(cov * row.transpose()) + model.report.noise_variance_nT2;
+  buffer->noalias() = cov * row.transpose();
+  return row.dot(*buffer) + model.report.noise_variance_nT2;
+}
+}  // namespace
+
+double sample_variance_nT2(const Model& model, const Eigen::Ref<const Eigen::RowVectorXd>& row) {
+  Eigen::VectorXd buffer;
+  return row_variance_nT2(model, row, &buffer);
+}
+
+void model_correction_and_variance(const Model& model, const FlightData& data,
+                                   Eigen::VectorXd* correction_nT, Eigen::VectorXd* variance_nT2) {
+  if (!model.fitted()) throw Error("model: not calibrated (no coefficients)");
+  correction_nT->resize(data.size());
+  if (variance_nT2) variance_nT2->resize(data.size());
+  Eigen::VectorXd buffer;
+  for_each_design_block(model, data, [&](Eigen::Index first, const Eigen::MatrixXd& a) {
+    if (a.cols() != model.coefficients.size()) {
+      throw Error("model: " + std::to_string(model.coefficients.size()) + " coefficients for " +
+                  std::to_string(a.cols()) + " columns");
+    }
+    correction_nT->segment(first, a.rows()).noalias() = a * model.coefficients;
+    if (!variance_nT2) return;
+    for (Eigen::Index i = 0; i < a.rows(); ++i) {
+      (*variance_nT2)[first + i] = row_variance_nT2(model, a.row(i), &buffer);
+    }
+  });
 }
 
 Eigen::VectorXd compensation_variance_nT2(const Model& model, const FlightData& data) {
-  const Eigen::MatrixXd a = design_matrix(model, data);
-  Eigen::VectorXd v(a.rows());
-  for (Eigen::Index i = 0; i < a.rows(); ++i) v[i] = sample_variance_nT2(model, a.row(i));
-  return v;
+  Eigen::VectorXd correction, variance;
+  model_correction_and_variance(model, data, &correction, &variance);
+  return variance;
 }
 
 }  // namespace magcomp

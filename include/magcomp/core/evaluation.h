@@ -52,8 +52,12 @@ struct Evaluation {
   FigureOfMerit fom;
 };
 
-/// Statistics of `error_nT` grouped by the flight's `line` column (one group if absent).
-Evaluation error_statistics(const FlightData& data, const Eigen::VectorXd& error_nT);
+/// Statistics of `error_nT` grouped by the flight's `line` column (one group if absent), and,
+/// with `by_condition`, by flight condition and heading sector (`conditions`:
+/// classify_conditions(data) when the caller has it).
+Evaluation error_statistics(const FlightData& data, Eigen::VectorXd error_nT,
+                            bool by_condition = true,
+                            const std::vector<FlightCondition>* conditions = nullptr);
 
 /// Compensates the flight with the model and compares with the field `truth` (e.g. mag_1_c).
 /// Throws magcomp::Error naming the file and field when `truth` is missing or all NaN.

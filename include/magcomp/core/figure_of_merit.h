@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "magcomp/core/flight_conditions.h"
 #include "magcomp/core/flight_data.h"
 #include "magcomp/core/model.h"
 
@@ -31,10 +32,11 @@ struct FigureOfMerit {
 /// the samples the fit settings select (all samples when they select none), keeps the longest of
 /// each axis and heading, and measures each signature on `compensated` and `uncompensated` (nT),
 /// band-passed with fit.band_hz (zero-phase) over each contiguous run. Returns an empty list when
-/// the flight flew no maneuver.
+/// the flight flew no maneuver. `conditions`: classify_conditions(data) when the caller has it.
 FigureOfMerit figure_of_merit(const FlightData& data, const FitSettings& fit,
                               const Eigen::VectorXd& compensated,
-                              const Eigen::VectorXd& uncompensated);
+                              const Eigen::VectorXd& uncompensated,
+                              const std::vector<FlightCondition>* conditions = nullptr);
 
 /// The same windows measured on another series (e.g. the simulator's true aircraft field): the sum
 /// of its band-passed peak-to-peak values, nT.

@@ -2,6 +2,8 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <atomic>
+#include <limits>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -23,6 +25,13 @@ class ColumnLoader {
  public:
   virtual ~ColumnLoader() = default;
   virtual Eigen::VectorXd load(const std::string& stored_name) const = 0;
+  /// True when load_rows() reads only the rows asked for (a sorted file).
+  virtual bool reads_rows() const { return false; }
+  /// Samples [first, first + count) of a column, in sample order.
+  virtual Eigen::VectorXd load_rows(const std::string& stored_name, Eigen::Index first,
+                                    Eigen::Index count) const {
+    return load(stored_name).segment(first, count);
+  }
 };
 
 /// One flight: N samples of named float64 columns, one of which is `tt` (s past midnight UTC).
@@ -42,6 +51,10 @@ class FlightData {
   /// Column by name (older aliases accepted). Throws magcomp::Error naming `source()` and the
   /// field.
   const Eigen::VectorXd& column(const std::string& name) const;
+  /// Samples [first, first + count) of a column (a copy). A column not yet in memory is read
+  /// in part from its file, until the parts read add up to twice the column; then it is loaded.
+  Eigen::VectorXd column_rows(const std::string& name, Eigen::Index first,
+                              Eigen::Index count) const;
   /// Mutable column; same lookup rules.
   Eigen::VectorXd& column(const std::string& name);
   /// Adds or replaces a column; its length must equal size() (the first column fixes the size).
@@ -57,7 +70,8 @@ class FlightData {
 
   /// Time base `tt` in s past midnight UTC.
   const Eigen::VectorXd& tt() const { return column("tt"); }
-  /// Sample period in s, the median of the positive tt differences (never the file's `dt`).
+  /// Sample period in s, the median of the positive tt differences (never the file's `dt`);
+  /// computed once per time base.
   double dt_s() const;
 
   /// Samples whose `line` equals one of `lines` (compared to 1e-6) or whose tt falls in one of
@@ -66,6 +80,11 @@ class FlightData {
                                    const std::vector<TimeWindow>& windows) const;
   /// A new flight holding only the given samples (indices into this one).
   FlightData subset(const std::vector<Eigen::Index>& indices) const;
+  /// Samples [first, first + count) as a flight whose columns are read from this one on first
+  /// use (this flight must outlive it); its dt_s() is this flight's, so anything computed on the
+  /// slice equals the same rows computed on the whole flight wherever it depends only on rows
+  /// inside the slice.
+  FlightData rows(Eigen::Index first, Eigen::Index count) const;
   /// Splits sorted sample indices into runs of consecutive samples with no time gap over
   /// `max_gap_s`. Each run is [first, last] inclusive.
   std::vector<std::pair<Eigen::Index, Eigen::Index>> contiguous_runs(
@@ -92,9 +111,21 @@ class FlightData {
   struct Lazy {
     std::string stored_name;
     std::shared_ptr<const ColumnLoader> loader;  // null: in memory
+    Eigen::Index rows_read_in_part = 0;          // by column_rows() while not in memory
   };
   mutable std::vector<Lazy> lazy_;
   std::shared_ptr<std::mutex> load_mutex_ = std::make_shared<std::mutex>();
+  /// dt_s() once computed (NaN: not yet); reset whenever tt may change.
+  struct CachedPeriod {
+    std::atomic<double> s{std::numeric_limits<double>::quiet_NaN()};
+    CachedPeriod() = default;
+    CachedPeriod(const CachedPeriod& o) : s(o.s.load()) {}
+    CachedPeriod& operator=(const CachedPeriod& o) {
+      s.store(o.s.load());
+      return *this;
+    }
+  };
+  mutable CachedPeriod dt_cache_;
   std::unordered_map<std::string, size_t> index_;
   std::string source_ = "<memory>";
   std::vector<std::string> read_notes_;

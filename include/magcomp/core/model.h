@@ -3,6 +3,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -89,6 +90,20 @@ Eigen::MatrixXd design_matrix(const Model& model, const FlightData& data);
 Eigen::MatrixXd design_matrix(const Model& model, const std::vector<std::unique_ptr<Term>>& terms,
                               const FlightData& data);
 
+/// Samples of margin that make rows of the design matrix and of the aligned scalar built on a
+/// slice of a flight (FlightData::rows) equal to the same rows built on the whole flight: the
+/// terms' row reach plus the lag's shift plus the interpolation's; -1 when a term depends on the
+/// whole history (a causal filter), so only the whole flight gives its values.
+Eigen::Index slice_margin(const Model& model, const std::vector<std::unique_ptr<Term>>& terms,
+                          double dt_s);
+
+/// Calls `block(first, a)` for consecutive blocks of rows covering the flight, `a` being rows
+/// [first, first + a.rows()) of the design matrix. Each block is built on a slice with the
+/// model's margin, so memory stays at one block; a model with a history-dependent term gets
+/// the whole matrix as one block. The numbers equal design_matrix()'s.
+void for_each_design_block(const Model& model, const FlightData& data,
+                           const std::function<void(Eigen::Index, const Eigen::MatrixXd&)>& block);
+
 /// Fits the model's coefficients on `flights` according to model.fit. Free parameters (?) are
 /// estimated first (parameter_fit.h) and written into model.terms as numbers. Throws
 /// magcomp::Error when the selection is empty or too short. Stores coefficients, column names and
@@ -101,6 +116,12 @@ void fit_model(Model& model, const std::vector<const FlightData*>& flights);
 std::vector<std::pair<Eigen::Index, Eigen::Index>> calibration_runs(
     const FitSettings& fit, const FlightData& data, const Eigen::MatrixXd& a,
     const Eigen::VectorXd& y, std::vector<std::string>* warnings);
+
+/// The same for the samples `selected` (sorted indices into `data`) instead of the fit's lines
+/// and windows.
+std::vector<std::pair<Eigen::Index, Eigen::Index>> calibration_runs(
+    const FitSettings& fit, const FlightData& data, std::vector<Eigen::Index> selected,
+    const Eigen::MatrixXd& a, const Eigen::VectorXd& y, std::vector<std::string>* warnings);
 
 /// The rows of `x` in each run, band-passed and trimmed (bandpass method) or as they are
 /// (reference method), stacked. dt_s is the sample period.
@@ -131,5 +152,9 @@ Eigen::VectorXd compensate(const Model& model, const FlightData& data);
 double sample_variance_nT2(const Model& model, const Eigen::Ref<const Eigen::RowVectorXd>& row);
 /// The same for every sample of a flight, nT².
 Eigen::VectorXd compensation_variance_nT2(const Model& model, const FlightData& data);
+/// model_correction() and compensation_variance_nT2() in one pass over the design matrix (nT,
+/// nT²); `variance_nT2` may be null.
+void model_correction_and_variance(const Model& model, const FlightData& data,
+                                   Eigen::VectorXd* correction_nT, Eigen::VectorXd* variance_nT2);
 
 }  // namespace magcomp

@@ -49,6 +49,11 @@ class Term {
   /// Time by which this term says the scalar sensor is late relative to the vector sensor, s.
   /// The model realigns the scalar by this much before fitting and compensating.
   virtual double scalar_lag_s() const { return 0.0; }
+  /// Samples on either side of a row that the row's columns depend on (0: the row alone, 1: a
+  /// central difference), or -1 when they depend on the whole history (causal filters): a model
+  /// whose terms all have a reach can be built on a slice of rows with that margin and give the
+  /// same numbers.
+  virtual int row_reach() const { return -1; }
   /// Writes N x column_names().size() regressor columns (scalar-field nT per unit coefficient).
   virtual void build(const TermInputs& in, Eigen::Ref<Eigen::MatrixXd> out) const = 0;
 

@@ -35,6 +35,8 @@ class ExprTerm : public Term {
   std::vector<std::string> column_names() const override;
   /// The data fields among the sources (not B or Bt).
   std::vector<std::string> required_fields() const override;
+  /// 0 for a signal without transforms; -1 otherwise (the transforms run from the flight's start).
+  int row_reach() const override { return signal_.transforms.empty() ? 0 : -1; }
   void build(const TermInputs& in, Eigen::Ref<Eigen::MatrixXd> out) const override;
 
   Projection projection() const { return projection_; }

@@ -15,6 +15,7 @@ class SecondOrderTerm : public Term {
     return "second-order (induced x induced) term dropped by the TL linearisation";
   }
   std::vector<std::string> column_names() const override;
+  int row_reach() const override { return 0; }
   void build(const TermInputs& in, Eigen::Ref<Eigen::MatrixXd> out) const override;
 };
 
@@ -30,6 +31,7 @@ class LagTerm : public Term {
   }
   std::vector<std::string> column_names() const override { return {}; }
   double scalar_lag_s() const override { return lag_s_; }
+  int row_reach() const override { return 0; }
   void build(const TermInputs&, Eigen::Ref<Eigen::MatrixXd>) const override {}
 
  private:

@@ -14,6 +14,7 @@ class PermanentTerm : public Term {
     return "permanent magnetisation: body-fixed field projected on the Earth-field direction";
   }
   std::vector<std::string> column_names() const override;
+  int row_reach() const override { return 0; }
   void build(const TermInputs& in, Eigen::Ref<Eigen::MatrixXd> out) const override;
 };
 
@@ -27,6 +28,7 @@ class InducedTerm : public Term {
     return "induced magnetisation: susceptibility times the Earth field, projected";
   }
   std::vector<std::string> column_names() const override;
+  int row_reach() const override { return 0; }
   void build(const TermInputs& in, Eigen::Ref<Eigen::MatrixXd> out) const override;
 
  private:
@@ -44,6 +46,7 @@ class EddyTerm : public Term {
     return "eddy currents: proportional to the rate of change of the Earth field in the body";
   }
   std::vector<std::string> column_names() const override;
+  int row_reach() const override { return 1; }
   void build(const TermInputs& in, Eigen::Ref<Eigen::MatrixXd> out) const override;
 
  private:
@@ -56,6 +59,7 @@ class FdmTerm : public Term {
   std::string spec() const override { return "fdm"; }
   std::string effect() const override { return "rate of change of the vector field (nT/sample)"; }
   std::vector<std::string> column_names() const override;
+  int row_reach() const override { return 1; }
   void build(const TermInputs& in, Eigen::Ref<Eigen::MatrixXd> out) const override;
 };
 
@@ -66,6 +70,7 @@ class BiasTerm : public Term {
   std::string effect() const override { return "constant offset of the scalar sensor"; }
   std::vector<std::string> column_names() const override { return {"bias"}; }
   bool bandpass_observable() const override { return false; }
+  int row_reach() const override { return 0; }
   void build(const TermInputs& in, Eigen::Ref<Eigen::MatrixXd> out) const override;
 };
 
