@@ -6,6 +6,7 @@
 #include <cmath>
 #include <fstream>
 
+#include "magcomp/core/apply.h"
 #include "magcomp/core/error.h"
 #include "magcomp/core/evaluation.h"
 #include "magcomp/neural/dataset.h"
@@ -204,6 +205,30 @@ TEST(Neural, PredictionsAreCausalAndStreamingEqualsOffline) {
     EXPECT_GT(compared, f.size() - 10);
     EXPECT_LT(worst, 1e-6);
   }
+}
+
+TEST(Neural, EveryApplyEntryPointRunsTheNetworkAndGivesTheSameNumbers) {
+  Model m = neural_model("mlp", "residual", 5, 2);
+  const std::string dir = test::temp_dir("neural_entry_points");
+  train_bundle(m, {flight(11)}, {}, dir + "/b", false);
+  const Model model = load_model_yaml(dir + "/b");
+  const FlightData& f = flight(12);
+  const NeuralCompensation reference = neural_compensate(model, f);
+  const Compensation applied = apply_model(model, f);
+  const Eigen::VectorXd compensated = compensate(model, f);
+  const Evaluation evaluated = evaluate_model(model, f, "mag_1_c");
+  auto same = [](const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
+    return a.size() == b.size() && ((a.array() == b.array()) || (a.array() != a.array() &&
+                                                                 b.array() != b.array()))
+                                       .all();
+  };
+  EXPECT_TRUE(same(applied.compensated_nT, reference.compensated_nT));
+  EXPECT_TRUE(same(compensated, reference.compensated_nT));
+  EXPECT_TRUE(same(evaluated.compensated_nT, reference.compensated_nT));
+  // And the network is really in it: the terms alone give other numbers.
+  Model terms_only = model;
+  terms_only.neural.reset();
+  EXPECT_FALSE(same(compensate(terms_only, f), reference.compensated_nT));
 }
 
 TEST(Neural, JointModeMovesTheTlCoefficientsAndAppliesThem) {
