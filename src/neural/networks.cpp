@@ -13,7 +13,7 @@ CompensatorNetImpl::CompensatorNetImpl(const NeuralSpec& spec, int n_feat, int n
     : architecture(spec.architecture), window(spec.window), n_features(n_feat) {
   const std::vector<int> h = spec.hidden_or_default();
   if (architecture == "mlp") {
-    // The seed's MLP: the window flattened, ReLU layers (16, 4), one output.
+    // The MLP of Laoué's report: the window flattened, ReLU layers (16, 4), one output.
     mlp = torch::nn::Sequential();
     int in = window * n_features;
     for (int width : h) {

@@ -1,4 +1,4 @@
-// magcomp benchmark: (1) one training epoch of the seed's CNN (window 80) on N windows of
+// magcomp benchmark: (1) one training epoch of the CNN of Laoué's report (window 80) on N windows of
 // simulated flights with libtorch, writing the very same standardised data for the PyTorch script
 // (scripts/bench_neural_torch.py); (2) batch-1 streaming inference per sample (MLP, CNN, LSTM).
 // Usage: magcomp_bench_neural N_WINDOWS DATA_OUT.bin     (simulate, write the data, time, latency)

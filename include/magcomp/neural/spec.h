@@ -9,7 +9,7 @@
 
 namespace magcomp {
 
-/// Training settings (`neural.training`). Defaults are the seed's (Adam, batch 256, lr 1e-3
+/// Training settings (`neural.training`). Defaults are those of Laoué's report (Adam, batch 256, lr 1e-3
 /// decayed by 0.9 per epoch, MSE).
 struct NeuralTraining {
   int epochs = 25;              ///< maximum epochs
@@ -24,7 +24,7 @@ struct NeuralTraining {
 };
 
 /// The neural stage. Modes:
-/// - `anomaly`: the seed's networks: predict the reference anomaly (reference - IGRF - diurnal)
+/// - `anomaly`: the networks of Laoué's report: predict the reference anomaly (reference - IGRF - diurnal)
 ///   from the features; compensated = IGRF + diurnal + prediction.
 /// - `residual`: TL fixed, the network predicts what TL leaves (TL-compensated - reference);
 ///   correction = A c + prediction (MagNav.jl's "model 2b" idea).
