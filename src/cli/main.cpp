@@ -47,6 +47,7 @@ int main(int argc, char** argv) {
   magcomp::cli::add_evaluate(app);
   magcomp::cli::add_diagnose(app);
   magcomp::cli::add_convert(app);
+  magcomp::cli::add_info(app);
   app.add_subcommand("train",
                      "train a model's neural stage (runs magcomp_train; see magcomp train --help)");
   return magcomp::cli::run_reporting_errors([&] {

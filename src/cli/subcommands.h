@@ -10,5 +10,6 @@ void add_evaluate(CLI::App& app);
 void add_simulate(CLI::App& app);
 void add_diagnose(CLI::App& app);
 void add_convert(CLI::App& app);
+void add_info(CLI::App& app);
 
 }  // namespace magcomp::cli
