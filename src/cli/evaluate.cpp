@@ -105,6 +105,84 @@ void write_series(const std::string& path, const FlightData& flight, const Model
   write_flight_h5(s, path, inputs);
 }
 
+// The per-line table, the groups, the FOM, the coverage and the total line of one evaluation.
+void print_evaluation(const Evaluation& ev, const Evaluation* base) {
+  std::printf("%-10s %8s %12s %10s %16s %9s%s\n", "line", "n", "rmse_nT", "std_nT",
+              "uncomp_std_nT", "IR", base ? "   baseline_std_nT" : "");
+  for (size_t k = 0; k < ev.per_line.size(); ++k) {
+    const auto& l = ev.per_line[k];
+    std::printf("%-10.2f %8ld %12.3f %10.3f %16.3f %9.1f", l.line, static_cast<long>(l.n),
+                l.rmse_nT, l.std_nT, l.uncompensated_std_nT, l.improvement_ratio);
+    if (base && k < base->per_line.size()) std::printf(" %17.3f", base->per_line[k].std_nT);
+    std::printf("\n");
+  }
+  print_groups("condition", ev.per_condition);
+  print_groups("heading", ev.per_heading);
+  if (ev.nan_samples > 0) {
+    std::printf("\n(%ld samples with NaN in the model inputs or the reference were skipped)\n",
+                static_cast<long>(ev.nan_samples));
+  }
+  if (!ev.fom.signatures.empty()) {
+    std::printf("\nfigure of merit on %s: %zu maneuvers\n", ev.fom.where.c_str(),
+                ev.fom.signatures.size());
+    std::printf("  %-6s %-7s %12s %12s %14s\n", "axis", "heading", "start_tt_s", "p-p_nT",
+                "uncomp_p-p_nT");
+    for (const auto& s : ev.fom.signatures) {
+      std::printf("  %-6s %-7s %12.1f %12.3f %14.3f\n", s.axis.c_str(), s.heading.c_str(),
+                  s.start_tt_s, s.peak_to_peak_nT, s.uncompensated_peak_to_peak_nT);
+    }
+    std::printf("  FOM %.3f nT (uncompensated %.3f nT)\n", ev.fom.fom_nT,
+                ev.fom.uncompensated_fom_nT);
+  }
+  if (std::isfinite(ev.coverage_1sigma)) {
+    std::printf("\nuncertainty: %.1f%% of the errors within 1 sigma, %.1f%% within 2 sigma\n",
+                100 * ev.coverage_1sigma, 100 * ev.coverage_2sigma);
+  }
+  std::printf("\n%-10s %8ld %12.3f %10.3f %16.3f %9.1f", "all", static_cast<long>(ev.n),
+              ev.rmse_nT, ev.std_nT, ev.uncompensated_std_nT, ev.improvement_ratio);
+  if (base) std::printf(" %17.3f", base->std_nT);
+  std::printf("\n");
+}
+
+// One flight: the table, the JSON and the report.
+void evaluate_one(const std::string& data, const Model& model, const Model* baseline_model,
+                  const std::string& model_path, const std::string& baseline_path,
+                  const std::string& truth, const std::string& json_path,
+                  const std::string& report, const std::vector<std::string>& inputs) {
+  const FlightData flight = read_flight(data);
+  const Evaluation ev = evaluate_model(model, flight, truth);
+  std::unique_ptr<Evaluation> base;
+  if (baseline_model)
+    base = std::make_unique<Evaluation>(evaluate_model(*baseline_model, flight, truth));
+  print_evaluation(ev, base.get());
+  nlohmann::json j = to_json(ev);
+  j["data"] = data;
+  j["model"] = model_path;
+  j["truth"] = truth;
+  j["terms"] = model.terms;
+  if (base) {
+    j["baseline"] = to_json(*base);
+    j["baseline"]["model"] = baseline_path;
+  }
+  if (!json_path.empty()) write_file_atomic(json_path, j.dump(2) + "\n", inputs);
+  if (report.empty()) return;
+  struct stat st {};
+  if (::mkdir(report.c_str(), 0755) != 0 &&
+      !(::stat(report.c_str(), &st) == 0 && S_ISDIR(st.st_mode))) {
+    throw Error(report + ": cannot create the report directory");
+  }
+  write_series(report + "/series.h5", flight, model, ev, truth, base.get(), inputs);
+  write_file_atomic(report + "/evaluation.json", j.dump(2) + "\n", inputs);
+  const std::string script = share_dir() + "/scripts/magcomp_report.py";
+  const std::string cmdline = "/usr/bin/python3 '" + script + "' '" + report + "'";
+  if (std::system(cmdline.c_str()) != 0) {
+    std::cerr << "warning: " << script << " failed; the report's data is in " << report
+              << "/series.h5 and evaluation.json\n";
+  } else {
+    std::printf("report: %s/index.html\n", report.c_str());
+  }
+}
+
 }  // namespace
 
 void add_evaluate(CLI::App& app) {
@@ -115,7 +193,7 @@ void add_evaluate(CLI::App& app) {
   auto json_path = std::make_shared<std::string>();
   auto report = std::make_shared<std::string>();
   auto baseline_path = std::make_shared<std::string>();
-  cmd->add_option("--data", *data, "flight HDF5 file")->required();
+  cmd->add_option("--data", *data, "flight HDF5 file(s), comma-separated")->required();
   cmd->add_option("--model", *model_path, "fitted model YAML")->required();
   cmd->add_option("--truth", *truth, "reference field (default mag_1_c)");
   cmd->add_option("--json", *json_path, "write the evaluation JSON here");
@@ -123,81 +201,68 @@ void add_evaluate(CLI::App& app) {
   cmd->add_option("--baseline", *baseline_path,
                   "a second fitted model to compare with (before/after)");
   cmd->callback([=] {
-    std::vector<std::string> inputs = {*data, *model_path};
+    const std::vector<std::string> paths = split_commas(*data);
+    std::vector<std::string> inputs = paths;
+    inputs.push_back(*model_path);
     if (!baseline_path->empty()) inputs.push_back(*baseline_path);
     if (!json_path->empty()) check_output_path(*json_path, inputs);
+    if (paths.size() > 1 && !report->empty()) {
+      throw Error("--report takes one flight (--data holds " + std::to_string(paths.size()) + ")");
+    }
     const Model model = load_model_yaml(*model_path);
     if (!model.fitted()) throw Error(*model_path + ": model has no coefficients; run calibrate");
-    const FlightData flight = read_flight(*data);
-    const Evaluation ev = evaluate_model(model, flight, *truth);
-    std::unique_ptr<Evaluation> base;
+    std::unique_ptr<Model> baseline_model;
     if (!baseline_path->empty()) {
-      const Model b = load_model_yaml(*baseline_path);
-      if (!b.fitted()) throw Error(*baseline_path + ": model has no coefficients; run calibrate");
-      base = std::make_unique<Evaluation>(evaluate_model(b, flight, *truth));
+      baseline_model = std::make_unique<Model>(load_model_yaml(*baseline_path));
+      if (!baseline_model->fitted())
+        throw Error(*baseline_path + ": model has no coefficients; run calibrate");
     }
-    std::printf("%-10s %8s %12s %10s %16s %9s%s\n", "line", "n", "rmse_nT", "std_nT",
-                "uncomp_std_nT", "IR", base ? "   baseline_std_nT" : "");
-    for (size_t k = 0; k < ev.per_line.size(); ++k) {
-      const auto& l = ev.per_line[k];
-      std::printf("%-10.2f %8ld %12.3f %10.3f %16.3f %9.1f", l.line, static_cast<long>(l.n),
-                  l.rmse_nT, l.std_nT, l.uncompensated_std_nT, l.improvement_ratio);
-      if (base && k < base->per_line.size()) std::printf(" %17.3f", base->per_line[k].std_nT);
+    if (paths.size() == 1) {
+      evaluate_one(paths[0], model, baseline_model.get(), *model_path, *baseline_path, *truth,
+                   *json_path, *report, inputs);
+      return;
+    }
+    // Several flights: one at a time (memory is one flight's columns), then pooled.
+    nlohmann::json j;
+    j["flights"] = nlohmann::json::array();
+    double n = 0, sum_sq = 0, sum_var = 0, sum_unc = 0, n_unc = 0;
+    for (const std::string& path : paths) {
+      std::printf("flight %s\n", path.c_str());
+      const FlightData flight = read_flight(path);
+      const Evaluation ev = evaluate_model(model, flight, *truth);
+      std::unique_ptr<Evaluation> base;
+      if (baseline_model)
+        base = std::make_unique<Evaluation>(evaluate_model(*baseline_model, flight, *truth));
+      print_evaluation(ev, base.get());
       std::printf("\n");
-    }
-    print_groups("condition", ev.per_condition);
-    print_groups("heading", ev.per_heading);
-    if (ev.nan_samples > 0) {
-      std::printf("\n(%ld samples with NaN in the model inputs or the reference were skipped)\n",
-                  static_cast<long>(ev.nan_samples));
-    }
-    if (!ev.fom.signatures.empty()) {
-      std::printf("\nfigure of merit on %s: %zu maneuvers\n", ev.fom.where.c_str(),
-                  ev.fom.signatures.size());
-      std::printf("  %-6s %-7s %12s %12s %14s\n", "axis", "heading", "start_tt_s", "p-p_nT",
-                  "uncomp_p-p_nT");
-      for (const auto& s : ev.fom.signatures) {
-        std::printf("  %-6s %-7s %12.1f %12.3f %14.3f\n", s.axis.c_str(), s.heading.c_str(),
-                    s.start_tt_s, s.peak_to_peak_nT, s.uncompensated_peak_to_peak_nT);
+      nlohmann::json f = to_json(ev);
+      f["data"] = path;
+      if (base) f["baseline"] = to_json(*base);
+      j["flights"].push_back(f);
+      const double k = static_cast<double>(ev.n);
+      n += k;
+      sum_sq += ev.rmse_nT * ev.rmse_nT * k;
+      sum_var += ev.std_nT * ev.std_nT * k;
+      if (std::isfinite(ev.uncompensated_std_nT)) {
+        sum_unc += ev.uncompensated_std_nT * ev.uncompensated_std_nT * k;
+        n_unc += k;
       }
-      std::printf("  FOM %.3f nT (uncompensated %.3f nT)\n", ev.fom.fom_nT,
-                  ev.fom.uncompensated_fom_nT);
     }
-    if (std::isfinite(ev.coverage_1sigma)) {
-      std::printf("\nuncertainty: %.1f%% of the errors within 1 sigma, %.1f%% within 2 sigma\n",
-                  100 * ev.coverage_1sigma, 100 * ev.coverage_2sigma);
-    }
-    std::printf("\n%-10s %8ld %12.3f %10.3f %16.3f %9.1f", "all", static_cast<long>(ev.n),
-                ev.rmse_nT, ev.std_nT, ev.uncompensated_std_nT, ev.improvement_ratio);
-    if (base) std::printf(" %17.3f", base->std_nT);
-    std::printf("\n");
-    nlohmann::json j = to_json(ev);
-    j["data"] = *data;
+    const double rmse = std::sqrt(sum_sq / n), std_nT = std::sqrt(sum_var / n);
+    const double unc = n_unc > 0 ? std::sqrt(sum_unc / n_unc) : NAN;
+    std::printf("%-10s %8ld %12.3f %10.3f %16.3f %9.1f   (%zu flights)\n", "all", static_cast<long>(n),
+                rmse, std_nT, unc, unc / std_nT, paths.size());
+    auto num = [](double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(); };
+    j["n"] = static_cast<long>(n);
+    j["rmse_nT"] = rmse;
+    j["std_nT"] = std_nT;
+    j["uncompensated_std_nT"] = num(unc);
+    j["improvement_ratio"] = num(unc / std_nT);
+    j["data"] = paths;
     j["model"] = *model_path;
     j["truth"] = *truth;
     j["terms"] = model.terms;
-    if (base) {
-      j["baseline"] = to_json(*base);
-      j["baseline"]["model"] = *baseline_path;
-    }
     if (!json_path->empty()) write_file_atomic(*json_path, j.dump(2) + "\n", inputs);
-    if (!report->empty()) {
-      struct stat st {};
-      if (::mkdir(report->c_str(), 0755) != 0 &&
-          !(::stat(report->c_str(), &st) == 0 && S_ISDIR(st.st_mode))) {
-        throw Error(*report + ": cannot create the report directory");
-      }
-      write_series(*report + "/series.h5", flight, model, ev, *truth, base.get(), inputs);
-      write_file_atomic(*report + "/evaluation.json", j.dump(2) + "\n", inputs);
-      const std::string script = share_dir() + "/scripts/magcomp_report.py";
-      const std::string cmdline = "/usr/bin/python3 '" + script + "' '" + *report + "'";
-      if (std::system(cmdline.c_str()) != 0) {
-        std::cerr << "warning: " << script << " failed; the report's data is in " << *report
-                  << "/series.h5 and evaluation.json\n";
-      } else {
-        std::printf("report: %s/index.html\n", report->c_str());
-      }
-    }
   });
 }
 

@@ -1,0 +1,76 @@
+// Several flights through the command line: calibrate on all of them, evaluate each in turn and
+// pooled; each flight's numbers equal its own evaluation, the pooled ones their weighted means.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+#include "magcomp/core/sim/simulator.h"
+#include "scenario_cache.h"
+
+namespace magcomp {
+namespace {
+
+nlohmann::json read_json(const std::string& path) {
+  std::ifstream f(path);
+  return nlohmann::json::parse(f);
+}
+
+TEST(SeveralFlights, EvaluateTakesEachFlightInTurnAndPoolsThem) {
+  const std::string dir = test::temp_dir("several_flights");
+  std::vector<std::string> flights;
+  for (unsigned seed : {21u, 22u}) {
+    sim::Scenario s = sim::load_scenario(test::source_dir() + "/config/scenarios/rostest_short.yaml");
+    s.seed = seed;
+    flights.push_back(dir + "/f" + std::to_string(seed) + ".h5");
+    sim::write_simulation(sim::simulate(s), flights.back());
+  }
+  const std::string both = flights[0] + "," + flights[1];
+  std::string out;
+  ASSERT_EQ(test::run(test::cli() + " calibrate --data " + both + " --model " +
+                          test::source_dir() + "/config/models/tl_sim.yaml --out " + dir +
+                          "/m.yaml",
+                      &out),
+            0)
+      << out;
+  ASSERT_EQ(test::run(test::cli() + " evaluate --data " + both + " --model " + dir +
+                          "/m.yaml --json " + dir + "/both.json",
+                      &out),
+            0)
+      << out;
+  EXPECT_NE(out.find("(2 flights)"), std::string::npos) << out;
+  const nlohmann::json pooled = read_json(dir + "/both.json");
+  ASSERT_EQ(pooled["flights"].size(), 2u);
+  double n = 0, var = 0, sq = 0;
+  for (size_t k = 0; k < 2; ++k) {
+    ASSERT_EQ(test::run(test::cli() + " evaluate --data " + flights[k] + " --model " + dir +
+                            "/m.yaml --json " + dir + "/one.json",
+                        &out),
+              0)
+        << out;
+    const nlohmann::json one = read_json(dir + "/one.json");
+    const nlohmann::json& in_pool = pooled["flights"][k];
+    EXPECT_EQ(in_pool["data"], flights[k]);
+    EXPECT_EQ(in_pool["n"], one["n"]);
+    EXPECT_EQ(in_pool["std_nT"], one["std_nT"]);
+    EXPECT_EQ(in_pool["per_line"], one["per_line"]);
+    const double k_n = one["n"].get<double>();
+    n += k_n;
+    var += std::pow(one["std_nT"].get<double>(), 2) * k_n;
+    sq += std::pow(one["rmse_nT"].get<double>(), 2) * k_n;
+  }
+  EXPECT_EQ(pooled["n"].get<double>(), n);
+  EXPECT_NEAR(pooled["std_nT"].get<double>(), std::sqrt(var / n), 1e-12);
+  EXPECT_NEAR(pooled["rmse_nT"].get<double>(), std::sqrt(sq / n), 1e-12);
+  // A report is one flight's.
+  EXPECT_EQ(test::run(test::cli() + " evaluate --data " + both + " --model " + dir +
+                          "/m.yaml --report " + dir + "/r",
+                      &out),
+            2)
+      << out;
+  EXPECT_NE(out.find("--report takes one flight"), std::string::npos) << out;
+}
+
+}  // namespace
+}  // namespace magcomp
