@@ -45,25 +45,21 @@ Eigen::VectorXd FlightData::column_rows(const std::string& name, Eigen::Index fi
     throw Error(source_ + ": field '" + name + "': rows outside the flight");
   }
   const size_t i = it->second;
-  std::shared_ptr<const ColumnLoader> loader;
-  std::string stored;
   {
+    // The read itself under the lock too: the HDF5 library is not thread-safe, and a slice's
+    // loader may read through its parent's.
     std::lock_guard<std::mutex> lock(*load_mutex_);
     Lazy& z = lazy_[i];
     // Up to twice the column in parts (blocks overlap by their margins), then it is loaded.
     if (z.loader && z.loader->reads_rows() && z.rows_read_in_part + count <= 2 * size_) {
       z.rows_read_in_part += count;
-      loader = z.loader;
-      stored = z.stored_name;
+      Eigen::VectorXd v = z.loader->load_rows(z.stored_name, first, count);
+      if (v.size() != count) {
+        throw Error(source_ + ": field '" + names_[i] + "': " + std::to_string(v.size()) +
+                    " samples read, expected " + std::to_string(count));
+      }
+      return v;
     }
-  }
-  if (loader) {
-    Eigen::VectorXd v = loader->load_rows(stored, first, count);
-    if (v.size() != count) {
-      throw Error(source_ + ": field '" + names_[i] + "': " + std::to_string(v.size()) +
-                  " samples read, expected " + std::to_string(count));
-    }
-    return v;
   }
   ensure_loaded(i);
   return columns_[i].segment(first, count);
