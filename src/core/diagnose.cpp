@@ -485,8 +485,10 @@ std::vector<std::string> source_fields(const Model& model, const FlightData& dat
   return out;
 }
 
-Diagnosis diagnose(const Model& model_in, const FlightData& data, const std::string& truth_name,
-                   const DiagnoseOptions& options) {
+namespace {
+
+// The model to diagnose: the reference checked, and a template's free parameters estimated.
+Model prepared_model(const Model& model_in, const FlightData& data, const std::string& truth_name) {
   if (!data.has(truth_name)) {
     throw Error(data.source() + ": reference field '" + truth_name + "' not found");
   }
@@ -494,20 +496,20 @@ Diagnosis diagnose(const Model& model_in, const FlightData& data, const std::str
     throw Error(data.source() + ": reference field '" + truth_name + "' holds no finite sample");
   }
   Model model = model_in;
-  for (const auto& t : model.terms) {  // a template with free parameters: estimate them first
+  for (const auto& t : model.terms) {
     if (t.find('?') != std::string::npos) {
       fit_model(model, {&data});
       break;
     }
   }
-  Diagnosis dx;
-  const Search search(model, data, truth_name, &dx);
-  const std::vector<std::string> sources =
-      source_fields(model, data, truth_name, options.full_search, &dx.notes);
-  std::vector<Job> jobs = make_jobs(model, sources);
-  std::vector<Scored> scored = run_jobs(search, jobs, options.threads);
-  // Products of the strongest sources (their best single form explains something on the
-  // selection lines).
+  return model;
+}
+
+// Products of the strongest sources (their best single form explains more than
+// accept_fraction on the selection lines): at most 4 sources, so 6 products.
+std::vector<Job> product_jobs(const Model& model, const Search& search,
+                              const std::vector<Job>& jobs, const std::vector<Scored>& scored,
+                              double accept_fraction) {
   std::map<std::string, double> best_by_source;
   for (size_t k = 0; k < jobs.size(); ++k) {
     if (!scored[k].ok || jobs[k].channel.empty() || jobs[k].channel == model.scalar) continue;
@@ -516,7 +518,7 @@ Diagnosis diagnose(const Model& model_in, const FlightData& data, const std::str
   }
   std::vector<std::pair<double, std::string>> strongest;
   for (const auto& [ch, v] : best_by_source) {
-    if (v > options.accept_fraction) strongest.emplace_back(v, ch);
+    if (v > accept_fraction) strongest.emplace_back(v, ch);
   }
   std::sort(strongest.rbegin(), strongest.rend());
   if (strongest.size() > 4) strongest.resize(4);
@@ -528,16 +530,16 @@ Diagnosis diagnose(const Model& model_in, const FlightData& data, const std::str
       products.push_back({"field:" + x + "*" + y, "product of two channels", x + "*" + y});
     }
   }
-  if (!products.empty()) {
-    std::vector<Scored> more = run_jobs(search, products, options.threads);
-    jobs.insert(jobs.end(), products.begin(), products.end());
-    scored.insert(scored.end(), more.begin(), more.end());
-  }
-  // Every scored job becomes a candidate.
+  return products;
+}
+
+// Every scored job becomes a candidate (each term once), with its fit counted.
+void add_candidates(const std::vector<Job>& jobs, const std::vector<Scored>& scored,
+                    const Search& search, Diagnosis* dx) {
   std::set<std::string> seen;
   for (size_t k = 0; k < jobs.size(); ++k) {
-    dx.candidates_tried += std::max(scored[k].fits, 1L);
-    if (!scored[k].note.empty()) dx.notes.push_back(scored[k].note);
+    dx->candidates_tried += std::max(scored[k].fits, 1L);
+    if (!scored[k].note.empty()) dx->notes.push_back(scored[k].note);
     if (!scored[k].ok || !seen.insert(scored[k].spec).second) continue;
     const auto term = make_term(scored[k].spec);
     Candidate c;
@@ -553,121 +555,133 @@ Diagnosis diagnose(const Model& model_in, const FlightData& data, const std::str
       c.parameters = e->parameters();
       c.parameters.emplace_back("gain_nT_per_unit", scored[k].coef.norm());
     }
-    dx.candidates.push_back(c);
+    dx->candidates.push_back(c);
   }
-  // The lag, alone; and, when the best candidate so far is a channel's term, together with that
-  // channel's term without a delay of its own: a scalar lag delays the channel's signature too,
-  // and the pair may explain more than the delayed term (round 1 adds the lag, round 2 the term).
-  {
-    double tau = 0;
-    Scored lag = search.lag_candidate(&tau, Eigen::MatrixXd(data.size(), 0));
-    dx.candidates_tried += lag.fits;
-    double lag_pair_share = NAN;
-    std::string partner_note;
-    const Candidate* best = nullptr;
-    for (const auto& c : dx.candidates) {
-      if (!best || c.explained_selection > best->explained_selection) best = &c;
-    }
-    if (best && !best->channel.empty() && best->channel != model.scalar) {
-      std::string partner = best->term;
-      if (const auto e = parse_expr_term(partner)) {
-        SignalExpr sig = e->signal();
-        sig.transforms.erase(std::remove_if(sig.transforms.begin(), sig.transforms.end(),
-                                            [](const Transform& t) {
-                                              return t.kind == TransformKind::Delay;
-                                            }),
-                             sig.transforms.end());
-        partner = ExprTerm(e->projection(), sig).spec();
-        if (sig.transforms.empty() && sig.sources.size() == 1) partner = plain_spec(sig.sources[0]);
-      }
-      double tau2 = 0;
-      const Scored pair = search.lag_candidate(&tau2, search.columns_of(partner));
-      dx.candidates_tried += pair.fits;
-      const double pair_share = share(pair.sel, search.base_std[0]);
-      if (pair.ok && pair_share > best->explained_selection + 0.01) {
-        lag = search.lag_at(tau2, Eigen::MatrixXd(data.size(), 0));  // the lag by itself there
-        tau = tau2;
-        char buf[160];
-        std::snprintf(buf, sizeof(buf), "; with %s next: %.1f%% together", partner.c_str(),
-                      100 * pair_share);
-        partner_note = buf;
-        lag_pair_share = pair_share;
-      }
-    }
-    if (lag.ok) {
-      const auto term = make_term("lag:" + std::to_string(tau));
-      Candidate c;
-      c.term = term->spec();
-      c.effect = term->effect();
-      c.family = "scalar lag";
-      c.std_after_nT = lag.held;
-      c.explained_selection = share(lag.sel, search.base_std[0]);
-      c.explained_confirmation = share(lag.conf, search.base_std[1]);
-      std::ostringstream est;
-      est.precision(3);
-      est << "scalar late by " << tau << " s";
-      if (model.scalar_lag_s() != 0.0) est << " (model: " << model.scalar_lag_s() << ")";
-      c.estimate = est.str() + partner_note;
-      c.parameters = {{"lag_s", tau}};
-      c.ranking_share = std::isfinite(lag_pair_share) ? lag_pair_share : c.explained_selection;
-      dx.candidates.push_back(c);
+}
+
+// A channel's term without a delay of its own (the partner a scalar lag is judged with).
+std::string undelayed(const std::string& term) {
+  const auto e = parse_expr_term(term);
+  if (!e) return term;
+  SignalExpr sig = e->signal();
+  sig.transforms.erase(
+      std::remove_if(sig.transforms.begin(), sig.transforms.end(),
+                     [](const Transform& t) { return t.kind == TransformKind::Delay; }),
+      sig.transforms.end());
+  if (sig.transforms.empty() && sig.sources.size() == 1) return plain_spec(sig.sources[0]);
+  return ExprTerm(e->projection(), sig).spec();
+}
+
+// The lag, alone; and, when the best candidate so far is a channel's term, together with that
+// channel's term without a delay of its own: a scalar lag delays the channel's signature too,
+// and the pair may explain more than the delayed term (round 1 adds the lag, round 2 the term).
+void add_lag_candidate(const Model& model, const FlightData& data, const Search& search,
+                       Diagnosis* dx) {
+  double tau = 0;
+  Scored lag = search.lag_candidate(&tau, Eigen::MatrixXd(data.size(), 0));
+  dx->candidates_tried += lag.fits;
+  double lag_pair_share = NAN;
+  std::string partner_note;
+  const Candidate* best = nullptr;
+  for (const auto& c : dx->candidates) {
+    if (!best || c.explained_selection > best->explained_selection) best = &c;
+  }
+  if (best && !best->channel.empty() && best->channel != model.scalar) {
+    const std::string partner = undelayed(best->term);
+    double tau2 = 0;
+    const Scored pair = search.lag_candidate(&tau2, search.columns_of(partner));
+    dx->candidates_tried += pair.fits;
+    const double pair_share = share(pair.sel, search.base_std[0]);
+    if (pair.ok && pair_share > best->explained_selection + 0.01) {
+      lag = search.lag_at(tau2, Eigen::MatrixXd(data.size(), 0));  // the lag by itself there
+      tau = tau2;
+      char buf[160];
+      std::snprintf(buf, sizeof(buf), "; with %s next: %.1f%% together", partner.c_str(),
+                    100 * pair_share);
+      partner_note = buf;
+      lag_pair_share = pair_share;
     }
   }
-  for (auto& c : dx.candidates) {
+  if (!lag.ok) return;
+  const auto term = make_term("lag:" + std::to_string(tau));
+  Candidate c;
+  c.term = term->spec();
+  c.effect = term->effect();
+  c.family = "scalar lag";
+  c.std_after_nT = lag.held;
+  c.explained_selection = share(lag.sel, search.base_std[0]);
+  c.explained_confirmation = share(lag.conf, search.base_std[1]);
+  std::ostringstream est;
+  est.precision(3);
+  est << "scalar late by " << tau << " s";
+  if (model.scalar_lag_s() != 0.0) est << " (model: " << model.scalar_lag_s() << ")";
+  c.estimate = est.str() + partner_note;
+  c.parameters = {{"lag_s", tau}};
+  c.ranking_share = std::isfinite(lag_pair_share) ? lag_pair_share : c.explained_selection;
+  dx->candidates.push_back(c);
+}
+
+// Acceptance on both halves, then the ranking: accepted first, by their share on the selection
+// lines; among the accepted within one percentage point of the best, the simplest first
+// (nrml_acc before nrml_acc*vol_res_p).
+void judge_and_rank(const Search& search, const DiagnoseOptions& options,
+                    std::vector<Candidate>* candidates) {
+  for (auto& c : *candidates) {
     if (!std::isfinite(c.ranking_share)) c.ranking_share = c.explained_selection;
     c.explained_fraction = std::min(c.explained_selection, c.explained_confirmation);
     // The std it removes on each split, nT.
-    const double gain_sel = search.base_std[0] * (1 - std::sqrt(std::max(0.0, 1 - c.explained_selection)));
+    const double gain_sel =
+        search.base_std[0] * (1 - std::sqrt(std::max(0.0, 1 - c.explained_selection)));
     const double gain_conf =
         search.base_std[1] * (1 - std::sqrt(std::max(0.0, 1 - c.explained_confirmation)));
     c.accepted = c.explained_selection >= options.accept_fraction &&
                  c.explained_confirmation >= options.accept_fraction &&
                  gain_sel >= options.resolution_nT && gain_conf >= options.resolution_nT;
   }
-  std::stable_sort(dx.candidates.begin(), dx.candidates.end(),
+  std::stable_sort(candidates->begin(), candidates->end(),
                    [](const Candidate& a, const Candidate& b) {
                      if (a.accepted != b.accepted) return a.accepted;
                      return a.ranking_share > b.ranking_share;
                    });
-  // Parsimony: among the accepted candidates within one percentage point of the best on the
-  // selection lines, the simplest comes first (nrml_acc before nrml_acc*vol_res_p).
-  if (!dx.candidates.empty() && dx.candidates.front().accepted) {
-    const double best = dx.candidates.front().ranking_share;
-    size_t pick = 0;
-    for (size_t k = 1; k < dx.candidates.size(); ++k) {
-      const Candidate& c = dx.candidates[k];
-      if (!c.accepted || c.ranking_share < best - 0.01) break;
-      if (complexity(c.term) < complexity(dx.candidates[pick].term)) pick = k;
-    }
-    std::rotate(dx.candidates.begin(), dx.candidates.begin() + static_cast<long>(pick),
-                dx.candidates.begin() + static_cast<long>(pick) + 1);
+  if (candidates->empty() || !candidates->front().accepted) return;
+  const double best = candidates->front().ranking_share;
+  size_t pick = 0;
+  for (size_t k = 1; k < candidates->size(); ++k) {
+    const Candidate& c = (*candidates)[k];
+    if (!c.accepted || c.ranking_share < best - 0.01) break;
+    if (complexity(c.term) < complexity((*candidates)[pick].term)) pick = k;
   }
-  // --- What remains: the base residual on the held-out lines against a flexible model.
-  std::vector<Eigen::Index> held = search.held;
-  dx.associations = residual_associations(data, held, search.e0, search.line, truth_name);
-  if (options.explainable_share) {
-    Eigen::VectorXd r = Eigen::VectorXd::Constant(data.size(), NAN);
-    std::map<double, std::pair<double, double>> mean;
-    for (Eigen::Index i : held) {
-      auto& m = mean[search.line[i]];
-      m.first += search.e0[i];
-      m.second += 1;
-    }
-    for (Eigen::Index i : held) {
-      const auto& m = mean[search.line[i]];
-      r[i] = search.e0[i] - m.first / m.second;
-    }
-    std::vector<std::pair<std::string, const Eigen::VectorXd*>> channels;
-    for (const auto& s : sources) channels.emplace_back(s, &data.column(s));
-    dx.explainable = explainable_share(r, search.unit, search.line, data.tt(),
-                                       search.inputs.direction, channels);
-    // A predictable remainder below the resolution is noise for every practical purpose.
-    ExplainableShare& x = dx.explainable;
-    if (std::sqrt(std::max(0.0, x.share)) * dx.baseline_std_nT < options.resolution_nT) {
-      x.within_noise = true;
-    }
+  std::rotate(candidates->begin(), candidates->begin() + static_cast<long>(pick),
+              candidates->begin() + static_cast<long>(pick) + 1);
+}
+
+// What remains: the base residual on the held-out lines (each line's mean removed) against a
+// flexible model of the source channels.
+ExplainableShare remaining_share(const FlightData& data, const Search& search,
+                                 const std::vector<std::string>& sources, double baseline_std_nT,
+                                 double resolution_nT) {
+  Eigen::VectorXd r = Eigen::VectorXd::Constant(data.size(), NAN);
+  std::map<double, std::pair<double, double>> mean;
+  for (Eigen::Index i : search.held) {
+    auto& m = mean[search.line[i]];
+    m.first += search.e0[i];
+    m.second += 1;
   }
-  // --- The verdict.
+  for (Eigen::Index i : search.held) {
+    const auto& m = mean[search.line[i]];
+    r[i] = search.e0[i] - m.first / m.second;
+  }
+  std::vector<std::pair<std::string, const Eigen::VectorXd*>> channels;
+  for (const auto& s : sources) channels.emplace_back(s, &data.column(s));
+  ExplainableShare x =
+      explainable_share(r, search.unit, search.line, data.tt(), search.inputs.direction, channels);
+  // A predictable remainder below the resolution is noise for every practical purpose.
+  if (std::sqrt(std::max(0.0, x.share)) * baseline_std_nT < resolution_nT) x.within_noise = true;
+  return x;
+}
+
+// The verdict: add the top term, or say that structure remains (and where), or complete.
+std::string verdict_of(const Diagnosis& dx, double resolution_nT) {
   char buf[512];
   const ExplainableShare& x = dx.explainable;
   if (!dx.candidates.empty() && dx.candidates.front().accepted &&
@@ -677,8 +691,9 @@ Diagnosis diagnose(const Model& model_in, const FlightData& data, const std::str
                   "add %s: it explains %.1f%% of the held-out error on the selection lines and "
                   "%.1f%% on the confirmation lines",
                   c.term.c_str(), 100 * c.explained_selection, 100 * c.explained_confirmation);
-    dx.verdict = buf;
-  } else if (x.computed && !x.within_noise) {
+    return buf;
+  }
+  if (x.computed && !x.within_noise) {
     std::string chans;
     for (size_t k = 0; k < x.channels.size() && k < 3; ++k) {
       if (x.channels[k].second <= 0) break;
@@ -689,17 +704,46 @@ Diagnosis diagnose(const Model& model_in, const FlightData& data, const std::str
                   "(noise floor %.1f%%), mostly from %s, and no term of the search explains it",
                   100 * x.share, 100 * x.uncertainty, 100 * x.noise_floor,
                   chans.empty() ? "no single channel" : chans.c_str());
-    dx.verdict = buf;
-  } else if (x.computed) {
+    return buf;
+  }
+  if (x.computed) {
     std::snprintf(buf, sizeof(buf),
                   "complete: what remains is within noise (predictable share %.1f%% ± %.1f%%, "
                   "noise floor %.1f%%; predictable part %.3f nT rms, resolution %.3f nT)",
                   100 * x.share, 100 * x.uncertainty, 100 * x.noise_floor,
-                  std::sqrt(x.share) * dx.baseline_std_nT, options.resolution_nT);
-    dx.verdict = buf;
-  } else {
-    dx.verdict = "no candidate explains 5 % on both halves (the explainable share was not computed)";
+                  std::sqrt(x.share) * dx.baseline_std_nT, resolution_nT);
+    return buf;
   }
+  return "no candidate explains 5 % on both halves (the explainable share was not computed)";
+}
+
+}  // namespace
+
+Diagnosis diagnose(const Model& model_in, const FlightData& data, const std::string& truth_name,
+                   const DiagnoseOptions& options) {
+  const Model model = prepared_model(model_in, data, truth_name);
+  Diagnosis dx;
+  const Search search(model, data, truth_name, &dx);
+  const std::vector<std::string> sources =
+      source_fields(model, data, truth_name, options.full_search, &dx.notes);
+  std::vector<Job> jobs = make_jobs(model, sources);
+  std::vector<Scored> scored = run_jobs(search, jobs, options.threads);
+  const std::vector<Job> products =
+      product_jobs(model, search, jobs, scored, options.accept_fraction);
+  if (!products.empty()) {
+    std::vector<Scored> more = run_jobs(search, products, options.threads);
+    jobs.insert(jobs.end(), products.begin(), products.end());
+    scored.insert(scored.end(), more.begin(), more.end());
+  }
+  add_candidates(jobs, scored, search, &dx);
+  add_lag_candidate(model, data, search, &dx);
+  judge_and_rank(search, options, &dx.candidates);
+  dx.associations = residual_associations(data, search.held, search.e0, search.line, truth_name);
+  if (options.explainable_share) {
+    dx.explainable =
+        remaining_share(data, search, sources, dx.baseline_std_nT, options.resolution_nT);
+  }
+  dx.verdict = verdict_of(dx, options.resolution_nT);
   return dx;
 }
 

@@ -170,11 +170,12 @@ Ranked rank_and_combine(const Problem& p, const std::vector<Eigen::MatrixXd>& fu
 
 }  // namespace
 
-ExplainableShare explainable_share(
-    const Eigen::VectorXd& residual, const std::vector<int>& unit, const Eigen::VectorXd& line,
-    const Eigen::VectorXd& t_s, const Eigen::MatrixX3d& direction,
-    const std::vector<std::pair<std::string, const Eigen::VectorXd*>>& channels) {
-  ExplainableShare out;
+namespace {
+
+// The held-out rows of each fold (every kStride-th of them for the fit), the units renumbered;
+// rows with a NaN residual or direction are left out.
+Problem make_problem(const Eigen::VectorXd& residual, const std::vector<int>& unit,
+                     const Eigen::MatrixX3d& direction) {
   Problem p;
   p.residual = &residual;
   p.direction = &direction;
@@ -192,6 +193,76 @@ ExplainableShare explainable_share(
     p.all_rows[f].push_back(i);
     if (counter[f]++ % kStride == 0) p.rows[f].push_back(i);
   }
+  return p;
+}
+
+// The share's own spread: a bootstrap (200 draws, fixed seed) over the held-out units.
+double bootstrap_sd(const Ranked& r, int units) {
+  if (r.unit_sse.empty()) return 0;
+  std::vector<double> boot;
+  unsigned state = 12345u;
+  for (int b = 0; b < 200; ++b) {
+    double e = 0, t = 0;
+    for (int k = 0; k < units; ++k) {
+      state = state * 1664525u + 1013904223u;
+      const auto u = static_cast<size_t>(state % static_cast<unsigned>(units));
+      e += r.unit_sse[u];
+      t += r.unit_sst[u];
+    }
+    boot.push_back(t > 0 ? std::max(0.0, 1.0 - e / t) : 0.0);
+  }
+  double m = 0, v = 0;
+  for (double x : boot) m += x / boot.size();
+  for (double x : boot) v += (x - m) * (x - m) / (boot.size() - 1);
+  return std::sqrt(v);
+}
+
+// Where the predicted part sits: by time scale (low-passes along the held-out samples in time
+// order) and by line.
+void locate_prediction(const Eigen::VectorXd& prediction, const Eigen::VectorXd& t_s,
+                       const Eigen::VectorXd& line, ExplainableShare* out) {
+  const Eigen::Index n = prediction.size();
+  std::vector<Eigen::Index> rows;
+  for (Eigen::Index i = 0; i < n; ++i) {
+    if (std::isfinite(prediction[i])) rows.push_back(i);
+  }
+  if (rows.size() > 10 && out->share > 0) {
+    Eigen::VectorXd t(static_cast<Eigen::Index>(rows.size())), x(t.size());
+    for (size_t k = 0; k < rows.size(); ++k) {
+      t[static_cast<Eigen::Index>(k)] = t_s[rows[k]];
+      x[static_cast<Eigen::Index>(k)] = prediction[rows[k]];
+    }
+    const Eigen::VectorXd slow = apply_transforms({{TransformKind::LowPass, 100.0, false}}, t, x);
+    const Eigen::VectorXd mid =
+        apply_transforms({{TransformKind::LowPass, 10.0, false}}, t, x) - slow;
+    const Eigen::VectorXd fast = x - slow - mid;
+    const double total = slow.squaredNorm() + mid.squaredNorm() + fast.squaredNorm();
+    if (total > 0) {
+      out->time_scales = {{"slower than 100 s", slow.squaredNorm() / total},
+                          {"10-100 s", mid.squaredNorm() / total},
+                          {"faster than 10 s", fast.squaredNorm() / total}};
+    }
+    std::map<double, double> by_line;
+    double all = 0;
+    for (size_t k = 0; k < rows.size(); ++k) {
+      const double v = x[static_cast<Eigen::Index>(k)] * x[static_cast<Eigen::Index>(k)];
+      by_line[line[rows[k]]] += v;
+      all += v;
+    }
+    for (const auto& [l, v] : by_line) out->lines.emplace_back(l, all > 0 ? v / all : 0.0);
+    std::sort(out->lines.begin(), out->lines.end(),
+              [](const auto& a, const auto& b) { return a.second > b.second; });
+  }
+}
+
+}  // namespace
+
+ExplainableShare explainable_share(
+    const Eigen::VectorXd& residual, const std::vector<int>& unit, const Eigen::VectorXd& line,
+    const Eigen::VectorXd& t_s, const Eigen::MatrixX3d& direction,
+    const std::vector<std::pair<std::string, const Eigen::VectorXd*>>& channels) {
+  ExplainableShare out;
+  const Problem p = make_problem(residual, unit, direction);
   int filled = 0;
   for (const auto& r : p.rows) filled += r.size() >= 20;
   if (filled < 2 || channels.empty()) return out;
@@ -219,65 +290,14 @@ ExplainableShare explainable_share(
   out.computed = true;
   out.share = r.combined;
   out.noise_floor = std::max({mean + 2 * sd, mx, 0.01});
-  // The share's own spread: a bootstrap over the held-out units (lines, or contiguous pieces).
-  double boot_sd = 0;
-  if (!r.unit_sse.empty()) {
-    std::vector<double> boot;
-    unsigned state = 12345u;
-    for (int b = 0; b < 200; ++b) {
-      double e = 0, t = 0;
-      for (int k = 0; k < p.units; ++k) {
-        state = state * 1664525u + 1013904223u;
-        const auto u = static_cast<size_t>(state % static_cast<unsigned>(p.units));
-        e += r.unit_sse[u];
-        t += r.unit_sst[u];
-      }
-      boot.push_back(t > 0 ? std::max(0.0, 1.0 - e / t) : 0.0);
-    }
-    double m = 0, v = 0;
-    for (double x : boot) m += x / boot.size();
-    for (double x : boot) v += (x - m) * (x - m) / (boot.size() - 1);
-    boot_sd = std::sqrt(v);
-  }
+  const double boot_sd = bootstrap_sd(r, p.units);
   out.uncertainty = std::sqrt(sd * sd + boot_sd * boot_sd);
   out.within_noise = out.share <= out.noise_floor;
   for (const auto& [share, k] : r.by_share) {
     if (out.channels.size() >= 8) break;
     out.channels.emplace_back(channels[k].first, share);
   }
-  // Where the predicted part sits: by time scale (low-passes along the held-out samples in time
-  // order) and by line.
-  std::vector<Eigen::Index> rows;
-  for (Eigen::Index i = 0; i < p.n; ++i) {
-    if (std::isfinite(prediction[i])) rows.push_back(i);
-  }
-  if (rows.size() > 10 && out.share > 0) {
-    Eigen::VectorXd t(static_cast<Eigen::Index>(rows.size())), x(t.size());
-    for (size_t k = 0; k < rows.size(); ++k) {
-      t[static_cast<Eigen::Index>(k)] = t_s[rows[k]];
-      x[static_cast<Eigen::Index>(k)] = prediction[rows[k]];
-    }
-    const Eigen::VectorXd slow = apply_transforms({{TransformKind::LowPass, 100.0, false}}, t, x);
-    const Eigen::VectorXd mid =
-        apply_transforms({{TransformKind::LowPass, 10.0, false}}, t, x) - slow;
-    const Eigen::VectorXd fast = x - slow - mid;
-    const double total = slow.squaredNorm() + mid.squaredNorm() + fast.squaredNorm();
-    if (total > 0) {
-      out.time_scales = {{"slower than 100 s", slow.squaredNorm() / total},
-                         {"10-100 s", mid.squaredNorm() / total},
-                         {"faster than 10 s", fast.squaredNorm() / total}};
-    }
-    std::map<double, double> by_line;
-    double all = 0;
-    for (size_t k = 0; k < rows.size(); ++k) {
-      const double v = x[static_cast<Eigen::Index>(k)] * x[static_cast<Eigen::Index>(k)];
-      by_line[line[rows[k]]] += v;
-      all += v;
-    }
-    for (const auto& [l, v] : by_line) out.lines.emplace_back(l, all > 0 ? v / all : 0.0);
-    std::sort(out.lines.begin(), out.lines.end(),
-              [](const auto& a, const auto& b) { return a.second > b.second; });
-  }
+  locate_prediction(prediction, t_s, line, &out);
   return out;
 }
 

@@ -245,6 +245,89 @@ hsize_t element_count(const Dataset& d) {
 
 }  // namespace
 
+namespace {
+
+// The file's series: every dataset of numbers with more than one sample, as 1-D datasets.
+// Groups, named types, datasets of other types and scalars are left out with a note
+// (`N` and `dt` silently: they are derived from tt).
+std::vector<Dataset> series_of(hid_t file_id, const std::string& path,
+                               const std::vector<std::string>& names, FlightData* data) {
+  std::vector<Dataset> series;
+  for (const std::string& name : names) {
+    H5O_info_t info;
+    if (H5Oget_info_by_name2(file_id, name.c_str(), &info, H5O_INFO_BASIC, H5P_DEFAULT) < 0) {
+      throw Error(path + ": field '" + name + "' cannot be read (corrupt object header)");
+    }
+    if (info.type != H5O_TYPE_DATASET) {
+      data->add_read_note(path + ": '" + name + "' is a " +
+                          (info.type == H5O_TYPE_GROUP ? "group" : "named type") +
+                          ", not a dataset of the flight schema; left out");
+      continue;
+    }
+    std::string why;
+    Dataset d = open_dataset(file_id, path, name, &why);
+    if (!d.numeric) {
+      data->add_read_note(path + ": field '" + name + "' is a " + why +
+                          " dataset; the flight schema holds numbers only; left out");
+      continue;
+    }
+    const bool scalar = d.dims.empty() || (d.dims.size() == 1 && d.dims[0] == 1 &&
+                                           (name == "N" || name == "dt"));
+    if (scalar) {  // `N`, `dt`: derived from tt instead (dt is wrong in some files)
+      if (name != "N" && name != "dt") {
+        data->add_read_note(path + ": field '" + name + "' is a scalar, not a series; left out");
+      }
+      continue;
+    }
+    if (d.dims.size() != 1) {
+      if (d.dims.size() == 2 && (d.dims[0] == 1 || d.dims[1] == 1)) {
+        d.dims = {d.dims[0] * d.dims[1]};
+      } else {
+        throw Error(path + ": field '" + name + "' has rank " + std::to_string(d.dims.size()) +
+                    ", expected a 1-D dataset");
+      }
+    }
+    series.push_back(std::move(d));
+  }
+
+  return series;
+}
+
+// A time base with a NaN or Inf cannot place its samples: refused, naming the first.
+void require_finite_tt(const std::string& path, const std::vector<double>& t) {
+  size_t bad = 0, first = t.size();
+  for (size_t k = 0; k < t.size(); ++k) {
+    if (!std::isfinite(t[k])) {
+      if (!bad++) first = k;
+    }
+  }
+  if (bad) {
+    throw Error(path + ": field 'tt' has " + std::to_string(bad) + " non-finite value(s) (" +
+                (std::isnan(t[first]) ? "NaN" : "Inf") + " at sample " + std::to_string(first) +
+                "); samples without a time cannot be placed");
+  }
+}
+
+// Every series but tt declared to `data`, read on first use through `loader`; of two
+// generations of a name, the final one.
+void declare_lazy_columns(const std::vector<Dataset>& series, const std::string& path,
+                          const std::shared_ptr<H5ColumnLoader>& loader, FlightData* data) {
+  for (const Dataset& d : series) {
+    if (d.name == "tt") continue;
+    const std::string canonical = FlightData::canonical_name(d.name);
+    // When both generations are present, the final name wins.
+    if (canonical != d.name && std::any_of(series.begin(), series.end(),
+                                           [&](const Dataset& e) { return e.name == canonical; })) {
+      data->add_read_note(path + ": field '" + d.name + "' is the older name of '" + canonical +
+                          "', which the file also holds; '" + canonical + "' is used");
+      continue;
+    }
+    data->set_lazy(canonical, d.name, loader);
+  }
+}
+
+}  // namespace
+
 FlightData read_flight_h5(const std::string& path) {
   H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
   hsize_t file_bytes = 0;
@@ -268,43 +351,7 @@ FlightData read_flight_h5(const std::string& path) {
   }
   FlightData data;
   data.set_source(path);
-  std::vector<Dataset> series;
-  for (const std::string& name : names) {
-    H5O_info_t info;
-    if (H5Oget_info_by_name2(file.id, name.c_str(), &info, H5O_INFO_BASIC, H5P_DEFAULT) < 0) {
-      throw Error(path + ": field '" + name + "' cannot be read (corrupt object header)");
-    }
-    if (info.type != H5O_TYPE_DATASET) {
-      data.add_read_note(path + ": '" + name + "' is a " +
-                       (info.type == H5O_TYPE_GROUP ? "group" : "named type") +
-                       ", not a dataset of the flight schema; left out");
-      continue;
-    }
-    std::string why;
-    Dataset d = open_dataset(file.id, path, name, &why);
-    if (!d.numeric) {
-      data.add_read_note(path + ": field '" + name + "' is a " + why +
-                       " dataset; the flight schema holds numbers only; left out");
-      continue;
-    }
-    const bool scalar = d.dims.empty() || (d.dims.size() == 1 && d.dims[0] == 1 &&
-                                           (name == "N" || name == "dt"));
-    if (scalar) {  // `N`, `dt`: derived from tt instead (dt is wrong in some files)
-      if (name != "N" && name != "dt") {
-        data.add_read_note(path + ": field '" + name + "' is a scalar, not a series; left out");
-      }
-      continue;
-    }
-    if (d.dims.size() != 1) {
-      if (d.dims.size() == 2 && (d.dims[0] == 1 || d.dims[1] == 1)) {
-        d.dims = {d.dims[0] * d.dims[1]};
-      } else {
-        throw Error(path + ": field '" + name + "' has rank " + std::to_string(d.dims.size()) +
-                    ", expected a 1-D dataset");
-      }
-    }
-    series.push_back(std::move(d));
-  }
+  std::vector<Dataset> series = series_of(file.id, path, names, &data);
 
   auto tt_it =
       std::find_if(series.begin(), series.end(), [](const Dataset& d) { return d.name == "tt"; });
@@ -321,19 +368,7 @@ FlightData read_flight_h5(const std::string& path) {
   read_values(file.id, path, *tt_it, n_declared, file_bytes);
   const size_t n = tt_it->values.size();
   const std::vector<double>& t = tt_it->values;
-  {
-    size_t bad = 0, first = n;
-    for (size_t k = 0; k < n; ++k) {
-      if (!std::isfinite(t[k])) {
-        if (!bad++) first = k;
-      }
-    }
-    if (bad) {
-      throw Error(path + ": field 'tt' has " + std::to_string(bad) + " non-finite value(s) (" +
-                  (std::isnan(t[first]) ? "NaN" : "Inf") + " at sample " + std::to_string(first) +
-                  "); samples without a time cannot be placed");
-    }
-  }
+  require_finite_tt(path, t);
   // Sort by tt (stable), as DATA.md prescribes.
   std::vector<size_t> order(n);
   std::iota(order.begin(), order.end(), 0);
@@ -353,19 +388,7 @@ FlightData read_flight_h5(const std::string& path) {
   auto loader = std::make_shared<H5ColumnLoader>(file_id, path,
                                                  sorted ? std::vector<size_t>() : order,
                                                  n_declared, file_bytes);
-  for (const Dataset& d : series) {
-    if (d.name == "tt") continue;
-    const std::string canonical = FlightData::canonical_name(d.name);
-    // When both generations are present, the final name wins.
-    if (canonical != d.name && std::any_of(series.begin(), series.end(), [&](const Dataset& e) {
-          return e.name == canonical;
-        })) {
-      data.add_read_note(path + ": field '" + d.name + "' is the older name of '" + canonical +
-                         "', which the file also holds; '" + canonical + "' is used");
-      continue;
-    }
-    data.set_lazy(canonical, d.name, loader);
-  }
+  declare_lazy_columns(series, path, loader, &data);
   if (n > 1) {
     const double dt = data.dt_s();
     if (!(dt >= 1e-6)) {

@@ -259,51 +259,60 @@ Eigen::VectorXd fit_target(const Model& model, const FlightData& data) {
   return y;
 }
 
-void fit_model(Model& model, const std::vector<const FlightData*>& flights) {
-  if (flights.empty()) throw Error("fit: no flight given");
-  {
-    const auto terms = model.make_terms();
-    Eigen::Index fittable = 0;
-    std::string list;
-    for (const auto& t : terms) {
-      if (model.fit.method != "bandpass" || t->bandpass_observable()) fittable += t->columns();
-      list += (list.empty() ? "" : ", ") + t->spec();
-    }
-    if (fittable == 0) {
-      throw Error("fit: the model has no column to fit (terms: [" + list + "]" +
-                  (model.fit.method == "bandpass" ? "; a band-pass fit cannot fit bias, and a lag "
-                                                    "is not a column"
-                                                  : "; a lag is not a column") +
-                  "): add a term, e.g. permanent, induced, eddy");
-    }
-  }
-  const std::vector<std::string> estimates = estimate_free_parameters(model, flights);
-  const FitSettings& s = model.fit;
-  const bool bandpass = s.method == "bandpass";
+namespace {
+
+// A model with no column the fit method can fit is refused, naming its terms.
+void require_fittable_column(const Model& model) {
   const auto terms = model.make_terms();
-  std::vector<bool> keep;  // columns the method can fit
+  Eigen::Index fittable = 0;
+  std::string list;
   for (const auto& t : terms) {
-    for (size_t k = 0; k < t->column_names().size(); ++k) {
-      keep.push_back(!bandpass || t->bandpass_observable());
-    }
+    if (model.fit.method != "bandpass" || t->bandpass_observable()) fittable += t->columns();
+    list += (list.empty() ? "" : ", ") + t->spec();
   }
-  std::vector<Eigen::MatrixXd> blocks_a;
-  std::vector<Eigen::VectorXd> blocks_y;
-  FitReport report;
-  std::string sources;
+  if (fittable == 0) {
+    throw Error("fit: the model has no column to fit (terms: [" + list + "]" +
+                (model.fit.method == "bandpass" ? "; a band-pass fit cannot fit bias, and a lag "
+                                                  "is not a column"
+                                                : "; a lag is not a column") +
+                "): add a term, e.g. permanent, induced, eddy");
+  }
+}
+
+// The calibration rows of every flight, filtered as the method wants: one block of design rows
+// and targets per contiguous run of calibration samples.
+struct CalibrationBlocks {
+  std::vector<Eigen::MatrixXd> a;
+  std::vector<Eigen::VectorXd> y;
+  Eigen::Index rows = 0;
+};
+
+// The blocks of one run of a flight (or part of one) whose design `a` and target `y` are built.
+void add_runs(const FitSettings& s, double dt_s, const Eigen::MatrixXd& a, const Eigen::VectorXd& y,
+              const std::vector<std::pair<Eigen::Index, Eigen::Index>>& runs,
+              CalibrationBlocks* blocks, FitReport* report) {
+  if (runs.empty()) return;
+  blocks->a.push_back(stack_runs(s, dt_s, a, runs));
+  blocks->y.push_back(stack_runs(s, dt_s, y, runs).col(0));
+  blocks->rows += blocks->y.back().size();
+  report->segments += static_cast<int>(runs.size());
+}
+
+CalibrationBlocks calibration_blocks(const Model& model,
+                                     const std::vector<std::unique_ptr<Term>>& terms,
+                                     const std::vector<const FlightData*>& flights,
+                                     FitReport* report) {
+  const FitSettings& s = model.fit;
+  CalibrationBlocks blocks;
   for (const FlightData* flight : flights) {
     const FlightData& data = *flight;
-    sources += (sources.empty() ? "" : ",") + data.source();
     const Eigen::Index margin =
         data.size() > 1 ? slice_margin(model, terms, data.dt_s()) : Eigen::Index(-1);
     if (margin < 0 || (s.lines.empty() && s.windows.empty())) {
       const Eigen::MatrixXd a = design_matrix(model, terms, data);
       const Eigen::VectorXd y = fit_target(model, data);
-      const auto runs = calibration_runs(s, data, a, y, &report.warnings);
-      if (runs.empty()) continue;
-      blocks_a.push_back(stack_runs(s, data.dt_s(), a, runs));
-      blocks_y.push_back(stack_runs(s, data.dt_s(), y, runs).col(0));
-      report.segments += static_cast<int>(runs.size());
+      add_runs(s, data.dt_s(), a, y, calibration_runs(s, data, a, y, &report->warnings), &blocks,
+               report);
       continue;
     }
     // Only the calibration segments (and a margin) are built: the same rows as on the whole
@@ -317,15 +326,112 @@ void fit_model(Model& model, const std::vector<const FlightData*>& flights) {
       const Eigen::VectorXd y = fit_target(model, part);
       std::vector<Eigen::Index> rows(static_cast<size_t>(last - first + 1));
       for (size_t k = 0; k < rows.size(); ++k) rows[k] = first - lo + static_cast<Eigen::Index>(k);
-      const auto runs = calibration_runs(s, part, std::move(rows), a, y, &report.warnings);
-      if (runs.empty()) continue;
-      blocks_a.push_back(stack_runs(s, data.dt_s(), a, runs));
-      blocks_y.push_back(stack_runs(s, data.dt_s(), y, runs).col(0));
-      report.segments += static_cast<int>(runs.size());
+      add_runs(s, data.dt_s(), a, y,
+               calibration_runs(s, part, std::move(rows), a, y, &report->warnings), &blocks,
+               report);
     }
   }
-  Eigen::Index rows = 0;
-  for (const auto& b : blocks_y) rows += b.size();
+  return blocks;
+}
+
+// The blocks stacked into one system, keeping the columns in `keep` (no copy for one block of
+// every column).
+void stack_blocks(CalibrationBlocks* blocks, const std::vector<bool>& keep, Eigen::MatrixXd* a,
+                  Eigen::VectorXd* y) {
+  const Eigen::Index p = static_cast<Eigen::Index>(keep.size());
+  const Eigen::Index fitted_cols = std::count(keep.begin(), keep.end(), true);
+  if (blocks->a.size() == 1 && fitted_cols == p) {
+    *a = std::move(blocks->a[0]);
+    *y = std::move(blocks->y[0]);
+    return;
+  }
+  a->resize(blocks->rows, fitted_cols);
+  y->resize(blocks->rows);
+  Eigen::Index r = 0;
+  for (size_t b = 0; b < blocks->y.size(); ++b) {
+    Eigen::Index c = 0;
+    for (Eigen::Index j = 0; j < p; ++j) {
+      if (keep[static_cast<size_t>(j)]) {
+        a->block(r, c++, blocks->y[b].size(), 1) = blocks->a[b].col(j);
+      }
+    }
+    y->segment(r, blocks->y[b].size()) = blocks->y[b];
+    r += blocks->y[b].size();
+  }
+}
+
+// The coefficients' covariance (ridge sandwich, p x p with zeros for the columns not fitted),
+// from the Gram matrix g of the fitted columns and the noise variance (nT^2).
+Eigen::MatrixXd coefficient_covariance(const Eigen::MatrixXd& g, double lambda,
+                                       double noise_variance_nT2, const std::vector<bool>& keep) {
+  const Eigen::Index p = static_cast<Eigen::Index>(keep.size());
+  const Eigen::Index fitted_cols = g.rows();
+  Eigen::MatrixXd gl = g;
+  gl.diagonal().array() += lambda;
+  const Eigen::MatrixXd inv = gl.ldlt().solve(Eigen::MatrixXd::Identity(fitted_cols, fitted_cols));
+  const Eigen::MatrixXd cov_fit = noise_variance_nT2 * (inv * g * inv);
+  Eigen::MatrixXd cov = Eigen::MatrixXd::Zero(p, p);
+  for (Eigen::Index i = 0, ci = 0; i < p; ++i) {
+    if (!keep[static_cast<size_t>(i)]) continue;
+    for (Eigen::Index j = 0, cj = 0; j < p; ++j) {
+      if (!keep[static_cast<size_t>(j)]) continue;
+      cov(i, j) = cov_fit(ci, cj++);
+    }
+    ++ci;
+  }
+  if (!cov.allFinite()) cov.resize(0, 0);
+  return cov;
+}
+
+// Warnings for the columns a band-pass fit cannot see, the unexcited ones (no energy in the
+// filtered calibration data) and an ill-conditioned design.
+void add_column_warnings(const Model& model, const Eigen::MatrixXd& g,
+                         const std::vector<bool>& keep, FitReport* report) {
+  const Eigen::Index p = static_cast<Eigen::Index>(keep.size());
+  const Eigen::VectorXd norms = g.diagonal().cwiseMax(0.0).cwiseSqrt();
+  const double max_norm = norms.maxCoeff();
+  for (Eigen::Index j = 0, c = 0; j < p; ++j) {
+    if (!keep[static_cast<size_t>(j)]) {
+      report->warnings.push_back("column '" + model.column_names[static_cast<size_t>(j)] +
+                                 "' is not observable by a band-pass fit; set to 0");
+      continue;
+    }
+    if (!(norms[c] > 1e-9 * max_norm)) {
+      report->warnings.push_back("column '" + model.column_names[static_cast<size_t>(j)] +
+                                 "' is not excited by the calibration segments");
+    }
+    ++c;
+  }
+  if (report->condition_number > 1e6) {
+    std::ostringstream w;
+    w << "design matrix is ill-conditioned (condition number " << report->condition_number
+      << "): the calibration segments do not excite every term; ridge lambda holds the fit";
+    report->warnings.push_back(w.str());
+  }
+}
+
+}  // namespace
+
+void fit_model(Model& model, const std::vector<const FlightData*>& flights) {
+  if (flights.empty()) throw Error("fit: no flight given");
+  require_fittable_column(model);
+  const std::vector<std::string> estimates = estimate_free_parameters(model, flights);
+  const FitSettings& s = model.fit;
+  const bool bandpass = s.method == "bandpass";
+  const auto terms = model.make_terms();
+  std::vector<bool> keep;  // columns the method can fit
+  for (const auto& t : terms) {
+    for (size_t k = 0; k < t->column_names().size(); ++k) {
+      keep.push_back(!bandpass || t->bandpass_observable());
+    }
+  }
+  std::string sources;
+  for (const FlightData* flight : flights) {
+    sources += (sources.empty() ? "" : ",") + flight->source();
+  }
+  FitReport report;
+  CalibrationBlocks blocks = calibration_blocks(model, terms, flights, &report);
+  const Eigen::Index rows = blocks.rows;
   const Eigen::Index p = static_cast<Eigen::Index>(keep.size());
   const Eigen::Index fitted_cols = std::count(keep.begin(), keep.end(), true);
   if (rows == 0) {
@@ -339,23 +445,7 @@ void fit_model(Model& model, const std::vector<const FlightData*>& flights) {
   }
   Eigen::MatrixXd a;
   Eigen::VectorXd y;
-  Eigen::Index r = 0;
-  if (blocks_a.size() == 1 && fitted_cols == p) {  // one flight, every column: no copy
-    a = std::move(blocks_a[0]);
-    y = std::move(blocks_y[0]);
-    blocks_y.clear();
-  } else {
-    a.resize(rows, fitted_cols);
-    y.resize(rows);
-  }
-  for (size_t b = 0; b < blocks_y.size(); ++b) {
-    Eigen::Index c = 0;
-    for (Eigen::Index j = 0; j < p; ++j) {
-      if (keep[static_cast<size_t>(j)]) a.block(r, c++, blocks_y[b].size(), 1) = blocks_a[b].col(j);
-    }
-    y.segment(r, blocks_y[b].size()) = blocks_y[b];
-    r += blocks_y[b].size();
-  }
+  stack_blocks(&blocks, keep, &a, &y);
   if (!a.allFinite() || !y.allFinite()) {
     throw Error("fit: the filtered calibration data hold NaN or Inf (fit.band_hz [" +
                 std::to_string(s.band_low_hz) + ", " + std::to_string(s.band_high_hz) +
@@ -378,46 +468,11 @@ void fit_model(Model& model, const std::vector<const FlightData*>& flights) {
   const Eigen::VectorXd residual = y - a * c_fit;
   report.residual_std_nT = std_dev(residual);
   report.estimates = estimates;
-  {  // The coefficients' covariance (ridge sandwich) and the noise variance.
-    const double dof = static_cast<double>(std::max<Eigen::Index>(rows - fitted_cols, 1));
-    report.noise_variance_nT2 = residual.squaredNorm() / dof;
-    Eigen::MatrixXd gl = g;
-    gl.diagonal().array() += s.lambda;
-    const Eigen::MatrixXd inv =
-        gl.ldlt().solve(Eigen::MatrixXd::Identity(fitted_cols, fitted_cols));
-    const Eigen::MatrixXd cov_fit = report.noise_variance_nT2 * (inv * g * inv);
-    report.coefficient_covariance = Eigen::MatrixXd::Zero(p, p);
-    for (Eigen::Index i = 0, ci = 0; i < p; ++i) {
-      if (!keep[static_cast<size_t>(i)]) continue;
-      for (Eigen::Index j = 0, cj = 0; j < p; ++j) {
-        if (!keep[static_cast<size_t>(j)]) continue;
-        report.coefficient_covariance(i, j) = cov_fit(ci, cj++);
-      }
-      ++ci;
-    }
-    if (!report.coefficient_covariance.allFinite()) report.coefficient_covariance.resize(0, 0);
-  }
-  // Unexcited columns: no energy in the (filtered) calibration data.
-  const Eigen::VectorXd norms = g.diagonal().cwiseMax(0.0).cwiseSqrt();
-  const double max_norm = norms.maxCoeff();
-  for (Eigen::Index j = 0, c = 0; j < p; ++j) {
-    if (!keep[static_cast<size_t>(j)]) {
-      report.warnings.push_back("column '" + model.column_names[static_cast<size_t>(j)] +
-                                "' is not observable by a band-pass fit; set to 0");
-      continue;
-    }
-    if (!(norms[c] > 1e-9 * max_norm)) {
-      report.warnings.push_back("column '" + model.column_names[static_cast<size_t>(j)] +
-                                "' is not excited by the calibration segments");
-    }
-    ++c;
-  }
-  if (report.condition_number > 1e6) {
-    std::ostringstream w;
-    w << "design matrix is ill-conditioned (condition number " << report.condition_number
-      << "): the calibration segments do not excite every term; ridge lambda holds the fit";
-    report.warnings.push_back(w.str());
-  }
+  const double dof = static_cast<double>(std::max<Eigen::Index>(rows - fitted_cols, 1));
+  report.noise_variance_nT2 = residual.squaredNorm() / dof;
+  report.coefficient_covariance =
+      coefficient_covariance(g, s.lambda, report.noise_variance_nT2, keep);
+  add_column_warnings(model, g, keep, &report);
   model.report = report;
 }
 

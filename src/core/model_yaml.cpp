@@ -189,6 +189,126 @@ void emit_neural(YAML::Emitter& out, const NeuralSpec& s) {
 
 }  // namespace
 
+namespace {
+
+// The `terms` list: each term parsed once, so a bad one is named with the file.
+void parse_terms(const YAML::Node& node, const std::string& path, Model* m) {
+  if (!node.IsSequence()) throw Error(path + ": key 'terms' must be a list");
+  m->terms.clear();
+  for (const auto& t : node) {
+    const std::string spec = get<std::string>(t, path, "terms");
+    try {
+      make_term(spec);
+    } catch (const Error& e) {
+      throw Error(path + ": key 'terms': " + e.what());
+    }
+    m->add_term(spec);
+  }
+}
+
+// The `fit` map: method, calibration selection, band, order, trim, ridge lambda, reference.
+FitSettings parse_fit_settings(const YAML::Node& f, const std::string& path) {
+  FitSettings s;
+  if (!f.IsMap()) throw Error(path + ": key 'fit' must be a map");
+  warn_unknown(f, {"method", "lines", "windows", "band_hz", "order", "trim", "lambda", "reference"},
+               path, "fit.");
+  if (f["method"]) s.method = get<std::string>(f["method"], path, "fit.method");
+  if (s.method != "bandpass" && s.method != "reference") {
+    throw Error(path + ": key 'fit.method' must be bandpass or reference, not '" + s.method + "'");
+  }
+  if (f["lines"]) s.lines = get<std::vector<double>>(f["lines"], path, "fit.lines");
+  for (double l : s.lines) {
+    if (!std::isfinite(l)) throw Error(path + ": key 'fit.lines' holds a non-finite line number");
+  }
+  if (f["windows"]) {
+    for (const auto& w : f["windows"]) {
+      auto pair = get<std::vector<double>>(w, path, "fit.windows");
+      if (pair.size() != 2 || !(pair[1] >= pair[0]) || !std::isfinite(pair[0]) ||
+          !std::isfinite(pair[1])) {
+        throw Error(path + ": key 'fit.windows' entries must be [start_s, end_s]");
+      }
+      s.windows.push_back({pair[0], pair[1]});
+    }
+  }
+  if (f["band_hz"]) {
+    auto band = get<std::vector<double>>(f["band_hz"], path, "fit.band_hz");
+    if (band.size() != 2 || !(band[0] > 0) || !(band[1] > band[0]) || !std::isfinite(band[1])) {
+      throw Error(path + ": key 'fit.band_hz' must be [low, high] with 0 < low < high, finite");
+    }
+    s.band_low_hz = band[0];
+    s.band_high_hz = band[1];
+  }
+  if (f["order"]) s.order = get<int>(f["order"], path, "fit.order");
+  if (s.order < 1 || s.order > 10) throw Error(path + ": key 'fit.order' must be in 1..10");
+  if (f["trim"]) s.trim = get<int>(f["trim"], path, "fit.trim");
+  if (s.trim < 0) throw Error(path + ": key 'fit.trim' must be >= 0");
+  if (f["lambda"]) s.lambda = get<double>(f["lambda"], path, "fit.lambda");
+  if (!(s.lambda >= 0) || !(s.lambda <= 1e12))
+    throw Error(path + ": key 'fit.lambda' must be in [0, 1e12]");
+  if (f["reference"]) s.reference = get<std::string>(f["reference"], path, "fit.reference");
+  if (s.method == "reference" && s.reference.empty()) {
+    throw Error(path + ": key 'fit.reference' is required when fit.method is reference");
+  }
+  return s;
+}
+
+// The `coefficients` map, one finite value per column of the model's terms.
+void parse_coefficients(const YAML::Node& c, const std::string& path, Model* m) {
+  if (!c.IsMap()) throw Error(path + ": key 'coefficients' must be a map column -> value");
+  const std::vector<std::string> names = m->make_column_names();
+  Eigen::VectorXd coef(static_cast<Eigen::Index>(names.size()));
+  for (size_t i = 0; i < names.size(); ++i) {
+    if (!c[names[i]]) {
+      throw Error(path + ": key 'coefficients." + names[i] + "' missing for the model's terms");
+    }
+    coef[static_cast<Eigen::Index>(i)] = get<double>(c[names[i]], path, "coefficients." + names[i]);
+    if (!std::isfinite(coef[static_cast<Eigen::Index>(i)])) {
+      throw Error(path + ": key 'coefficients." + names[i] + "' is not finite");
+    }
+  }
+  if (c.size() != names.size()) {
+    throw Error(path + ": key 'coefficients' has " + std::to_string(c.size()) +
+                " entries, the terms have " + std::to_string(names.size()) + " columns");
+  }
+  m->column_names = names;
+  m->coefficients = coef;
+}
+
+// What the node needs of `fit_report`: the uncertainty of each sample.
+void parse_fit_report(const YAML::Node& r, const std::string& path, Model* m) {
+  if (r["noise_variance_nT2"]) {
+    m->report.noise_variance_nT2 =
+        get<double>(r["noise_variance_nT2"], path, "fit_report.noise_variance_nT2");
+    if (!(m->report.noise_variance_nT2 >= 0) || !std::isfinite(m->report.noise_variance_nT2))
+      throw Error(path + ": key 'fit_report.noise_variance_nT2' must be finite and >= 0");
+  }
+  if (r["residual_std_nT"])
+    m->report.residual_std_nT =
+        get<double>(r["residual_std_nT"], path, "fit_report.residual_std_nT");
+  if (r["coefficient_covariance"]) {
+    const auto flat = get<std::vector<double>>(r["coefficient_covariance"], path,
+                                               "fit_report.coefficient_covariance");
+    const auto p = static_cast<size_t>(m->coefficients.size());
+    if (flat.size() != p * p) {
+      throw Error(path + ": key 'fit_report.coefficient_covariance' has " +
+                  std::to_string(flat.size()) + " values, the model needs " +
+                  std::to_string(p * p));
+    }
+    m->report.coefficient_covariance.resize(static_cast<Eigen::Index>(p),
+                                            static_cast<Eigen::Index>(p));
+    for (size_t i = 0; i < p; ++i)
+      for (size_t j = 0; j < p; ++j) {
+        const double v = flat[i * p + j];
+        if (!std::isfinite(v))
+          throw Error(path + ": key 'fit_report.coefficient_covariance' holds a non-finite value");
+        m->report.coefficient_covariance(static_cast<Eigen::Index>(i),
+                                         static_cast<Eigen::Index>(j)) = v;
+      }
+  }
+}
+
+}  // namespace
+
 static Model load_model_yaml_unchecked(const std::string& path_in) {
   const std::string path = is_directory(path_in) ? path_in + "/model.yaml" : path_in;
   YAML::Node root;
@@ -209,120 +329,16 @@ static Model load_model_yaml_unchecked(const std::string& path_in) {
   if (!root["vector"]) throw Error(path + ": key 'vector' missing");
   m.scalar = get<std::string>(root["scalar"], path, "scalar");
   m.vector = get<std::string>(root["vector"], path, "vector");
-  if (root["terms"]) {
-    if (!root["terms"].IsSequence()) throw Error(path + ": key 'terms' must be a list");
-    m.terms.clear();
-    for (const auto& t : root["terms"]) {
-      const std::string spec = get<std::string>(t, path, "terms");
-      try {
-        make_term(spec);
-      } catch (const Error& e) {
-        throw Error(path + ": key 'terms': " + e.what());
-      }
-      m.add_term(spec);
-    }
-  }
+  if (root["terms"]) parse_terms(root["terms"], path, &m);
   if (root["bt_scale_nT"]) {
     m.bt_scale_nT = get<double>(root["bt_scale_nT"], path, "bt_scale_nT");
     if (!(m.bt_scale_nT > 0) || !std::isfinite(m.bt_scale_nT))
       throw Error(path + ": key 'bt_scale_nT' must be positive and finite");
   }
-  if (const YAML::Node f = root["fit"]) {
-    if (!f.IsMap()) throw Error(path + ": key 'fit' must be a map");
-    warn_unknown(f,
-                 {"method", "lines", "windows", "band_hz", "order", "trim", "lambda", "reference"},
-                 path, "fit.");
-    FitSettings& s = m.fit;
-    if (f["method"]) s.method = get<std::string>(f["method"], path, "fit.method");
-    if (s.method != "bandpass" && s.method != "reference") {
-      throw Error(path + ": key 'fit.method' must be bandpass or reference, not '" + s.method +
-                  "'");
-    }
-    if (f["lines"]) s.lines = get<std::vector<double>>(f["lines"], path, "fit.lines");
-    for (double l : s.lines) {
-      if (!std::isfinite(l)) throw Error(path + ": key 'fit.lines' holds a non-finite line number");
-    }
-    if (f["windows"]) {
-      for (const auto& w : f["windows"]) {
-        auto pair = get<std::vector<double>>(w, path, "fit.windows");
-        if (pair.size() != 2 || !(pair[1] >= pair[0]) || !std::isfinite(pair[0]) ||
-            !std::isfinite(pair[1])) {
-          throw Error(path + ": key 'fit.windows' entries must be [start_s, end_s]");
-        }
-        s.windows.push_back({pair[0], pair[1]});
-      }
-    }
-    if (f["band_hz"]) {
-      auto band = get<std::vector<double>>(f["band_hz"], path, "fit.band_hz");
-      if (band.size() != 2 || !(band[0] > 0) || !(band[1] > band[0]) || !std::isfinite(band[1])) {
-        throw Error(path + ": key 'fit.band_hz' must be [low, high] with 0 < low < high, finite");
-      }
-      s.band_low_hz = band[0];
-      s.band_high_hz = band[1];
-    }
-    if (f["order"]) s.order = get<int>(f["order"], path, "fit.order");
-    if (s.order < 1 || s.order > 10) throw Error(path + ": key 'fit.order' must be in 1..10");
-    if (f["trim"]) s.trim = get<int>(f["trim"], path, "fit.trim");
-    if (s.trim < 0) throw Error(path + ": key 'fit.trim' must be >= 0");
-    if (f["lambda"]) s.lambda = get<double>(f["lambda"], path, "fit.lambda");
-    if (!(s.lambda >= 0) || !(s.lambda <= 1e12))
-      throw Error(path + ": key 'fit.lambda' must be in [0, 1e12]");
-    if (f["reference"]) s.reference = get<std::string>(f["reference"], path, "fit.reference");
-    if (s.method == "reference" && s.reference.empty()) {
-      throw Error(path + ": key 'fit.reference' is required when fit.method is reference");
-    }
-  }
-  if (const YAML::Node c = root["coefficients"]) {
-    if (!c.IsMap()) throw Error(path + ": key 'coefficients' must be a map column -> value");
-    const std::vector<std::string> names = m.make_column_names();
-    Eigen::VectorXd coef(static_cast<Eigen::Index>(names.size()));
-    for (size_t i = 0; i < names.size(); ++i) {
-      if (!c[names[i]]) {
-        throw Error(path + ": key 'coefficients." + names[i] + "' missing for the model's terms");
-      }
-      coef[static_cast<Eigen::Index>(i)] =
-          get<double>(c[names[i]], path, "coefficients." + names[i]);
-      if (!std::isfinite(coef[static_cast<Eigen::Index>(i)])) {
-        throw Error(path + ": key 'coefficients." + names[i] + "' is not finite");
-      }
-    }
-    if (c.size() != names.size()) {
-      throw Error(path + ": key 'coefficients' has " + std::to_string(c.size()) +
-                  " entries, the terms have " + std::to_string(names.size()) + " columns");
-    }
-    m.column_names = names;
-    m.coefficients = coef;
-  }
+  if (const YAML::Node f = root["fit"]) m.fit = parse_fit_settings(f, path);
+  if (const YAML::Node c = root["coefficients"]) parse_coefficients(c, path, &m);
   if (const YAML::Node r = root["fit_report"]; r && r.IsMap() && m.fitted()) {
-    // What the node needs of the report: the uncertainty of each sample.
-    if (r["noise_variance_nT2"]) {
-      m.report.noise_variance_nT2 =
-          get<double>(r["noise_variance_nT2"], path, "fit_report.noise_variance_nT2");
-      if (!(m.report.noise_variance_nT2 >= 0) || !std::isfinite(m.report.noise_variance_nT2))
-        throw Error(path + ": key 'fit_report.noise_variance_nT2' must be finite and >= 0");
-    }
-    if (r["residual_std_nT"])
-      m.report.residual_std_nT = get<double>(r["residual_std_nT"], path, "fit_report.residual_std_nT");
-    if (r["coefficient_covariance"]) {
-      const auto flat =
-          get<std::vector<double>>(r["coefficient_covariance"], path, "fit_report.coefficient_covariance");
-      const auto p = static_cast<size_t>(m.coefficients.size());
-      if (flat.size() != p * p) {
-        throw Error(path + ": key 'fit_report.coefficient_covariance' has " +
-                    std::to_string(flat.size()) + " values, the model needs " +
-                    std::to_string(p * p));
-      }
-      m.report.coefficient_covariance.resize(static_cast<Eigen::Index>(p),
-                                             static_cast<Eigen::Index>(p));
-      for (size_t i = 0; i < p; ++i)
-        for (size_t j = 0; j < p; ++j) {
-          const double v = flat[i * p + j];
-          if (!std::isfinite(v))
-            throw Error(path + ": key 'fit_report.coefficient_covariance' holds a non-finite value");
-          m.report.coefficient_covariance(static_cast<Eigen::Index>(i),
-                                          static_cast<Eigen::Index>(j)) = v;
-        }
-    }
+    parse_fit_report(r, path, &m);
   }
   if (root["neural"]) m.neural = parse_neural(root["neural"], path, m.make_column_names().size());
   return m;

@@ -104,18 +104,48 @@ struct Reader {
 
 }  // namespace
 
-static Scenario load_scenario_unchecked(const std::string& path) {
-  YAML::Node root;
-  try {
-    root = YAML::LoadFile(path);
-  } catch (const YAML::BadFile&) {
-    throw Error(path + ": scenario file not found or not readable");
-  } catch (const YAML::Exception& e) {
-    throw Error(path + ": not valid YAML (line " + std::to_string(e.mark.line + 1) + ")");
+namespace {
+
+// The earth and sensors sections.
+void read_earth_and_sensors(const Reader& r, const YAML::Node& root, Scenario* out) {
+  Scenario& s = *out;
+  const std::string& path = r.path;
+  if (const YAML::Node e = root["earth"]) {
+    r.check_keys(e,
+                 {"anomaly_rms_nT", "anomaly_spectral_slope", "anomaly_grid_m", "anomaly_grid_n",
+                  "terrain_m", "diurnal_amplitude_nT"},
+                 "earth");
+    r.get(e, "anomaly_rms_nT", "earth", &s.anomaly_rms_nT);
+    r.get(e, "anomaly_spectral_slope", "earth", &s.anomaly_spectral_slope);
+    r.get(e, "anomaly_grid_m", "earth", &s.anomaly_grid_m);
+    r.get(e, "anomaly_grid_n", "earth", &s.anomaly_grid_n);
+    r.get(e, "terrain_m", "earth", &s.terrain_m);
+    r.get(e, "diurnal_amplitude_nT", "earth", &s.diurnal_amplitude_nT);
+    r.range(s.anomaly_rms_nT, 0, 1e5, "earth.anomaly_rms_nT");
+    r.range(s.anomaly_spectral_slope, 0, 10, "earth.anomaly_spectral_slope");
+    r.range(s.anomaly_grid_m, 1, 1e5, "earth.anomaly_grid_m");
+    r.range(s.terrain_m, -500, 9000, "earth.terrain_m");
+    r.range(s.diurnal_amplitude_nT, 0, 1e4, "earth.diurnal_amplitude_nT");
+    if (s.anomaly_grid_n < 16 || s.anomaly_grid_n > 4096 ||
+        (s.anomaly_grid_n & (s.anomaly_grid_n - 1)) != 0) {
+      throw Error(path + ": key 'earth.anomaly_grid_n' must be a power of two in 16..4096");
+    }
   }
-  Reader r{path};
-  Scenario s;
-  s.source = path;
+  if (const YAML::Node n = root["sensors"]) {
+    r.check_keys(n, {"scalar_noise_nT", "fluxgate_noise_nT", "sample_rate_hz"}, "sensors");
+    r.get(n, "scalar_noise_nT", "sensors", &s.scalar_noise_nT);
+    r.get(n, "fluxgate_noise_nT", "sensors", &s.fluxgate_noise_nT);
+    r.get(n, "sample_rate_hz", "sensors", &s.sample_rate_hz);
+    r.range(s.scalar_noise_nT, 0, 1e4, "sensors.scalar_noise_nT");
+    r.range(s.fluxgate_noise_nT, 0, 1e4, "sensors.fluxgate_noise_nT");
+    r.range(s.sample_rate_hz, 0.1, 1000, "sensors.sample_rate_hz");
+  }
+}
+
+// The scalar keys and the date, origin, aircraft, earth and sensors sections.
+void read_settings(const Reader& r, const YAML::Node& root, Scenario* out) {
+  Scenario& s = *out;
+  const std::string& path = r.path;
   r.check_keys(root,
                {"description", "seed", "flight", "date", "start_tt_s", "origin", "aircraft",
                 "earth", "sensors", "start_altitude_m", "plan", "hidden"},
@@ -157,36 +187,13 @@ static Scenario load_scenario_unchecked(const std::string& path) {
     r.range(s.aircraft_scale, 0, 1000, "aircraft.field_scale");
     r.range(s.turbulence_deg, 0, 20, "aircraft.turbulence_deg");
   }
-  if (const YAML::Node e = root["earth"]) {
-    r.check_keys(e,
-                 {"anomaly_rms_nT", "anomaly_spectral_slope", "anomaly_grid_m", "anomaly_grid_n",
-                  "terrain_m", "diurnal_amplitude_nT"},
-                 "earth");
-    r.get(e, "anomaly_rms_nT", "earth", &s.anomaly_rms_nT);
-    r.get(e, "anomaly_spectral_slope", "earth", &s.anomaly_spectral_slope);
-    r.get(e, "anomaly_grid_m", "earth", &s.anomaly_grid_m);
-    r.get(e, "anomaly_grid_n", "earth", &s.anomaly_grid_n);
-    r.get(e, "terrain_m", "earth", &s.terrain_m);
-    r.get(e, "diurnal_amplitude_nT", "earth", &s.diurnal_amplitude_nT);
-    r.range(s.anomaly_rms_nT, 0, 1e5, "earth.anomaly_rms_nT");
-    r.range(s.anomaly_spectral_slope, 0, 10, "earth.anomaly_spectral_slope");
-    r.range(s.anomaly_grid_m, 1, 1e5, "earth.anomaly_grid_m");
-    r.range(s.terrain_m, -500, 9000, "earth.terrain_m");
-    r.range(s.diurnal_amplitude_nT, 0, 1e4, "earth.diurnal_amplitude_nT");
-    if (s.anomaly_grid_n < 16 || s.anomaly_grid_n > 4096 ||
-        (s.anomaly_grid_n & (s.anomaly_grid_n - 1)) != 0) {
-      throw Error(path + ": key 'earth.anomaly_grid_n' must be a power of two in 16..4096");
-    }
-  }
-  if (const YAML::Node n = root["sensors"]) {
-    r.check_keys(n, {"scalar_noise_nT", "fluxgate_noise_nT", "sample_rate_hz"}, "sensors");
-    r.get(n, "scalar_noise_nT", "sensors", &s.scalar_noise_nT);
-    r.get(n, "fluxgate_noise_nT", "sensors", &s.fluxgate_noise_nT);
-    r.get(n, "sample_rate_hz", "sensors", &s.sample_rate_hz);
-    r.range(s.scalar_noise_nT, 0, 1e4, "sensors.scalar_noise_nT");
-    r.range(s.fluxgate_noise_nT, 0, 1e4, "sensors.fluxgate_noise_nT");
-    r.range(s.sample_rate_hz, 0.1, 1000, "sensors.sample_rate_hz");
-  }
+  read_earth_and_sensors(r, root, out);
+}
+
+// The flight plan, and its length bounded before anything is allocated.
+void read_plan(const Reader& r, const YAML::Node& root, Scenario* out) {
+  Scenario& s = *out;
+  const std::string& path = r.path;
   if (!root["plan"] || !root["plan"].IsSequence() || root["plan"].size() == 0) {
     throw Error(path + ": key 'plan' must be a non-empty list of segments");
   }
@@ -224,81 +231,114 @@ static Scenario load_scenario_unchecked(const std::string& path) {
     throw Error(path + ": key 'plan' makes about " + Reader::format(seconds * s.sample_rate_hz) +
                 " samples; at most " + Reader::format(kMaxSamples) + " are simulated");
   }
+}
+
+// One hidden effect, checked against the simulated channels and sensors.
+HiddenEffect read_hidden_effect(const Reader& r, const YAML::Node& e, const std::string& where,
+                                const std::set<std::string>& channels,
+                                const std::set<std::string>& sensors) {
+  const std::string& path = r.path;
+  r.check_keys(
+      e,
+      {"type", "channel", "position_m", "direction", "length_m", "gain", "lag_s", "time_constant_s",
+       "scale", "nonorthogonality_rad", "offset_nT", "sensors", "exponent", "threshold"},
+      where);
+  HiddenEffect x;
+  r.get(e, "type", where, &x.type);
+  r.get(e, "channel", where, &x.channel);
+  r.vec3(e, "position_m", where, &x.position_m);
+  r.vec3(e, "direction", where, &x.direction);
+  r.get(e, "length_m", where, &x.length_m);
+  r.get(e, "gain", where, &x.gain);
+  r.get(e, "lag_s", where, &x.lag_s);
+  r.get(e, "time_constant_s", where, &x.time_constant_s);
+  r.vec3(e, "scale", where, &x.scale);
+  r.vec3(e, "nonorthogonality_rad", where, &x.nonorthogonality_rad);
+  r.vec3(e, "offset_nT", where, &x.offset_nT);
+  r.get(e, "sensors", where, &x.sensors);
+  r.get(e, "exponent", where, &x.exponent);
+  r.get(e, "threshold", where, &x.threshold);
+  static const std::set<std::string> kTypes = {"wire",       "inductive", "lag",     "fluxgate",
+                                               "heading",    "drift",     "thermal", "flex",
+                                               "eddy_decay", "relay"};
+  if (!kTypes.count(x.type)) {
+    throw Error(path + ": key '" + where +
+                ".type' must be wire, inductive, lag, fluxgate, heading, drift, thermal, "
+                "eddy_decay, flex or relay");
+  }
+  if (x.type == "flex" && x.channel.empty()) x.channel = "nrml_acc";
+  if (x.type == "flex" && !e["time_constant_s"]) x.time_constant_s = 0.0;
+  const bool needs_channel = x.type == "wire" || x.type == "inductive" || x.type == "drift" ||
+                             x.type == "thermal" || x.type == "relay";
+  if (needs_channel && !channels.count(x.channel)) {
+    throw Error(path + ": key '" + where + ".channel': unknown channel '" + x.channel + "'");
+  }
+  static const std::set<std::string> kFlexChannels = {"nrml_acc",   "lgtl_acc",  "ltrl_acc",
+                                                      "ins_acc_x",  "ins_acc_y", "ins_acc_z",
+                                                      "pitch_rate", "roll_rate", "yaw_rate"};
+  if (x.type == "flex" && !kFlexChannels.count(x.channel)) {
+    throw Error(path + ": key '" + where +
+                ".channel': flex follows an INS channel (nrml_acc, "
+                "ins_acc_*, *_rate), not '" +
+                x.channel + "'");
+  }
+  for (const char* k : {"gain", "lag_s", "time_constant_s", "length_m", "exponent", "threshold"}) {
+    if (e[k] && !std::isfinite(e[k].as<double>())) {
+      throw Error(path + ": key '" + where + "." + k + "' must be finite");
+    }
+  }
+  if (x.type == "thermal" || x.type == "eddy_decay")
+    r.positive(x.time_constant_s, where + ".time_constant_s");
+  if (x.type == "flex") r.non_negative(x.time_constant_s, where + ".time_constant_s");
+  if (x.type == "thermal" && !(x.exponent > 0 && x.exponent <= 4))
+    throw Error(path + ": key '" + where + ".exponent' must be in (0, 4]");
+  for (const auto& sensor : x.sensors) {
+    if (!sensors.count(sensor)) {
+      throw Error(path + ": key '" + where + ".sensors': unknown sensor '" + sensor + "'");
+    }
+  }
+  if (x.type == "wire") r.range(x.length_m, 1e-3, 100, where + ".length_m");
+  if (x.type == "lag") r.range(x.lag_s, 0, 60, where + ".lag_s");
+  r.range(x.gain, -1e6, 1e6, where + ".gain");
+  if (e["time_constant_s"]) r.range(x.time_constant_s, 0, 1e6, where + ".time_constant_s");
+  if (x.type == "drift") r.positive(x.time_constant_s, where + ".time_constant_s");
+  if (x.direction.norm() == 0) throw Error(path + ": key '" + where + ".direction' is zero");
+  x.direction.normalize();
+  return x;
+}
+
+// The hidden effects (optional).
+void read_hidden(const Reader& r, const YAML::Node& root, Scenario* out) {
+  const std::string& path = r.path;
   std::set<std::string> channels(simulated_channels().begin(), simulated_channels().end());
   std::set<std::string> sensors;
   for (const auto& m : sensor_mounts()) sensors.insert(m.name);
-  if (const YAML::Node h = root["hidden"]) {
-    if (!h.IsSequence()) throw Error(path + ": key 'hidden' must be a list of effects");
-    for (size_t i = 0; i < h.size(); ++i) {
-      const YAML::Node e = h[i];
-      const std::string where = "hidden[" + std::to_string(i) + "]";
-      r.check_keys(e,
-                   {"type", "channel", "position_m", "direction", "length_m", "gain", "lag_s",
-                    "time_constant_s", "scale", "nonorthogonality_rad", "offset_nT", "sensors",
-                    "exponent", "threshold"},
-                   where);
-      HiddenEffect x;
-      r.get(e, "type", where, &x.type);
-      r.get(e, "channel", where, &x.channel);
-      r.vec3(e, "position_m", where, &x.position_m);
-      r.vec3(e, "direction", where, &x.direction);
-      r.get(e, "length_m", where, &x.length_m);
-      r.get(e, "gain", where, &x.gain);
-      r.get(e, "lag_s", where, &x.lag_s);
-      r.get(e, "time_constant_s", where, &x.time_constant_s);
-      r.vec3(e, "scale", where, &x.scale);
-      r.vec3(e, "nonorthogonality_rad", where, &x.nonorthogonality_rad);
-      r.vec3(e, "offset_nT", where, &x.offset_nT);
-      r.get(e, "sensors", where, &x.sensors);
-      r.get(e, "exponent", where, &x.exponent);
-      r.get(e, "threshold", where, &x.threshold);
-      static const std::set<std::string> kTypes = {"wire",    "inductive",  "lag",  "fluxgate",
-                                                   "heading", "drift",      "thermal",
-                                                   "flex",    "eddy_decay", "relay"};
-      if (!kTypes.count(x.type)) {
-        throw Error(path + ": key '" + where +
-                    ".type' must be wire, inductive, lag, fluxgate, heading, drift, thermal, "
-                    "eddy_decay, flex or relay");
-      }
-      if (x.type == "flex" && x.channel.empty()) x.channel = "nrml_acc";
-      if (x.type == "flex" && !e["time_constant_s"]) x.time_constant_s = 0.0;
-      const bool needs_channel = x.type == "wire" || x.type == "inductive" ||
-                                 x.type == "drift" || x.type == "thermal" || x.type == "relay";
-      if (needs_channel && !channels.count(x.channel)) {
-        throw Error(path + ": key '" + where + ".channel': unknown channel '" + x.channel + "'");
-      }
-      static const std::set<std::string> kFlexChannels = {
-          "nrml_acc", "lgtl_acc", "ltrl_acc", "ins_acc_x", "ins_acc_y", "ins_acc_z",
-          "pitch_rate", "roll_rate", "yaw_rate"};
-      if (x.type == "flex" && !kFlexChannels.count(x.channel)) {
-        throw Error(path + ": key '" + where + ".channel': flex follows an INS channel (nrml_acc, "
-                    "ins_acc_*, *_rate), not '" + x.channel + "'");
-      }
-      for (const char* k : {"gain", "lag_s", "time_constant_s", "length_m", "exponent", "threshold"}) {
-        if (e[k] && !std::isfinite(e[k].as<double>())) {
-          throw Error(path + ": key '" + where + "." + k + "' must be finite");
-        }
-      }
-      if (x.type == "thermal" || x.type == "eddy_decay")
-        r.positive(x.time_constant_s, where + ".time_constant_s");
-      if (x.type == "flex") r.non_negative(x.time_constant_s, where + ".time_constant_s");
-      if (x.type == "thermal" && !(x.exponent > 0 && x.exponent <= 4))
-        throw Error(path + ": key '" + where + ".exponent' must be in (0, 4]");
-      for (const auto& sensor : x.sensors) {
-        if (!sensors.count(sensor)) {
-          throw Error(path + ": key '" + where + ".sensors': unknown sensor '" + sensor + "'");
-        }
-      }
-      if (x.type == "wire") r.range(x.length_m, 1e-3, 100, where + ".length_m");
-      if (x.type == "lag") r.range(x.lag_s, 0, 60, where + ".lag_s");
-      r.range(x.gain, -1e6, 1e6, where + ".gain");
-      if (e["time_constant_s"]) r.range(x.time_constant_s, 0, 1e6, where + ".time_constant_s");
-      if (x.type == "drift") r.positive(x.time_constant_s, where + ".time_constant_s");
-      if (x.direction.norm() == 0) throw Error(path + ": key '" + where + ".direction' is zero");
-      x.direction.normalize();
-      s.hidden.push_back(x);
-    }
+  const YAML::Node h = root["hidden"];
+  if (!h) return;
+  if (!h.IsSequence()) throw Error(path + ": key 'hidden' must be a list of effects");
+  for (size_t i = 0; i < h.size(); ++i) {
+    out->hidden.push_back(
+        read_hidden_effect(r, h[i], "hidden[" + std::to_string(i) + "]", channels, sensors));
   }
+}
+
+}  // namespace
+
+static Scenario load_scenario_unchecked(const std::string& path) {
+  YAML::Node root;
+  try {
+    root = YAML::LoadFile(path);
+  } catch (const YAML::BadFile&) {
+    throw Error(path + ": scenario file not found or not readable");
+  } catch (const YAML::Exception& e) {
+    throw Error(path + ": not valid YAML (line " + std::to_string(e.mark.line + 1) + ")");
+  }
+  const Reader r{path};
+  Scenario s;
+  s.source = path;
+  read_settings(r, root, &s);
+  read_plan(r, root, &s);
+  read_hidden(r, root, &s);
   return s;
 }
 
