@@ -110,10 +110,10 @@ ros::Time stamp_of(int year, int doy, double tt_s) {
   return t;
 }
 
-ConvertReport flight_to_bag(const FlightData& f, const std::string& bag_path, bool force) {
-  if (!force && exists(bag_path)) {
-    throw Error(bag_path + ": exists; pass --force to overwrite");
-  }
+namespace {
+
+// The date of a flight's stamps: year and day of year from its fields, and every tt finite.
+std::pair<int, int> stamp_date(const FlightData& f) {
   const int year = static_cast<int>(f.has("year") ? first_finite(f, "year") : -1);
   const int doy = static_cast<int>(f.has("doy") ? first_finite(f, "doy") : -1);
   if (year < 1970)
@@ -126,6 +126,151 @@ ConvertReport flight_to_bag(const FlightData& f, const std::string& bag_path, bo
                   "; it cannot be stamped");
     }
   }
+  return {year, doy};
+}
+
+// The typed sensor topics of one flight: which fields feed them (scalars mag_N_uc, fluxgates
+// flux_X_{x,y,z}, named aux values), the column pointers resolved once (a name lookup per
+// message costs more than the message), the connections registered once in a fixed order, and
+// the messages reused from sample to sample.
+class TypedTopics {
+ public:
+  TypedTopics(const FlightData& f, BagWriter& bag) : bag_(bag) {
+    for (const auto& name : f.names()) {
+      if (name.size() == 8 && name.rfind("mag_", 0) == 0 && name.substr(5) == "_uc")
+        scalars_.push_back(name);
+      if (name.size() == 8 && name.rfind("flux_", 0) == 0 && name.substr(6) == "_x") {
+        const std::string base = name.substr(0, 6);
+        if (f.has(base + "_y") && f.has(base + "_z")) fluxes_.push_back(base);
+      }
+      // Named values: the electrical channels, diurnal, line, and the INS values a neural
+      // stage may take as features (the compensator reads any feature by name from here).
+      if (name.rfind("cur_", 0) == 0 || name.rfind("vol_", 0) == 0 || name == "diurnal" ||
+          name == "line" || name == "baro" || name == "ins_vn" || name == "ins_vw" ||
+          name == "ins_vu" || name == "ins_roll" || name == "ins_pitch" || name == "ins_yaw")
+        aux_.push_back(name);
+    }
+    has_att_ = f.has("ins_roll") && f.has("ins_pitch") && f.has("ins_yaw");
+    has_fix_ = f.has("lat") && f.has("lon");
+    auto col = [&](const std::string& name) {
+      return f.has(name) ? f.column(name).data() : nullptr;
+    };
+    for (const auto& s : scalars_) scalar_cols_.push_back(col(s));
+    for (const auto& a : aux_) aux_cols_.push_back(col(a));
+    for (const auto& b : fluxes_)
+      flux_cols_.push_back({col(b + "_x"), col(b + "_y"), col(b + "_z")});
+    ref_ = col("mag_1_c");
+    roll_ = col("ins_roll"), pitch_ = col("ins_pitch"), yaw_ = col("ins_yaw");
+    roll_rate_ = col("roll_rate"), pitch_rate_ = col("pitch_rate"), yaw_rate_ = col("yaw_rate");
+    acc_x_ = col("ins_acc_x"), acc_y_ = col("ins_acc_y"), acc_z_ = col("ins_acc_z");
+    lat_ = col("lat"), lon_ = col("lon"), alt_ = col("utm_z");
+    for (const auto& s : scalars_)
+      c_scalar_.push_back(
+          bag.connection<magcomp::ScalarMagnetometer>(std::string(BagTopics::kScalarPrefix) + s));
+    c_ref_ = ref_ ? bag.connection<magcomp::ScalarMagnetometer>(BagTopics::kReference) : 0;
+    for (const auto& b : fluxes_)
+      c_flux_.push_back(
+          bag.connection<sensor_msgs::MagneticField>(std::string(BagTopics::kFluxPrefix) + b));
+    c_imu_ = has_att_ ? bag.connection<sensor_msgs::Imu>(BagTopics::kImu) : 0;
+    c_fix_ = has_fix_ ? bag.connection<sensor_msgs::NavSatFix>(BagTopics::kFix) : 0;
+    c_aux_ = aux_.empty() ? 0 : bag.connection<magcomp::AuxChannels>(BagTopics::kAux);
+    for (const auto& s : scalars_) scalar_frames_.push_back(s.substr(0, 5));
+    imu_.header.frame_id = "base_link";
+    fix_.header.frame_id = "base_link";
+    am_.names = aux_;
+    am_.values.resize(aux_.size());
+  }
+
+  /// Writes sample i, stamped t, on every typed topic; returns the number of messages.
+  long write(Eigen::Index i, const ros::Time& t) {
+    sm_.header.stamp = t;
+    for (size_t k = 0; k < scalars_.size(); ++k) {
+      sm_.header.frame_id = scalar_frames_[k];
+      sm_.field_nT = scalar_cols_[k][i];
+      bag_.write(c_scalar_[k], t, sm_);
+    }
+    if (ref_) {
+      sm_.header.frame_id = "mag_1";
+      sm_.field_nT = ref_[i];
+      bag_.write(c_ref_, t, sm_);
+    }
+    fm_.header.stamp = t;
+    for (size_t k = 0; k < fluxes_.size(); ++k) {
+      fm_.header.frame_id = fluxes_[k];
+      fm_.magnetic_field.x = flux_cols_[k][0][i] * 1e-9;  // REP 145: Tesla
+      fm_.magnetic_field.y = flux_cols_[k][1][i] * 1e-9;
+      fm_.magnetic_field.z = flux_cols_[k][2][i] * 1e-9;
+      bag_.write(c_flux_[k], t, fm_);
+    }
+    if (has_att_) write_imu(i, t);
+    if (has_fix_) {
+      fix_.header.stamp = t;
+      fix_.latitude = lat_[i];
+      fix_.longitude = lon_[i];
+      fix_.altitude = alt_ ? alt_[i] : NAN;  // above the WGS-84 ellipsoid
+      fix_.position_covariance_type = sensor_msgs::NavSatFix::COVARIANCE_TYPE_UNKNOWN;
+      bag_.write(c_fix_, t, fix_);
+    }
+    if (!aux_.empty()) {
+      am_.header.stamp = t;
+      for (size_t k = 0; k < aux_.size(); ++k) am_.values[k] = aux_cols_[k][i];
+      bag_.write(c_aux_, t, am_);
+    }
+    return static_cast<long>(scalars_.size() + fluxes_.size()) + (ref_ ? 1 : 0) +
+           (has_att_ ? 1 : 0) + (has_fix_ ? 1 : 0) + (aux_.empty() ? 0 : 1);
+  }
+
+ private:
+  static double at(const double* c, Eigen::Index i) { return c ? c[i] : 0.0; }
+
+  // sensor_msgs/Imu of sample i. MIT: yaw clockwise from north, pitch nose up, roll right wing
+  // down (NED/FRD). REP 103: base_link (x fwd, y left, z up) in ENU: yaw_enu = 90 deg - yaw,
+  // pitch negated; rates in rad/s, accelerations in m/s^2.
+  void write_imu(Eigen::Index i, const ros::Time& t) {
+    const Eigen::Quaterniond q =
+        Eigen::AngleAxisd(M_PI / 2 - yaw_[i] * kDeg, Eigen::Vector3d::UnitZ()) *
+        Eigen::AngleAxisd(-pitch_[i] * kDeg, Eigen::Vector3d::UnitY()) *
+        Eigen::AngleAxisd(roll_[i] * kDeg, Eigen::Vector3d::UnitX());
+    imu_.header.stamp = t;
+    imu_.orientation.w = q.w();
+    imu_.orientation.x = q.x();
+    imu_.orientation.y = q.y();
+    imu_.orientation.z = q.z();
+    imu_.angular_velocity.x = at(roll_rate_, i) * kDeg;
+    imu_.angular_velocity.y = -at(pitch_rate_, i) * kDeg;
+    imu_.angular_velocity.z = -at(yaw_rate_, i) * kDeg;
+    imu_.linear_acceleration.x = at(acc_x_, i);
+    imu_.linear_acceleration.y = at(acc_y_, i);
+    imu_.linear_acceleration.z = at(acc_z_, i);
+    bag_.write(c_imu_, t, imu_);
+  }
+
+  BagWriter& bag_;
+  std::vector<std::string> scalars_, fluxes_, aux_, scalar_frames_;
+  bool has_att_ = false, has_fix_ = false;
+  std::vector<const double*> scalar_cols_, aux_cols_;
+  std::vector<std::array<const double*, 3>> flux_cols_;
+  const double *ref_ = nullptr, *roll_ = nullptr, *pitch_ = nullptr, *yaw_ = nullptr;
+  const double *roll_rate_ = nullptr, *pitch_rate_ = nullptr, *yaw_rate_ = nullptr;
+  const double *acc_x_ = nullptr, *acc_y_ = nullptr, *acc_z_ = nullptr;
+  const double *lat_ = nullptr, *lon_ = nullptr, *alt_ = nullptr;
+  std::vector<uint32_t> c_scalar_, c_flux_;
+  uint32_t c_ref_ = 0, c_imu_ = 0, c_fix_ = 0, c_aux_ = 0;
+  sensor_msgs::Imu imu_;
+  sensor_msgs::NavSatFix fix_;
+  magcomp::ScalarMagnetometer sm_;
+  sensor_msgs::MagneticField fm_;
+  magcomp::AuxChannels am_;
+};
+
+}  // namespace
+
+ConvertReport flight_to_bag(const FlightData& f, const std::string& bag_path, bool force) {
+  if (!force && exists(bag_path)) {
+    throw Error(bag_path + ": exists; pass --force to overwrite");
+  }
+  const auto [year, doy] = stamp_date(f);
+  const Eigen::VectorXd& tt = f.tt();
   check_output_path(bag_path, {f.source()});
   const std::string tmp = temporary_path(bag_path);
   ConvertReport rep;
@@ -133,7 +278,7 @@ ConvertReport flight_to_bag(const FlightData& f, const std::string& bag_path, bo
   rep.fields = static_cast<long>(f.names().size());
   try {
     BagWriter bag(tmp);
-    // Lossless record of every field.
+    // Lossless record of every field: the schema (names) once, then one record per sample.
     magcomp::FlightSchema schema;
     schema.header.stamp = stamp_of(year, doy, tt[0]);
     schema.names = f.names();
@@ -142,129 +287,17 @@ ConvertReport flight_to_bag(const FlightData& f, const std::string& bag_path, bo
     rep.messages++;
     std::vector<const Eigen::VectorXd*> cols;
     for (const auto& name : f.names()) cols.push_back(&f.column(name));
-    // Typed sensor topics.
-    std::vector<std::string> scalars, fluxes, aux;
-    for (const auto& name : f.names()) {
-      if (name.size() == 8 && name.rfind("mag_", 0) == 0 && name.substr(5) == "_uc")
-        scalars.push_back(name);
-      if (name.size() == 8 && name.rfind("flux_", 0) == 0 && name.substr(6) == "_x") {
-        const std::string base = name.substr(0, 6);
-        if (f.has(base + "_y") && f.has(base + "_z")) fluxes.push_back(base);
-      }
-      // Named values: the electrical channels, diurnal, line, and the INS values a neural
-      // stage may take as features (the compensator reads any feature by name from here).
-      if (name.rfind("cur_", 0) == 0 || name.rfind("vol_", 0) == 0 || name == "diurnal" ||
-          name == "line" || name == "baro" || name == "ins_vn" || name == "ins_vw" ||
-          name == "ins_vu" || name == "ins_roll" || name == "ins_pitch" || name == "ins_yaw")
-        aux.push_back(name);
-    }
-    const bool has_att = f.has("ins_roll") && f.has("ins_pitch") && f.has("ins_yaw");
-    const bool has_fix = f.has("lat") && f.has("lon");
-    // Column pointers resolved once (a name lookup per message costs more than the message).
-    auto col = [&](const std::string& name) {
-      return f.has(name) ? f.column(name).data() : nullptr;
-    };
-    std::vector<const double*> scalar_cols, aux_cols;
-    for (const auto& s : scalars) scalar_cols.push_back(col(s));
-    for (const auto& a : aux) aux_cols.push_back(col(a));
-    std::vector<std::array<const double*, 3>> flux_cols;
-    for (const auto& b : fluxes) flux_cols.push_back({col(b + "_x"), col(b + "_y"), col(b + "_z")});
-    const double* ref = col("mag_1_c");
-    const double *roll = col("ins_roll"), *pitch = col("ins_pitch"), *yaw = col("ins_yaw");
-    const double *roll_rate = col("roll_rate"), *pitch_rate = col("pitch_rate"),
-                 *yaw_rate = col("yaw_rate");
-    const double *acc_x = col("ins_acc_x"), *acc_y = col("ins_acc_y"), *acc_z = col("ins_acc_z");
-    const double *lat = col("lat"), *lon = col("lon"), *alt = col("utm_z");
-    auto at = [](const double* c, Eigen::Index i) { return c ? c[i] : 0.0; };
-    // Connections (topic + type) registered once, in a fixed order.
     const uint32_t c_record = bag.connection<magcomp::FlightRecord>(BagTopics::kRecord);
-    std::vector<uint32_t> c_scalar, c_flux;
-    for (const auto& s : scalars)
-      c_scalar.push_back(
-          bag.connection<magcomp::ScalarMagnetometer>(std::string(BagTopics::kScalarPrefix) + s));
-    const uint32_t c_ref =
-        ref ? bag.connection<magcomp::ScalarMagnetometer>(BagTopics::kReference) : 0;
-    for (const auto& b : fluxes)
-      c_flux.push_back(
-          bag.connection<sensor_msgs::MagneticField>(std::string(BagTopics::kFluxPrefix) + b));
-    const uint32_t c_imu = has_att ? bag.connection<sensor_msgs::Imu>(BagTopics::kImu) : 0;
-    const uint32_t c_fix = has_fix ? bag.connection<sensor_msgs::NavSatFix>(BagTopics::kFix) : 0;
-    const uint32_t c_aux = aux.empty() ? 0 : bag.connection<magcomp::AuxChannels>(BagTopics::kAux);
-    std::vector<std::string> scalar_frames;
-    for (const auto& s : scalars) scalar_frames.push_back(s.substr(0, 5));
+    TypedTopics typed(f, bag);
     magcomp::FlightRecord rec;
     rec.values.resize(cols.size());
-    sensor_msgs::Imu imu;
-    imu.header.frame_id = "base_link";
-    sensor_msgs::NavSatFix fix;
-    fix.header.frame_id = "base_link";
-    magcomp::ScalarMagnetometer sm;
-    sensor_msgs::MagneticField fm;
-    magcomp::AuxChannels am;
-    am.names = aux;
-    am.values.resize(aux.size());
     for (Eigen::Index i = 0; i < f.size(); ++i) {
       const ros::Time t = stamp_of(year, doy, tt[i]);
       rec.header.stamp = t;
       rec.header.seq = static_cast<uint32_t>(i);
       for (size_t c = 0; c < cols.size(); ++c) rec.values[c] = (*cols[c])[i];
       bag.write(c_record, t, rec);
-      sm.header.stamp = t;
-      for (size_t k = 0; k < scalars.size(); ++k) {
-        sm.header.frame_id = scalar_frames[k];
-        sm.field_nT = scalar_cols[k][i];
-        bag.write(c_scalar[k], t, sm);
-      }
-      if (ref) {
-        sm.header.frame_id = "mag_1";
-        sm.field_nT = ref[i];
-        bag.write(c_ref, t, sm);
-      }
-      fm.header.stamp = t;
-      for (size_t k = 0; k < fluxes.size(); ++k) {
-        fm.header.frame_id = fluxes[k];
-        fm.magnetic_field.x = flux_cols[k][0][i] * 1e-9;  // REP 145: Tesla
-        fm.magnetic_field.y = flux_cols[k][1][i] * 1e-9;
-        fm.magnetic_field.z = flux_cols[k][2][i] * 1e-9;
-        bag.write(c_flux[k], t, fm);
-      }
-      if (has_att) {
-        // MIT: yaw clockwise from north, pitch nose up, roll right wing down (NED/FRD).
-        // REP 103: base_link (x fwd, y left, z up) in ENU: yaw_enu = 90 deg - yaw, pitch negated.
-        const Eigen::Quaterniond q =
-            Eigen::AngleAxisd(M_PI / 2 - yaw[i] * kDeg, Eigen::Vector3d::UnitZ()) *
-            Eigen::AngleAxisd(-pitch[i] * kDeg, Eigen::Vector3d::UnitY()) *
-            Eigen::AngleAxisd(roll[i] * kDeg, Eigen::Vector3d::UnitX());
-        sensor_msgs::Imu& m = imu;
-        m.header.stamp = t;
-        m.orientation.w = q.w();
-        m.orientation.x = q.x();
-        m.orientation.y = q.y();
-        m.orientation.z = q.z();
-        m.angular_velocity.x = at(roll_rate, i) * kDeg;
-        m.angular_velocity.y = -at(pitch_rate, i) * kDeg;
-        m.angular_velocity.z = -at(yaw_rate, i) * kDeg;
-        m.linear_acceleration.x = at(acc_x, i);
-        m.linear_acceleration.y = at(acc_y, i);
-        m.linear_acceleration.z = at(acc_z, i);
-        bag.write(c_imu, t, m);
-      }
-      if (has_fix) {
-        sensor_msgs::NavSatFix& m = fix;
-        m.header.stamp = t;
-        m.latitude = lat[i];
-        m.longitude = lon[i];
-        m.altitude = alt ? alt[i] : NAN;  // above the WGS-84 ellipsoid
-        m.position_covariance_type = sensor_msgs::NavSatFix::COVARIANCE_TYPE_UNKNOWN;
-        bag.write(c_fix, t, m);
-      }
-      if (!aux.empty()) {
-        am.header.stamp = t;
-        for (size_t k = 0; k < aux.size(); ++k) am.values[k] = aux_cols[k][i];
-        bag.write(c_aux, t, am);
-      }
-      rep.messages += 1 + static_cast<long>(scalars.size() + fluxes.size()) + (ref ? 1 : 0) +
-                      (has_att ? 1 : 0) + (has_fix ? 1 : 0) + (aux.empty() ? 0 : 1);
+      rep.messages += 1 + typed.write(i, t);
     }
     bag.close();
   } catch (...) {
