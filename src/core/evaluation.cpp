@@ -12,37 +12,95 @@
 
 namespace magcomp {
 
-Evaluation error_statistics(const FlightData& data, Eigen::VectorXd error,
-                            bool by_condition, const std::vector<FlightCondition>* conditions) {
-  Evaluation ev;
-  ev.error_nT = std::move(error);
-  const Eigen::VectorXd& error_nT = ev.error_nT;
-  const bool has_line = data.has("line");
-  const Eigen::VectorXd* line_column = has_line ? &data.column("line") : nullptr;
-  struct Acc {
-    Eigen::Index n = 0;
-    double sum = 0, sum_sq = 0;
-  };
-  std::map<double, Acc> groups;
+namespace {
+
+// Running sums of one line's errors (nT).
+struct LineSums {
+  Eigen::Index n = 0;
+  double sum = 0, sum_sq = 0;
+};
+
+// The line of sample i (0 without a line field, -1 for a NaN line).
+double line_of(const Eigen::VectorXd* line_column, Eigen::Index i) {
+  const double line = line_column ? (*line_column)[i] : 0.0;
+  return std::isfinite(line) ? line : -1.0;
+}
+
+// Each line's sums over the finite errors; the non-finite ones counted in *nan_samples.
+std::map<double, LineSums> line_sums(const Eigen::VectorXd& error_nT,
+                                     const Eigen::VectorXd* line_column,
+                                     Eigen::Index* nan_samples) {
+  std::map<double, LineSums> groups;
   double last_line = std::numeric_limits<double>::quiet_NaN();
-  Acc* last = nullptr;  // consecutive samples are mostly on one line
+  LineSums* last = nullptr;  // consecutive samples are mostly on one line
   for (Eigen::Index i = 0; i < error_nT.size(); ++i) {
     const double e = error_nT[i];
     if (!std::isfinite(e)) {
-      ev.nan_samples++;
+      ++*nan_samples;
       continue;
     }
-    double line = has_line ? (*line_column)[i] : 0.0;
-    if (!std::isfinite(line)) line = -1.0;
+    const double line = line_of(line_column, i);
     if (!last || line != last_line) {
       last = &groups[line];
       last_line = line;
     }
-    Acc& a = *last;
-    a.n++;
-    a.sum += e;
-    a.sum_sq += e * e;
+    last->n++;
+    last->sum += e;
+    last->sum_sq += e * e;
   }
+  return groups;
+}
+
+// The std by flight condition and by heading sector, each line's mean removed first.
+void condition_and_heading_stats(const FlightData& data, const Eigen::VectorXd& error_nT,
+                                 const Eigen::VectorXd* line_column,
+                                 std::map<double, LineSums>& groups,
+                                 const std::vector<FlightCondition>& cond, Evaluation* ev) {
+  const std::vector<int> sector = heading_sectors(data);
+  std::vector<double> ss_c(kConditionCount, 0), ss_h(8, 0);
+  std::vector<Eigen::Index> n_c(kConditionCount, 0), n_h(8, 0);
+  double last_line = std::numeric_limits<double>::quiet_NaN();
+  const LineSums* last = nullptr;
+  for (Eigen::Index i = 0; i < error_nT.size(); ++i) {
+    if (!std::isfinite(error_nT[i])) continue;
+    const double line = line_of(line_column, i);
+    if (!last || line != last_line) {
+      last = &groups[line];
+      last_line = line;
+    }
+    const double d = error_nT[i] - last->sum / static_cast<double>(last->n);
+    const auto c = static_cast<size_t>(cond[static_cast<size_t>(i)]);
+    ss_c[c] += d * d;
+    n_c[c]++;
+    const int h = sector[static_cast<size_t>(i)];
+    if (h >= 0) {
+      ss_h[static_cast<size_t>(h)] += d * d;
+      n_h[static_cast<size_t>(h)]++;
+    }
+  }
+  for (int c = 0; c < kConditionCount; ++c) {
+    const auto k = static_cast<size_t>(c);
+    if (n_c[k] == 0) continue;
+    ev->per_condition.push_back({condition_name(static_cast<FlightCondition>(c)), n_c[k],
+                                 std::sqrt(ss_c[k] / static_cast<double>(n_c[k]))});
+  }
+  for (int h = 0; h < 8; ++h) {
+    const auto k = static_cast<size_t>(h);
+    if (n_h[k] == 0) continue;
+    ev->per_heading.push_back(
+        {sector_name(h), n_h[k], std::sqrt(ss_h[k] / static_cast<double>(n_h[k]))});
+  }
+}
+
+}  // namespace
+
+Evaluation error_statistics(const FlightData& data, Eigen::VectorXd error, bool by_condition,
+                            const std::vector<FlightCondition>* conditions) {
+  Evaluation ev;
+  ev.error_nT = std::move(error);
+  const Eigen::VectorXd& error_nT = ev.error_nT;
+  const Eigen::VectorXd* line_column = data.has("line") ? &data.column("line") : nullptr;
+  std::map<double, LineSums> groups = line_sums(error_nT, line_column, &ev.nan_samples);
   double total_sq = 0, total_var = 0;
   for (const auto& [line, a] : groups) {
     LineStats s;
@@ -61,48 +119,11 @@ Evaluation error_statistics(const FlightData& data, Eigen::VectorXd error,
     ev.rmse_nT = std::sqrt(total_sq / static_cast<double>(ev.n));
     ev.std_nT = std::sqrt(total_var / static_cast<double>(ev.n));
   }
-  // By flight condition and heading sector, each line's mean removed first.
   if (by_condition && data.has("tt") && data.size() > 2) {
     std::vector<FlightCondition> classified;
     if (!conditions) classified = classify_conditions(data);
-    const std::vector<FlightCondition>& cond = conditions ? *conditions : classified;
-    const std::vector<int> sector = heading_sectors(data);
-    std::vector<double> ss_c(kConditionCount, 0), ss_h(8, 0);
-    std::vector<Eigen::Index> n_c(kConditionCount, 0), n_h(8, 0);
-    double last_line = std::numeric_limits<double>::quiet_NaN();
-    const Acc* last = nullptr;
-    for (Eigen::Index i = 0; i < error_nT.size(); ++i) {
-      if (!std::isfinite(error_nT[i])) continue;
-      double line = has_line ? (*line_column)[i] : 0.0;
-      if (!std::isfinite(line)) line = -1.0;
-      if (!last || line != last_line) {
-        last = &groups[line];
-        last_line = line;
-      }
-      const Acc& a = *last;
-      const double d = error_nT[i] - a.sum / static_cast<double>(a.n);
-      const int c = static_cast<int>(cond[static_cast<size_t>(i)]);
-      ss_c[static_cast<size_t>(c)] += d * d;
-      n_c[static_cast<size_t>(c)]++;
-      const int h = sector[static_cast<size_t>(i)];
-      if (h >= 0) {
-        ss_h[static_cast<size_t>(h)] += d * d;
-        n_h[static_cast<size_t>(h)]++;
-      }
-    }
-    for (int c = 0; c < kConditionCount; ++c) {
-      if (n_c[static_cast<size_t>(c)] == 0) continue;
-      ev.per_condition.push_back({condition_name(static_cast<FlightCondition>(c)),
-                                  n_c[static_cast<size_t>(c)],
-                                  std::sqrt(ss_c[static_cast<size_t>(c)] /
-                                            static_cast<double>(n_c[static_cast<size_t>(c)]))});
-    }
-    for (int h = 0; h < 8; ++h) {
-      if (n_h[static_cast<size_t>(h)] == 0) continue;
-      ev.per_heading.push_back({sector_name(h), n_h[static_cast<size_t>(h)],
-                                std::sqrt(ss_h[static_cast<size_t>(h)] /
-                                          static_cast<double>(n_h[static_cast<size_t>(h)]))});
-    }
+    condition_and_heading_stats(data, error_nT, line_column, groups,
+                                conditions ? *conditions : classified, &ev);
   }
   return ev;
 }

@@ -53,6 +53,52 @@ Eigen::VectorXd to_vector(const std::vector<double>& v) {
 
 std::vector<double> to_std(const Eigen::VectorXd& v) { return {v.data(), v.data() + v.size()}; }
 
+// `neural.training`: the optimiser's settings.
+NeuralTraining parse_neural_training(const YAML::Node& t, const std::string& path) {
+  NeuralTraining r;
+  if (!t.IsMap()) throw Error(path + ": key 'neural.training' must be a map");
+  warn_unknown(t,
+               {"epochs", "batch", "learning_rate", "lr_decay", "weight_decay", "patience", "seed",
+                "stride", "threads"},
+               path, "neural.training.");
+  if (t["epochs"]) r.epochs = get<int>(t["epochs"], path, "neural.training.epochs");
+  if (t["batch"]) r.batch = get<int>(t["batch"], path, "neural.training.batch");
+  if (t["learning_rate"])
+    r.learning_rate = get<double>(t["learning_rate"], path, "neural.training.learning_rate");
+  if (t["lr_decay"]) r.lr_decay = get<double>(t["lr_decay"], path, "neural.training.lr_decay");
+  if (t["weight_decay"])
+    r.weight_decay = get<double>(t["weight_decay"], path, "neural.training.weight_decay");
+  if (t["patience"]) r.patience = get<int>(t["patience"], path, "neural.training.patience");
+  if (t["seed"]) r.seed = get<std::uint64_t>(t["seed"], path, "neural.training.seed");
+  if (t["stride"]) r.stride = get<int>(t["stride"], path, "neural.training.stride");
+  if (t["threads"]) r.threads = get<int>(t["threads"], path, "neural.training.threads");
+  return r;
+}
+
+// `neural.normalisation`: each feature's mean and std and the target's, one per feature.
+void parse_neural_normalisation(const YAML::Node& z, const std::string& path, NeuralSpec* s) {
+  warn_unknown(z, {"feature_mean", "feature_std", "target_mean_nT", "target_std_nT"}, path,
+               "neural.normalisation.");
+  for (const char* k : {"feature_mean", "feature_std", "target_mean_nT", "target_std_nT"}) {
+    if (!z[k]) throw Error(path + ": key 'neural.normalisation." + k + "' missing");
+  }
+  s->feature_mean = to_vector(
+      get<std::vector<double>>(z["feature_mean"], path, "neural.normalisation.feature_mean"));
+  s->feature_std = to_vector(
+      get<std::vector<double>>(z["feature_std"], path, "neural.normalisation.feature_std"));
+  s->target_mean = get<double>(z["target_mean_nT"], path, "neural.normalisation.target_mean_nT");
+  s->target_std = get<double>(z["target_std_nT"], path, "neural.normalisation.target_std_nT");
+  if (s->feature_mean.size() != static_cast<Eigen::Index>(s->features.size()) ||
+      s->feature_std.size() != static_cast<Eigen::Index>(s->features.size())) {
+    throw Error(path + ": key 'neural.normalisation' has " +
+                std::to_string(s->feature_mean.size()) + " means for " +
+                std::to_string(s->features.size()) + " features");
+  }
+  if (!(s->target_std > 0) || !(s->feature_std.array() > 0).all()) {
+    throw Error(path + ": key 'neural.normalisation' holds a non-positive std");
+  }
+}
+
 NeuralSpec parse_neural(const YAML::Node& n, const std::string& path, size_t tl_columns) {
   if (!n.IsMap()) throw Error(path + ": key 'neural' must be a map");
   warn_unknown(n,
@@ -69,47 +115,8 @@ NeuralSpec parse_neural(const YAML::Node& n, const std::string& path, size_t tl_
   if (n["window"]) s.window = get<int>(n["window"], path, "neural.window");
   if (n["hidden"]) s.hidden = get<std::vector<int>>(n["hidden"], path, "neural.hidden");
   if (n["reference"]) s.reference = get<std::string>(n["reference"], path, "neural.reference");
-  if (const YAML::Node t = n["training"]) {
-    if (!t.IsMap()) throw Error(path + ": key 'neural.training' must be a map");
-    warn_unknown(t,
-                 {"epochs", "batch", "learning_rate", "lr_decay", "weight_decay", "patience",
-                  "seed", "stride", "threads"},
-                 path, "neural.training.");
-    NeuralTraining& r = s.training;
-    if (t["epochs"]) r.epochs = get<int>(t["epochs"], path, "neural.training.epochs");
-    if (t["batch"]) r.batch = get<int>(t["batch"], path, "neural.training.batch");
-    if (t["learning_rate"])
-      r.learning_rate = get<double>(t["learning_rate"], path, "neural.training.learning_rate");
-    if (t["lr_decay"]) r.lr_decay = get<double>(t["lr_decay"], path, "neural.training.lr_decay");
-    if (t["weight_decay"])
-      r.weight_decay = get<double>(t["weight_decay"], path, "neural.training.weight_decay");
-    if (t["patience"]) r.patience = get<int>(t["patience"], path, "neural.training.patience");
-    if (t["seed"]) r.seed = get<std::uint64_t>(t["seed"], path, "neural.training.seed");
-    if (t["stride"]) r.stride = get<int>(t["stride"], path, "neural.training.stride");
-    if (t["threads"]) r.threads = get<int>(t["threads"], path, "neural.training.threads");
-  }
-  if (const YAML::Node z = n["normalisation"]) {
-    warn_unknown(z, {"feature_mean", "feature_std", "target_mean_nT", "target_std_nT"}, path,
-                 "neural.normalisation.");
-    for (const char* k : {"feature_mean", "feature_std", "target_mean_nT", "target_std_nT"}) {
-      if (!z[k]) throw Error(path + ": key 'neural.normalisation." + k + "' missing");
-    }
-    s.feature_mean = to_vector(
-        get<std::vector<double>>(z["feature_mean"], path, "neural.normalisation.feature_mean"));
-    s.feature_std = to_vector(
-        get<std::vector<double>>(z["feature_std"], path, "neural.normalisation.feature_std"));
-    s.target_mean = get<double>(z["target_mean_nT"], path, "neural.normalisation.target_mean_nT");
-    s.target_std = get<double>(z["target_std_nT"], path, "neural.normalisation.target_std_nT");
-    if (s.feature_mean.size() != static_cast<Eigen::Index>(s.features.size()) ||
-        s.feature_std.size() != static_cast<Eigen::Index>(s.features.size())) {
-      throw Error(path + ": key 'neural.normalisation' has " +
-                  std::to_string(s.feature_mean.size()) + " means for " +
-                  std::to_string(s.features.size()) + " features");
-    }
-    if (!(s.target_std > 0) || !(s.feature_std.array() > 0).all()) {
-      throw Error(path + ": key 'neural.normalisation' holds a non-positive std");
-    }
-  }
+  if (const YAML::Node t = n["training"]) s.training = parse_neural_training(t, path);
+  if (const YAML::Node z = n["normalisation"]) parse_neural_normalisation(z, path, &s);
   if (n["tl_delta"]) {
     s.tl_delta = to_vector(get<std::vector<double>>(n["tl_delta"], path, "neural.tl_delta"));
     if (static_cast<size_t>(s.tl_delta.size()) != tl_columns) {

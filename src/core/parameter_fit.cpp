@@ -211,6 +211,23 @@ double initial_guess(TransformKind k) {
   }
 }
 
+// The design of `model` on one flight, restricted to the columns its fit method can fit.
+Eigen::MatrixXd fittable_design(const Model& model, const std::vector<std::unique_ptr<Term>>& terms,
+                                const FlightData& f) {
+  const bool bandpass = model.fit.method == "bandpass";
+  const Eigen::MatrixXd a = design_matrix(model, terms, f);
+  std::vector<Eigen::Index> keep;
+  Eigen::Index c = 0;
+  for (const auto& term : terms) {
+    for (Eigen::Index k = 0; k < term->columns(); ++k, ++c) {
+      if (!bandpass || term->bandpass_observable()) keep.push_back(c);
+    }
+  }
+  Eigen::MatrixXd kept(a.rows(), static_cast<Eigen::Index>(keep.size()));
+  for (size_t k = 0; k < keep.size(); ++k) kept.col(static_cast<Eigen::Index>(k)) = a.col(keep[k]);
+  return kept;
+}
+
 }  // namespace
 
 std::vector<std::string> estimate_free_parameters(Model& model,
@@ -258,22 +275,11 @@ std::vector<std::string> estimate_free_parameters(Model& model,
         throw Error("fit: no usable fit sample to estimate '" + model.terms[t] + "'");
       }
       // The base's fittable columns, stacked.
-      const bool bandpass = base.fit.method == "bandpass";
       const auto base_terms = base.make_terms();
       std::vector<Eigen::MatrixXd> per_flight;
       std::vector<TermInputs> inputs;
       for (const FlightData* f : flights) {
-        const Eigen::MatrixXd a = design_matrix(base, base_terms, *f);
-        std::vector<Eigen::Index> keep;
-        Eigen::Index c = 0;
-        for (const auto& term : base_terms) {
-          for (Eigen::Index k = 0; k < term->columns(); ++k, ++c) {
-            if (!bandpass || term->bandpass_observable()) keep.push_back(c);
-          }
-        }
-        Eigen::MatrixXd kept(a.rows(), static_cast<Eigen::Index>(keep.size()));
-        for (size_t k = 0; k < keep.size(); ++k) kept.col(static_cast<Eigen::Index>(k)) = a.col(keep[k]);
-        per_flight.push_back(std::move(kept));
+        per_flight.push_back(fittable_design(base, base_terms, *f));
         inputs.push_back(make_term_inputs(*f, model.vector, model.bt_scale_nT));
       }
       const Eigen::MatrixXd base_rows = rows.stack(per_flight);

@@ -48,4 +48,24 @@ inline FlightData synthetic_tl_flight(const Model& model, const Eigen::VectorXd&
   return d;
 }
 
+/// The 16-term TL model the synthetic flights are fitted with (induced5 / eddy8 drop the columns
+/// that are exactly dependent when |B| is constant), on two separate calibration lines.
+inline Model tl16_model() {
+  Model m;
+  m.scalar = "mag_5_uc";
+  m.vector = "flux_c";
+  m.terms = {"permanent", "induced5", "eddy8"};
+  m.fit.lambda = 1e-9;
+  m.fit.lines = {1000.01, 1002.01};
+  return m;
+}
+
+/// p known coefficients (nT per unit of each column): the permanent ones large, the rest
+/// +-40 nT.
+inline Eigen::VectorXd known_coefficients(Eigen::Index p) {
+  Eigen::VectorXd c(p);
+  for (Eigen::Index j = 0; j < p; ++j) c[j] = 40.0 * std::sin(1.7 * j + 0.4) + (j < 3 ? 300 : 0);
+  return c;
+}
+
 }  // namespace magcomp::test

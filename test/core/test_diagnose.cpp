@@ -1,6 +1,6 @@
 // diagnose: every hidden effect is found with its parameters and the loop reaches the error the
 // truth gives; nothing is accepted where nothing is hidden; the inexpressible is reported as
-// structure that remains; bad input; the CLI's JSON and --apply.
+// structure that remains; bad input.
 #include <gtest/gtest.h>
 
 #include <fstream>
@@ -236,60 +236,6 @@ TEST(Diagnose, BadInputsGiveClearMessagesAndConstantChannelsAreSkipped) {
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("flux_z_x"), std::string::npos) << e.what();
   }
-}
-
-TEST(Diagnose, CliWritesTheContractJsonAndTheLoop) {
-  const std::string dir = test::temp_dir("dx");
-  sim::write_simulation(test::scenario("inductive_heater"), dir + "/f.h5");
-  std::string out;
-  ASSERT_EQ(
-      test::run(test::cli() + " calibrate --data " + dir + "/f.h5 --model " + test::source_dir() +
-                    "/config/models/tl_sim.yaml --out " + dir + "/m.yaml",
-                &out),
-      0)
-      << out;
-  ASSERT_EQ(test::run(test::cli() + " diagnose --data " + dir + "/f.h5 --model " + dir +
-                          "/m.yaml --json " + dir + "/d.json",
-                      &out),
-            0)
-      << out;
-  EXPECT_NE(out.find("--term 'dcurrent:cur_heat'"), std::string::npos) << out;
-  nlohmann::json j;
-  std::ifstream(dir + "/d.json") >> j;
-  EXPECT_GT(j["baseline_std_nT"].get<double>(), 1.0);
-  const auto& top = j["candidates"][0];
-  EXPECT_EQ(top["term"], "dcurrent:cur_heat");
-  EXPECT_EQ(top["channel"], "cur_heat");
-  EXPECT_TRUE(top["effect"].is_string());
-  EXPECT_LT(top["std_after_nT"].get<double>(), 0.5);
-  EXPECT_GT(top["explained_fraction"].get<double>(), 0.9);
-  EXPECT_TRUE(top["accepted"].get<bool>());
-  EXPECT_TRUE(top["parameters"].is_object());
-  EXPECT_GT(top["parameters"]["gain_nT_per_unit"].get<double>(), 0.0);
-  EXPECT_TRUE(j["explainable_share"]["share"].is_number());
-  EXPECT_TRUE(j["explainable_share"]["within_noise"].is_boolean());
-  // Rejected candidates come after every accepted one.
-  bool seen_rejected = false;
-  for (const auto& c : j["candidates"]) {
-    if (!c["accepted"].get<bool>()) seen_rejected = true;
-    EXPECT_FALSE(seen_rejected && c["accepted"].get<bool>()) << c["term"];
-  }
-  // The loop as a command: it adds the term, refits and writes the final model.
-  ASSERT_EQ(test::run(test::cli() + " diagnose --apply --data " + dir + "/f.h5 --model " + dir +
-                          "/m.yaml --out " + dir + "/final.yaml --json " + dir + "/loop.json",
-                      &out),
-            0)
-      << out;
-  EXPECT_NE(out.find("dcurrent:cur_heat"), std::string::npos) << out;
-  const Model final_model = load_model_yaml(dir + "/final.yaml");
-  EXPECT_TRUE(final_model.fitted());
-  EXPECT_NE(std::find(final_model.terms.begin(), final_model.terms.end(), "dcurrent:cur_heat"),
-            final_model.terms.end());
-  nlohmann::json loop;
-  std::ifstream(dir + "/loop.json") >> loop;
-  ASSERT_GE(loop["rounds"].size(), 2u);
-  EXPECT_LT(loop["rounds"].back()["heldout_std_nT"].get<double>(),
-            0.2 * loop["rounds"][0]["heldout_std_nT"].get<double>());
 }
 
 }  // namespace

@@ -1,4 +1,4 @@
-// Model: closed-form recovery of known coefficients, YAML round trip, CLI contract, bad input.
+// Model: closed-form recovery of known coefficients, YAML round trip, bad input.
 #include <gtest/gtest.h>
 
 #include <fstream>
@@ -13,22 +13,9 @@
 namespace magcomp {
 namespace {
 
-Model tl16() {
-  // induced5 / eddy8 drop the columns that are exactly dependent when |B| is constant.
-  Model m;
-  m.scalar = "mag_5_uc";
-  m.vector = "flux_c";
-  m.terms = {"permanent", "induced5", "eddy8"};
-  m.fit.lambda = 1e-9;
-  m.fit.lines = {1000.01, 1002.01};  // two separate segments
-  return m;
-}
+Model tl16() { return test::tl16_model(); }
 
-Eigen::VectorXd true_coefficients(Eigen::Index p) {
-  Eigen::VectorXd c(p);
-  for (Eigen::Index j = 0; j < p; ++j) c[j] = 40.0 * std::sin(1.7 * j + 0.4) + (j < 3 ? 300 : 0);
-  return c;
-}
+Eigen::VectorXd true_coefficients(Eigen::Index p) { return test::known_coefficients(p); }
 
 TEST(Model, BandpassFitRecoversKnownCoefficients) {
   Model m = tl16();
@@ -113,61 +100,6 @@ TEST(Model, BadModelsNameTheKey) {
   Model m = tl16();
   EXPECT_THROW(m.add_term("current:"), Error);
   EXPECT_FALSE(m.add_term("permanent"));
-}
-
-TEST(Cli, CalibrateThenEvaluateWritesTheContractJson) {
-  const std::string dir = test::temp_dir("cli");
-  Model m = tl16();
-  const FlightData d = test::synthetic_tl_flight(m, true_coefficients(16));
-  write_flight_h5(d, dir + "/flight.h5");
-  std::ofstream(dir + "/model.yaml") << "scalar: mag_5_uc\nvector: flux_c\n"
-                                        "terms: [permanent, induced5]\n"
-                                        "fit:\n  method: bandpass\n  lines: [1000.01, 1001.01]\n"
-                                        "  lambda: 1.0e-9\n";
-  std::string out;
-  ASSERT_EQ(test::run(test::cli() + " calibrate --data " + dir + "/flight.h5 --model " + dir +
-                          "/model.yaml --term eddy8 --out " + dir + "/fitted.yaml",
-                      &out),
-            0)
-      << out;
-  EXPECT_NE(out.find("16 coefficients"), std::string::npos) << out;
-  ASSERT_EQ(test::run(test::cli() + " evaluate --data " + dir + "/flight.h5 --model " + dir +
-                          "/fitted.yaml --truth mag_1_c --json " + dir + "/e.json",
-                      &out),
-            0)
-      << out;
-  nlohmann::json j;
-  std::ifstream(dir + "/e.json") >> j;
-  EXPECT_LT(j["std_nT"].get<double>(), 1e-3);
-  ASSERT_EQ(j["per_line"].size(), 4u);
-  EXPECT_EQ(j["per_line"][0]["n"].get<int>(), 1500);
-  EXPECT_TRUE(j["per_line"][0].contains("rmse_nT"));
-  EXPECT_TRUE(j.contains("rmse_nT"));
-
-  // Failures: one line naming the file / field / parameter, non-zero exit.
-  EXPECT_NE(test::run(test::cli() + " evaluate --data " + dir + "/flight.h5 --model " + dir +
-                          "/fitted.yaml --truth mag_9_c",
-                      &out),
-            0);
-  EXPECT_NE(out.find("'mag_9_c'"), std::string::npos) << out;
-  EXPECT_NE(test::run(test::cli() + " calibrate --data " + dir + "/flight.h5 --model " + dir +
-                          "/model.yaml --term current:cur_nope --out " + dir + "/x.yaml",
-                      &out),
-            0);
-  EXPECT_NE(out.find("cur_nope"), std::string::npos) << out;
-  EXPECT_NE(test::run(test::cli() + " calibrate --data " + dir + "/nothere.h5 --model " + dir +
-                          "/model.yaml --out " + dir + "/x.yaml",
-                      &out),
-            0);
-  EXPECT_NE(out.find("nothere.h5"), std::string::npos) << out;
-  std::ofstream(dir + "/empty.yaml") << "scalar: mag_5_uc\nvector: flux_c\n"
-                                        "fit: {lines: [7777.0]}\n";
-  EXPECT_NE(test::run(test::cli() + " calibrate --data " + dir + "/flight.h5 --model " + dir +
-                          "/empty.yaml --out " + dir + "/x.yaml",
-                      &out),
-            0);
-  EXPECT_NE(out.find("no usable sample"), std::string::npos) << out;
-  EXPECT_EQ(std::count(out.begin(), out.end(), '\n'), 1) << out;
 }
 
 }  // namespace

@@ -115,6 +115,37 @@ double envelope(double u) {
 
 }  // namespace
 
+namespace {
+
+// A calibration leg at time tau (s) into it, of length leg_s (s): pitch +-5 deg, then roll
+// +-10 deg, then yaw +-5 deg, each a third, added to the attitude (rad). Returns the maneuver
+// code (1 pitch, 2 roll, 3 yaw).
+int calibration_maneuver(double tau, double leg_s, double* pitch, double* roll,
+                         double* yaw_offset) {
+  const double third = leg_s / 3;
+  const int part = std::min(2, static_cast<int>(tau / third));
+  const double u = (tau - part * third) / third;
+  const double e = envelope(u);
+  const double local = tau - part * third;
+  if (part == 0) *pitch += 5 * kDeg * e * std::sin(2 * M_PI * local / 6.0);
+  if (part == 1) *roll += 10 * kDeg * e * std::sin(2 * M_PI * local / 8.0);
+  if (part == 2) *yaw_offset = 5 * kDeg * e * std::sin(2 * M_PI * local / 7.0);
+  return 1 + part;
+}
+
+// A track of n samples, every series allocated.
+Track sized_track(Eigen::Index n) {
+  Track tr;
+  for (Eigen::VectorXd* v : {&tr.t_s, &tr.line, &tr.yaw_rad, &tr.pitch_rad, &tr.roll_rad,
+                             &tr.north_m, &tr.east_m, &tr.alt_m, &tr.vn_mps, &tr.ve_mps, &tr.vu_mps,
+                             &tr.speed_mps, &tr.lat_deg, &tr.lon_deg, &tr.maneuver}) {
+    v->resize(n);
+  }
+  return tr;
+}
+
+}  // namespace
+
 Track fly(const Scenario& s) {
   const std::vector<Leg> legs = Planner(s).expand();
   const double dt = 1.0 / s.sample_rate_hz;
@@ -125,13 +156,7 @@ Track fly(const Scenario& s) {
     leg_samples.push_back(n);
     total += static_cast<double>(n);
   }
-  const Eigen::Index n = static_cast<Eigen::Index>(total);
-  Track tr;
-  for (Eigen::VectorXd* v : {&tr.t_s, &tr.line, &tr.yaw_rad, &tr.pitch_rad, &tr.roll_rad,
-                             &tr.north_m, &tr.east_m, &tr.alt_m, &tr.vn_mps, &tr.ve_mps, &tr.vu_mps,
-                             &tr.speed_mps, &tr.lat_deg, &tr.lon_deg, &tr.maneuver}) {
-    v->resize(n);
-  }
+  Track tr = sized_track(static_cast<Eigen::Index>(total));
   std::mt19937_64 rng(s.seed * 7919ULL + 17);
   std::normal_distribution<double> normal(0.0, 1.0);
   // Turbulence: first-order Gauss-Markov processes on the attitude, correlation 1.5 s.
@@ -162,18 +187,7 @@ Track fly(const Scenario& s) {
       } else if (!std::isnan(l.heading_rad)) {
         heading += 0.05 * wrap(l.heading_rad - heading) * dt;  // autopilot holds the heading
       }
-      if (l.maneuvers) {
-        // Calibration leg: pitch +-5 deg, then roll +-10 deg, then yaw +-5 deg, each a third.
-        const double third = leg_s / 3;
-        const int part = std::min(2, static_cast<int>(tau / third));
-        const double u = (tau - part * third) / third;
-        const double e = envelope(u);
-        const double local = tau - part * third;
-        if (part == 0) pitch += 5 * kDeg * e * std::sin(2 * M_PI * local / 6.0);
-        if (part == 1) roll += 10 * kDeg * e * std::sin(2 * M_PI * local / 8.0);
-        if (part == 2) yaw_offset = 5 * kDeg * e * std::sin(2 * M_PI * local / 7.0);
-        maneuver = 1 + part;
-      }
+      if (l.maneuvers) maneuver = calibration_maneuver(tau, leg_s, &pitch, &roll, &yaw_offset);
       const double v = s.speed_mps + tb_speed;
       const double climb_angle = std::asin(std::clamp(l.climb_mps / v, -0.3, 0.3));
       heading = wrap(heading + heading_rate * dt);
