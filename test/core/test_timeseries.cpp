@@ -1,0 +1,60 @@
+// Time-series helpers: Catmull-Rom interpolation is exact for quadratics (central differences
+// are their exact slopes), whole-sample shifts move samples exactly, and the ends are NaN or
+// held as documented.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "magcomp/core/timeseries.h"
+
+namespace magcomp {
+namespace {
+
+Eigen::VectorXd quadratic(Eigen::Index n) {
+  Eigen::VectorXd x(n);
+  for (Eigen::Index i = 0; i < n; ++i) x[i] = 3.0 - 0.5 * i + 0.25 * i * i;
+  return x;
+}
+
+TEST(Timeseries, CubicInterpolationIsExactForAQuadraticInside) {
+  const Eigen::VectorXd x = quadratic(20);
+  for (double u : {1.0, 1.3, 4.5, 9.99, 17.25, 18.0}) {
+    EXPECT_NEAR(cubic_at(x, u), 3.0 - 0.5 * u + 0.25 * u * u, 1e-12) << u;
+  }
+}
+
+TEST(Timeseries, CubicInterpolationHoldsTheEndValuesBeyondTheEnds) {
+  const Eigen::VectorXd x = quadratic(10);
+  EXPECT_DOUBLE_EQ(cubic_at(x, -3.0), x[0]);
+  EXPECT_DOUBLE_EQ(cubic_at(x, 12.5), x[9]);
+  EXPECT_DOUBLE_EQ(cubic_at(x, 0.0), x[0]);
+  EXPECT_DOUBLE_EQ(cubic_at(x, 9.0), x[9]);
+}
+
+TEST(Timeseries, AWholeSampleShiftMovesEverySampleExactly) {
+  const Eigen::VectorXd x = quadratic(12);
+  const Eigen::VectorXd late = shift_samples(x, 2.0);
+  EXPECT_TRUE(std::isnan(late[0]));
+  EXPECT_TRUE(std::isnan(late[1]));
+  for (Eigen::Index i = 2; i < 12; ++i) EXPECT_EQ(late[i], x[i - 2]) << i;
+  const Eigen::VectorXd early = shift_samples(x, -3.0);
+  for (Eigen::Index i = 0; i < 9; ++i) EXPECT_EQ(early[i], x[i + 3]) << i;
+  for (Eigen::Index i = 9; i < 12; ++i) EXPECT_TRUE(std::isnan(early[i])) << i;
+  const Eigen::VectorXd held = shift_samples(x, 2.0, true);
+  EXPECT_EQ(held[0], x[0]);
+  EXPECT_EQ(held[1], x[0]);
+  EXPECT_EQ(held[5], x[3]);
+}
+
+TEST(Timeseries, AFractionalShiftOfAQuadraticIsTheQuadraticShifted) {
+  const Eigen::VectorXd x = quadratic(30);
+  const double s = 0.37;
+  const Eigen::VectorXd y = shift_samples(x, s);
+  for (Eigen::Index i = 3; i < 27; ++i) {
+    const double u = static_cast<double>(i) - s;
+    EXPECT_NEAR(y[i], 3.0 - 0.5 * u + 0.25 * u * u, 1e-11) << i;
+  }
+}
+
+}  // namespace
+}  // namespace magcomp
