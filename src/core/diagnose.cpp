@@ -148,17 +148,18 @@ Search::Search(const Model& m, const FlightData& d, const std::string& truth_nam
   Eigen::VectorXd y;
   bool own = false;
   if (!(fs.lines.empty() && fs.windows.empty())) {
-    if (fs.method == "reference" && !data.has(fs.reference)) {
+    if (fs.method == FitMethod::kReference && !data.has(fs.reference)) {
       throw Error(data.source() + ": field '" + fs.reference + "' (fit.reference) not found");
     }
-    y = fs.method == "bandpass" ? scalar : Eigen::VectorXd(scalar - data.column(fs.reference));
+    y = fs.method == FitMethod::kBandpass ? scalar
+                                          : Eigen::VectorXd(scalar - data.column(fs.reference));
     runs = calibration_runs(fs, data, a_all, y, nullptr);
     own = !runs.empty();
   }
   std::vector<bool> in_fit(static_cast<size_t>(n), false);
   if (own) {
     for (Eigen::Index i : data.select(fs.lines, fs.windows)) in_fit[static_cast<size_t>(i)] = true;
-    dx->split = fs.method == "bandpass"
+    dx->split = fs.method == FitMethod::kBandpass
                     ? "fit on the model's calibration segments (band-pass)"
                     : "fit on the model's fit lines (reference " + fs.reference + ")";
   } else {
@@ -172,7 +173,7 @@ Search::Search(const Model& m, const FlightData& d, const std::string& truth_nam
       throw Error(data.source() +
                   ": diagnose needs three lines, or the model's calibration segments and two more");
     }
-    fs.method = "reference";
+    fs.method = FitMethod::kReference;
     fs.reference = truth_name;
     fs.windows.clear();
     fs.lines.clear();
@@ -184,7 +185,7 @@ Search::Search(const Model& m, const FlightData& d, const std::string& truth_nam
   }
   if (runs.empty()) throw Error(data.source() + ": no usable fit samples for diagnose");
   // --- The base: the model's fittable columns, refitted.
-  const bool bandpass = fs.method == "bandpass";
+  const bool bandpass = fs.method == FitMethod::kBandpass;
   std::vector<Eigen::Index> keep;
   Eigen::Index c = 0;
   for (const auto& t : terms) {
@@ -321,7 +322,7 @@ Scored Search::lag_candidate(double* tau_out, const Eigen::MatrixXd& partner) co
   r.diagonal().array() +=
       fs.lambda + 1e-12 * std::max(g.trace() / std::max<double>(g.cols(), 1), 1e-300);
   const auto ldlt = r.ldlt();
-  const bool bandpass = fs.method == "bandpass";
+  const bool bandpass = fs.method == FitMethod::kBandpass;
   const Eigen::MatrixXd partner0 =
       partner.unaryExpr([](double v) { return std::isfinite(v) ? v : 0.0; });
   auto errors = [&](double tau) {
@@ -357,7 +358,7 @@ Scored Search::lag_at(double tau, const Eigen::MatrixXd& partner) const {
   Eigen::MatrixXd r = g;
   r.diagonal().array() +=
       fs.lambda + 1e-12 * std::max(g.trace() / std::max<double>(g.cols(), 1), 1e-300);
-  const bool bandpass = fs.method == "bandpass";
+  const bool bandpass = fs.method == FitMethod::kBandpass;
   const Eigen::VectorXd sh = shift_samples(raw, -tau / dt);            // NaN past the ends
   const Eigen::VectorXd s_held = shift_samples(raw, -tau / dt, true);  // filters need no NaN
   const Eigen::VectorXd yl =

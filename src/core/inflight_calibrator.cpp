@@ -20,7 +20,7 @@ InflightCalibrator::InflightCalibrator(Model model, double forgetting)
     : model_(std::move(model)), forgetting_(forgetting) {
   if (!(forgetting_ > 0 && forgetting_ <= 1))
     throw Error("calibrator: forgetting must be in (0, 1]");
-  if (model_.fit.method != "bandpass")
+  if (model_.fit.method != FitMethod::kBandpass)
     throw Error("calibrator: in-flight fits use fit.method bandpass");
   std::set<std::string> seen;
   terms_ = model_.make_terms();

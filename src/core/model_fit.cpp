@@ -67,6 +67,10 @@ bool Model::add_term(const std::string& spec) {
   return true;
 }
 
+const char* fit_method_name(FitMethod m) {
+  return m == FitMethod::kReference ? "reference" : "bandpass";
+}
+
 Eigen::MatrixXd design_matrix(const Model& model, const FlightData& data) {
   return design_matrix(model, model.make_terms(), data);
 }
@@ -143,7 +147,7 @@ std::vector<std::pair<Eigen::Index, Eigen::Index>> calibration_runs(
     const Eigen::VectorXd& y, std::vector<std::string>* warnings) {
   std::vector<Eigen::Index> selected;
   if (s.lines.empty() && s.windows.empty()) {
-    if (s.method == "bandpass")
+    if (s.method == FitMethod::kBandpass)
       throw Error("fit: bandpass needs calibration segments (fit.lines or fit.windows)");
     selected.resize(static_cast<size_t>(data.size()));
     for (Eigen::Index i = 0; i < data.size(); ++i) selected[static_cast<size_t>(i)] = i;
@@ -156,7 +160,7 @@ std::vector<std::pair<Eigen::Index, Eigen::Index>> calibration_runs(
 std::vector<std::pair<Eigen::Index, Eigen::Index>> calibration_runs(
     const FitSettings& s, const FlightData& data, std::vector<Eigen::Index> selected,
     const Eigen::MatrixXd& a, const Eigen::VectorXd& y, std::vector<std::string>* warnings) {
-  const bool bandpass = s.method == "bandpass";
+  const bool bandpass = s.method == FitMethod::kBandpass;
   // Rows with NaN anywhere in the regression are dropped: a segment is split there.
   selected.erase(
       std::remove_if(selected.begin(), selected.end(),
@@ -216,7 +220,7 @@ void for_each_design_block(
 
 Eigen::MatrixXd stack_runs(const FitSettings& s, double dt_s, const Eigen::MatrixXd& x,
                            const std::vector<std::pair<Eigen::Index, Eigen::Index>>& runs) {
-  const bool bandpass = s.method == "bandpass";
+  const bool bandpass = s.method == FitMethod::kBandpass;
   Eigen::Index rows = 0;
   for (const auto& [first, last] : runs) rows += (last - first + 1) - (bandpass ? 2 * s.trim : 0);
   Eigen::MatrixXd out(rows, x.cols());
@@ -249,7 +253,7 @@ Eigen::MatrixXd stack_runs(const FitSettings& s, double dt_s, const Eigen::Matri
 
 Eigen::VectorXd fit_target(const Model& model, const FlightData& data) {
   Eigen::VectorXd y = aligned_scalar(model, data);
-  if (model.fit.method == "reference") {
+  if (model.fit.method == FitMethod::kReference) {
     if (!data.has(model.fit.reference)) {
       throw Error(data.source() + ": field '" + model.fit.reference +
                   "' (fit.reference) not found");
@@ -267,14 +271,16 @@ void require_fittable_column(const Model& model) {
   Eigen::Index fittable = 0;
   std::string list;
   for (const auto& t : terms) {
-    if (model.fit.method != "bandpass" || t->bandpass_observable()) fittable += t->columns();
+    if (model.fit.method != FitMethod::kBandpass || t->bandpass_observable())
+      fittable += t->columns();
     list += (list.empty() ? "" : ", ") + t->spec();
   }
   if (fittable == 0) {
     throw Error("fit: the model has no column to fit (terms: [" + list + "]" +
-                (model.fit.method == "bandpass" ? "; a band-pass fit cannot fit bias, and a lag "
-                                                  "is not a column"
-                                                : "; a lag is not a column") +
+                (model.fit.method == FitMethod::kBandpass
+                     ? "; a band-pass fit cannot fit bias, and a lag "
+                       "is not a column"
+                     : "; a lag is not a column") +
                 "): add a term, e.g. permanent, induced, eddy");
   }
 }
@@ -417,7 +423,7 @@ void fit_model(Model& model, const std::vector<const FlightData*>& flights) {
   require_fittable_column(model);
   const std::vector<std::string> estimates = estimate_free_parameters(model, flights);
   const FitSettings& s = model.fit;
-  const bool bandpass = s.method == "bandpass";
+  const bool bandpass = s.method == FitMethod::kBandpass;
   const auto terms = model.make_terms();
   std::vector<bool> keep;  // columns the method can fit
   for (const auto& t : terms) {

@@ -107,9 +107,15 @@ NeuralSpec parse_neural(const YAML::Node& n, const std::string& path, size_t tl_
                 "validation_flights", "epochs_run", "validation_rmse_nT"},
                path, "neural.");
   NeuralSpec s;
-  if (n["architecture"])
-    s.architecture = get<std::string>(n["architecture"], path, "neural.architecture");
-  if (n["mode"]) s.mode = get<std::string>(n["mode"], path, "neural.mode");
+  if (n["architecture"]) {
+    s.architecture =
+        parse_architecture(get<std::string>(n["architecture"], path, "neural.architecture"),
+                           path + ": key 'neural.architecture'");
+  }
+  if (n["mode"]) {
+    s.mode =
+        parse_mode(get<std::string>(n["mode"], path, "neural.mode"), path + ": key 'neural.mode'");
+  }
   if (n["features"])
     s.features = get<std::vector<std::string>>(n["features"], path, "neural.features");
   if (n["window"]) s.window = get<int>(n["window"], path, "neural.window");
@@ -153,8 +159,8 @@ NeuralSpec parse_neural(const YAML::Node& n, const std::string& path, size_t tl_
 void emit_neural(YAML::Emitter& out, const NeuralSpec& s) {
   out << YAML::Key << "neural" << YAML::Value << YAML::BeginMap;
   out << YAML::Key << "version" << YAML::Value << s.version;
-  out << YAML::Key << "architecture" << YAML::Value << s.architecture;
-  out << YAML::Key << "mode" << YAML::Value << s.mode;
+  out << YAML::Key << "architecture" << YAML::Value << architecture_name(s.architecture);
+  out << YAML::Key << "mode" << YAML::Value << mode_name(s.mode);
   out << YAML::Key << "features" << YAML::Value << YAML::Flow << s.features;
   out << YAML::Key << "window" << YAML::Value << s.window;
   out << YAML::Key << "hidden" << YAML::Value << YAML::Flow << s.hidden_or_default();
@@ -219,9 +225,15 @@ FitSettings parse_fit_settings(const YAML::Node& f, const std::string& path) {
   if (!f.IsMap()) throw Error(path + ": key 'fit' must be a map");
   warn_unknown(f, {"method", "lines", "windows", "band_hz", "order", "trim", "lambda", "reference"},
                path, "fit.");
-  if (f["method"]) s.method = get<std::string>(f["method"], path, "fit.method");
-  if (s.method != "bandpass" && s.method != "reference") {
-    throw Error(path + ": key 'fit.method' must be bandpass or reference, not '" + s.method + "'");
+  if (f["method"]) {
+    const std::string method = get<std::string>(f["method"], path, "fit.method");
+    if (method == "bandpass") {
+      s.method = FitMethod::kBandpass;
+    } else if (method == "reference") {
+      s.method = FitMethod::kReference;
+    } else {
+      throw Error(path + ": key 'fit.method' must be bandpass or reference, not '" + method + "'");
+    }
   }
   if (f["lines"]) s.lines = get<std::vector<double>>(f["lines"], path, "fit.lines");
   for (double l : s.lines) {
@@ -253,7 +265,7 @@ FitSettings parse_fit_settings(const YAML::Node& f, const std::string& path) {
   if (!(s.lambda >= 0) || !(s.lambda <= 1e12))
     throw Error(path + ": key 'fit.lambda' must be in [0, 1e12]");
   if (f["reference"]) s.reference = get<std::string>(f["reference"], path, "fit.reference");
-  if (s.method == "reference" && s.reference.empty()) {
+  if (s.method == FitMethod::kReference && s.reference.empty()) {
     throw Error(path + ": key 'fit.reference' is required when fit.method is reference");
   }
   return s;
@@ -361,7 +373,7 @@ void save_model_yaml(const Model& m, const std::string& path,
   out << YAML::Key << "terms" << YAML::Value << YAML::Flow << m.terms;
   out << YAML::Key << "bt_scale_nT" << YAML::Value << m.bt_scale_nT;
   out << YAML::Key << "fit" << YAML::Value << YAML::BeginMap;
-  out << YAML::Key << "method" << YAML::Value << m.fit.method;
+  out << YAML::Key << "method" << YAML::Value << fit_method_name(m.fit.method);
   if (!m.fit.lines.empty()) out << YAML::Key << "lines" << YAML::Value << YAML::Flow << m.fit.lines;
   if (!m.fit.windows.empty()) {
     out << YAML::Key << "windows" << YAML::Value << YAML::BeginSeq;

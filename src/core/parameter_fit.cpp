@@ -214,7 +214,7 @@ double initial_guess(TransformKind k) {
 // The design of `model` on one flight, restricted to the columns its fit method can fit.
 Eigen::MatrixXd fittable_design(const Model& model, const std::vector<std::unique_ptr<Term>>& terms,
                                 const FlightData& f) {
-  const bool bandpass = model.fit.method == "bandpass";
+  const bool bandpass = model.fit.method == FitMethod::kBandpass;
   const Eigen::MatrixXd a = design_matrix(model, terms, f);
   std::vector<Eigen::Index> keep;
   Eigen::Index c = 0;

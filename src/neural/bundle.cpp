@@ -44,7 +44,8 @@ BundleReport train_bundle(Model& model, const std::vector<FlightData>& train_fli
   const std::vector<FlightSamples> tr = flight_samples(model, train_flights);
   const std::vector<FlightSamples> va = flight_samples(model, validation_flights);
   fit_normalisation(s, tr);  // training flights only
-  const Eigen::VectorXd tl_scale = s.mode == "joint" ? tl_column_scale(tr) : Eigen::VectorXd();
+  const Eigen::VectorXd tl_scale =
+      s.mode == NeuralMode::kJoint ? tl_column_scale(tr) : Eigen::VectorXd();
   const TrainingData td = make_training_data(s, tr, tl_scale, s.training.stride);
   // Validation windows on the same stride (early stopping needs a score, not every sample).
   const TrainingData vd = make_training_data(s, va, tl_scale, s.training.stride);
@@ -68,7 +69,7 @@ BundleReport train_bundle(Model& model, const std::vector<FlightData>& train_fli
   rep.weights_path = dir + "/" + weights_file;
 
   rep.result = train_network(s, td, vd, rep.weights_path, progress);
-  if (s.mode == "joint") {
+  if (s.mode == NeuralMode::kJoint) {
     s.tl_delta = rep.result.tl_weights.cwiseProduct(tl_scale.cwiseInverse()) * s.target_std;
   }
   s.weights = weights_file;

@@ -97,7 +97,7 @@ TrainingData make_training_data(const NeuralSpec& spec, const std::vector<Flight
       // A window end needs a finite target and finite TL columns (joint mode) at its sample.
       bool ok = std::isfinite(t) && (i % stride == 0);
       for (Eigen::Index j = 0; ok && j < p; ++j) ok = std::isfinite(fl.inputs.tl_columns(i, j));
-      if (spec.mode != "anomaly") ok = ok && std::isfinite(fl.inputs.correction_nT[i]);
+      if (spec.mode != NeuralMode::kAnomaly) ok = ok && std::isfinite(fl.inputs.correction_nT[i]);
       if (ok) d.ends.push_back(row);
     }
   }

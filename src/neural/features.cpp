@@ -35,7 +35,7 @@ FeaturePlan::FeaturePlan(const Model& model) {
     }
     items_.push_back(it);
   }
-  if (s.mode == "anomaly") needs_igrf_ = true;
+  if (s.mode == NeuralMode::kAnomaly) needs_igrf_ = true;
   if (needs_igrf_) diurnal_field_ = field_index("diurnal");
 }
 
@@ -157,7 +157,7 @@ Eigen::VectorXd neural_target(const Model& model, const FlightData& data, const 
     throw Error(data.source() + ": neural reference field '" + s.reference + "' not in the data");
   }
   const Eigen::VectorXd& ref = data.column(s.reference);
-  if (s.mode == "anomaly") return ref - in.igrf_nT - in.diurnal_nT;
+  if (s.mode == NeuralMode::kAnomaly) return ref - in.igrf_nT - in.diurnal_nT;
   return in.scalar_nT - in.correction_nT - ref;
 }
 

@@ -56,7 +56,7 @@ std::shared_ptr<NeuralNetwork> load_neural_network(const Model& model, int n_fea
 
 double neural_correction_nT(const NeuralSpec& spec, double scalar_nT, double tl_correction_nT,
                             double tl_delta_nT, double igrf_nT, double diurnal_nT, double y_nT) {
-  if (spec.mode == "anomaly") return scalar_nT - (igrf_nT + diurnal_nT + y_nT);
+  if (spec.mode == NeuralMode::kAnomaly) return scalar_nT - (igrf_nT + diurnal_nT + y_nT);
   return tl_correction_nT + tl_delta_nT + y_nT;
 }
 

@@ -12,7 +12,7 @@ namespace magcomp {
 CompensatorNetImpl::CompensatorNetImpl(const NeuralSpec& spec, int n_feat, int n_tl)
     : architecture(spec.architecture), window(spec.window), n_features(n_feat) {
   const std::vector<int> h = spec.hidden_or_default();
-  if (architecture == "mlp") {
+  if (architecture == NeuralArchitecture::kMlp) {
     // The MLP of Laoué's report: the window flattened, ReLU layers (16, 4), one output.
     mlp = torch::nn::Sequential();
     int in = window * n_features;
@@ -23,7 +23,7 @@ CompensatorNetImpl::CompensatorNetImpl(const NeuralSpec& spec, int n_feat, int n
     }
     mlp->push_back(torch::nn::Linear(in, 1));
     register_module("mlp", mlp);
-  } else if (architecture == "cnn") {
+  } else if (architecture == NeuralArchitecture::kCnn) {
     // Two 1-D convolutions over time (filters h[0], h[1], kernel 5), each halved by max pooling.
     conv1 = register_module(
         "conv1", torch::nn::Conv1d(torch::nn::Conv1dOptions(n_features, h[0], 5).padding(2)));
@@ -49,9 +49,9 @@ CompensatorNetImpl::CompensatorNetImpl(const NeuralSpec& spec, int n_feat, int n
 
 torch::Tensor CompensatorNetImpl::forward(const torch::Tensor& x, const torch::Tensor& tl) {
   torch::Tensor y;
-  if (architecture == "mlp") {
+  if (architecture == NeuralArchitecture::kMlp) {
     y = mlp->forward(x.flatten(1));
-  } else if (architecture == "cnn") {
+  } else if (architecture == NeuralArchitecture::kCnn) {
     torch::Tensor z = x.transpose(1, 2);  // [B, F, k]
     z = torch::max_pool1d(torch::relu(conv1->forward(z)), 2);
     z = torch::max_pool1d(torch::relu(conv2->forward(z)), 2);
@@ -76,8 +76,9 @@ class TorchNetwork : public NeuralNetwork {
     if (!probe) throw std::runtime_error("neural weights file not found or not readable");
     // Saved with the TL layer in joint mode: load into a net that has it, then drop it (the core
     // applies tl_delta itself).
-    CompensatorNet full(spec, n_features,
-                        spec.mode == "joint" ? static_cast<int>(spec.tl_delta.size()) : 0);
+    CompensatorNet full(
+        spec, n_features,
+        spec.mode == NeuralMode::kJoint ? static_cast<int>(spec.tl_delta.size()) : 0);
     torch::load(full, spec.weights_path);
     auto src = full->named_parameters();
     torch::NoGradGuard g;
@@ -85,7 +86,7 @@ class TorchNetwork : public NeuralNetwork {
     for (auto& b : net_->named_buffers()) b.value().copy_(full->named_buffers()[b.key()]);
     net_->to(torch::kFloat64);
     net_->eval();
-    if (spec.architecture == "lstm") export_lstm();
+    if (spec.architecture == NeuralArchitecture::kLstm) export_lstm();
   }
   void predict(const double* windows, std::int64_t count, double* out) override {
     if (!lstm_.empty() && count == 1) {  // batch 1: a plain loop beats libtorch's per-step ops

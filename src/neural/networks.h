@@ -12,7 +12,7 @@ struct CompensatorNetImpl : torch::nn::Module {
   CompensatorNetImpl(const NeuralSpec& spec, int n_features, int n_tl_columns);
   torch::Tensor forward(const torch::Tensor& windows, const torch::Tensor& tl);
 
-  std::string architecture;
+  NeuralArchitecture architecture;
   int window = 1;
   int n_features = 0;
   torch::nn::Sequential mlp{nullptr};

@@ -7,32 +7,65 @@
 
 namespace magcomp {
 
+const char* architecture_name(NeuralArchitecture a) {
+  switch (a) {
+    case NeuralArchitecture::kCnn:
+      return "cnn";
+    case NeuralArchitecture::kLstm:
+      return "lstm";
+    case NeuralArchitecture::kMlp:
+      break;
+  }
+  return "mlp";
+}
+
+const char* mode_name(NeuralMode m) {
+  switch (m) {
+    case NeuralMode::kAnomaly:
+      return "anomaly";
+    case NeuralMode::kJoint:
+      return "joint";
+    case NeuralMode::kResidual:
+      break;
+  }
+  return "residual";
+}
+
+NeuralArchitecture parse_architecture(const std::string& text, const std::string& where) {
+  for (auto a : {NeuralArchitecture::kMlp, NeuralArchitecture::kCnn, NeuralArchitecture::kLstm}) {
+    if (text == architecture_name(a)) return a;
+  }
+  throw Error(where + " must be mlp, cnn or lstm, not '" + text + "'");
+}
+
+NeuralMode parse_mode(const std::string& text, const std::string& where) {
+  for (auto m : {NeuralMode::kAnomaly, NeuralMode::kResidual, NeuralMode::kJoint}) {
+    if (text == mode_name(m)) return m;
+  }
+  throw Error(where + " must be anomaly, residual or joint, not '" + text + "'");
+}
+
 std::vector<int> NeuralSpec::hidden_or_default() const {
   if (!hidden.empty()) return hidden;
-  if (architecture == "cnn") return {16, 32};
-  if (architecture == "lstm") return {32, 32};
+  if (architecture == NeuralArchitecture::kCnn) return {16, 32};
+  if (architecture == NeuralArchitecture::kLstm) return {32, 32};
   return {16, 4};
 }
 
 void validate_neural_spec(const NeuralSpec& s, const std::string& where) {
   const std::string p = where + ": key 'neural.";
-  if (s.architecture != "mlp" && s.architecture != "cnn" && s.architecture != "lstm") {
-    throw Error(p + "architecture' must be mlp, cnn or lstm, not '" + s.architecture + "'");
-  }
-  if (s.mode != "anomaly" && s.mode != "residual" && s.mode != "joint") {
-    throw Error(p + "mode' must be anomaly, residual or joint, not '" + s.mode + "'");
-  }
   if (s.features.empty()) throw Error(p + "features' must list at least one input");
   std::set<std::string> seen;
   for (const auto& f : s.features) {
     if (!seen.insert(f).second) throw Error(p + "features' lists '" + f + "' twice");
   }
   if (s.window < 1 || s.window > 4096) throw Error(p + "window' must be in 1..4096 samples");
-  if (s.architecture == "cnn" && s.window < 4) throw Error(p + "window' must be >= 4 for a cnn");
+  if (s.architecture == NeuralArchitecture::kCnn && s.window < 4)
+    throw Error(p + "window' must be >= 4 for a cnn");
   for (int h : s.hidden_or_default()) {
     if (h < 1 || h > 4096) throw Error(p + "hidden' sizes must be in 1..4096");
   }
-  if (s.architecture == "cnn" && s.hidden_or_default().size() != 2) {
+  if (s.architecture == NeuralArchitecture::kCnn && s.hidden_or_default().size() != 2) {
     throw Error(p + "hidden' of a cnn is its two filter counts, e.g. [16, 32]");
   }
   if (s.reference.empty()) throw Error(p + "reference' must name the target field");

@@ -70,9 +70,10 @@ int run(int argc, char** argv) {
   if (val_flights.empty()) {
     std::cout << "warning: no validation flight: no early stopping, the last epoch is kept\n";
   }
-  std::cout << "training " << spec.architecture << " (" << spec.mode << ", window " << spec.window
-            << ", " << spec.features.size() << " features) on " << train_flights.size()
-            << " flight(s), validation on " << val_flights.size() << " flight(s)" << std::endl;
+  std::cout << "training " << architecture_name(spec.architecture) << " (" << mode_name(spec.mode)
+            << ", window " << spec.window << ", " << spec.features.size() << " features) on "
+            << train_flights.size() << " flight(s), validation on " << val_flights.size()
+            << " flight(s)" << std::endl;
   const BundleReport rep = train_bundle(model, train_flights, val_flights, out, !quiet);
   const TrainResult& r = rep.result;
   const NeuralSpec& s = *model.neural;

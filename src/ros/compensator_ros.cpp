@@ -317,9 +317,11 @@ void CompensatorRos::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat)
     stat.add("terms", terms);
     stat.add("lookahead_samples", comp_->lookahead());
     const auto& nn = comp_->model().neural;
-    stat.add("neural_stage", nn && nn->trained() ? nn->architecture + " (" + nn->mode +
-                                                       ", window " + std::to_string(nn->window) + ")"
-                                                 : std::string("none"));
+    stat.add("neural_stage", nn && nn->trained()
+                                 ? std::string(architecture_name(nn->architecture)) + " (" +
+                                       mode_name(nn->mode) + ", window " +
+                                       std::to_string(nn->window) + ")"
+                                 : std::string("none"));
   }
   stat.add("model_reloads", n_reloads_);
   stat.add("fluxgate_frame",

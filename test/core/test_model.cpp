@@ -37,7 +37,7 @@ TEST(Model, BandpassFitRecoversKnownCoefficients) {
 TEST(Model, ReferenceFitRecoversBias) {
   Model m = tl16();
   m.terms.push_back("bias");
-  m.fit.method = "reference";
+  m.fit.method = FitMethod::kReference;
   m.fit.reference = "mag_1_c";
   m.fit.lines.clear();
   Eigen::VectorXd c_true = true_coefficients(17);

@@ -98,7 +98,7 @@ TEST(Simulator, IdealTollesLawsonReachesTheSensorFloorOnTheTlOnlyFlight) {
   const FlightData& f = test::scenario("tl_only").flight;
   Model m = load_model_yaml(test::source_dir() + "/config/models/tl_sim.yaml");
   m.add_term("bias");
-  m.fit.method = "reference";
+  m.fit.method = FitMethod::kReference;
   m.fit.reference = "mag_1_c";
   m.fit.lines.clear();
   m.fit.lambda = 0.0;

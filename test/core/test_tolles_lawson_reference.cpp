@@ -76,7 +76,7 @@ TEST(TollesLawsonReference, RidgeOnFilteredArraysGivesMagNavCoefficients) {
 TEST(TollesLawsonReference, FullPipelineFromRawDataMatchesMagNavCompensation) {
   const Reference r = load_reference();
   Model m = tl18();
-  m.fit.method = "bandpass";
+  m.fit.method = FitMethod::kBandpass;
   m.fit.windows = {{-1.0, 1e6}};
   m.fit.trim = 20;
   m.fit.order = 4;

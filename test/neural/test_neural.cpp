@@ -38,8 +38,8 @@ const FlightData& flight(unsigned seed) {
 Model neural_model(const std::string& arch, const std::string& mode, int window, int epochs) {
   Model m = load_model_yaml(test::source_dir() + "/config/models/tl_sim.yaml");
   NeuralSpec s;
-  s.architecture = arch;
-  s.mode = mode;
+  s.architecture = parse_architecture(arch, "test");
+  s.mode = parse_mode(mode, "test");
   s.window = window;
   s.features = {"tl_anomaly", "tl_correction", "dir_x", "dir_y", "dir_z", "cur_strb", "ins_roll"};
   s.training.epochs = epochs;
@@ -84,8 +84,8 @@ TEST(Neural, SpecRoundTripsThroughTheModelYaml) {
   save_model_yaml(m, dir + "/model.yaml");
   const Model r = load_model_yaml(dir);  // a bundle directory loads its model.yaml
   ASSERT_TRUE(r.neural);
-  EXPECT_EQ(r.neural->architecture, "cnn");
-  EXPECT_EQ(r.neural->mode, "joint");
+  EXPECT_EQ(r.neural->architecture, NeuralArchitecture::kCnn);
+  EXPECT_EQ(r.neural->mode, NeuralMode::kJoint);
   EXPECT_EQ(r.neural->window, 12);
   EXPECT_EQ(r.neural->features, m.neural->features);
   EXPECT_EQ(r.neural->hidden, (std::vector<int>{4, 8}));

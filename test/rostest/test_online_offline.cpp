@@ -27,8 +27,9 @@ TEST(OnlineOffline, WholeReplayedFlightEqualsOfflineWithNoSampleLost) {
   // the flight's start, as the node's ring buffer is).
   const Eigen::VectorXd offline = magcomp::compensate(m, f);  // the neural stage included
   if (m.neural)
-    std::printf("  neural stage: %s, %s mode, window %d\n", m.neural->architecture.c_str(),
-                m.neural->mode.c_str(), m.neural->window);
+    std::printf("  neural stage: %s, %s mode, window %d\n",
+                magcomp::architecture_name(m.neural->architecture),
+                magcomp::mode_name(m.neural->mode), m.neural->window);
   const Eigen::VectorXd& ref = f.column("mag_1_c");
   magcomp::rostest_util::OutputCollector collector(nh);
   magcomp::rostest_util::DiagnosticsCollector diagnostics(nh);

@@ -16,9 +16,16 @@
 
 namespace magcomp {
 
+/// The fit's target: the band-passed scalar on calibration segments (`bandpass`), or the scalar
+/// minus a reference field (`reference`).
+enum class FitMethod { kBandpass, kReference };
+
+/// The YAML spelling of a fit method ("bandpass", "reference").
+const char* fit_method_name(FitMethod m);
+
 /// How the coefficients are fitted (the `fit:` block of the model YAML).
 struct FitSettings {
-  std::string method = "bandpass";  ///< "bandpass" (calibration segments) or "reference"
+  FitMethod method = FitMethod::kBandpass;
   std::vector<double> lines;        ///< calibration segments by line number
   std::vector<TimeWindow> windows;  ///< and/or by tt windows, s
   double band_low_hz = 0.1;         ///< band-pass only

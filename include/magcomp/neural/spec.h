@@ -30,9 +30,19 @@ struct NeuralTraining {
 ///   correction = A c + prediction (MagNav.jl's "model 2b" idea).
 /// - `joint`: as residual, but a change of the TL coefficients is trained with the network;
 ///   correction = A (c + tl_delta) + prediction (MagNav.jl's "model 2c" idea).
+enum class NeuralArchitecture { kMlp, kCnn, kLstm };
+enum class NeuralMode { kAnomaly, kResidual, kJoint };
+
+/// The YAML spellings: mlp, cnn, lstm; anomaly, residual, joint.
+const char* architecture_name(NeuralArchitecture a);
+const char* mode_name(NeuralMode m);
+/// The enum of a YAML spelling; an Error naming `where` (file: key) and the choices otherwise.
+NeuralArchitecture parse_architecture(const std::string& text, const std::string& where);
+NeuralMode parse_mode(const std::string& text, const std::string& where);
+
 struct NeuralSpec {
-  std::string architecture = "mlp";  ///< mlp | cnn | lstm
-  std::string mode = "residual";     ///< anomaly | residual | joint
+  NeuralArchitecture architecture = NeuralArchitecture::kMlp;
+  NeuralMode mode = NeuralMode::kResidual;
   /// Inputs by name: a data field (cur_strb, ins_roll, baro...), `tl_anomaly` (the model's
   /// TL-compensated scalar - IGRF - diurnal, nT), `tl_correction` (A c, nT), `anomaly:<field>`
   /// (field - IGRF - diurnal, nT), `dir_x|dir_y|dir_z` (vector-sensor direction cosines).
