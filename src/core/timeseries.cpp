@@ -46,4 +46,16 @@ Eigen::VectorXd shift_samples(const Eigen::VectorXd& x, double shift, bool hold_
   return y;
 }
 
+Eigen::VectorXd central_rate(const Eigen::VectorXd& x, double dt_s, bool wrap_angle) {
+  const Eigen::Index n = x.size();
+  Eigen::VectorXd d(n);
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const Eigen::Index a = std::max<Eigen::Index>(i - 1, 0),
+                       b = std::min<Eigen::Index>(i + 1, n - 1);
+    const double step = wrap_angle ? std::remainder(x[b] - x[a], 2 * M_PI) : x[b] - x[a];
+    d[i] = step / (static_cast<double>(std::max<Eigen::Index>(b - a, 1)) * dt_s);
+  }
+  return d;
+}
+
 }  // namespace magcomp

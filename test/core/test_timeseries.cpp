@@ -56,5 +56,17 @@ TEST(Timeseries, AFractionalShiftOfAQuadraticIsTheQuadraticShifted) {
   }
 }
 
+TEST(Timeseries, CentralRateIsExactOnALineAndWrapsAnAngleAcrossPi) {
+  Eigen::VectorXd x(6);
+  x << 1.0, 3.0, 5.0, 7.0, 9.0, 11.0;  // 2 per sample, 0.5 s apart: 4 per s
+  const Eigen::VectorXd d = central_rate(x, 0.5);
+  for (Eigen::Index i = 0; i < 6; ++i) EXPECT_NEAR(d[i], 4.0, 1e-12) << i;
+  Eigen::VectorXd yaw(3);  // 0.1 rad per sample across +-pi
+  yaw << M_PI - 0.1, -M_PI, -M_PI + 0.1;
+  const Eigen::VectorXd w = central_rate(yaw, 1.0, true);
+  for (Eigen::Index i = 0; i < 3; ++i) EXPECT_NEAR(w[i], 0.1, 1e-12) << i;
+  EXPECT_NEAR(central_rate(yaw, 1.0)[1], -(2 * M_PI - 0.2) / 2, 1e-12);  // unwrapped: the jump
+}
+
 }  // namespace
 }  // namespace magcomp

@@ -15,4 +15,8 @@ double cubic_at(const Eigen::VectorXd& x, double u);
 Eigen::VectorXd shift_samples(const Eigen::VectorXd& x, double shift_samples,
                               bool hold_ends = false);
 
+/// The rate of x (units per s), samples dt_s apart, by central differences (one-sided at the
+/// ends). With `wrap_angle`, x is an angle in rad and each difference is wrapped to (-pi, pi].
+Eigen::VectorXd central_rate(const Eigen::VectorXd& x, double dt_s, bool wrap_angle = false);
+
 }  // namespace magcomp

@@ -7,6 +7,7 @@
 #include <random>
 
 #include "magcomp/core/sim/scenario.h"
+#include "magcomp/core/timeseries.h"
 
 namespace magcomp::sim {
 
@@ -53,20 +54,6 @@ Eigen::VectorXd smooth(const Eigen::VectorXd& x, double tau_s, double dt_s) {
   return y;
 }
 
-// The rate of an angle series (rad/s) by central differences (one-sided at the ends), wrapped
-// to (-pi, pi] per step; samples dt_s apart.
-Eigen::VectorXd angle_rate(const Eigen::VectorXd& angle_rad, double dt_s) {
-  const Eigen::Index n = angle_rad.size();
-  Eigen::VectorXd rate(n);
-  for (Eigen::Index i = 0; i < n; ++i) {
-    const Eigen::Index a = std::max<Eigen::Index>(i - 1, 0),
-                       b = std::min<Eigen::Index>(i + 1, n - 1);
-    const double span = std::max<double>(static_cast<double>(b - a), 1.0) * dt_s;
-    rate[i] = std::remainder(angle_rad[b] - angle_rad[a], 2 * M_PI) / span;
-  }
-  return rate;
-}
-
 }  // namespace
 
 std::map<std::string, Eigen::VectorXd> simulate_channels(const Track& tr, unsigned seed) {
@@ -100,9 +87,9 @@ std::map<std::string, Eigen::VectorXd> simulate_channels(const Track& tr, unsign
   c["cur_ac_hi"] = 3.0 * fan_on.cwiseProduct(fan_hi) + noise(0.02);
   c["cur_ac_lo"] = 1.5 * fan_on.cwiseProduct((1.0 - fan_hi.array()).matrix()) + noise(0.02);
   // INS gimbal servos follow the attitude rates.
-  const Eigen::VectorXd roll_rate = angle_rate(tr.roll_rad, dt);
-  const Eigen::VectorXd pitch_rate = angle_rate(tr.pitch_rad, dt);
-  const Eigen::VectorXd yaw_rate = angle_rate(tr.yaw_rad, dt);
+  const Eigen::VectorXd roll_rate = central_rate(tr.roll_rad, dt, true);
+  const Eigen::VectorXd pitch_rate = central_rate(tr.pitch_rad, dt, true);
+  const Eigen::VectorXd yaw_rate = central_rate(tr.yaw_rad, dt, true);
   c["cur_srvo_o"] = 0.3 + 2.0 * roll_rate.cwiseAbs().array() + noise(0.02).array();
   c["cur_srvo_m"] = 0.3 + 2.0 * pitch_rate.cwiseAbs().array() + noise(0.02).array();
   c["cur_srvo_i"] = 0.3 + 2.0 * yaw_rate.cwiseAbs().array() + noise(0.02).array();

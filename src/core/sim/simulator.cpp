@@ -30,17 +30,6 @@ constexpr double kDeg = kDegToRad;
 
 using Vectors = std::vector<Eigen::Vector3d>;
 
-Eigen::VectorXd central_rate(const Eigen::VectorXd& x, double dt) {
-  const Eigen::Index n = x.size();
-  Eigen::VectorXd d(n);
-  for (Eigen::Index i = 0; i < n; ++i) {
-    const Eigen::Index a = std::max<Eigen::Index>(i - 1, 0),
-                       b = std::min<Eigen::Index>(i + 1, n - 1);
-    d[i] = (x[b] - x[a]) / (std::max<Eigen::Index>(b - a, 1) * dt);
-  }
-  return d;
-}
-
 // Per-sensor aircraft field: B_a = p + M B + E dB/dt (body frame, nT; E in s).
 struct AircraftField {
   Eigen::Vector3d permanent_nT;
