@@ -24,7 +24,7 @@ void add_simulate(CLI::App& app) {
       check_output_path(p, {*scenario});
     sim::Scenario s = sim::load_scenario(*scenario);
     if (*seed >= 0) s.seed = static_cast<unsigned>(*seed);
-    const sim::Simulation result = sim::simulate(s);
+    const sim::Simulation result = sim::simulate(s, Igrf::installed());
     sim::write_simulation(result, *out, {*scenario});
     const double secs =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

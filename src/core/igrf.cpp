@@ -94,12 +94,9 @@ Igrf Igrf::load(const std::string& path) {
   return model;
 }
 
-const Igrf& Igrf::shipped() {
-  static const Igrf model = [] {
-    const char* env = std::getenv("MAGCOMP_IGRF_FILE");
-    return Igrf::load(env && *env ? std::string(env) : share_dir() + "/config/igrf14.shc");
-  }();
-  return model;
+Igrf Igrf::installed() {
+  const char* env = std::getenv("MAGCOMP_IGRF_FILE");
+  return Igrf::load(env && *env ? std::string(env) : share_dir() + "/config/igrf14.shc");
 }
 
 FieldNED Igrf::geocentric(double colat_deg, double lon_deg, double r_km, double year) const {

@@ -91,7 +91,7 @@ void FeaturePlan::row(double scalar_nT, double tl_correction_nT, double igrf_nT,
   }
 }
 
-Eigen::VectorXd igrf_total_nT(const FlightData& data) {
+Eigen::VectorXd igrf_total_nT(const FlightData& data, const Igrf& igrf) {
   const Eigen::Index n = data.size();
   const Eigen::VectorXd& lat = data.column("lat");
   const Eigen::VectorXd& lon = data.column("lon");
@@ -99,7 +99,6 @@ Eigen::VectorXd igrf_total_nT(const FlightData& data) {
   const Eigen::VectorXd& year = data.column("year");
   const Eigen::VectorXd& doy = data.column("doy");
   const Eigen::VectorXd& tt = data.tt();
-  const Igrf& igrf = Igrf::shipped();
   Eigen::VectorXd out(n);
   for (Eigen::Index i = 0; i < n; ++i) {
     if (!std::isfinite(lat[i]) || !std::isfinite(lon[i]) || !std::isfinite(h[i]) ||
@@ -120,7 +119,8 @@ NeuralInputs neural_inputs(const Model& model, const FlightData& data) {
   in.scalar_nT = aligned_scalar(model, data);
   in.tl_columns = design_matrix(model, data);
   in.correction_nT = in.tl_columns * model.coefficients;
-  in.igrf_nT = plan.needs_igrf() ? igrf_total_nT(data) : Eigen::VectorXd::Constant(n, NAN);
+  in.igrf_nT = plan.needs_igrf() ? igrf_total_nT(data, Igrf::installed())
+                                 : Eigen::VectorXd::Constant(n, NAN);
   std::vector<std::string> present;
   for (const auto& f : plan.fields()) {
     if (data.has(f)) {

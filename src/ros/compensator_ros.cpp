@@ -43,6 +43,11 @@ CompensatorRos::CompensatorRos(ros::NodeHandle nh, ros::NodeHandle pnh)
   if (model_path_.empty()) {
     reject_param("model_path", "required (a fitted model YAML written by magcomp calibrate)");
   }
+  try {  // the main field for the anomaly output, loaded once (MAGCOMP_IGRF_FILE overrides it)
+    igrf_ = std::make_unique<const Igrf>(Igrf::installed());
+  } catch (const std::exception& e) {
+    ROS_ERROR("magcomp: %s: the anomaly output will be NaN", e.what());
+  }
   AlignerSettings a;
   pnh_.param("max_gap_s", a.max_gap_s, a.max_gap_s);
   pnh_.param("max_wait_s", a.max_wait_s, a.max_wait_s);
@@ -248,9 +253,8 @@ double CompensatorRos::igrf_at(double t) {
   if (!input_->aligner().fix_at(t, &fix)) return NAN;
   try {
     const ros::Time st = input_->stamp(t);
-    return Igrf::shipped()
-        .geodetic(fix.x(), fix.y(), fix.z(), decimal_year_of(st.sec, st.nsec))
-        .total_nT();
+    if (!igrf_) return NAN;
+    return igrf_->geodetic(fix.x(), fix.y(), fix.z(), decimal_year_of(st.sec, st.nsec)).total_nT();
   } catch (const std::exception& e) {
     ROS_WARN_THROTTLE(10, "magcomp: no IGRF at the sample: %s", e.what());
     return NAN;

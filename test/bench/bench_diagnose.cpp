@@ -18,7 +18,8 @@ int main(int argc, char** argv) {
     return 2;
   }
   try {
-    const magcomp::sim::Simulation sim = magcomp::sim::simulate(magcomp::sim::load_scenario(argv[1]));
+    const magcomp::sim::Simulation sim =
+        magcomp::sim::simulate(magcomp::sim::load_scenario(argv[1]), magcomp::Igrf::installed());
     magcomp::FlightData f = sim.flight;
     const int extra = argc > 3 ? std::atoi(argv[3]) : 30;
     std::mt19937_64 rng(7);

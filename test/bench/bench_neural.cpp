@@ -24,7 +24,7 @@ FlightData simulate_flight(unsigned seed) {
       sim::load_scenario(std::string(MAGCOMP_SOURCE_DIR) + "/config/scenarios/bench_5h.yaml");
   s.seed = seed;
   s.aircraft_seed = 42;
-  FlightData f = sim::simulate(s).flight;
+  FlightData f = sim::simulate(s, Igrf::installed()).flight;
   f.set_source("bench_5h_seed" + std::to_string(seed));
   return f;
 }
@@ -117,7 +117,7 @@ int main(int argc, char** argv) {
 
   // Batch-1 streaming inference: per pushed sample (TL stage + features + network), one thread.
   const FlightData& f = flights.back();
-  const Eigen::VectorXd igrf = igrf_total_nT(f);
+  const Eigen::VectorXd igrf = igrf_total_nT(f, Igrf::installed());
   for (const char* arch : {"mlp", "cnn", "lstm"}) {
     Model a = model_of(arch);
     a.neural->training.epochs = 1;

@@ -24,7 +24,7 @@ TEST(SeveralFlights, EvaluateTakesEachFlightInTurnAndPoolsThem) {
     sim::Scenario s = sim::load_scenario(test::source_dir() + "/config/scenarios/rostest_short.yaml");
     s.seed = seed;
     flights.push_back(dir + "/f" + std::to_string(seed) + ".h5");
-    sim::write_simulation(sim::simulate(s), flights.back());
+    sim::write_simulation(sim::simulate(s, Igrf::installed()), flights.back());
   }
   const std::string both = flights[0] + "," + flights[1];
   std::string out;

@@ -19,7 +19,7 @@ inline const sim::Simulation& scenario(const std::string& name) {
   if (it == cache.end()) {
     const sim::Scenario s =
         sim::load_scenario(source_dir() + "/config/scenarios/" + name + ".yaml");
-    it = cache.emplace(name, sim::simulate(s)).first;
+    it = cache.emplace(name, sim::simulate(s, Igrf::installed())).first;
   }
   return it->second;
 }

@@ -59,7 +59,8 @@ TEST(SimulatorPhysics, UpwardContinuationMatchesBuriedSource) {
 TEST(Simulator, SameSeedSameFlightAndTheSchemaReadsBack) {
   sim::Scenario s = sim::load_scenario(test::source_dir() + "/config/scenarios/wire_strobe.yaml");
   s.segments.resize(1);  // the box only: quick
-  const sim::Simulation a = sim::simulate(s), b = sim::simulate(s);
+  const sim::Simulation a = sim::simulate(s, Igrf::installed()),
+                        b = sim::simulate(s, Igrf::installed());
   ASSERT_EQ(a.flight.names(), b.flight.names());
   for (const auto& name : a.flight.names()) {
     const auto& x = a.flight.column(name);
@@ -69,7 +70,7 @@ TEST(Simulator, SameSeedSameFlightAndTheSchemaReadsBack) {
     }
   }
   s.seed += 1;
-  const sim::Simulation c = sim::simulate(s);
+  const sim::Simulation c = sim::simulate(s, Igrf::installed());
   EXPECT_NE(a.flight.column("mag_5_uc")[100], c.flight.column("mag_5_uc")[100]);
   const std::string dir = test::temp_dir("sim");
   sim::write_simulation(a, dir + "/f.h5");
@@ -149,7 +150,7 @@ TEST(Simulator, MultiFlightSetSharesOneAircraftAndHeadingErrorIsAbsorbedByTl) {
     sim::Scenario s =
         sim::load_scenario(test::source_dir() + "/config/scenarios/" + name + ".yaml");
     s.segments.resize(1);
-    const YAML::Node truth = YAML::Load(sim::simulate(s).truth_yaml);
+    const YAML::Node truth = YAML::Load(sim::simulate(s, Igrf::installed()).truth_yaml);
     permanent.push_back(truth["sensors"]["mag_5_uc"]["permanent_nT"].as<std::vector<double>>());
   }
   EXPECT_EQ(permanent[0], permanent[1]);  // aircraft.seed: the same aircraft on every flight

@@ -28,7 +28,7 @@ const FlightData& flight(unsigned seed) {
         sim::load_scenario(test::source_dir() + "/config/scenarios/rostest_short.yaml");
     s.seed = seed;
     s.aircraft_seed = 42;
-    FlightData f = sim::simulate(s).flight;
+    FlightData f = sim::simulate(s, Igrf::installed()).flight;
     f.set_source("rostest_short_seed" + std::to_string(seed) + ".h5");
     it = cache.emplace(seed, std::move(f)).first;
   }
@@ -185,7 +185,7 @@ TEST(Neural, PredictionsAreCausalAndStreamingEqualsOffline) {
     StreamingCompensator sc(model);
     ASSERT_TRUE(sc.has_network());
     ASSERT_TRUE(sc.needs_igrf());
-    const Eigen::VectorXd igrf = igrf_total_nT(f);
+    const Eigen::VectorXd igrf = igrf_total_nT(f, Igrf::installed());
     std::vector<StreamOutput> out;
     for (Eigen::Index i = 0; i < f.size(); ++i) {
       for (const auto& o : sc.push(sample_of(f, igrf, i, sc.required_channels()))) out.push_back(o);

@@ -20,7 +20,7 @@ TEST(BagConverter, RoundTripIsBitIdenticalWithNan) {
   const std::string dir = test::temp_dir("bag");
   sim::Scenario s = sim::load_scenario(test::source_dir() + "/config/scenarios/wire_strobe.yaml");
   s.segments.resize(1);
-  FlightData f = sim::simulate(s).flight;
+  FlightData f = sim::simulate(s, Igrf::installed()).flight;
   Eigen::VectorXd radar = f.column("radar");
   radar.segment(100, 50).setConstant(std::numeric_limits<double>::quiet_NaN());  // a radar gap
   f.set("radar", radar);

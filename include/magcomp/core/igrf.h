@@ -21,8 +21,9 @@ class Igrf {
  public:
   /// Loads an SHC file. Throws magcomp::Error naming the file and line on bad content.
   static Igrf load(const std::string& shc_path);
-  /// The copy shipped in config/ (MAGCOMP_IGRF_FILE overrides it).
-  static const Igrf& shipped();
+  /// The copy installed with magcomp (config/igrf14.shc; MAGCOMP_IGRF_FILE overrides it), read
+  /// from the file at each call: load it once where a program starts and pass it on.
+  static Igrf installed();
 
   /// Geocentric field: colatitude and longitude in degrees, radius in km, decimal year.
   /// Returns X north, Y east, Z down (geocentric frame), nT.

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "magcomp/core/flight_data.h"
+#include "magcomp/core/igrf.h"
 #include "magcomp/core/model.h"
 
 namespace magcomp {
@@ -51,9 +52,10 @@ class FeaturePlan {
   bool needs_igrf_ = false;
 };
 
-/// IGRF-14 total field at each sample from lat, lon (deg), utm_z (height, m), year, doy, tt.
+/// The main field `igrf`'s total (nT) at each sample from lat, lon (deg), utm_z (height, m),
+/// year, doy, tt.
 /// Throws magcomp::Error naming the file and the missing field.
-Eigen::VectorXd igrf_total_nT(const FlightData& data);
+Eigen::VectorXd igrf_total_nT(const FlightData& data, const Igrf& igrf);
 
 /// Everything the neural stage needs from one flight, as whole columns.
 struct NeuralInputs {

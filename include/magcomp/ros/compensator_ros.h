@@ -11,6 +11,7 @@
 #include <memory>
 #include <string>
 
+#include "magcomp/core/igrf.h"
 #include "magcomp/core/streaming_compensator.h"
 #include "magcomp/ros/input_stream.h"
 #include "magcomp/ros/track_marker.h"
@@ -50,6 +51,7 @@ class CompensatorRos {
   // The pipeline.
   std::unique_ptr<InputStream> input_;
   std::unique_ptr<StreamingCompensator> comp_;
+  std::unique_ptr<const Igrf> igrf_;  ///< the main field, loaded at start-up (anomaly output)
   std::deque<StreamSample> history_;  // recent samples, re-fed to a swapped-in model
   std::string model_error_;
   double model_mtime_ = 0.0;

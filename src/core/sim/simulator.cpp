@@ -66,9 +66,14 @@ struct EarthAlongTrack {
 // this order (the same seed gives the same file).
 class Simulator {
  public:
-  explicit Simulator(const Scenario& s)
-      : s_(s), tr_(fly(s)), n_(tr_.size()), dt_(1.0 / s.sample_rate_hz),
-        rng_(s.seed * 2654435761ULL + 5), normal_(0.0, 1.0) {}
+  Simulator(const Scenario& s, const Igrf& igrf)
+      : s_(s),
+        igrf_(igrf),
+        tr_(fly(s)),
+        n_(tr_.size()),
+        dt_(1.0 / s.sample_rate_hz),
+        rng_(s.seed * 2654435761ULL + 5),
+        normal_(0.0, 1.0) {}
 
   Simulation run() {
     earth_field();
@@ -108,6 +113,7 @@ class Simulator {
   void ins_fields();
 
   const Scenario& s_;
+  const Igrf& igrf_;  ///< the main field, given by the caller
   const Track tr_;
   const Eigen::Index n_;
   const double dt_;
@@ -124,7 +130,7 @@ void Simulator::earth_field() {
   // IGRF every second, interpolated; the crustal anomaly and the diurnal along B̂.
   EarthAlongTrack& e = earth_;
   e.tt = tr_.t_s.array() + s_.start_tt_s;
-  const Igrf& igrf = Igrf::shipped();
+  const Igrf& igrf = igrf_;
   const Eigen::Index step = std::max<Eigen::Index>(1, static_cast<Eigen::Index>(s_.sample_rate_hz));
   Vectors igrf_ned(static_cast<size_t>(n_));
   auto igrf_at = [&](Eigen::Index i) {
@@ -547,7 +553,7 @@ void Simulator::ins_fields() {
 
 }  // namespace
 
-Simulation simulate(const Scenario& s) { return Simulator(s).run(); }
+Simulation simulate(const Scenario& s, const Igrf& igrf) { return Simulator(s, igrf).run(); }
 
 void write_simulation(const Simulation& sim, const std::string& out_h5,
                       const std::vector<std::string>& inputs) {

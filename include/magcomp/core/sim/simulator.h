@@ -4,6 +4,7 @@
 #include <string>
 
 #include "magcomp/core/flight_data.h"
+#include "magcomp/core/igrf.h"
 #include "magcomp/core/sim/scenario.h"
 
 namespace magcomp::sim {
@@ -18,10 +19,11 @@ struct Simulation {
 };
 
 /// Simulates the scenario. The physics is computed as vectors and exact norms (never with the
-/// Tolles-Lawson linearisation): Earth field (IGRF-14 + upward-continued crustal anomaly +
+/// Tolles-Lawson linearisation): Earth field (the main field `igrf`, e.g. Igrf::installed(), +
+/// upward-continued crustal anomaly +
 /// diurnal) rotated into the body, plus each sensor's permanent, induced and eddy aircraft field,
 /// plus the hidden effects. Deterministic in scenario.seed.
-Simulation simulate(const Scenario& scenario);
+Simulation simulate(const Scenario& scenario, const Igrf& igrf);
 
 /// Writes F.h5 and, beside it, F.truth.h5 and F.truth.yaml (each atomically).
 void write_simulation(const Simulation& sim, const std::string& out_h5,
