@@ -1,8 +1,11 @@
 // magcomp: design matrix, band-pass / reference fit, compensation.
 #include <Eigen/Dense>
 #include <algorithm>
+#include <atomic>
 #include <cmath>
+#include <exception>
 #include <limits>
+#include <mutex>
 #include <sstream>
 #include <thread>
 
@@ -197,9 +200,9 @@ Eigen::Index slice_margin(const Model& model, const std::vector<std::unique_ptr<
   return reach + static_cast<Eigen::Index>(std::ceil(lag_samples)) + 2;
 }
 
-void for_each_design_block(
-    const Model& model, const FlightData& data,
-    const std::function<void(Eigen::Index, const Eigen::MatrixXd&)>& block) {
+void for_each_design_block(const Model& model, const FlightData& data,
+                           const std::function<void(Eigen::Index, const Eigen::MatrixXd&)>& block,
+                           int threads) {
   const auto terms = model.make_terms();
   const Eigen::Index n = data.size();
   const Eigen::Index margin = n > 1 ? slice_margin(model, terms, data.dt_s()) : -1;
@@ -208,14 +211,32 @@ void for_each_design_block(
     block(0, design_matrix(model, terms, data));
     return;
   }
-  for (Eigen::Index first = 0; first < n; first += kBlockRows) {
-    const Eigen::Index count = std::min(kBlockRows, n - first);
-    const Eigen::Index lo = std::max<Eigen::Index>(0, first - margin);
-    const Eigen::Index hi = std::min(n, first + count + margin);
-    const FlightData part = data.rows(lo, hi - lo);
-    const Eigen::MatrixXd a = design_matrix(model, terms, part);
-    block(first, a.middleRows(first - lo, count));
-  }
+  const Eigen::Index blocks = (n + kBlockRows - 1) / kBlockRows;
+  std::atomic<Eigen::Index> next{0};
+  std::mutex error_mutex;
+  std::exception_ptr error;
+  auto worker = [&] {
+    for (Eigen::Index b; (b = next++) < blocks;) {
+      try {
+        const Eigen::Index first = b * kBlockRows;
+        const Eigen::Index count = std::min(kBlockRows, n - first);
+        const Eigen::Index lo = std::max<Eigen::Index>(0, first - margin);
+        const Eigen::Index hi = std::min(n, first + count + margin);
+        const FlightData part = data.rows(lo, hi - lo);
+        const Eigen::MatrixXd a = design_matrix(model, terms, part);
+        block(first, a.middleRows(first - lo, count));
+      } catch (...) {
+        std::lock_guard<std::mutex> lock(error_mutex);
+        if (!error) error = std::current_exception();
+        next = blocks;  // no more blocks
+      }
+    }
+  };
+  std::vector<std::thread> pool;
+  for (int t = 1; t < std::min<Eigen::Index>(threads, blocks); ++t) pool.emplace_back(worker);
+  worker();
+  for (auto& t : pool) t.join();
+  if (error) std::rethrow_exception(error);
 }
 
 Eigen::MatrixXd stack_runs(const FitSettings& s, double dt_s, const Eigen::MatrixXd& x,
@@ -512,18 +533,24 @@ void model_correction_and_variance(const Model& model, const FlightData& data,
   if (!model.fitted()) throw Error("model: not calibrated (no coefficients)");
   correction_nT->resize(data.size());
   if (variance_nT2) variance_nT2->resize(data.size());
-  Eigen::VectorXd buffer;
-  for_each_design_block(model, data, [&](Eigen::Index first, const Eigen::MatrixXd& a) {
-    if (a.cols() != model.coefficients.size()) {
-      throw Error("model: " + std::to_string(model.coefficients.size()) + " coefficients for " +
-                  std::to_string(a.cols()) + " columns");
-    }
-    correction_nT->segment(first, a.rows()).noalias() = a * model.coefficients;
-    if (!variance_nT2) return;
-    for (Eigen::Index i = 0; i < a.rows(); ++i) {
-      (*variance_nT2)[first + i] = row_variance_nT2(model, a.row(i), &buffer);
-    }
-  });
+  // Blocks on two threads (each sample's numbers do not depend on which thread computes them).
+  static const int threads =
+      static_cast<int>(std::clamp(std::thread::hardware_concurrency(), 1u, 2u));
+  for_each_design_block(
+      model, data,
+      [&](Eigen::Index first, const Eigen::MatrixXd& a) {
+        if (a.cols() != model.coefficients.size()) {
+          throw Error("model: " + std::to_string(model.coefficients.size()) + " coefficients for " +
+                      std::to_string(a.cols()) + " columns");
+        }
+        correction_nT->segment(first, a.rows()).noalias() = a * model.coefficients;
+        if (!variance_nT2) return;
+        Eigen::VectorXd buffer;
+        for (Eigen::Index i = 0; i < a.rows(); ++i) {
+          (*variance_nT2)[first + i] = row_variance_nT2(model, a.row(i), &buffer);
+        }
+      },
+      threads);
 }
 
 Eigen::VectorXd compensation_variance_nT2(const Model& model, const FlightData& data) {

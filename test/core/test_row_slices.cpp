@@ -2,6 +2,8 @@
 // HDF5 reads) gives the same numbers, bit for bit, as the same work on the whole flight.
 #include <gtest/gtest.h>
 
+#include <mutex>
+
 #include "magcomp/core/error.h"
 #include "magcomp/core/evaluation.h"
 #include "magcomp/core/flight_data.h"
@@ -59,9 +61,33 @@ TEST(RowSlices, DesignBlocksEqualTheWholeMatrixBitForBit) {
   });
   EXPECT_EQ(covered, d.size());
   EXPECT_GT(blocks, 1);  // the flight is long enough to be cut
-  EXPECT_TRUE((assembled.array() == whole.array() || (assembled.array() != assembled.array() &&
-                                                      whole.array() != whole.array()))
+  EXPECT_TRUE((assembled.array() == whole.array() ||
+               (assembled.array() != assembled.array() && whole.array() != whole.array()))
                   .all());
+  // On three threads: every row once, the same numbers, whatever the order the blocks come in.
+  Eigen::MatrixXd threaded = Eigen::MatrixXd::Constant(whole.rows(), whole.cols(), 7.0);
+  std::mutex mutex;
+  Eigen::Index rows_seen = 0;
+  for_each_design_block(
+      m, d,
+      [&](Eigen::Index first, const Eigen::MatrixXd& a) {
+        threaded.middleRows(first, a.rows()) = a;  // disjoint rows: no lock needed
+        std::lock_guard<std::mutex> lock(mutex);
+        rows_seen += a.rows();
+      },
+      3);
+  EXPECT_EQ(rows_seen, d.size());
+  EXPECT_TRUE((threaded.array() == whole.array() ||
+               (threaded.array() != threaded.array() && whole.array() != whole.array()))
+                  .all());
+  // An error in one block is the caller's, once.
+  EXPECT_THROW(for_each_design_block(
+                   m, d,
+                   [&](Eigen::Index first, const Eigen::MatrixXd&) {
+                     if (first > 0) throw Error("block failed");
+                   },
+                   2),
+               Error);
   // A term with a history (a causal low-pass) is built whole, in one block.
   m.terms.push_back("field:cur_strb|lp(20)");
   int history_blocks = 0;

@@ -106,10 +106,13 @@ Eigen::Index slice_margin(const Model& model, const std::vector<std::unique_ptr<
 
 /// Calls `block(first, a)` for consecutive blocks of rows covering the flight, `a` being rows
 /// [first, first + a.rows()) of the design matrix. Each block is built on a slice with the
-/// model's margin, so memory stays at one block; a model with a history-dependent term gets
-/// the whole matrix as one block. The numbers equal design_matrix()'s.
+/// model's margin, so memory stays at one block per thread; a model with a history-dependent
+/// term gets the whole matrix as one block. The numbers equal design_matrix()'s. With threads > 1
+/// the blocks are built and passed on that many threads at once (`block` must then be safe to call
+/// concurrently for different blocks); the first exception is rethrown.
 void for_each_design_block(const Model& model, const FlightData& data,
-                           const std::function<void(Eigen::Index, const Eigen::MatrixXd&)>& block);
+                           const std::function<void(Eigen::Index, const Eigen::MatrixXd&)>& block,
+                           int threads = 1);
 
 /// Fits the model's coefficients on `flights` according to model.fit. Free parameters (?) are
 /// estimated first (parameter_fit.h) and written into model.terms as numbers. Throws
