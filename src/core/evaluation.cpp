@@ -2,6 +2,7 @@
 #include "magcomp/core/evaluation.h"
 
 #include <cmath>
+#include <future>
 #include <limits>
 #include <map>
 
@@ -154,6 +155,11 @@ Evaluation evaluate_model(const Model& model, const FlightData& data, const std:
     throw Error(data.source() + ": reference field '" + truth + "' holds no finite sample");
   }
   const bool neural = model.neural && model.neural->trained();
+  // The flight conditions (for the tables and the FOM) while the model is applied.
+  auto classified = std::async(std::launch::async, [&data] {
+    return data.has("tt") && data.size() > 2 ? classify_conditions(data)
+                                             : std::vector<FlightCondition>();
+  });
   // The terms' correction and its variance in one pass (the neural stage: apply_model).
   Eigen::VectorXd comp, variance;
   const Eigen::VectorXd uncompensated = aligned_scalar(model, data);
@@ -163,8 +169,7 @@ Evaluation evaluate_model(const Model& model, const FlightData& data, const std:
     model_correction_and_variance(model, data, &comp, &variance);
     comp = uncompensated - comp;  // coefficient-wise: in place
   }
-  const std::vector<FlightCondition> conditions =
-      data.has("tt") && data.size() > 2 ? classify_conditions(data) : std::vector<FlightCondition>();
+  const std::vector<FlightCondition> conditions = classified.get();
   Evaluation ev = error_statistics(data, comp - ref, true, &conditions);
   {
     const Evaluation before = error_statistics(data, uncompensated - ref, false);
