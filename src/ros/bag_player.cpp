@@ -115,7 +115,7 @@ void BagPlayer::run() {
     view = std::make_unique<rosbag::View>(*bag_, rosbag::TopicQuery(topics_));
   }
   // One publisher per topic, typed for the types the nodes subscribe to.
-  std::map<std::string, TopicOut> out;
+  std::map<std::string, TopicOut>& out = out_;
   const auto q = static_cast<uint32_t>(queue_size_);
   for (const rosbag::ConnectionInfo* c : view->getConnections()) {
     if (out.count(c->topic)) continue;

@@ -9,6 +9,7 @@
 
 #include <atomic>
 #include <functional>
+#include <map>
 #include <memory>
 #include <string>
 #include <thread>
@@ -62,6 +63,9 @@ class BagPlayer {
   ros::CallbackQueue progress_queue_;
   ros::Subscriber sub_progress_;
   ros::Publisher pub_clock_, pub_end_;
+  /// One publisher per played topic. Members, so they outlive the playing: a publisher destroyed
+  /// when the bag ends would drop the messages still queued for subscribers in other processes.
+  std::map<std::string, TopicOut> out_;
   double progress_t_s_ = -1.0;  // stamp of the last output seen (s since the epoch), -1: none yet
   long stalls_ = 0;
   std::atomic<bool> stop_{false};
