@@ -185,14 +185,7 @@ Search::Search(const Model& m, const FlightData& d, const std::string& truth_nam
   }
   if (runs.empty()) throw Error(data.source() + ": no usable fit samples for diagnose");
   // --- The base: the model's fittable columns, refitted.
-  const bool bandpass = fs.method == FitMethod::kBandpass;
-  std::vector<Eigen::Index> keep;
-  Eigen::Index c = 0;
-  for (const auto& t : terms) {
-    for (Eigen::Index k = 0; k < t->columns(); ++k, ++c) {
-      if (!bandpass || t->bandpass_observable()) keep.push_back(c);
-    }
-  }
+  const std::vector<Eigen::Index> keep = fittable_columns(fs.method, terms);
   a0.resize(n, static_cast<Eigen::Index>(keep.size()));
   for (size_t k = 0; k < keep.size(); ++k) a0.col(static_cast<Eigen::Index>(k)) = a_all.col(keep[k]);
   af0 = stack_runs(fs, dt, a0, runs);

@@ -70,6 +70,19 @@ bool Model::add_term(const std::string& spec) {
   return true;
 }
 
+std::vector<Eigen::Index> fittable_columns(FitMethod method,
+                                           const std::vector<std::unique_ptr<Term>>& terms) {
+  const bool bandpass = method == FitMethod::kBandpass;
+  std::vector<Eigen::Index> out;
+  Eigen::Index c = 0;
+  for (const auto& t : terms) {
+    for (Eigen::Index k = 0; k < t->columns(); ++k, ++c) {
+      if (!bandpass || t->bandpass_observable()) out.push_back(c);
+    }
+  }
+  return out;
+}
+
 const char* fit_method_name(FitMethod m) {
   return m == FitMethod::kReference ? "reference" : "bandpass";
 }
@@ -289,14 +302,9 @@ namespace {
 // A model with no column the fit method can fit is refused, naming its terms.
 void require_fittable_column(const Model& model) {
   const auto terms = model.make_terms();
-  Eigen::Index fittable = 0;
-  std::string list;
-  for (const auto& t : terms) {
-    if (model.fit.method != FitMethod::kBandpass || t->bandpass_observable())
-      fittable += t->columns();
-    list += (list.empty() ? "" : ", ") + t->spec();
-  }
-  if (fittable == 0) {
+  if (fittable_columns(model.fit.method, terms).empty()) {
+    std::string list;
+    for (const auto& t : terms) list += (list.empty() ? "" : ", ") + t->spec();
     throw Error("fit: the model has no column to fit (terms: [" + list + "]" +
                 (model.fit.method == FitMethod::kBandpass
                      ? "; a band-pass fit cannot fit bias, and a lag "
@@ -444,14 +452,12 @@ void fit_model(Model& model, const std::vector<const FlightData*>& flights) {
   require_fittable_column(model);
   const std::vector<std::string> estimates = estimate_free_parameters(model, flights);
   const FitSettings& s = model.fit;
-  const bool bandpass = s.method == FitMethod::kBandpass;
   const auto terms = model.make_terms();
-  std::vector<bool> keep;  // columns the method can fit
-  for (const auto& t : terms) {
-    for (size_t k = 0; k < t->column_names().size(); ++k) {
-      keep.push_back(!bandpass || t->bandpass_observable());
-    }
-  }
+  Eigen::Index columns = 0;
+  for (const auto& t : terms) columns += t->columns();
+  std::vector<bool> keep(static_cast<size_t>(columns), false);  // columns the method can fit
+  for (Eigen::Index c : fittable_columns(model.fit.method, terms))
+    keep[static_cast<size_t>(c)] = true;
   std::string sources;
   for (const FlightData* flight : flights) {
     sources += (sources.empty() ? "" : ",") + flight->source();

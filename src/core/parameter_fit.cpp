@@ -214,15 +214,8 @@ double initial_guess(TransformKind k) {
 // The design of `model` on one flight, restricted to the columns its fit method can fit.
 Eigen::MatrixXd fittable_design(const Model& model, const std::vector<std::unique_ptr<Term>>& terms,
                                 const FlightData& f) {
-  const bool bandpass = model.fit.method == FitMethod::kBandpass;
   const Eigen::MatrixXd a = design_matrix(model, terms, f);
-  std::vector<Eigen::Index> keep;
-  Eigen::Index c = 0;
-  for (const auto& term : terms) {
-    for (Eigen::Index k = 0; k < term->columns(); ++k, ++c) {
-      if (!bandpass || term->bandpass_observable()) keep.push_back(c);
-    }
-  }
+  const std::vector<Eigen::Index> keep = fittable_columns(model.fit.method, terms);
   Eigen::MatrixXd kept(a.rows(), static_cast<Eigen::Index>(keep.size()));
   for (size_t k = 0; k < keep.size(); ++k) kept.col(static_cast<Eigen::Index>(k)) = a.col(keep[k]);
   return kept;

@@ -97,6 +97,12 @@ Eigen::MatrixXd design_matrix(const Model& model, const FlightData& data);
 Eigen::MatrixXd design_matrix(const Model& model, const std::vector<std::unique_ptr<Term>>& terms,
                               const FlightData& data);
 
+/// Indices of the design-matrix columns of `terms` that a fit by `method` can fit: all of them
+/// for a reference fit; for a band-pass fit only those of bandpass_observable() terms (a bias,
+/// say, is filtered away).
+std::vector<Eigen::Index> fittable_columns(FitMethod method,
+                                           const std::vector<std::unique_ptr<Term>>& terms);
+
 /// Samples of margin that make rows of the design matrix and of the aligned scalar built on a
 /// slice of a flight (FlightData::rows) equal to the same rows built on the whole flight: the
 /// terms' row reach plus the lag's shift plus the interpolation's; -1 when a term depends on the

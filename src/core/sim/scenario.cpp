@@ -142,7 +142,7 @@ void read_earth_and_sensors(const Reader& r, const YAML::Node& root, Scenario* o
   }
 }
 
-// The scalar keys and the date, origin, aircraft, earth and sensors sections.
+// The scalar keys and the date, origin and aircraft sections.
 void read_settings(const Reader& r, const YAML::Node& root, Scenario* out) {
   Scenario& s = *out;
   const std::string& path = r.path;
@@ -187,7 +187,6 @@ void read_settings(const Reader& r, const YAML::Node& root, Scenario* out) {
     r.range(s.aircraft_scale, 0, 1000, "aircraft.field_scale");
     r.range(s.turbulence_deg, 0, 20, "aircraft.turbulence_deg");
   }
-  read_earth_and_sensors(r, root, out);
 }
 
 // The flight plan, and its length bounded before anything is allocated.
@@ -337,6 +336,7 @@ static Scenario load_scenario_unchecked(const std::string& path) {
   Scenario s;
   s.source = path;
   read_settings(r, root, &s);
+  read_earth_and_sensors(r, root, &s);
   read_plan(r, root, &s);
   read_hidden(r, root, &s);
   return s;
