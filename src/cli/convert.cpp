@@ -10,8 +10,7 @@
 
 namespace magcomp::cli {
 
-void add_convert(CLI::App& app) {
-  auto* cmd = app.add_subcommand("convert", "IN.h5 OUT.bag or IN.bag OUT.h5 (lossless)");
+void setup_convert(CLI::App* cmd) {
   auto in = std::make_shared<std::string>();
   auto out = std::make_shared<std::string>();
   auto force = std::make_shared<bool>(false);

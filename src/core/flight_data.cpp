@@ -142,21 +142,56 @@ void FlightData::remove(const std::string& name) {
   for (size_t i = 0; i < names_.size(); ++i) index_[names_[i]] = i;
 }
 
+namespace {
+
+// The sample period's defining statistic: the element of rank size/2 (0-based) of tt's positive,
+// finite steps. A candidate (the middle of a sample of the steps: one of the few values a
+// regularly sampled tt takes) is confirmed by counting the steps below it and equal to it, in one
+// pass without storing them; otherwise the steps are stored and partially sorted.
+double median_step_s(const Eigen::VectorXd& t, const std::string& source) {
+  auto step = [&t](Eigen::Index i) { return t[i] - t[i - 1]; };
+  auto usable = [](double d) { return d > 0 && std::isfinite(d); };
+  const Eigen::Index n = t.size();
+  std::vector<double> sample;
+  constexpr Eigen::Index kSample = 31;
+  for (Eigen::Index k = 0; n > 1 && k < kSample; ++k) {
+    const double d = step(1 + k * (n - 2) / (kSample - 1));
+    if (usable(d)) sample.push_back(d);
+  }
+  if (!sample.empty()) {
+    std::nth_element(sample.begin(), sample.begin() + static_cast<std::ptrdiff_t>(sample.size() / 2),
+                     sample.end());
+    const double candidate = sample[sample.size() / 2];
+    Eigen::Index count = 0, below = 0, equal = 0;
+    for (Eigen::Index i = 1; i < n; ++i) {
+      const double d = step(i);
+      const bool u = usable(d);
+      count += u;
+      below += u && d < candidate;
+      equal += u && d == candidate;
+    }
+    const Eigen::Index rank = count / 2;
+    if (below <= rank && rank < below + equal) return candidate;
+  }
+  std::vector<double> steps;
+  steps.reserve(static_cast<size_t>(std::max<Eigen::Index>(0, n - 1)));
+  for (Eigen::Index i = 1; i < n; ++i) {
+    if (usable(step(i))) steps.push_back(step(i));
+  }
+  if (steps.empty()) throw Error(source + ": field 'tt' has no two increasing samples");
+  auto mid = steps.begin() + static_cast<std::ptrdiff_t>(steps.size() / 2);
+  std::nth_element(steps.begin(), mid, steps.end());
+  return *mid;
+}
+
+}  // namespace
+
 double FlightData::dt_s() const {
   const double cached = dt_cache_.s.load();
   if (!std::isnan(cached)) return cached;
-  const Eigen::VectorXd& t = tt();
-  std::vector<double> diffs;
-  diffs.reserve(static_cast<size_t>(std::max<Eigen::Index>(0, t.size() - 1)));
-  for (Eigen::Index i = 1; i < t.size(); ++i) {
-    const double d = t[i] - t[i - 1];
-    if (d > 0 && std::isfinite(d)) diffs.push_back(d);
-  }
-  if (diffs.empty()) throw Error(source_ + ": field 'tt' has no two increasing samples");
-  auto mid = diffs.begin() + static_cast<std::ptrdiff_t>(diffs.size() / 2);
-  std::nth_element(diffs.begin(), mid, diffs.end());
-  dt_cache_.s.store(*mid);
-  return *mid;
+  const double dt = median_step_s(tt(), source_);
+  dt_cache_.s.store(dt);
+  return dt;
 }
 
 std::vector<Eigen::Index> FlightData::select(const std::vector<double>& lines,

@@ -40,7 +40,7 @@ herr_t collect_name(hid_t, const char* name, const H5L_info_t*, void* out) {
 struct Dataset {
   std::string name;
   std::vector<hsize_t> dims;
-  std::vector<double> values;
+  Eigen::VectorXd values;
   bool numeric = true;
 };
 
@@ -107,7 +107,7 @@ void read_values(hid_t file, const std::string& path, Dataset& d, hsize_t count,
                 " values but the file stores " + std::to_string(stored) + " bytes of it");
   }
   try {
-    d.values.resize(static_cast<size_t>(count));
+    d.values.resize(static_cast<Eigen::Index>(count));
   } catch (const std::bad_alloc&) {
     throw Error(path + ": field '" + d.name + "': not enough memory for " +
                 std::to_string(count) + " values");
@@ -197,7 +197,9 @@ class H5ColumnLoader : public ColumnLoader {
       std::lock_guard<std::mutex> lock(hdf5_mutex());
       read_values(file_, path_, d, n_, file_bytes_);
     }
-    for (size_t k = 0; k < n_; ++k) v[static_cast<Eigen::Index>(k)] = d.values[order_[k]];
+    for (size_t k = 0; k < n_; ++k) {
+      v[static_cast<Eigen::Index>(k)] = d.values[static_cast<Eigen::Index>(order_[k])];
+    }
     return v;
   }
   bool reads_rows() const override { return order_.empty(); }
@@ -293,19 +295,24 @@ std::vector<Dataset> series_of(hid_t file_id, const std::string& path,
   return series;
 }
 
-// A time base with a NaN or Inf cannot place its samples: refused, naming the first.
-void require_finite_tt(const std::string& path, const std::vector<double>& t) {
-  size_t bad = 0, first = t.size();
-  for (size_t k = 0; k < t.size(); ++k) {
+// A time base with a NaN or Inf cannot place its samples: refused, naming the first. Returns
+// whether tt is in time order (one pass for both).
+bool require_finite_tt(const std::string& path, const Eigen::VectorXd& t) {
+  bool finite = true, sorted = true;
+  for (Eigen::Index k = 0; k < t.size(); ++k) {
+    finite &= std::isfinite(t[k]);
+    if (k > 0) sorted &= !(t[k] < t[k - 1]);
+  }
+  if (finite) return sorted;
+  Eigen::Index bad = 0, first = t.size();
+  for (Eigen::Index k = 0; k < t.size(); ++k) {
     if (!std::isfinite(t[k])) {
       if (!bad++) first = k;
     }
   }
-  if (bad) {
-    throw Error(path + ": field 'tt' has " + std::to_string(bad) + " non-finite value(s) (" +
-                (std::isnan(t[first]) ? "NaN" : "Inf") + " at sample " + std::to_string(first) +
-                "); samples without a time cannot be placed");
-  }
+  throw Error(path + ": field 'tt' has " + std::to_string(bad) + " non-finite value(s) (" +
+              (std::isnan(t[first]) ? "NaN" : "Inf") + " at sample " + std::to_string(first) +
+              "); samples without a time cannot be placed");
 }
 
 // Every series but tt declared to `data`, read on first use through `loader`; of two
@@ -366,28 +373,29 @@ FlightData read_flight_h5(const std::string& path) {
     }
   }
   read_values(file.id, path, *tt_it, n_declared, file_bytes);
-  const size_t n = tt_it->values.size();
-  const std::vector<double>& t = tt_it->values;
-  require_finite_tt(path, t);
-  // Sort by tt (stable), as DATA.md prescribes.
-  std::vector<size_t> order(n);
-  std::iota(order.begin(), order.end(), 0);
-  if (!std::is_sorted(t.begin(), t.end())) {
-    std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return t[a] < t[b]; });
+  const size_t n = static_cast<size_t>(tt_it->values.size());
+  const bool sorted = require_finite_tt(path, tt_it->values);
+  // Sort by tt (stable), as DATA.md prescribes; tt now, every other column on first use (a
+  // command reads only what it touches).
+  std::vector<size_t> order;
+  if (sorted) {
+    data.set("tt", std::move(tt_it->values));
+  } else {
+    const Eigen::VectorXd& t = tt_it->values;
+    order.resize(n);
+    std::iota(order.begin(), order.end(), 0);
+    std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) {
+      return t[static_cast<Eigen::Index>(a)] < t[static_cast<Eigen::Index>(b)];
+    });
     data.add_read_note(path + ": field 'tt' was not in time order; the samples were sorted by tt");
-  }
-  // tt now; every other column on first use (a command reads only what it touches).
-  {
     Eigen::VectorXd v(static_cast<Eigen::Index>(n));
-    for (size_t k = 0; k < n; ++k) v[static_cast<Eigen::Index>(k)] = t[order[k]];
+    for (size_t k = 0; k < n; ++k) v[static_cast<Eigen::Index>(k)] = t[static_cast<Eigen::Index>(order[k])];
     data.set("tt", std::move(v));
   }
-  const bool sorted = std::is_sorted(t.begin(), t.end());
   const hid_t file_id = file.id;
   file.id = -1;  // the loader owns the open file now
-  auto loader = std::make_shared<H5ColumnLoader>(file_id, path,
-                                                 sorted ? std::vector<size_t>() : order,
-                                                 n_declared, file_bytes);
+  auto loader =
+      std::make_shared<H5ColumnLoader>(file_id, path, std::move(order), n_declared, file_bytes);
   declare_lazy_columns(series, path, loader, &data);
   if (n > 1) {
     const double dt = data.dt_s();

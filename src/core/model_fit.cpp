@@ -12,6 +12,7 @@
 #include "magcomp/core/butterworth.h"
 #include "magcomp/core/error.h"
 #include "magcomp/core/model.h"
+#include "magcomp/core/quadratic_form.h"
 #include "magcomp/core/parameter_fit.h"
 #include "magcomp/core/terms_expr.h"
 #include "magcomp/core/timeseries.h"
@@ -551,10 +552,13 @@ void model_correction_and_variance(const Model& model, const FlightData& data,
         }
         correction_nT->segment(first, a.rows()).noalias() = a * model.coefficients;
         if (!variance_nT2) return;
-        Eigen::VectorXd buffer;
-        for (Eigen::Index i = 0; i < a.rows(); ++i) {
-          (*variance_nT2)[first + i] = row_variance_nT2(model, a.row(i), &buffer);
+        double* out = variance_nT2->data() + first;
+        const Eigen::MatrixXd& cov = model.report.coefficient_covariance;
+        if (cov.rows() != a.cols() || !std::isfinite(model.report.noise_variance_nT2)) {
+          std::fill(out, out + a.rows(), std::numeric_limits<double>::quiet_NaN());
+          return;
         }
+        row_quadratic_forms(cov, a, model.report.noise_variance_nT2, out);
       },
       threads);
 }
