@@ -23,7 +23,7 @@ void add_info(CLI::App& app) {
     std::printf(", %zu fields\n", flight.names().size());
     std::printf("%-20s %10s %16s %16s\n", "field", "nan", "min", "max");
     for (const std::string& name : flight.names()) {
-      const Eigen::VectorXd& v = flight.column(name);
+      const auto v = flight.column(name);
       long nan = 0;
       double lo = std::numeric_limits<double>::infinity(), hi = -lo;
       for (Eigen::Index i = 0; i < v.size(); ++i) {

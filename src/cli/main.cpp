@@ -1,4 +1,5 @@
 // magcomp: the command-line tool. Each subcommand is a thin shell over magcomp_core.
+#include <malloc.h>
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
@@ -31,6 +32,10 @@ int exec_program(const char* program, int argc, char** argv) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  // Column-sized buffers (a few MB each) come and go all through a job: kept in the heap and
+  // reused, rather than mapped and unmapped by the allocator each time, they are paged in once.
+  mallopt(M_MMAP_THRESHOLD, 1 << 30);
+  mallopt(M_TRIM_THRESHOLD, 1 << 30);
   if (argc >= 2 && std::string(argv[1]) == "train") return exec_program("magcomp_train", argc, argv);
   if (argc >= 2 && std::string(argv[1]) == "convert")
     return exec_program("magcomp_convert", argc, argv);

@@ -80,7 +80,7 @@ std::vector<ChannelAssociation> residual_associations(const FlightData& data,
   static const std::set<std::string> kSkip = {"tt", "line", "flight", "year", "doy", "N", "dt"};
   for (const std::string& name : data.names()) {
     if (kSkip.count(name) || name.rfind("mag_", 0) == 0 || name == truth_name) continue;
-    const Eigen::VectorXd& x = data.column(name);
+    const auto x = data.column(name);
     Eigen::VectorXd v(r.size());
     bool finite = true;
     for (size_t k = 0; k < rows.size(); ++k) {

@@ -139,7 +139,8 @@ Search::Search(const Model& m, const FlightData& d, const std::string& truth_nam
   const auto terms = model.make_terms();
   const Eigen::MatrixXd a_all = design_matrix(model, terms, data);  // names a missing field
   scalar = aligned_scalar(model, data);
-  line = data.has("line") ? data.column("line") : Eigen::VectorXd::Zero(data.size());
+  line = data.has("line") ? Eigen::VectorXd(data.column("line"))
+                          : Eigen::VectorXd::Zero(data.size());
   const Eigen::Index n = data.size();
   dt = data.dt_s();
   span = n > 1 ? data.tt()[n - 1] - data.tt()[0] : 1.0;
@@ -305,7 +306,7 @@ Scored Search::lag_candidate(double* tau_out, const Eigen::MatrixXd& partner) co
   // refinement to 0.01 s. A model that has a lag gets it re-estimated. With partner columns
   // (N x k) the lag is scanned and scored together with them: a lag moves the signature of every
   // effect, so it is judged with the term whose timing it explains.
-  const Eigen::VectorXd& raw = data.column(model.scalar);
+  const FlightData::Column raw = data.column(model.scalar);
   const double current = model.scalar_lag_s();
   const Eigen::MatrixXd pf = stacked(partner);
   Eigen::MatrixXd base(af0.rows(), af0.cols() + pf.cols());
@@ -342,7 +343,7 @@ Scored Search::lag_candidate(double* tau_out, const Eigen::MatrixXd& partner) co
 }
 
 Scored Search::lag_at(double tau, const Eigen::MatrixXd& partner) const {
-  const Eigen::VectorXd& raw = data.column(model.scalar);
+  const FlightData::Column raw = data.column(model.scalar);
   const double current = model.scalar_lag_s();
   const Eigen::MatrixXd pf = stacked(partner);
   Eigen::MatrixXd base(af0.rows(), af0.cols() + pf.cols());
@@ -456,7 +457,7 @@ std::vector<std::string> source_fields(const Model& model, const FlightData& dat
       continue;
     }
     if (!full_search && !is_electrical(name) && !is_rate(name)) continue;
-    const Eigen::VectorXd& x = data.column(name);
+    const FlightData::Column x = data.column(name);
     double lo = INFINITY, hi = -INFINITY;
     Eigen::Index finite = 0;
     for (Eigen::Index i = 0; i < x.size(); ++i) {
@@ -665,8 +666,8 @@ ExplainableShare remaining_share(const FlightData& data, const Search& search,
     const auto& m = mean[search.line[i]];
     r[i] = search.e0[i] - m.first / m.second;
   }
-  std::vector<std::pair<std::string, const Eigen::VectorXd*>> channels;
-  for (const auto& s : sources) channels.emplace_back(s, &data.column(s));
+  std::vector<std::pair<std::string, Eigen::Map<const Eigen::VectorXd>>> channels;
+  for (const auto& s : sources) channels.emplace_back(s, data.column(s));
   ExplainableShare x =
       explainable_share(r, search.unit, search.line, data.tt(), search.inputs.direction, channels);
   // A predictable remainder below the resolution is noise for every practical purpose.

@@ -22,14 +22,14 @@ struct LineSums {
 };
 
 // The line of sample i (0 without a line field, -1 for a NaN line).
-double line_of(const Eigen::VectorXd* line_column, Eigen::Index i) {
-  const double line = line_column ? (*line_column)[i] : 0.0;
+double line_of(const double* line_column, Eigen::Index i) {
+  const double line = line_column ? line_column[i] : 0.0;
   return std::isfinite(line) ? line : -1.0;
 }
 
 // Each line's sums over the finite errors; the non-finite ones counted in *nan_samples.
 std::map<double, LineSums> line_sums(const Eigen::VectorXd& error_nT,
-                                     const Eigen::VectorXd* line_column,
+                                     const double* line_column,
                                      Eigen::Index* nan_samples) {
   std::map<double, LineSums> groups;
   double last_line = std::numeric_limits<double>::quiet_NaN();
@@ -54,7 +54,7 @@ std::map<double, LineSums> line_sums(const Eigen::VectorXd& error_nT,
 
 // The std by flight condition and by heading sector, each line's mean removed first.
 void condition_and_heading_stats(const FlightData& data, const Eigen::VectorXd& error_nT,
-                                 const Eigen::VectorXd* line_column,
+                                 const double* line_column,
                                  std::map<double, LineSums>& groups,
                                  const std::vector<FlightCondition>& cond, Evaluation* ev) {
   const std::vector<int> sector = heading_sectors(data);
@@ -100,7 +100,7 @@ Evaluation error_statistics(const FlightData& data, Eigen::VectorXd error, bool 
   Evaluation ev;
   ev.error_nT = std::move(error);
   const Eigen::VectorXd& error_nT = ev.error_nT;
-  const Eigen::VectorXd* line_column = data.has("line") ? &data.column("line") : nullptr;
+  const double* line_column = data.has("line") ? data.column("line").data() : nullptr;
   std::map<double, LineSums> groups = line_sums(error_nT, line_column, &ev.nan_samples);
   double total_sq = 0, total_var = 0;
   for (const auto& [line, a] : groups) {
@@ -150,7 +150,7 @@ double pooled_std(const Eigen::VectorXd& residual, const Eigen::VectorXd& groups
 
 Evaluation evaluate_model(const Model& model, const FlightData& data, const std::string& truth) {
   if (!data.has(truth)) throw Error(data.source() + ": reference field '" + truth + "' not found");
-  const Eigen::VectorXd& ref = data.column(truth);
+  const FlightData::Column ref = data.column(truth);
   if (!ref.array().isFinite().any()) {
     throw Error(data.source() + ": reference field '" + truth + "' holds no finite sample");
   }

@@ -19,7 +19,8 @@ constexpr int kStride = 2;        // every kStride-th held-out sample is used to
 constexpr double kRidge = 1e-2;   // ridge per row, on standardised columns
 
 // The nine functions of one channel over the whole flight (N x 9), standardised.
-Eigen::MatrixXd channel_functions(const Eigen::VectorXd& x, const Eigen::VectorXd& t) {
+Eigen::MatrixXd channel_functions(const Eigen::Ref<const Eigen::VectorXd>& x,
+                                  const Eigen::Ref<const Eigen::VectorXd>& t) {
   const Eigen::Index n = x.size();
   Eigen::VectorXd z = x;
   double mean = 0, ss = 0, cnt = 0;
@@ -219,7 +220,7 @@ double bootstrap_sd(const Ranked& r, int units) {
 
 // Where the predicted part sits: by time scale (low-passes along the held-out samples in time
 // order) and by line.
-void locate_prediction(const Eigen::VectorXd& prediction, const Eigen::VectorXd& t_s,
+void locate_prediction(const Eigen::VectorXd& prediction, const Eigen::Ref<const Eigen::VectorXd>& t_s,
                        const Eigen::VectorXd& line, ExplainableShare* out) {
   const Eigen::Index n = prediction.size();
   std::vector<Eigen::Index> rows;
@@ -259,8 +260,8 @@ void locate_prediction(const Eigen::VectorXd& prediction, const Eigen::VectorXd&
 
 ExplainableShare explainable_share(
     const Eigen::VectorXd& residual, const std::vector<int>& unit, const Eigen::VectorXd& line,
-    const Eigen::VectorXd& t_s, const Eigen::MatrixX3d& direction,
-    const std::vector<std::pair<std::string, const Eigen::VectorXd*>>& channels) {
+    const Eigen::Ref<const Eigen::VectorXd>& t_s, const Eigen::MatrixX3d& direction,
+    const std::vector<std::pair<std::string, Eigen::Map<const Eigen::VectorXd>>>& channels) {
   ExplainableShare out;
   const Problem p = make_problem(residual, unit, direction);
   int filled = 0;
@@ -268,7 +269,7 @@ ExplainableShare explainable_share(
   if (filled < 2 || channels.empty()) return out;
   std::vector<Eigen::MatrixXd> functions(channels.size());
   for (size_t k = 0; k < channels.size(); ++k) {
-    functions[k] = channel_functions(*channels[k].second, t_s);
+    functions[k] = channel_functions(channels[k].second, t_s);
   }
   // The real fit, and four nulls with the channels shifted by a fifth of the flight each, in
   // parallel (each is independent).

@@ -61,7 +61,7 @@ FigureOfMerit figure_of_merit(const FlightData& data, const FitSettings& fit,
   std::vector<FlightCondition> classified;
   if (!known_conditions) classified = classify_conditions(data);
   const std::vector<FlightCondition>& conditions = known_conditions ? *known_conditions : classified;
-  const Eigen::VectorXd& yaw = data.column("ins_yaw");
+  const auto yaw = data.column("ins_yaw");
   const Butterworth bp = Butterworth::band_pass(fit.order, fit.band_low_hz,
                                                 std::min(fit.band_high_hz, 0.45 / dt), 1.0 / dt);
   // Maneuvers: contiguous runs of one maneuver condition inside the selected runs.

@@ -37,8 +37,7 @@ namespace {
 // arithmetic as whole-series prefix sums; the ring holds at least w + 2.
 class WindowStats {
  public:
-  WindowStats(const Eigen::VectorXd* x, Eigen::Index w)
-      : x_(x), n_(x ? x->size() : 0), w_(w) {
+  WindowStats(const double* x, Eigen::Index n, Eigen::Index w) : x_(x), n_(n), w_(w) {
     size_t size = 1;
     while (size < static_cast<size_t>(w + 2)) size *= 2;  // a power of two: the slot is a mask
     ring_.resize(size);
@@ -54,7 +53,7 @@ class WindowStats {
     }
     const Eigen::Index a = std::max<Eigen::Index>(0, i - w_ / 2), b = std::min(n_, i + w_ / 2 + 1);
     while (filled_ < b) {  // prefix sums up to index b
-      const double v = std::isfinite((*x_)[filled_]) ? (*x_)[filled_] : 0.0;
+      const double v = std::isfinite(x_[filled_]) ? x_[filled_] : 0.0;
       const Sums& p = ring_[slot(filled_)];
       ring_[slot(filled_ + 1)] = {p.s1 + v, p.s2 + v * v};
       ++filled_;
@@ -72,7 +71,7 @@ class WindowStats {
     double s1, s2;
   };
   size_t slot(Eigen::Index i) const { return static_cast<size_t>(i) & mask_; }
-  const Eigen::VectorXd* x_;
+  const double* x_;
   Eigen::Index n_, w_, filled_ = 0;
   std::vector<Sums> ring_;
   size_t mask_ = 0;
@@ -83,9 +82,11 @@ class WindowStats {
 std::vector<FlightCondition> classify_conditions(const FlightData& data, double window_s) {
   const Eigen::Index n = data.size();
   const Eigen::Index w = std::max<Eigen::Index>(3, std::llround(window_s / data.dt_s()));
-  auto col = [&](const char* name) { return data.has(name) ? &data.column(name) : nullptr; };
-  WindowStats pitch(col("pitch_rate"), w), roll(col("roll_rate"), w), yaw(col("yaw_rate"), w),
-      vertical(col("ins_vu"), w);
+  auto col = [&](const char* name) {
+    return data.has(name) ? data.column(name).data() : nullptr;
+  };
+  WindowStats pitch(col("pitch_rate"), n, w), roll(col("roll_rate"), n, w),
+      yaw(col("yaw_rate"), n, w), vertical(col("ins_vu"), n, w);
   std::vector<FlightCondition> out(static_cast<size_t>(n), FlightCondition::kStraightLevel);
   for (Eigen::Index i = 0; i < n; ++i) {
     double pm, p, rm, r, ym, y, vm, vr;
@@ -133,7 +134,7 @@ bool ManeuverDetector::update(double t, double p, double r, double y) {
 std::vector<int> heading_sectors(const FlightData& data) {
   std::vector<int> out(static_cast<size_t>(data.size()), -1);
   if (!data.has("ins_yaw")) return out;
-  const Eigen::VectorXd& yaw = data.column("ins_yaw");
+  const FlightData::Column yaw = data.column("ins_yaw");
   for (Eigen::Index i = 0; i < data.size(); ++i) {
     if (!std::isfinite(yaw[i])) continue;
     const double h = std::fmod(std::fmod(yaw[i], 360.0) + 360.0 + 22.5, 360.0);

@@ -2,7 +2,10 @@
 #include "magcomp/core/flight_data.h"
 
 #include <algorithm>
+#include <cfloat>
+#include <cstdint>
 #include <cmath>
+#include <optional>
 
 #include "magcomp/core/error.h"
 
@@ -26,14 +29,14 @@ bool FlightData::has(const std::string& name) const {
   return index_.count(name) > 0 || index_.count(canonical_name(name)) > 0;
 }
 
-const Eigen::VectorXd& FlightData::column(const std::string& name) const {
+FlightData::Column FlightData::column(const std::string& name) const {
   auto it = index_.find(name);
   if (it == index_.end()) it = index_.find(canonical_name(name));
   if (it == index_.end()) {
     throw Error(source_ + ": field '" + name + "' not found");
   }
   ensure_loaded(it->second);
-  return columns_[it->second];
+  return Column(values(it->second), size_);
 }
 
 Eigen::VectorXd FlightData::column_rows(const std::string& name, Eigen::Index first,
@@ -50,6 +53,13 @@ Eigen::VectorXd FlightData::column_rows(const std::string& name, Eigen::Index fi
     // loader may read through its parent's.
     std::lock_guard<std::mutex> lock(*load_mutex_);
     Lazy& z = lazy_[i];
+    if (z.loader && !z.map_tried) {
+      z.mapped = z.loader->map(z.stored_name);
+      z.map_tried = true;
+    }
+    if (z.mapped) {  // in place: only these rows' pages are read
+      return Eigen::Map<const Eigen::VectorXd>(z.mapped + first, count);
+    }
     // Up to twice the column in parts (blocks overlap by their margins), then it is loaded.
     if (z.loader && z.loader->reads_rows() && z.rows_read_in_part + count <= 2 * size_) {
       z.rows_read_in_part += count;
@@ -62,13 +72,22 @@ Eigen::VectorXd FlightData::column_rows(const std::string& name, Eigen::Index fi
     }
   }
   ensure_loaded(i);
-  return columns_[i].segment(first, count);
+  return Column(values(i), size_).segment(first, count);
 }
 
 void FlightData::ensure_loaded(size_t i) const {
   std::lock_guard<std::mutex> lock(*load_mutex_);
   Lazy& z = lazy_[i];
   if (!z.loader) return;
+  if (!z.map_tried) {
+    z.mapped = z.loader->map(z.stored_name);
+    z.map_tried = true;
+  }
+  if (z.mapped) {
+    z.mapping = std::move(z.loader);
+    z.loader.reset();
+    return;
+  }
   Eigen::VectorXd v = z.loader->load(z.stored_name);
   if (v.size() != size_) {
     throw Error(source_ + ": field '" + names_[i] + "' has " + std::to_string(v.size()) +
@@ -79,8 +98,14 @@ void FlightData::ensure_loaded(size_t i) const {
 }
 
 void FlightData::set_lazy(const std::string& name, std::string stored_name,
-                          std::shared_ptr<const ColumnLoader> loader) {
+                          std::shared_ptr<const ColumnLoader> loader, Eigen::Index size) {
+  if (size_ < 0 && size >= 0) size_ = size;
   if (size_ < 0) throw Error(source_ + ": field '" + name + "' declared before the time base");
+  if (size >= 0 && size != size_) {
+    throw Error(source_ + ": field '" + name + "' has " + std::to_string(size) +
+                " samples, expected " + std::to_string(size_));
+  }
+  if (canonical_name(name) == "tt") dt_cache_.s.store(std::numeric_limits<double>::quiet_NaN());
   const std::string key = canonical_name(name);
   auto it = index_.find(key);
   size_t i;
@@ -104,9 +129,19 @@ size_t FlightData::loaded_columns() const {
   return n;
 }
 
-Eigen::VectorXd& FlightData::column(const std::string& name) {
-  if (name == "tt") dt_cache_.s.store(std::numeric_limits<double>::quiet_NaN());
-  return const_cast<Eigen::VectorXd&>(static_cast<const FlightData&>(*this).column(name));
+Eigen::VectorXd& FlightData::mutable_column(const std::string& name) {
+  if (canonical_name(name) == "tt") dt_cache_.s.store(std::numeric_limits<double>::quiet_NaN());
+  auto it = index_.find(name);
+  if (it == index_.end()) it = index_.find(canonical_name(name));
+  if (it == index_.end()) throw Error(source_ + ": field '" + name + "' not found");
+  const size_t i = it->second;
+  ensure_loaded(i);
+  Lazy& z = lazy_[i];
+  if (z.mapped) {  // a copy of its own from now on
+    columns_[i] = Column(z.mapped, size_);
+    z = Lazy{};
+  }
+  return columns_[i];
 }
 
 void FlightData::set(const std::string& name, Eigen::VectorXd values) {
@@ -145,38 +180,48 @@ void FlightData::remove(const std::string& name) {
 namespace {
 
 // The sample period's defining statistic: the element of rank size/2 (0-based) of tt's positive,
-// finite steps. A candidate (the middle of a sample of the steps: one of the few values a
-// regularly sampled tt takes) is confirmed by counting the steps below it and equal to it, in one
-// pass without storing them; otherwise the steps are stored and partially sorted.
-double median_step_s(const Eigen::VectorXd& t, const std::string& source) {
-  auto step = [&t](Eigen::Index i) { return t[i] - t[i - 1]; };
-  auto usable = [](double d) { return d > 0 && std::isfinite(d); };
+// finite steps. A regularly sampled tt takes a few step values, so candidates are the distinct
+// values of a sample of the steps, tried in order from their middle: one counting pass (no
+// storage) tells whether a candidate has the rank, or on which side of it the rank lies. Without
+// a confirmed candidate after a few passes the steps are stored and partially sorted.
+double median_step_s(const FlightData::Column& t, const std::string& source) {
   const Eigen::Index n = t.size();
+  const double* tt = t.data();
   std::vector<double> sample;
   constexpr Eigen::Index kSample = 31;
-  for (Eigen::Index k = 0; n > 1 && k < kSample; ++k) {
-    const double d = step(1 + k * (n - 2) / (kSample - 1));
-    if (usable(d)) sample.push_back(d);
+  for (Eigen::Index k = 0; n > 2 && k < kSample; ++k) {
+    const Eigen::Index i = 1 + k * (n - 2) / (kSample - 1);
+    const double d = tt[i] - tt[i - 1];
+    if (d > 0 && d <= DBL_MAX) sample.push_back(d);
   }
-  if (!sample.empty()) {
-    std::nth_element(sample.begin(), sample.begin() + static_cast<std::ptrdiff_t>(sample.size() / 2),
-                     sample.end());
-    const double candidate = sample[sample.size() / 2];
-    Eigen::Index count = 0, below = 0, equal = 0;
+  std::sort(sample.begin(), sample.end());
+  sample.erase(std::unique(sample.begin(), sample.end()), sample.end());
+  auto candidate = static_cast<std::ptrdiff_t>(sample.size() / 2);
+  for (int pass = 0; pass < 4 && candidate >= 0 && candidate < std::ptrdiff_t(sample.size());
+       ++pass) {
+    const double c = sample[static_cast<size_t>(candidate)];
+    int64_t count = 0, below = 0, equal = 0;
     for (Eigen::Index i = 1; i < n; ++i) {
-      const double d = step(i);
-      const bool u = usable(d);
-      count += u;
-      below += u && d < candidate;
-      equal += u && d == candidate;
+      const double d = tt[i] - tt[i - 1];
+      const int64_t usable = d > 0 && d <= DBL_MAX;
+      count += usable;
+      below += usable & (d < c);
+      equal += usable & (d == c);
     }
-    const Eigen::Index rank = count / 2;
-    if (below <= rank && rank < below + equal) return candidate;
+    const int64_t rank = count / 2;
+    if (rank < below) {
+      --candidate;
+    } else if (rank >= below + equal) {
+      ++candidate;
+    } else {
+      return c;
+    }
   }
   std::vector<double> steps;
   steps.reserve(static_cast<size_t>(std::max<Eigen::Index>(0, n - 1)));
   for (Eigen::Index i = 1; i < n; ++i) {
-    if (usable(step(i))) steps.push_back(step(i));
+    const double d = tt[i] - tt[i - 1];
+    if (d > 0 && std::isfinite(d)) steps.push_back(d);
   }
   if (steps.empty()) throw Error(source + ": field 'tt' has no two increasing samples");
   auto mid = steps.begin() + static_cast<std::ptrdiff_t>(steps.size() / 2);
@@ -197,8 +242,9 @@ double FlightData::dt_s() const {
 std::vector<Eigen::Index> FlightData::select(const std::vector<double>& lines,
                                              const std::vector<TimeWindow>& windows) const {
   std::vector<Eigen::Index> out;
-  const Eigen::VectorXd& t = tt();
-  const Eigen::VectorXd* line = (!lines.empty()) ? &column("line") : nullptr;
+  const Column t = tt();
+  const std::optional<Column> line =
+      lines.empty() ? std::nullopt : std::optional<Column>(column("line"));
   for (Eigen::Index i = 0; i < size_; ++i) {
     bool take = false;
     if (line) {
@@ -228,8 +274,9 @@ FlightData FlightData::subset(const std::vector<Eigen::Index>& indices) const {
   const Eigen::Index n = static_cast<Eigen::Index>(indices.size());
   for (size_t c = 0; c < names_.size(); ++c) {
     ensure_loaded(c);
+    const double* x = values(c);
     Eigen::VectorXd v(n);
-    for (Eigen::Index k = 0; k < n; ++k) v[k] = columns_[c][indices[static_cast<size_t>(k)]];
+    for (Eigen::Index k = 0; k < n; ++k) v[k] = x[indices[static_cast<size_t>(k)]];
     out.set(names_[c], std::move(v));
   }
   if (names_.empty()) out.size_ = 0;
@@ -272,7 +319,7 @@ std::vector<std::pair<Eigen::Index, Eigen::Index>> FlightData::contiguous_runs(
     const std::vector<Eigen::Index>& indices, double max_gap_s) const {
   std::vector<std::pair<Eigen::Index, Eigen::Index>> runs;
   if (indices.empty()) return runs;
-  const Eigen::VectorXd& t = tt();
+  const Column t = tt();
   Eigen::Index first = indices[0];
   Eigen::Index prev = indices[0];
   for (size_t k = 1; k < indices.size(); ++k) {

@@ -1,5 +1,7 @@
 // magcomp: MIT challenge HDF5 flight files, read and write (HDF5 C API).
 #include <hdf5.h>
+#include <fcntl.h>
+#include <sys/mman.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -9,6 +11,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <fstream>
 #include <mutex>
 #include <numeric>
@@ -176,13 +179,61 @@ std::mutex& hdf5_mutex() {
 // Reads the other columns of an open file on first use, in the flight's sample order.
 class H5ColumnLoader : public ColumnLoader {
  public:
-  H5ColumnLoader(hid_t file, std::string path, std::vector<size_t> order, hsize_t n,
-                 hsize_t file_bytes)
-      : file_(file), path_(std::move(path)), order_(std::move(order)), n_(n),
-        file_bytes_(file_bytes) {}
+  H5ColumnLoader(hid_t file, std::string path, hsize_t n, hsize_t file_bytes)
+      : file_(file), path_(std::move(path)), n_(n), file_bytes_(file_bytes) {}
   ~H5ColumnLoader() override {
     std::lock_guard<std::mutex> lock(hdf5_mutex());
     H5Fclose(file_);
+    if (mapping_ != MAP_FAILED) ::munmap(mapping_, static_cast<size_t>(file_bytes_));
+  }
+  /// The file's samples are out of time order: row k of a column is stored at order[k] (set
+  /// before any column is read; such columns are read and reordered, never mapped).
+  void set_order(std::vector<size_t> order) { order_ = std::move(order); }
+
+  // A dataset stored plainly (contiguous, native float64, no filter, no external file) is used
+  // where it lies in the file, mapped read-only: no copy, and only the pages a job touches are
+  // read. Its first and last values are checked against the library's own read of them.
+  const double* map(const std::string& name) const override {
+    if (!order_.empty() || n_ == 0) return nullptr;
+    std::lock_guard<std::mutex> lock(hdf5_mutex());
+    H5Handle ds(H5Dopen2(file_, name.c_str(), H5P_DEFAULT), H5Dclose);
+    if (ds.id < 0) return nullptr;  // load() says why
+    H5Handle type(H5Dget_type(ds.id), H5Tclose);
+    H5Handle create(H5Dget_create_plist(ds.id), H5Pclose);
+    if (type.id < 0 || create.id < 0 || H5Tequal(type.id, H5T_NATIVE_DOUBLE) <= 0 ||
+        H5Pget_layout(create.id) != H5D_CONTIGUOUS || H5Pget_nfilters(create.id) != 0 ||
+        H5Pget_external_count(create.id) != 0) {
+      return nullptr;
+    }
+    const haddr_t offset = H5Dget_offset(ds.id);
+    const hsize_t bytes = n_ * sizeof(double);
+    if (offset == HADDR_UNDEF || H5Dget_storage_size(ds.id) != bytes ||
+        offset % alignof(double) != 0) {
+      return nullptr;
+    }
+    if (offset > file_bytes_ || bytes > file_bytes_ - offset) {
+      throw Error(path_ + ": field '" + name + "' is stored beyond the end of the file (" +
+                  std::to_string(file_bytes_) + " bytes): the file is truncated or corrupt");
+    }
+    if (mapping_ == MAP_FAILED && !map_failed_) {
+      const int fd = ::open(path_.c_str(), O_RDONLY | O_CLOEXEC);
+      if (fd >= 0) {
+        mapping_ = ::mmap(nullptr, static_cast<size_t>(file_bytes_), PROT_READ, MAP_PRIVATE, fd, 0);
+        ::close(fd);
+      }
+      map_failed_ = mapping_ == MAP_FAILED;
+    }
+    if (mapping_ == MAP_FAILED) return nullptr;
+    const double* values =
+        reinterpret_cast<const double*>(static_cast<const char*>(mapping_) + offset);
+    double ends[2];
+    read_rows(name, 0, 1, &ends[0]);
+    read_rows(name, n_ - 1, 1, &ends[1]);
+    if (std::memcmp(&ends[0], values, sizeof(double)) != 0 ||
+        std::memcmp(&ends[1], values + (n_ - 1), sizeof(double)) != 0) {
+      return nullptr;
+    }
+    return values;
   }
   Eigen::VectorXd load(const std::string& name) const override {
     Eigen::VectorXd v(static_cast<Eigen::Index>(n_));
@@ -237,6 +288,8 @@ class H5ColumnLoader : public ColumnLoader {
   std::string path_;
   std::vector<size_t> order_;  // empty: already in time order
   hsize_t n_, file_bytes_;
+  mutable void* mapping_ = MAP_FAILED;  // the whole file, read-only, once a column is mapped
+  mutable bool map_failed_ = false;
 };
 
 hsize_t element_count(const Dataset& d) {
@@ -297,7 +350,7 @@ std::vector<Dataset> series_of(hid_t file_id, const std::string& path,
 
 // A time base with a NaN or Inf cannot place its samples: refused, naming the first. Returns
 // whether tt is in time order (one pass for both).
-bool require_finite_tt(const std::string& path, const Eigen::VectorXd& t) {
+bool require_finite_tt(const std::string& path, const Eigen::Ref<const Eigen::VectorXd>& t) {
   bool finite = true, sorted = true;
   for (Eigen::Index k = 0; k < t.size(); ++k) {
     finite &= std::isfinite(t[k]);
@@ -372,30 +425,37 @@ FlightData read_flight_h5(const std::string& path) {
                   " samples, 'tt' has " + std::to_string(n_declared));
     }
   }
-  read_values(file.id, path, *tt_it, n_declared, file_bytes);
-  const size_t n = static_cast<size_t>(tt_it->values.size());
-  const bool sorted = require_finite_tt(path, tt_it->values);
-  // Sort by tt (stable), as DATA.md prescribes; tt now, every other column on first use (a
-  // command reads only what it touches).
-  std::vector<size_t> order;
-  if (sorted) {
-    data.set("tt", std::move(tt_it->values));
+  // tt in place when the file allows (else read), checked, and the samples put in time order
+  // (stable), as DATA.md prescribes; every other column on first use (a command reads only what
+  // it touches).
+  const hid_t file_id = file.id;
+  file.id = -1;  // the loader owns the open file now
+  auto loader = std::make_shared<H5ColumnLoader>(file_id, path, n_declared, file_bytes);
+  const double* tt_in_place = loader->map("tt");
+  if (!tt_in_place) read_values(file_id, path, *tt_it, n_declared, file_bytes);
+  const Eigen::Map<const Eigen::VectorXd> t(tt_in_place ? tt_in_place : tt_it->values.data(),
+                                            static_cast<Eigen::Index>(n_declared));
+  const size_t n = static_cast<size_t>(n_declared);
+  if (require_finite_tt(path, t)) {
+    if (tt_in_place) {
+      data.set_lazy("tt", "tt", loader, t.size());
+    } else {
+      data.set("tt", std::move(tt_it->values));
+    }
   } else {
-    const Eigen::VectorXd& t = tt_it->values;
-    order.resize(n);
+    std::vector<size_t> order(n);
     std::iota(order.begin(), order.end(), 0);
     std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) {
       return t[static_cast<Eigen::Index>(a)] < t[static_cast<Eigen::Index>(b)];
     });
     data.add_read_note(path + ": field 'tt' was not in time order; the samples were sorted by tt");
     Eigen::VectorXd v(static_cast<Eigen::Index>(n));
-    for (size_t k = 0; k < n; ++k) v[static_cast<Eigen::Index>(k)] = t[static_cast<Eigen::Index>(order[k])];
+    for (size_t k = 0; k < n; ++k) {
+      v[static_cast<Eigen::Index>(k)] = t[static_cast<Eigen::Index>(order[k])];
+    }
     data.set("tt", std::move(v));
+    loader->set_order(std::move(order));
   }
-  const hid_t file_id = file.id;
-  file.id = -1;  // the loader owns the open file now
-  auto loader =
-      std::make_shared<H5ColumnLoader>(file_id, path, std::move(order), n_declared, file_bytes);
   declare_lazy_columns(series, path, loader, &data);
   if (n > 1) {
     const double dt = data.dt_s();

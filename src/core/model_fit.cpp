@@ -44,7 +44,7 @@ Eigen::VectorXd aligned_scalar(const Model& model, const FlightData& data) {
 }
 
 Eigen::VectorXd aligned_scalar(const Model& model, const FlightData& data, double lag) {
-  const Eigen::VectorXd& s = data.column(model.scalar);
+  const auto s = data.column(model.scalar);
   if (lag == 0.0) return s;
   return shift_samples(s, -lag / data.dt_s());
 }

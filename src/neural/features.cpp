@@ -93,12 +93,12 @@ void FeaturePlan::row(double scalar_nT, double tl_correction_nT, double igrf_nT,
 
 Eigen::VectorXd igrf_total_nT(const FlightData& data, const Igrf& igrf) {
   const Eigen::Index n = data.size();
-  const Eigen::VectorXd& lat = data.column("lat");
-  const Eigen::VectorXd& lon = data.column("lon");
-  const Eigen::VectorXd& h = data.column("utm_z");
-  const Eigen::VectorXd& year = data.column("year");
-  const Eigen::VectorXd& doy = data.column("doy");
-  const Eigen::VectorXd& tt = data.tt();
+  const auto lat = data.column("lat");
+  const auto lon = data.column("lon");
+  const auto h = data.column("utm_z");
+  const auto year = data.column("year");
+  const auto doy = data.column("doy");
+  const auto tt = data.tt();
   Eigen::VectorXd out(n);
   for (Eigen::Index i = 0; i < n; ++i) {
     if (!std::isfinite(lat[i]) || !std::isfinite(lon[i]) || !std::isfinite(h[i]) ||
@@ -138,9 +138,9 @@ NeuralInputs neural_inputs(const Model& model, const FlightData& data) {
   const Eigen::Index f = static_cast<Eigen::Index>(plan.size());
   Eigen::MatrixXd feat_t(f, n);
   in.diurnal_nT.resize(n);
-  const Eigen::VectorXd& bx = data.column(model.vector + "_x");
-  const Eigen::VectorXd& by = data.column(model.vector + "_y");
-  const Eigen::VectorXd& bz = data.column(model.vector + "_z");
+  const auto bx = data.column(model.vector + "_x");
+  const auto by = data.column(model.vector + "_y");
+  const auto bz = data.column(model.vector + "_z");
   for (Eigen::Index i = 0; i < n; ++i) {
     const double* chan = chr.col(i).data();
     plan.row(in.scalar_nT[i], in.correction_nT[i], in.igrf_nT[i],
@@ -156,7 +156,7 @@ Eigen::VectorXd neural_target(const Model& model, const FlightData& data, const 
   if (!data.has(s.reference)) {
     throw Error(data.source() + ": neural reference field '" + s.reference + "' not in the data");
   }
-  const Eigen::VectorXd& ref = data.column(s.reference);
+  const auto ref = data.column(s.reference);
   if (s.mode == NeuralMode::kAnomaly) return ref - in.igrf_nT - in.diurnal_nT;
   return in.scalar_nT - in.correction_nT - ref;
 }

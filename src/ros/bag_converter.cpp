@@ -92,7 +92,7 @@ constexpr double kDeg = M_PI / 180.0;
 bool exists(const std::string& path) { return std::ifstream(path).good(); }
 
 double first_finite(const FlightData& f, const std::string& name) {
-  const Eigen::VectorXd& v = f.column(name);
+  const auto v = f.column(name);
   for (Eigen::Index i = 0; i < v.size(); ++i) {
     if (std::isfinite(v[i])) return v[i];
   }
@@ -119,7 +119,7 @@ std::pair<int, int> stamp_date(const FlightData& f) {
   if (year < 1970)
     throw Error(f.source() + ": field 'year' missing or before 1970 (stamps need it)");
   if (doy < 1 || doy > 366) throw Error(f.source() + ": field 'doy' missing or not in 1..366");
-  const Eigen::VectorXd& tt = f.tt();
+  const auto tt = f.tt();
   for (Eigen::Index i = 0; i < tt.size(); ++i) {
     if (!std::isfinite(tt[i])) {
       throw Error(f.source() + ": field 'tt' is NaN at sample " + std::to_string(i) +
@@ -270,7 +270,7 @@ ConvertReport flight_to_bag(const FlightData& f, const std::string& bag_path, bo
     throw Error(bag_path + ": exists; pass --force to overwrite");
   }
   const auto [year, doy] = stamp_date(f);
-  const Eigen::VectorXd& tt = f.tt();
+  const auto tt = f.tt();
   check_output_path(bag_path, {f.source()});
   const std::string tmp = temporary_path(bag_path);
   ConvertReport rep;
@@ -285,8 +285,8 @@ ConvertReport flight_to_bag(const FlightData& f, const std::string& bag_path, bo
     bag.write(bag.connection<magcomp::FlightSchema>(BagTopics::kSchema), schema.header.stamp,
               schema);
     rep.messages++;
-    std::vector<const Eigen::VectorXd*> cols;
-    for (const auto& name : f.names()) cols.push_back(&f.column(name));
+    std::vector<const double*> cols;
+    for (const auto& name : f.names()) cols.push_back(f.column(name).data());
     const uint32_t c_record = bag.connection<magcomp::FlightRecord>(BagTopics::kRecord);
     TypedTopics typed(f, bag);
     magcomp::FlightRecord rec;
@@ -295,7 +295,7 @@ ConvertReport flight_to_bag(const FlightData& f, const std::string& bag_path, bo
       const ros::Time t = stamp_of(year, doy, tt[i]);
       rec.header.stamp = t;
       rec.header.seq = static_cast<uint32_t>(i);
-      for (size_t c = 0; c < cols.size(); ++c) rec.values[c] = (*cols[c])[i];
+      for (size_t c = 0; c < cols.size(); ++c) rec.values[c] = cols[c][i];
       bag.write(c_record, t, rec);
       rep.messages += 1 + typed.write(i, t);
     }

@@ -35,7 +35,7 @@ double std_on(const Model& m, const FlightData& f, const std::vector<double>& li
 // same TL fit, on the same held-out lines.
 double truth_std(const sim::Simulation& s, const Model& start, const std::vector<double>& lines) {
   FlightData clean = s.flight;
-  Eigen::VectorXd& scalar = clean.column("mag_5_uc");
+  Eigen::VectorXd& scalar = clean.mutable_column("mag_5_uc");
   for (const auto& name : s.truth.names()) {
     if (name.rfind("mag_5_uc.hidden.", 0) == 0) scalar -= s.truth.column(name);
   }

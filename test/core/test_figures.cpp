@@ -15,7 +15,7 @@ TEST(Uncertainty, TheVarianceCoversTheErrorsOnLinesTheFitNeverSaw) {
   Model m = test::reference_tl(f);
   fit_model(m, {&f});
   const Evaluation ev = evaluate_model(m, f, "mag_1_c");
-  const Eigen::VectorXd& line = f.column("line");
+  const auto line = f.column("line");
   long n = 0, in1 = 0, in2 = 0;
   for (Eigen::Index i = 0; i < f.size(); ++i) {
     if (std::find(m.fit.lines.begin(), m.fit.lines.end(), line[i]) != m.fit.lines.end()) continue;

@@ -109,7 +109,7 @@ TEST(FlightData, WriteReadRoundTripIsBitIdentical) {
       EXPECT_TRUE(std::isnan(r.column("mag_5_uc")[i]));
       continue;
     }
-    ASSERT_EQ(std::memcmp(&x[i], &r.column("mag_5_uc")[i], sizeof(double)), 0) << i;
+    ASSERT_EQ(std::memcmp(&x[i], r.column("mag_5_uc").data() + i, sizeof(double)), 0) << i;
     ASSERT_EQ(tt[i], r.tt()[i]);
   }
 }

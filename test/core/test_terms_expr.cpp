@@ -31,7 +31,7 @@ TEST(TermsExpr, ShorthandsKeepTheirNamesAndEqualTheirExpressions) {
   const TermInputs in = make_term_inputs(f, "flux_c", 50000.0);
   const Eigen::MatrixXd c = columns("current:cur_strb", f);
   const Eigen::MatrixXd dc = columns("dcurrent:cur_strb", f);
-  const Eigen::VectorXd& i = f.column("cur_strb");
+  const auto i = f.column("cur_strb");
   for (Eigen::Index k : {Eigen::Index(1), Eigen::Index(500), f.size() - 2}) {
     for (int a = 0; a < 3; ++a) {
       EXPECT_DOUBLE_EQ(c(k, a), in.direction(k, a) * i[k]);

@@ -118,7 +118,7 @@ TEST(Neural, NormalisationComesFromTrainingFlightsOnlyAndWindowsStayInTheirFligh
   both[1].target_nT = neural_target(m, flight(12), both[1].inputs);
   fit_normalisation(*m.neural, tr);
   // cur_strb (feature 5): the mean and population std of flight 11's samples, nothing else.
-  const Eigen::VectorXd& c = flight(11).column("cur_strb");
+  const auto c = flight(11).column("cur_strb");
   const double mean = c.mean();
   const double sd = std::sqrt((c.array() - mean).square().mean());
   EXPECT_NEAR(m.neural->feature_mean[5], mean, 1e-9 * std::abs(mean) + 1e-12);
@@ -151,7 +151,7 @@ TEST(Neural, ResidualNetworkHalvesTheTlErrorOnAHeldOutFlightAndIsReproducible) {
   for (Eigen::Index i = 0; i < held.size(); ++i)
     diff = std::max(diff, std::abs(na.compensated_nT[i] - nb.compensated_nT[i]));
   EXPECT_EQ(diff, 0.0);
-  const Eigen::VectorXd& ref = held.column("mag_1_c");
+  const auto ref = held.column("mag_1_c");
   const Evaluation tl = evaluate_model(a, held, "mag_1_c");  // a: TL fitted, the stage trained...
   Model tl_only = loaded;
   tl_only.neural.reset();
@@ -176,8 +176,8 @@ TEST(Neural, PredictionsAreCausalAndStreamingEqualsOffline) {
     // Causal: changing the inputs after sample j leaves every output up to j unchanged.
     FlightData g = f;
     const Eigen::Index j = f.size() / 2;
-    g.column("cur_strb").tail(f.size() - j - 1).array() += 50.0;
-    g.column("ins_roll").tail(f.size() - j - 1).array() += 10.0;
+    g.mutable_column("cur_strb").tail(f.size() - j - 1).array() += 50.0;
+    g.mutable_column("ins_roll").tail(f.size() - j - 1).array() += 10.0;
     const NeuralCompensation changed = neural_compensate(model, g);
     EXPECT_EQ(changed.network_nT.head(j + 1), off.network_nT.head(j + 1));
     EXPECT_NE(changed.network_nT[j + 1], off.network_nT[j + 1]);

@@ -33,7 +33,7 @@ TEST(ModelSwap, TakesEffectAtOneStampWithNoSampleLost) {
   const magcomp::FlightData f = magcomp::read_flight_h5(h5);
   const Eigen::VectorXd off_old = magcomp::compensate(magcomp::load_model_yaml(old_path), f);
   const Eigen::VectorXd off_new = magcomp::compensate(magcomp::load_model_yaml(new_path), f);
-  const Eigen::VectorXd& ref = f.column("mag_1_c");
+  const auto ref = f.column("mag_1_c");
   // Start every run from the TL-only model (the node picks the file up within 0.25 s, before the
   // bag starts playing 4 s after launch).
   copy_atomically(old_path, live);

@@ -30,7 +30,7 @@ TEST(OnlineOffline, WholeReplayedFlightEqualsOfflineWithNoSampleLost) {
     std::printf("  neural stage: %s, %s mode, window %d\n",
                 magcomp::architecture_name(m.neural->architecture),
                 magcomp::mode_name(m.neural->mode), m.neural->window);
-  const Eigen::VectorXd& ref = f.column("mag_1_c");
+  const auto ref = f.column("mag_1_c");
   magcomp::rostest_util::OutputCollector collector(nh);
   magcomp::rostest_util::DiagnosticsCollector diagnostics(nh);
   // Fault injection: one input relayed with random wall delays (its order kept).

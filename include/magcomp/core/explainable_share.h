@@ -36,7 +36,7 @@ struct ExplainableShare {
 /// field direction B̂ (N x 3) and the candidate channels (name, values over the whole flight).
 ExplainableShare explainable_share(
     const Eigen::VectorXd& residual, const std::vector<int>& unit, const Eigen::VectorXd& line,
-    const Eigen::VectorXd& t_s, const Eigen::MatrixX3d& direction,
-    const std::vector<std::pair<std::string, const Eigen::VectorXd*>>& channels);
+    const Eigen::Ref<const Eigen::VectorXd>& t_s, const Eigen::MatrixX3d& direction,
+    const std::vector<std::pair<std::string, Eigen::Map<const Eigen::VectorXd>>>& channels);
 
 }  // namespace magcomp

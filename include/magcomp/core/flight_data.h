@@ -25,6 +25,11 @@ class ColumnLoader {
  public:
   virtual ~ColumnLoader() = default;
   virtual Eigen::VectorXd load(const std::string& stored_name) const = 0;
+  /// The column's values in place (a file mapped into memory, already in sample order), valid
+  /// as long as this loader lives; nullptr when they must be read by load(). Throws
+  /// magcomp::Error naming the file and field when the stored values cannot be what the file
+  /// declares.
+  virtual const double* map(const std::string& /*stored_name*/) const { return nullptr; }
   /// True when load_rows() reads only the rows asked for (a sorted file).
   virtual bool reads_rows() const { return false; }
   /// Samples [first, first + count) of a column, in sample order.
@@ -37,9 +42,14 @@ class ColumnLoader {
 /// One flight: N samples of named float64 columns, one of which is `tt` (s past midnight UTC).
 /// Column names are the final MIT names (DATA.md); older names are renamed on read. NaN is kept.
 /// A flight read from a file loads each column on first use: a command reads only the fields it
-/// touches (thread-safe).
+/// touches (thread-safe); a column stored plainly (contiguous float64) is not copied at all but
+/// read in place from the file mapped into memory.
 class FlightData {
  public:
+  /// A column's N values, read-only, in the field's unit; valid while this flight (or a copy of
+  /// it) lives and the column is not replaced.
+  using Column = Eigen::Map<const Eigen::VectorXd>;
+
   FlightData() = default;
 
   /// Number of samples.
@@ -50,26 +60,27 @@ class FlightData {
   bool has(const std::string& name) const;
   /// Column by name (older aliases accepted). Throws magcomp::Error naming `source()` and the
   /// field.
-  const Eigen::VectorXd& column(const std::string& name) const;
+  Column column(const std::string& name) const;
   /// Samples [first, first + count) of a column (a copy). A column not yet in memory is read
   /// in part from its file, until the parts read add up to twice the column; then it is loaded.
   Eigen::VectorXd column_rows(const std::string& name, Eigen::Index first,
                               Eigen::Index count) const;
-  /// Mutable column; same lookup rules.
-  Eigen::VectorXd& column(const std::string& name);
+  /// The column to change in place (a copy in memory from then on if it was read in place from
+  /// its file); same lookup rules.
+  Eigen::VectorXd& mutable_column(const std::string& name);
   /// Adds or replaces a column; its length must equal size() (the first column fixes the size).
   void set(const std::string& name, Eigen::VectorXd values);
   /// Declares a column whose values `loader` reads on first use (stored_name: its name in the
-  /// source). The size must already be known (set tt first).
+  /// source). The size must already be known (set tt first) or be given as `size`.
   void set_lazy(const std::string& name, std::string stored_name,
-                std::shared_ptr<const ColumnLoader> loader);
+                std::shared_ptr<const ColumnLoader> loader, Eigen::Index size = -1);
   /// Columns whose values are in memory.
   size_t loaded_columns() const;
   /// Removes a column if present.
   void remove(const std::string& name);
 
   /// Time base `tt` in s past midnight UTC.
-  const Eigen::VectorXd& tt() const { return column("tt"); }
+  Column tt() const { return column("tt"); }
   /// Sample period in s, the median of the positive tt differences (never the file's `dt`);
   /// computed once per time base.
   double dt_s() const;
@@ -105,13 +116,22 @@ class FlightData {
   /// Loads column i if it is lazy and not loaded yet.
   void ensure_loaded(size_t i) const;
 
+  /// Where column i's values are: in columns_[i], or in place in a file mapping (`mapped`, kept
+  /// valid by `mapping`).
+  const double* values(size_t i) const {
+    return lazy_[i].mapped ? lazy_[i].mapped : columns_[i].data();
+  }
+
   Eigen::Index size_ = -1;
   std::vector<std::string> names_;
   mutable std::vector<Eigen::VectorXd> columns_;
   struct Lazy {
     std::string stored_name;
-    std::shared_ptr<const ColumnLoader> loader;  // null: in memory
+    std::shared_ptr<const ColumnLoader> loader;  // null: in memory or mapped
     Eigen::Index rows_read_in_part = 0;          // by column_rows() while not in memory
+    const double* mapped = nullptr;              // the values in place, or null
+    bool map_tried = false;                      // loader->map() asked once
+    std::shared_ptr<const ColumnLoader> mapping;  // keeps `mapped` valid
   };
   mutable std::vector<Lazy> lazy_;
   std::shared_ptr<std::mutex> load_mutex_ = std::make_shared<std::mutex>();
