@@ -150,10 +150,12 @@ void evaluate_one(const std::string& data, const Model& model, const Model* base
                   const std::string& truth, const std::string& json_path,
                   const std::string& report, const std::vector<std::string>& inputs) {
   const FlightData flight = read_flight(data);
-  const Evaluation ev = evaluate_model(model, flight, truth);
+  // The per-sample variance is kept only for the report's series (the table shows its coverage).
+  const bool series = !report.empty();
+  const Evaluation ev = evaluate_model(model, flight, truth, series);
   std::unique_ptr<Evaluation> base;
   if (baseline_model)
-    base = std::make_unique<Evaluation>(evaluate_model(*baseline_model, flight, truth));
+    base = std::make_unique<Evaluation>(evaluate_model(*baseline_model, flight, truth, series));
   print_evaluation(ev, base.get());
   nlohmann::json j = to_json(ev);
   j["data"] = data;
@@ -229,10 +231,10 @@ void add_evaluate(CLI::App& app) {
     for (const std::string& path : paths) {
       std::printf("flight %s\n", path.c_str());
       const FlightData flight = read_flight(path);
-      const Evaluation ev = evaluate_model(model, flight, *truth);
+      const Evaluation ev = evaluate_model(model, flight, *truth, false);
       std::unique_ptr<Evaluation> base;
       if (baseline_model)
-        base = std::make_unique<Evaluation>(evaluate_model(*baseline_model, flight, *truth));
+        base = std::make_unique<Evaluation>(evaluate_model(*baseline_model, flight, *truth, false));
       print_evaluation(ev, base.get());
       std::printf("\n");
       nlohmann::json f = to_json(ev);

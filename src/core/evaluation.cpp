@@ -5,6 +5,7 @@
 #include <future>
 #include <limits>
 #include <map>
+#include <mutex>
 
 #include "magcomp/core/apply.h"
 #include "magcomp/core/error.h"
@@ -27,15 +28,16 @@ double line_of(const double* line_column, Eigen::Index i) {
   return std::isfinite(line) ? line : -1.0;
 }
 
-// Each line's sums over the finite errors; the non-finite ones counted in *nan_samples.
-std::map<double, LineSums> line_sums(const Eigen::VectorXd& error_nT,
-                                     const double* line_column,
-                                     Eigen::Index* nan_samples) {
+// Each line's sums over the finite errors error_at(i), i < n; the non-finite ones counted in
+// *nan_samples.
+template <class ErrorAt>
+std::map<double, LineSums> line_sums(Eigen::Index n, const ErrorAt& error_at,
+                                     const double* line_column, Eigen::Index* nan_samples) {
   std::map<double, LineSums> groups;
   double last_line = std::numeric_limits<double>::quiet_NaN();
   LineSums* last = nullptr;  // consecutive samples are mostly on one line
-  for (Eigen::Index i = 0; i < error_nT.size(); ++i) {
-    const double e = error_nT[i];
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const double e = error_at(i);
     if (!std::isfinite(e)) {
       ++*nan_samples;
       continue;
@@ -52,12 +54,34 @@ std::map<double, LineSums> line_sums(const Eigen::VectorXd& error_nT,
   return groups;
 }
 
+// The per-line table and the pooled figures of `groups` into *ev.
+void line_table(const std::map<double, LineSums>& groups, Evaluation* ev) {
+  double total_sq = 0, total_var = 0;
+  for (const auto& [line, a] : groups) {
+    LineStats s;
+    s.line = line;
+    s.n = a.n;
+    const double mean = a.sum / static_cast<double>(a.n);
+    const double ss_dev = std::max(0.0, a.sum_sq - a.n * mean * mean);
+    s.rmse_nT = std::sqrt(a.sum_sq / static_cast<double>(a.n));
+    s.std_nT = a.n > 1 ? std::sqrt(ss_dev / static_cast<double>(a.n - 1)) : 0.0;
+    ev->per_line.push_back(s);
+    ev->n += a.n;
+    total_sq += a.sum_sq;
+    total_var += ss_dev;
+  }
+  if (ev->n > 0) {
+    ev->rmse_nT = std::sqrt(total_sq / static_cast<double>(ev->n));
+    ev->std_nT = std::sqrt(total_var / static_cast<double>(ev->n));
+  }
+}
+
 // The std by flight condition and by heading sector, each line's mean removed first.
 void condition_and_heading_stats(const FlightData& data, const Eigen::VectorXd& error_nT,
                                  const double* line_column,
                                  std::map<double, LineSums>& groups,
                                  const std::vector<FlightCondition>& cond, Evaluation* ev) {
-  const std::vector<int> sector = heading_sectors(data);
+  const double* yaw = data.has("ins_yaw") ? data.column("ins_yaw").data() : nullptr;
   std::vector<double> ss_c(kConditionCount, 0), ss_h(8, 0);
   std::vector<Eigen::Index> n_c(kConditionCount, 0), n_h(8, 0);
   double last_line = std::numeric_limits<double>::quiet_NaN();
@@ -73,7 +97,7 @@ void condition_and_heading_stats(const FlightData& data, const Eigen::VectorXd& 
     const auto c = static_cast<size_t>(cond[static_cast<size_t>(i)]);
     ss_c[c] += d * d;
     n_c[c]++;
-    const int h = sector[static_cast<size_t>(i)];
+    const int h = yaw ? heading_sector(yaw[i]) : -1;
     if (h >= 0) {
       ss_h[static_cast<size_t>(h)] += d * d;
       n_h[static_cast<size_t>(h)]++;
@@ -101,25 +125,10 @@ Evaluation error_statistics(const FlightData& data, Eigen::VectorXd error, bool 
   ev.error_nT = std::move(error);
   const Eigen::VectorXd& error_nT = ev.error_nT;
   const double* line_column = data.has("line") ? data.column("line").data() : nullptr;
-  std::map<double, LineSums> groups = line_sums(error_nT, line_column, &ev.nan_samples);
-  double total_sq = 0, total_var = 0;
-  for (const auto& [line, a] : groups) {
-    LineStats s;
-    s.line = line;
-    s.n = a.n;
-    const double mean = a.sum / static_cast<double>(a.n);
-    const double ss_dev = std::max(0.0, a.sum_sq - a.n * mean * mean);
-    s.rmse_nT = std::sqrt(a.sum_sq / static_cast<double>(a.n));
-    s.std_nT = a.n > 1 ? std::sqrt(ss_dev / static_cast<double>(a.n - 1)) : 0.0;
-    ev.per_line.push_back(s);
-    ev.n += a.n;
-    total_sq += a.sum_sq;
-    total_var += ss_dev;
-  }
-  if (ev.n > 0) {
-    ev.rmse_nT = std::sqrt(total_sq / static_cast<double>(ev.n));
-    ev.std_nT = std::sqrt(total_var / static_cast<double>(ev.n));
-  }
+  std::map<double, LineSums> groups = line_sums(
+      error_nT.size(), [&error_nT](Eigen::Index i) { return error_nT[i]; }, line_column,
+      &ev.nan_samples);
+  line_table(groups, &ev);
   if (by_condition && data.has("tt") && data.size() > 2) {
     std::vector<FlightCondition> classified;
     if (!conditions) classified = classify_conditions(data);
@@ -148,31 +157,88 @@ double pooled_std(const Eigen::VectorXd& residual, const Eigen::VectorXd& groups
   return n > 0 ? std::sqrt(ss / n) : 0.0;
 }
 
-Evaluation evaluate_model(const Model& model, const FlightData& data, const std::string& truth) {
+namespace {
+
+// The model's compensated field and its error against `ref` (nT), with the counts of finite
+// errors within 1 and 2 sigma of their variance; the variance itself kept when asked.
+struct Applied {
+  Eigen::VectorXd compensated_nT, error_nT, variance_nT2;
+  long covered = 0, within_1sigma = 0, within_2sigma = 0;
+};
+
+Applied apply_and_compare(const Model& model, const FlightData& data,
+                          const Eigen::Ref<const Eigen::VectorXd>& uncompensated,
+                          const FlightData::Column& ref, bool keep_variance) {
+  Applied out;
+  const Eigen::Index n = data.size();
+  if (model.neural && model.neural->trained()) {
+    out.compensated_nT = apply_model(model, data).compensated_nT;
+    out.error_nT = out.compensated_nT - ref;
+    return out;
+  }
+  out.compensated_nT.resize(n);
+  out.error_nT.resize(n);
+  if (keep_variance) out.variance_nT2.resize(n);
+  std::mutex counts;
+  for_each_correction_block(
+      model, data, true,
+      [&](Eigen::Index first, const Eigen::VectorXd& correction, const Eigen::VectorXd* variance) {
+        long covered = 0, in1 = 0, in2 = 0;
+        for (Eigen::Index k = 0; k < correction.size(); ++k) {
+          const Eigen::Index i = first + k;
+          const double c = uncompensated[i] - correction[k];
+          const double e = c - ref[i];
+          const double v = (*variance)[k];
+          out.compensated_nT[i] = c;
+          out.error_nT[i] = e;
+          if (!std::isfinite(e) || !std::isfinite(v) || !(v > 0)) continue;
+          ++covered;
+          in1 += e * e <= v;
+          in2 += e * e <= 4 * v;
+        }
+        if (keep_variance) out.variance_nT2.segment(first, variance->size()) = *variance;
+        std::lock_guard<std::mutex> lock(counts);
+        out.covered += covered;
+        out.within_1sigma += in1;
+        out.within_2sigma += in2;
+      });
+  return out;
+}
+
+}  // namespace
+
+Evaluation evaluate_model(const Model& model, const FlightData& data, const std::string& truth,
+                          bool keep_variance) {
   if (!data.has(truth)) throw Error(data.source() + ": reference field '" + truth + "' not found");
   const FlightData::Column ref = data.column(truth);
   if (!ref.array().isFinite().any()) {
     throw Error(data.source() + ": reference field '" + truth + "' holds no finite sample");
   }
-  const bool neural = model.neural && model.neural->trained();
   // The flight conditions (for the tables and the FOM) while the model is applied.
   auto classified = std::async(std::launch::async, [&data] {
     return data.has("tt") && data.size() > 2 ? classify_conditions(data)
                                              : std::vector<FlightCondition>();
   });
-  // The terms' correction and its variance in one pass (the neural stage: apply_model).
-  Eigen::VectorXd comp, variance;
-  const Eigen::VectorXd uncompensated = aligned_scalar(model, data);
-  if (neural) {
-    comp = apply_model(model, data).compensated_nT;
-  } else {
-    model_correction_and_variance(model, data, &comp, &variance);
-    comp = uncompensated - comp;  // coefficient-wise: in place
-  }
+  // The scalar realigned by the model's lag (the column itself without one).
+  const double lag_s = model.scalar_lag_s();
+  const Eigen::VectorXd shifted =
+      lag_s != 0.0 ? aligned_scalar(model, data, lag_s) : Eigen::VectorXd();
+  const Eigen::Ref<const Eigen::VectorXd> uncompensated =
+      lag_s != 0.0 ? Eigen::Ref<const Eigen::VectorXd>(shifted)
+                   : Eigen::Ref<const Eigen::VectorXd>(data.column(model.scalar));
+  // The terms' correction, the compensated field, its error and its variance, block by block.
+  Applied applied = apply_and_compare(model, data, uncompensated, ref, keep_variance);
   const std::vector<FlightCondition> conditions = classified.get();
-  Evaluation ev = error_statistics(data, comp - ref, true, &conditions);
+  data.drop_mapped_pages();  // the fluxgate, channels and rates are done with
+  const double* line_column = data.has("line") ? data.column("line").data() : nullptr;
+  Evaluation ev = error_statistics(data, std::move(applied.error_nT), true, &conditions);
   {
-    const Evaluation before = error_statistics(data, uncompensated - ref, false);
+    // The same per-line figures for the scalar before compensation.
+    Evaluation before;
+    line_table(line_sums(
+                   data.size(), [&](Eigen::Index i) { return uncompensated[i] - ref[i]; },
+                   line_column, &before.nan_samples),
+               &before);
     ev.uncompensated_std_nT = before.std_nT;
     ev.improvement_ratio = ev.std_nT > 0 ? before.std_nT / ev.std_nT : NAN;
     for (auto& l : ev.per_line) {
@@ -183,29 +249,19 @@ Evaluation evaluate_model(const Model& model, const FlightData& data, const std:
       }
     }
   }
-  if (!neural) {
-    ev.variance_nT2 = std::move(variance);
-    long n = 0, in1 = 0, in2 = 0;
-    for (Eigen::Index i = 0; i < ev.error_nT.size(); ++i) {
-      const double e = ev.error_nT[i], v = ev.variance_nT2[i];
-      if (!std::isfinite(e) || !std::isfinite(v) || !(v > 0)) continue;
-      ++n;
-      in1 += e * e <= v;
-      in2 += e * e <= 4 * v;
-    }
-    if (n > 0) {
-      ev.coverage_1sigma = static_cast<double>(in1) / static_cast<double>(n);
-      ev.coverage_2sigma = static_cast<double>(in2) / static_cast<double>(n);
-    }
+  ev.variance_nT2 = std::move(applied.variance_nT2);
+  if (applied.covered > 0) {
+    ev.coverage_1sigma = static_cast<double>(applied.within_1sigma) / applied.covered;
+    ev.coverage_2sigma = static_cast<double>(applied.within_2sigma) / applied.covered;
   }
-  ev.fom = figure_of_merit(data, model.fit, comp, uncompensated,
+  ev.fom = figure_of_merit(data, model.fit, applied.compensated_nT, uncompensated,
                            conditions.empty() ? nullptr : &conditions);
   if (ev.n == 0) {
     throw Error(data.source() + ": no sample has a finite compensated value and reference (" +
                 model.scalar + ", " + model.vector + "_x/_y/_z, the model's channels, " + truth +
                 "): nothing to score");
   }
-  ev.compensated_nT = std::move(comp);
+  ev.compensated_nT = std::move(applied.compensated_nT);
   return ev;
 }
 

@@ -20,7 +20,7 @@ const char* heading4(double yaw_deg) {
 }
 
 // The series band-passed over the run [first, last] (zero-phase), NaN held at the nearest value.
-Eigen::VectorXd band(const Eigen::VectorXd& x, Eigen::Index first, Eigen::Index last,
+Eigen::VectorXd band(const Eigen::Ref<const Eigen::VectorXd>& x, Eigen::Index first, Eigen::Index last,
                      const Butterworth& bp) {
   Eigen::VectorXd seg = x.segment(first, last - first + 1);
   double hold = 0.0;
@@ -45,8 +45,8 @@ double peak_to_peak(const Eigen::VectorXd& x, Eigen::Index a, Eigen::Index b) {
 }  // namespace
 
 FigureOfMerit figure_of_merit(const FlightData& data, const FitSettings& fit,
-                              const Eigen::VectorXd& compensated,
-                              const Eigen::VectorXd& uncompensated,
+                              const Eigen::Ref<const Eigen::VectorXd>& compensated,
+                              const Eigen::Ref<const Eigen::VectorXd>& uncompensated,
                               const std::vector<FlightCondition>* known_conditions) {
   FigureOfMerit out;
   const Eigen::Index n = data.size();

@@ -105,6 +105,8 @@ std::vector<FlightCondition> classify_conditions(const FlightData& data, double 
                              : FlightCondition::kYawManeuver;
     }
     out[static_cast<size_t>(i)] = c;
+    // The rows behind the window are done with: a file read in place need not stay resident.
+    if ((i & 0xffff) == 0xffff) data.drop_mapped_pages(i - w);
   }
   return out;
 }
@@ -135,11 +137,7 @@ std::vector<int> heading_sectors(const FlightData& data) {
   std::vector<int> out(static_cast<size_t>(data.size()), -1);
   if (!data.has("ins_yaw")) return out;
   const FlightData::Column yaw = data.column("ins_yaw");
-  for (Eigen::Index i = 0; i < data.size(); ++i) {
-    if (!std::isfinite(yaw[i])) continue;
-    const double h = std::fmod(std::fmod(yaw[i], 360.0) + 360.0 + 22.5, 360.0);
-    out[static_cast<size_t>(i)] = static_cast<int>(h / 45.0) % 8;
-  }
+  for (Eigen::Index i = 0; i < data.size(); ++i) out[static_cast<size_t>(i)] = heading_sector(yaw[i]);
   return out;
 }
 

@@ -1,6 +1,9 @@
 // magcomp: FlightData columns, selection and subsets.
 #include "magcomp/core/flight_data.h"
 
+#include <sys/mman.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <cfloat>
 #include <cstdint>
@@ -119,7 +122,9 @@ void FlightData::set_lazy(const std::string& name, std::string stored_name,
     lazy_.emplace_back();
   }
   columns_[i] = Eigen::VectorXd();
-  lazy_[i] = {std::move(stored_name), std::move(loader)};
+  lazy_[i] = Lazy{};
+  lazy_[i].stored_name = std::move(stored_name);
+  lazy_[i].loader = std::move(loader);
 }
 
 size_t FlightData::loaded_columns() const {
@@ -127,6 +132,19 @@ size_t FlightData::loaded_columns() const {
   size_t n = 0;
   for (const auto& z : lazy_) n += !z.loader;
   return n;
+}
+
+void FlightData::drop_mapped_pages(Eigen::Index end_row) const {
+  std::lock_guard<std::mutex> lock(*load_mutex_);
+  const uintptr_t page = static_cast<uintptr_t>(::sysconf(_SC_PAGESIZE));
+  const Eigen::Index rows = end_row < 0 ? size_ : std::min(end_row, size_);
+  for (const Lazy& z : lazy_) {
+    if (!z.mapped) continue;
+    // Whole pages inside the rows only: a page shared with a neighbour stays.
+    const uintptr_t begin = (reinterpret_cast<uintptr_t>(z.mapped) + page - 1) / page * page;
+    const uintptr_t end = reinterpret_cast<uintptr_t>(z.mapped + rows) / page * page;
+    if (end > begin) ::madvise(reinterpret_cast<void*>(begin), end - begin, MADV_DONTNEED);
+  }
 }
 
 Eigen::VectorXd& FlightData::mutable_column(const std::string& name) {

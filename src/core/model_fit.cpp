@@ -535,11 +535,13 @@ double sample_variance_nT2(const Model& model, const Eigen::Ref<const Eigen::Row
   return row_variance_nT2(model, row, &buffer);
 }
 
-void model_correction_and_variance(const Model& model, const FlightData& data,
-                                   Eigen::VectorXd* correction_nT, Eigen::VectorXd* variance_nT2) {
+void for_each_correction_block(
+    const Model& model, const FlightData& data, bool with_variance,
+    const std::function<void(Eigen::Index, const Eigen::VectorXd&, const Eigen::VectorXd*)>&
+        block) {
   if (!model.fitted()) throw Error("model: not calibrated (no coefficients)");
-  correction_nT->resize(data.size());
-  if (variance_nT2) variance_nT2->resize(data.size());
+  const Eigen::MatrixXd& cov = model.report.coefficient_covariance;
+  const double noise_nT2 = model.report.noise_variance_nT2;
   // Blocks on two threads (each sample's numbers do not depend on which thread computes them).
   static const int threads =
       static_cast<int>(std::clamp(std::thread::hardware_concurrency(), 1u, 2u));
@@ -550,17 +552,33 @@ void model_correction_and_variance(const Model& model, const FlightData& data,
           throw Error("model: " + std::to_string(model.coefficients.size()) + " coefficients for " +
                       std::to_string(a.cols()) + " columns");
         }
-        correction_nT->segment(first, a.rows()).noalias() = a * model.coefficients;
-        if (!variance_nT2) return;
-        double* out = variance_nT2->data() + first;
-        const Eigen::MatrixXd& cov = model.report.coefficient_covariance;
-        if (cov.rows() != a.cols() || !std::isfinite(model.report.noise_variance_nT2)) {
-          std::fill(out, out + a.rows(), std::numeric_limits<double>::quiet_NaN());
+        Eigen::VectorXd correction(a.rows());
+        correction.noalias() = a * model.coefficients;
+        if (!with_variance) {
+          block(first, correction, nullptr);
           return;
         }
-        row_quadratic_forms(cov, a, model.report.noise_variance_nT2, out);
+        Eigen::VectorXd variance(a.rows());
+        if (cov.rows() != a.cols() || !std::isfinite(noise_nT2)) {
+          variance.setConstant(std::numeric_limits<double>::quiet_NaN());
+        } else {
+          row_quadratic_forms(cov, a, noise_nT2, variance.data());
+        }
+        block(first, correction, &variance);
       },
       threads);
+}
+
+void model_correction_and_variance(const Model& model, const FlightData& data,
+                                   Eigen::VectorXd* correction_nT, Eigen::VectorXd* variance_nT2) {
+  correction_nT->resize(data.size());
+  if (variance_nT2) variance_nT2->resize(data.size());
+  for_each_correction_block(
+      model, data, variance_nT2 != nullptr,
+      [&](Eigen::Index first, const Eigen::VectorXd& correction, const Eigen::VectorXd* variance) {
+        correction_nT->segment(first, correction.size()) = correction;
+        if (variance) variance_nT2->segment(first, variance->size()) = *variance;
+      });
 }
 
 Eigen::VectorXd compensation_variance_nT2(const Model& model, const FlightData& data) {

@@ -60,8 +60,11 @@ Evaluation error_statistics(const FlightData& data, Eigen::VectorXd error_nT,
                             const std::vector<FlightCondition>* conditions = nullptr);
 
 /// Compensates the flight with the model and compares with the field `truth` (e.g. mag_1_c).
-/// Throws magcomp::Error naming the file and field when `truth` is missing or all NaN.
-Evaluation evaluate_model(const Model& model, const FlightData& data, const std::string& truth);
+/// With keep_variance false the per-sample variance is used for the coverage only, not kept
+/// (Evaluation::variance_nT2 empty). Throws magcomp::Error naming the file and field when `truth`
+/// is missing or all NaN.
+Evaluation evaluate_model(const Model& model, const FlightData& data, const std::string& truth,
+                          bool keep_variance = true);
 
 /// Mean-removed RMS per group, pooled (the `std_nT` above) for any residual and grouping.
 double pooled_std(const Eigen::VectorXd& residual, const Eigen::VectorXd& groups);

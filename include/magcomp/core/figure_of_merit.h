@@ -34,8 +34,8 @@ struct FigureOfMerit {
 /// band-passed with fit.band_hz (zero-phase) over each contiguous run. Returns an empty list when
 /// the flight flew no maneuver. `conditions`: classify_conditions(data) when the caller has it.
 FigureOfMerit figure_of_merit(const FlightData& data, const FitSettings& fit,
-                              const Eigen::VectorXd& compensated,
-                              const Eigen::VectorXd& uncompensated,
+                              const Eigen::Ref<const Eigen::VectorXd>& compensated,
+                              const Eigen::Ref<const Eigen::VectorXd>& uncompensated,
                               const std::vector<FlightCondition>* conditions = nullptr);
 
 /// The same windows measured on another series (e.g. the simulator's true aircraft field): the sum

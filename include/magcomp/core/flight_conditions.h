@@ -2,6 +2,8 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <cmath>
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -10,7 +12,7 @@
 namespace magcomp {
 
 /// Flight condition of one sample, from the INS (rates in deg/s, vertical speed in m/s).
-enum class FlightCondition : int {
+enum class FlightCondition : uint8_t {
   kStraightLevel = 0,
   kTurn = 1,
   kClimbDescent = 2,
@@ -48,8 +50,21 @@ class ManeuverDetector {
   double window_s_, threshold_dps_;
 };
 
-/// Heading sector index 0..7 (N, NE, E, SE, S, SW, W, NW; 45 deg each) from ins_yaw (deg), -1 if
-/// unknown.
+/// Heading sector index 0..7 (N, NE, E, SE, S, SW, W, NW; 45 deg each) of a heading (deg, any
+/// turn), -1 if not finite: the sector of fmod(fmod(yaw, 360) + 360 + 22.5, 360) / 45, computed
+/// without the remainders where they are plain subtractions (the same numbers).
+inline int heading_sector(double yaw_deg) {
+  if (!std::isfinite(yaw_deg)) return -1;
+  const double r = std::abs(yaw_deg) < 360.0 ? yaw_deg : std::fmod(yaw_deg, 360.0);
+  double h = r + 360.0 + 22.5;  // in (22.5, 742.5): subtracting 360 or 720 is exact
+  if (h >= 720.0) {
+    h -= 720.0;
+  } else if (h >= 360.0) {
+    h -= 360.0;
+  }
+  return static_cast<int>(h / 45.0) % 8;
+}
+/// heading_sector() of every sample's ins_yaw (all -1 without it).
 std::vector<int> heading_sectors(const FlightData& data);
 const char* sector_name(int sector);
 

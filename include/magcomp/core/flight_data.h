@@ -76,6 +76,11 @@ class FlightData {
                 std::shared_ptr<const ColumnLoader> loader, Eigen::Index size = -1);
   /// Columns whose values are in memory.
   size_t loaded_columns() const;
+  /// Lets go of the pages of the columns read in place from their file: they leave this
+  /// process's resident memory (the system's file cache keeps them) and are mapped again, with
+  /// the same values, on the next access. A job calls it between passes over different columns
+  /// to bound its memory; a streaming pass calls it for the rows [0, end) behind it.
+  void drop_mapped_pages(Eigen::Index end = -1) const;
   /// Removes a column if present.
   void remove(const std::string& name);
 

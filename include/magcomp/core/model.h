@@ -172,5 +172,14 @@ Eigen::VectorXd compensation_variance_nT2(const Model& model, const FlightData& 
 /// nT²); `variance_nT2` may be null.
 void model_correction_and_variance(const Model& model, const FlightData& data,
                                    Eigen::VectorXd* correction_nT, Eigen::VectorXd* variance_nT2);
+/// The same block by block, on up to two threads, holding one block per thread: calls
+/// `block(first, correction_nT, variance_nT2)` for consecutive rows [first, first +
+/// correction_nT.size()) covering the flight (variance_nT2 null unless `with_variance`; NaN rows
+/// without an uncertainty). Each row's numbers equal model_correction_and_variance()'s; `block`
+/// must be safe to call concurrently for different blocks.
+void for_each_correction_block(
+    const Model& model, const FlightData& data, bool with_variance,
+    const std::function<void(Eigen::Index first, const Eigen::VectorXd& correction_nT,
+                             const Eigen::VectorXd* variance_nT2)>& block);
 
 }  // namespace magcomp
