@@ -231,22 +231,28 @@ Evaluation evaluate_model(const Model& model, const FlightData& data, const std:
   const std::vector<FlightCondition> conditions = classified.get();
   data.drop_mapped_pages();  // the fluxgate, channels and rates are done with
   const double* line_column = data.has("line") ? data.column("line").data() : nullptr;
-  Evaluation ev = error_statistics(data, std::move(applied.error_nT), true, &conditions);
-  {
-    // The same per-line figures for the scalar before compensation.
-    Evaluation before;
+  // The scalar's figures before compensation and the figure of merit on one thread while the
+  // error's tables are formed on this one.
+  Evaluation before;
+  FigureOfMerit fom;
+  auto side = std::async(std::launch::async, [&] {
     line_table(line_sums(
                    data.size(), [&](Eigen::Index i) { return uncompensated[i] - ref[i]; },
                    line_column, &before.nan_samples),
                &before);
-    ev.uncompensated_std_nT = before.std_nT;
-    ev.improvement_ratio = ev.std_nT > 0 ? before.std_nT / ev.std_nT : NAN;
-    for (auto& l : ev.per_line) {
-      for (const auto& b : before.per_line) {
-        if (b.line != l.line) continue;
-        l.uncompensated_std_nT = b.std_nT;
-        l.improvement_ratio = l.std_nT > 0 ? b.std_nT / l.std_nT : NAN;
-      }
+    fom = figure_of_merit(data, model.fit, applied.compensated_nT, uncompensated,
+                          conditions.empty() ? nullptr : &conditions);
+  });
+  Evaluation ev = error_statistics(data, std::move(applied.error_nT), true, &conditions);
+  side.get();
+  ev.fom = std::move(fom);
+  ev.uncompensated_std_nT = before.std_nT;
+  ev.improvement_ratio = ev.std_nT > 0 ? before.std_nT / ev.std_nT : NAN;
+  for (auto& l : ev.per_line) {
+    for (const auto& b : before.per_line) {
+      if (b.line != l.line) continue;
+      l.uncompensated_std_nT = b.std_nT;
+      l.improvement_ratio = l.std_nT > 0 ? b.std_nT / l.std_nT : NAN;
     }
   }
   ev.variance_nT2 = std::move(applied.variance_nT2);
@@ -254,8 +260,6 @@ Evaluation evaluate_model(const Model& model, const FlightData& data, const std:
     ev.coverage_1sigma = static_cast<double>(applied.within_1sigma) / applied.covered;
     ev.coverage_2sigma = static_cast<double>(applied.within_2sigma) / applied.covered;
   }
-  ev.fom = figure_of_merit(data, model.fit, applied.compensated_nT, uncompensated,
-                           conditions.empty() ? nullptr : &conditions);
   if (ev.n == 0) {
     throw Error(data.source() + ": no sample has a finite compensated value and reference (" +
                 model.scalar + ", " + model.vector + "_x/_y/_z, the model's channels, " + truth +

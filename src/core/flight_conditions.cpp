@@ -32,49 +32,92 @@ const char* sector_name(int s) {
 
 namespace {
 
-// Centred moving mean and rms-about-mean over w samples (NaN treated as 0), one sample at a time
-// in order: the prefix sums are kept only over the window, with the same
-// arithmetic as whole-series prefix sums; the ring holds at least w + 2.
+// Centred moving mean and mean square about it (the rms is its square root) over w samples (NaN
+// treated as 0) for a block of samples at a time: the prefix sums of x (and of x²) are formed in
+// order, as over the whole series, but kept only from the first window of the block on; each
+// sample's figures then come from two prefix sums, with the arithmetic of one sample at a time
+// (so many samples share an instruction).
 class WindowStats {
  public:
-  WindowStats(const double* x, Eigen::Index n, Eigen::Index w) : x_(x), n_(n), w_(w) {
-    size_t size = 1;
-    while (size < static_cast<size_t>(w + 2)) size *= 2;  // a power of two: the slot is a mask
-    ring_.resize(size);
-    mask_ = size - 1;
-    ring_[0] = {0.0, 0.0};
-  }
-  // Mean and rms about it of the window centred on sample i (i = 0, 1, ... in order).
-  void at(Eigen::Index i, double* mean, double* rms) {
-    if (!x_) {  // a missing channel reads as zeros
-      *mean = 0.0;
-      *rms = 0.0;
+  WindowStats(const double* x, Eigen::Index n, Eigen::Index w) : x_(x), n_(n), half_(w / 2) {}
+
+  // Mean and mean square about it for samples [i0, i1) (in increasing blocks). A missing channel
+  // reads as zeros.
+  void block(Eigen::Index i0, Eigen::Index i1, double* mean, double* square) {
+    const Eigen::Index count = i1 - i0;
+    if (!x_) {
+      std::fill(mean, mean + count, 0.0);
+      std::fill(square, square + count, 0.0);
       return;
     }
-    const Eigen::Index a = std::max<Eigen::Index>(0, i - w_ / 2), b = std::min(n_, i + w_ / 2 + 1);
-    while (filled_ < b) {  // prefix sums up to index b
-      const double v = std::isfinite(x_[filled_]) ? x_[filled_] : 0.0;
-      const Sums& p = ring_[slot(filled_)];
-      ring_[slot(filled_ + 1)] = {p.s1 + v, p.s2 + v * v};
-      ++filled_;
+    const Eigen::Index lo = std::max<Eigen::Index>(0, i0 - half_);
+    const Eigen::Index hi = std::min(n_, i1 - 1 + half_ + 1);
+    extend(lo, hi);
+    const double* s1 = s1_.data() - base_;  // s1[j]: the prefix sum over x[0, j)
+    const double* s2 = s2_.data() - base_;
+    auto at = [&](Eigen::Index k, Eigen::Index a, Eigen::Index b) {
+      const double kk = static_cast<double>(b - a);
+      const double m = (s1[b] - s1[a]) / kk;
+      mean[k] = m;
+      square[k] = std::max(0.0, (s2[b] - s2[a]) / kk - m * m);
+    };
+    // Whole windows (every sample but the first and last half window of the flight): the same
+    // width, the prefix sums read in two straight runs.
+    const Eigen::Index whole_from = std::max(i0, half_), whole_to = std::min(i1, n_ - half_ - 1);
+    for (Eigen::Index i = i0; i < std::min(i1, whole_from); ++i) {
+      at(i - i0, std::max<Eigen::Index>(0, i - half_), std::min(n_, i + half_ + 1));
     }
-    const double k = static_cast<double>(b - a);
-    const Sums& sb = ring_[slot(b)];
-    const Sums& sa = ring_[slot(a)];
-    const double m = (sb.s1 - sa.s1) / k;
-    *mean = m;
-    *rms = std::sqrt(std::max(0.0, (sb.s2 - sa.s2) / k - m * m));
+    if (whole_to > whole_from) {
+      const double kk = static_cast<double>(2 * half_ + 1);
+      const double *a1 = s1 + whole_from - half_, *b1 = s1 + whole_from + half_ + 1;
+      const double *a2 = s2 + whole_from - half_, *b2 = s2 + whole_from + half_ + 1;
+      double* mo = mean + (whole_from - i0);
+      double* so = square + (whole_from - i0);
+      for (Eigen::Index k = 0; k < whole_to - whole_from; ++k) {
+        const double m = (b1[k] - a1[k]) / kk;
+        mo[k] = m;
+        so[k] = std::max(0.0, (b2[k] - a2[k]) / kk - m * m);
+      }
+    }
+    for (Eigen::Index i = std::max(i0, std::max(whole_from, whole_to)); i < i1; ++i) {
+      at(i - i0, std::max<Eigen::Index>(0, i - half_), std::min(n_, i + half_ + 1));
+    }
   }
 
  private:
-  struct Sums {
-    double s1, s2;
-  };
-  size_t slot(Eigen::Index i) const { return static_cast<size_t>(i) & mask_; }
+  // Prefix sums for indices [lo, hi] held, continuing the running sums in order.
+  void extend(Eigen::Index lo, Eigen::Index hi) {
+    if (s1_.empty()) {
+      s1_.push_back(0.0);
+      s2_.push_back(0.0);
+      base_ = 0;
+    }
+    if (lo > base_) {  // forget what no later window reaches
+      const auto drop = static_cast<std::ptrdiff_t>(lo - base_);
+      s1_.erase(s1_.begin(), s1_.begin() + drop);
+      s2_.erase(s2_.begin(), s2_.begin() + drop);
+      base_ = lo;
+    }
+    const Eigen::Index from = base_ + static_cast<Eigen::Index>(s1_.size()) - 1;
+    if (hi <= from) return;
+    const size_t held = s1_.size();
+    s1_.resize(held + static_cast<size_t>(hi - from));
+    s2_.resize(s1_.size());
+    double p1 = s1_[held - 1], p2 = s2_[held - 1];
+    double *o1 = s1_.data() + held, *o2 = s2_.data() + held;
+    for (Eigen::Index j = from; j < hi; ++j) {
+      const double v = std::isfinite(x_[j]) ? x_[j] : 0.0;
+      p1 += v;
+      p2 += v * v;
+      *o1++ = p1;
+      *o2++ = p2;
+    }
+  }
+
   const double* x_;
-  Eigen::Index n_, w_, filled_ = 0;
-  std::vector<Sums> ring_;
-  size_t mask_ = 0;
+  Eigen::Index n_, half_;
+  std::vector<double> s1_, s2_;  // prefix sums for indices base_, base_ + 1, ...
+  Eigen::Index base_ = 0;
 };
 
 }  // namespace
@@ -88,25 +131,35 @@ std::vector<FlightCondition> classify_conditions(const FlightData& data, double 
   WindowStats pitch(col("pitch_rate"), n, w), roll(col("roll_rate"), n, w),
       yaw(col("yaw_rate"), n, w), vertical(col("ins_vu"), n, w);
   std::vector<FlightCondition> out(static_cast<size_t>(n), FlightCondition::kStraightLevel);
-  for (Eigen::Index i = 0; i < n; ++i) {
-    double pm, p, rm, r, ym, y, vm, vr;
-    pitch.at(i, &pm, &p);
-    roll.at(i, &rm, &r);
-    yaw.at(i, &ym, &y);
-    vertical.at(i, &vm, &vr);
-    FlightCondition c = FlightCondition::kStraightLevel;
-    if (std::abs(ym) > 1.5) {
-      c = FlightCondition::kTurn;
-    } else if (std::abs(vm) > 2.0) {
-      c = FlightCondition::kClimbDescent;
-    } else if (std::max({p, r, y}) > 1.0) {
-      c = (p >= r && p >= y) ? FlightCondition::kPitchManeuver
-          : (r >= y)         ? FlightCondition::kRollManeuver
-                             : FlightCondition::kYawManeuver;
+  constexpr Eigen::Index kBlock = 4096;
+  // Means and mean squares (p, r, y: the rates' rms squared).
+  std::vector<double> pm(kBlock), p(kBlock), rm(kBlock), r(kBlock), ym(kBlock), y(kBlock),
+      vm(kBlock), vr(kBlock);
+  // Whether an oscillation's rms sqrt(q) exceeds 1: decided on q itself away from 1, where the
+  // rounded square root cannot be on the other side.
+  auto above_one = [](double q) { return q > 1.0000001 || (q > 1.0 && std::sqrt(q) > 1.0); };
+  for (Eigen::Index i0 = 0; i0 < n; i0 += kBlock) {
+    const Eigen::Index i1 = std::min(n, i0 + kBlock);
+    pitch.block(i0, i1, pm.data(), p.data());
+    roll.block(i0, i1, rm.data(), r.data());
+    yaw.block(i0, i1, ym.data(), y.data());
+    vertical.block(i0, i1, vm.data(), vr.data());
+    for (Eigen::Index k = 0; k < i1 - i0; ++k) {
+      FlightCondition c = FlightCondition::kStraightLevel;
+      if (std::abs(ym[k]) > 1.5) {
+        c = FlightCondition::kTurn;
+      } else if (std::abs(vm[k]) > 2.0) {
+        c = FlightCondition::kClimbDescent;
+      } else if (above_one(p[k]) || above_one(r[k]) || above_one(y[k])) {
+        const double pr = std::sqrt(p[k]), rr = std::sqrt(r[k]), yr = std::sqrt(y[k]);
+        c = (pr >= rr && pr >= yr) ? FlightCondition::kPitchManeuver
+            : (rr >= yr)           ? FlightCondition::kRollManeuver
+                                   : FlightCondition::kYawManeuver;
+      }
+      out[static_cast<size_t>(i0 + k)] = c;
     }
-    out[static_cast<size_t>(i)] = c;
     // The rows behind the window are done with: a file read in place need not stay resident.
-    if ((i & 0xffff) == 0xffff) data.drop_mapped_pages(i - w);
+    if ((i1 & 0xffff) == 0) data.drop_mapped_pages(i1 - w);
   }
   return out;
 }

@@ -78,6 +78,20 @@ Eigen::VectorXd FlightData::column_rows(const std::string& name, Eigen::Index fi
   return Column(values(i), size_).segment(first, count);
 }
 
+const double* FlightData::values_in_place(const std::string& name) const {
+  auto it = index_.find(name);
+  if (it == index_.end()) it = index_.find(canonical_name(name));
+  if (it == index_.end()) throw Error(source_ + ": field '" + name + "' not found");
+  std::lock_guard<std::mutex> lock(*load_mutex_);
+  Lazy& z = lazy_[it->second];
+  if (z.loader && !z.map_tried) {
+    z.mapped = z.loader->map(z.stored_name);
+    z.map_tried = true;
+  }
+  if (z.mapped) return z.mapped;
+  return z.loader ? nullptr : columns_[it->second].data();
+}
+
 void FlightData::ensure_loaded(size_t i) const {
   std::lock_guard<std::mutex> lock(*load_mutex_);
   Lazy& z = lazy_[i];
@@ -309,6 +323,11 @@ class RowsLoader : public ColumnLoader {
       : parent_(parent), first_(first), count_(count) {}
   Eigen::VectorXd load(const std::string& name) const override {
     return parent_->column_rows(name, first_, count_);
+  }
+  // The parent's rows where they lie, when they need no copy.
+  const double* map(const std::string& name) const override {
+    const double* values = parent_->values_in_place(name);
+    return values ? values + first_ : nullptr;
   }
 
  private:

@@ -65,6 +65,10 @@ class FlightData {
   /// in part from its file, until the parts read add up to twice the column; then it is loaded.
   Eigen::VectorXd column_rows(const std::string& name, Eigen::Index first,
                               Eigen::Index count) const;
+  /// Where a column's values lie when they need no copy: in memory already or read in place
+  /// from the file (nullptr when the column must be read into memory first). Same lookup rules;
+  /// valid as column()'s view is.
+  const double* values_in_place(const std::string& name) const;
   /// The column to change in place (a copy in memory from then on if it was read in place from
   /// its file); same lookup rules.
   Eigen::VectorXd& mutable_column(const std::string& name);
@@ -97,9 +101,10 @@ class FlightData {
   /// A new flight holding only the given samples (indices into this one).
   FlightData subset(const std::vector<Eigen::Index>& indices) const;
   /// Samples [first, first + count) as a flight whose columns are read from this one on first
-  /// use (this flight must outlive it); its dt_s() is this flight's, so anything computed on the
-  /// slice equals the same rows computed on the whole flight wherever it depends only on rows
-  /// inside the slice.
+  /// use, in place where this one holds them in memory or maps them (this flight must outlive it
+  /// and keep its columns unchanged meanwhile); its dt_s() is this flight's, so anything computed
+  /// on the slice equals the same rows computed on the whole flight wherever it depends only on
+  /// rows inside the slice.
   FlightData rows(Eigen::Index first, Eigen::Index count) const;
   /// Splits sorted sample indices into runs of consecutive samples with no time gap over
   /// `max_gap_s`. Each run is [first, last] inclusive.
