@@ -34,8 +34,11 @@ template <class ErrorAt>
 std::map<double, LineSums> line_sums(Eigen::Index n, const ErrorAt& error_at,
                                      const double* line_column, Eigen::Index* nan_samples) {
   std::map<double, LineSums> groups;
-  double last_line = std::numeric_limits<double>::quiet_NaN();
-  LineSums* last = nullptr;  // consecutive samples are mostly on one line
+  // Consecutive samples are mostly on one line: a run's sums are held here and stored in its
+  // line's entry when the line changes (the same additions in the same order).
+  LineSums* target = nullptr;
+  LineSums run;
+  double run_line = 0.0;
   for (Eigen::Index i = 0; i < n; ++i) {
     const double e = error_at(i);
     if (!std::isfinite(e)) {
@@ -43,14 +46,17 @@ std::map<double, LineSums> line_sums(Eigen::Index n, const ErrorAt& error_at,
       continue;
     }
     const double line = line_of(line_column, i);
-    if (!last || line != last_line) {
-      last = &groups[line];
-      last_line = line;
+    if (!target || line != run_line) {
+      if (target) *target = run;
+      target = &groups[line];
+      run = *target;
+      run_line = line;
     }
-    last->n++;
-    last->sum += e;
-    last->sum_sq += e * e;
+    run.n++;
+    run.sum += e;
+    run.sum_sq += e * e;
   }
+  if (target) *target = run;
   return groups;
 }
 
@@ -84,25 +90,51 @@ void condition_and_heading_stats(const FlightData& data, const Eigen::VectorXd& 
   const double* yaw = data.has("ins_yaw") ? data.column("ins_yaw").data() : nullptr;
   std::vector<double> ss_c(kConditionCount, 0), ss_h(8, 0);
   std::vector<Eigen::Index> n_c(kConditionCount, 0), n_h(8, 0);
-  double last_line = std::numeric_limits<double>::quiet_NaN();
-  const LineSums* last = nullptr;
+  // A sum per condition and per sector, added to in sample order; the current run of one
+  // condition (and of one sector) is summed here and stored when it ends.
+  struct Run {
+    std::vector<double>* sums;
+    std::vector<Eigen::Index>* counts;
+    size_t key = 0;
+    double sum = 0;
+    Eigen::Index count = 0;
+    bool open = false;
+    void add(size_t k, double v) {
+      if (!open || k != key) {
+        close();
+        key = k;
+        sum = (*sums)[k];
+        count = (*counts)[k];
+        open = true;
+      }
+      sum += v;
+      ++count;
+    }
+    void close() {
+      if (!open) return;
+      (*sums)[key] = sum;
+      (*counts)[key] = count;
+      open = false;
+    }
+  };
+  Run by_condition{&ss_c, &n_c}, by_sector{&ss_h, &n_h};
+  const LineSums* target = nullptr;
+  double run_line = 0.0, mean = 0.0;
   for (Eigen::Index i = 0; i < error_nT.size(); ++i) {
     if (!std::isfinite(error_nT[i])) continue;
     const double line = line_of(line_column, i);
-    if (!last || line != last_line) {
-      last = &groups[line];
-      last_line = line;
+    if (!target || line != run_line) {
+      target = &groups[line];
+      run_line = line;
+      mean = target->sum / static_cast<double>(target->n);
     }
-    const double d = error_nT[i] - last->sum / static_cast<double>(last->n);
-    const auto c = static_cast<size_t>(cond[static_cast<size_t>(i)]);
-    ss_c[c] += d * d;
-    n_c[c]++;
+    const double d = error_nT[i] - mean;
+    by_condition.add(static_cast<size_t>(cond[static_cast<size_t>(i)]), d * d);
     const int h = yaw ? heading_sector(yaw[i]) : -1;
-    if (h >= 0) {
-      ss_h[static_cast<size_t>(h)] += d * d;
-      n_h[static_cast<size_t>(h)]++;
-    }
+    if (h >= 0) by_sector.add(static_cast<size_t>(h), d * d);
   }
+  by_condition.close();
+  by_sector.close();
   for (int c = 0; c < kConditionCount; ++c) {
     const auto k = static_cast<size_t>(c);
     if (n_c[k] == 0) continue;

@@ -2,6 +2,7 @@
 #include "magcomp/core/flight_conditions.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <vector>
 
@@ -32,29 +33,32 @@ const char* sector_name(int s) {
 
 namespace {
 
-// Centred moving mean and mean square about it (the rms is its square root) over w samples (NaN
-// treated as 0) for a block of samples at a time: the prefix sums of x (and of x²) are formed in
-// order, as over the whole series, but kept only from the first window of the block on; each
-// sample's figures then come from two prefix sums, with the arithmetic of one sample at a time
-// (so many samples share an instruction).
+// Centred moving means and mean squares about them (the rms is its square root) over w samples
+// (NaN treated as 0) of a few channels, a block of samples at a time: each channel's prefix sums
+// of x (and of x²) are formed in order, as over the whole series, but kept only from the first
+// window of the block on (the channels side by side, so their running sums advance together);
+// each sample's figures then come from two prefix sums, with the arithmetic of one sample at a
+// time (so many samples share an instruction).
 class WindowStats {
  public:
-  WindowStats(const double* x, Eigen::Index n, Eigen::Index w) : x_(x), n_(n), half_(w / 2) {}
+  static constexpr int kChannels = 4;
+  WindowStats(const std::array<const double*, kChannels>& x, Eigen::Index n, Eigen::Index w)
+      : x_(x), n_(n), half_(w / 2) {}
 
-  // Mean and mean square about it for samples [i0, i1) (in increasing blocks). A missing channel
-  // reads as zeros.
-  void block(Eigen::Index i0, Eigen::Index i1, double* mean, double* square) {
+  // Mean and mean square about it of channel c for samples [i0, i1), after prepare(i0, i1) (in
+  // increasing blocks). A missing channel reads as zeros.
+  void prepare(Eigen::Index i0, Eigen::Index i1) {
+    extend(std::max<Eigen::Index>(0, i0 - half_), std::min(n_, i1 - 1 + half_ + 1));
+  }
+  void block(int c, Eigen::Index i0, Eigen::Index i1, double* mean, double* square) const {
     const Eigen::Index count = i1 - i0;
-    if (!x_) {
+    if (!x_[static_cast<size_t>(c)]) {
       std::fill(mean, mean + count, 0.0);
       std::fill(square, square + count, 0.0);
       return;
     }
-    const Eigen::Index lo = std::max<Eigen::Index>(0, i0 - half_);
-    const Eigen::Index hi = std::min(n_, i1 - 1 + half_ + 1);
-    extend(lo, hi);
-    const double* s1 = s1_.data() - base_;  // s1[j]: the prefix sum over x[0, j)
-    const double* s2 = s2_.data() - base_;
+    const double* s1 = s1_[static_cast<size_t>(c)].data() - base_;  // prefix sum over x[0, j)
+    const double* s2 = s2_[static_cast<size_t>(c)].data() - base_;
     auto at = [&](Eigen::Index k, Eigen::Index a, Eigen::Index b) {
       const double kk = static_cast<double>(b - a);
       const double m = (s1[b] - s1[a]) / kk;
@@ -87,36 +91,59 @@ class WindowStats {
  private:
   // Prefix sums for indices [lo, hi] held, continuing the running sums in order.
   void extend(Eigen::Index lo, Eigen::Index hi) {
-    if (s1_.empty()) {
-      s1_.push_back(0.0);
-      s2_.push_back(0.0);
+    if (held_ == 0) {
+      for (int c = 0; c < kChannels; ++c) {
+        s1_[static_cast<size_t>(c)].assign(1, 0.0);
+        s2_[static_cast<size_t>(c)].assign(1, 0.0);
+      }
+      held_ = 1;
       base_ = 0;
     }
     if (lo > base_) {  // forget what no later window reaches
       const auto drop = static_cast<std::ptrdiff_t>(lo - base_);
-      s1_.erase(s1_.begin(), s1_.begin() + drop);
-      s2_.erase(s2_.begin(), s2_.begin() + drop);
+      for (int c = 0; c < kChannels; ++c) {
+        auto& a = s1_[static_cast<size_t>(c)];
+        auto& b = s2_[static_cast<size_t>(c)];
+        a.erase(a.begin(), a.begin() + drop);
+        b.erase(b.begin(), b.begin() + drop);
+      }
+      held_ -= static_cast<size_t>(drop);
       base_ = lo;
     }
-    const Eigen::Index from = base_ + static_cast<Eigen::Index>(s1_.size()) - 1;
+    const Eigen::Index from = base_ + static_cast<Eigen::Index>(held_) - 1;
     if (hi <= from) return;
-    const size_t held = s1_.size();
-    s1_.resize(held + static_cast<size_t>(hi - from));
-    s2_.resize(s1_.size());
-    double p1 = s1_[held - 1], p2 = s2_[held - 1];
-    double *o1 = s1_.data() + held, *o2 = s2_.data() + held;
-    for (Eigen::Index j = from; j < hi; ++j) {
-      const double v = std::isfinite(x_[j]) ? x_[j] : 0.0;
-      p1 += v;
-      p2 += v * v;
-      *o1++ = p1;
-      *o2++ = p2;
+    const size_t size = held_ + static_cast<size_t>(hi - from);
+    double p1[kChannels], p2[kChannels], *o1[kChannels], *o2[kChannels];
+    const double* x[kChannels];
+    for (int c = 0; c < kChannels; ++c) {
+      const auto k = static_cast<size_t>(c);
+      s1_[k].resize(size);
+      s2_[k].resize(size);
+      p1[c] = s1_[k][held_ - 1];
+      p2[c] = s2_[k][held_ - 1];
+      o1[c] = s1_[k].data() + held_;
+      o2[c] = s2_[k].data() + held_;
+      x[c] = x_[k] ? x_[k] : kZeros;  // a missing channel: its sums stay 0 and are not read
     }
+    for (Eigen::Index j = from; j < hi; ++j) {
+      const Eigen::Index at = j - from;
+      for (int c = 0; c < kChannels; ++c) {
+        const double xj = x[c] == kZeros ? 0.0 : x[c][j];
+        const double v = std::isfinite(xj) ? xj : 0.0;
+        p1[c] += v;
+        p2[c] += v * v;
+        o1[c][at] = p1[c];
+        o2[c][at] = p2[c];
+      }
+    }
+    held_ = size;
   }
 
-  const double* x_;
+  static constexpr double kZeros[1] = {0.0};
+  std::array<const double*, kChannels> x_;
   Eigen::Index n_, half_;
-  std::vector<double> s1_, s2_;  // prefix sums for indices base_, base_ + 1, ...
+  std::array<std::vector<double>, kChannels> s1_, s2_;  // prefix sums for indices base_, ...
+  size_t held_ = 0;
   Eigen::Index base_ = 0;
 };
 
@@ -128,8 +155,7 @@ std::vector<FlightCondition> classify_conditions(const FlightData& data, double 
   auto col = [&](const char* name) {
     return data.has(name) ? data.column(name).data() : nullptr;
   };
-  WindowStats pitch(col("pitch_rate"), n, w), roll(col("roll_rate"), n, w),
-      yaw(col("yaw_rate"), n, w), vertical(col("ins_vu"), n, w);
+  WindowStats windows({col("pitch_rate"), col("roll_rate"), col("yaw_rate"), col("ins_vu")}, n, w);
   std::vector<FlightCondition> out(static_cast<size_t>(n), FlightCondition::kStraightLevel);
   constexpr Eigen::Index kBlock = 4096;
   // Means and mean squares (p, r, y: the rates' rms squared).
@@ -140,10 +166,11 @@ std::vector<FlightCondition> classify_conditions(const FlightData& data, double 
   auto above_one = [](double q) { return q > 1.0000001 || (q > 1.0 && std::sqrt(q) > 1.0); };
   for (Eigen::Index i0 = 0; i0 < n; i0 += kBlock) {
     const Eigen::Index i1 = std::min(n, i0 + kBlock);
-    pitch.block(i0, i1, pm.data(), p.data());
-    roll.block(i0, i1, rm.data(), r.data());
-    yaw.block(i0, i1, ym.data(), y.data());
-    vertical.block(i0, i1, vm.data(), vr.data());
+    windows.prepare(i0, i1);
+    windows.block(0, i0, i1, pm.data(), p.data());
+    windows.block(1, i0, i1, rm.data(), r.data());
+    windows.block(2, i0, i1, ym.data(), y.data());
+    windows.block(3, i0, i1, vm.data(), vr.data());
     for (Eigen::Index k = 0; k < i1 - i0; ++k) {
       FlightCondition c = FlightCondition::kStraightLevel;
       if (std::abs(ym[k]) > 1.5) {

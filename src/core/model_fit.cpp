@@ -214,15 +214,17 @@ Eigen::Index slice_margin(const Model& model, const std::vector<std::unique_ptr<
   return reach + static_cast<Eigen::Index>(std::ceil(lag_samples)) + 2;
 }
 
-void for_each_design_block(const Model& model, const FlightData& data,
-                           const std::function<void(Eigen::Index, const Eigen::MatrixXd&)>& block,
-                           int threads) {
+void for_each_design_block(
+    const Model& model, const FlightData& data,
+    const std::function<void(Eigen::Index, const Eigen::Ref<const Eigen::MatrixXd>&)>& block,
+    int threads) {
   const auto terms = model.make_terms();
   const Eigen::Index n = data.size();
   const Eigen::Index margin = n > 1 ? slice_margin(model, terms, data.dt_s()) : -1;
   constexpr Eigen::Index kBlockRows = 16384;  // ~2.4 MB for 18 columns: stays in cache
   if (margin < 0 || n <= 2 * kBlockRows) {
-    block(0, design_matrix(model, terms, data));
+    const Eigen::MatrixXd a = design_matrix(model, terms, data);
+    block(0, a);
     return;
   }
   const Eigen::Index blocks = (n + kBlockRows - 1) / kBlockRows;
@@ -547,7 +549,7 @@ void for_each_correction_block(
       static_cast<int>(std::clamp(std::thread::hardware_concurrency(), 1u, 2u));
   for_each_design_block(
       model, data,
-      [&](Eigen::Index first, const Eigen::MatrixXd& a) {
+      [&](Eigen::Index first, const Eigen::Ref<const Eigen::MatrixXd>& a) {
         if (a.cols() != model.coefficients.size()) {
           throw Error("model: " + std::to_string(model.coefficients.size()) + " coefficients for " +
                       std::to_string(a.cols()) + " columns");

@@ -53,7 +53,7 @@ TEST(RowSlices, DesignBlocksEqualTheWholeMatrixBitForBit) {
   const Eigen::MatrixXd whole = design_matrix(m, d);
   Eigen::MatrixXd assembled(whole.rows(), whole.cols());
   Eigen::Index covered = 0, blocks = 0;
-  for_each_design_block(m, d, [&](Eigen::Index first, const Eigen::MatrixXd& a) {
+  for_each_design_block(m, d, [&](Eigen::Index first, const Eigen::Ref<const Eigen::MatrixXd>& a) {
     EXPECT_EQ(first, covered);
     assembled.middleRows(first, a.rows()) = a;
     covered += a.rows();
@@ -70,7 +70,7 @@ TEST(RowSlices, DesignBlocksEqualTheWholeMatrixBitForBit) {
   Eigen::Index rows_seen = 0;
   for_each_design_block(
       m, d,
-      [&](Eigen::Index first, const Eigen::MatrixXd& a) {
+      [&](Eigen::Index first, const Eigen::Ref<const Eigen::MatrixXd>& a) {
         threaded.middleRows(first, a.rows()) = a;  // disjoint rows: no lock needed
         std::lock_guard<std::mutex> lock(mutex);
         rows_seen += a.rows();
@@ -83,7 +83,7 @@ TEST(RowSlices, DesignBlocksEqualTheWholeMatrixBitForBit) {
   // An error in one block is the caller's, once.
   EXPECT_THROW(for_each_design_block(
                    m, d,
-                   [&](Eigen::Index first, const Eigen::MatrixXd&) {
+                   [&](Eigen::Index first, const Eigen::Ref<const Eigen::MatrixXd>&) {
                      if (first > 0) throw Error("block failed");
                    },
                    2),
@@ -91,7 +91,7 @@ TEST(RowSlices, DesignBlocksEqualTheWholeMatrixBitForBit) {
   // A term with a history (a causal low-pass) is built whole, in one block.
   m.terms.push_back("field:cur_strb|lp(20)");
   int history_blocks = 0;
-  for_each_design_block(m, d, [&](Eigen::Index, const Eigen::MatrixXd&) { ++history_blocks; });
+  for_each_design_block(m, d, [&](Eigen::Index, const Eigen::Ref<const Eigen::MatrixXd>&) { ++history_blocks; });
   EXPECT_EQ(history_blocks, 1);
 }
 

@@ -116,9 +116,10 @@ Eigen::Index slice_margin(const Model& model, const std::vector<std::unique_ptr<
 /// term gets the whole matrix as one block. The numbers equal design_matrix()'s. With threads > 1
 /// the blocks are built and passed on that many threads at once (`block` must then be safe to call
 /// concurrently for different blocks); the first exception is rethrown.
-void for_each_design_block(const Model& model, const FlightData& data,
-                           const std::function<void(Eigen::Index, const Eigen::MatrixXd&)>& block,
-                           int threads = 1);
+void for_each_design_block(
+    const Model& model, const FlightData& data,
+    const std::function<void(Eigen::Index, const Eigen::Ref<const Eigen::MatrixXd>&)>& block,
+    int threads = 1);
 
 /// Fits the model's coefficients on `flights` according to model.fit. Free parameters (?) are
 /// estimated first (parameter_fit.h) and written into model.terms as numbers. Throws
