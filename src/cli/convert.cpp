@@ -46,9 +46,8 @@ void setup_convert(CLI::App* cmd) {
       if (!*force && std::ifstream(*out).good())
         throw Error(*out + ": exists; pass --force to overwrite");
       check_output_path(*out, {*in});
-      const FlightData f = rosio::bag_to_flight(*in);
-      write_flight_h5(f, *out, {*in});
-      std::cout << "wrote " << *out << ": " << f.size() << " samples x " << f.names().size()
+      const rosio::ConvertReport r = rosio::bag_to_h5(*in, *out);
+      std::cout << "wrote " << *out << ": " << r.samples << " samples x " << r.fields
                 << " fields";
     } else {
       throw Error("convert: give IN.h5 OUT.bag or IN.bag OUT.h5 (got '" + *in + "' '" + *out +

@@ -467,50 +467,104 @@ FlightData read_flight_h5(const std::string& path) {
   return data;
 }
 
-void write_flight_h5(const FlightData& data, const std::string& path,
-                     const std::vector<std::string>& inputs) {
+FlightH5Writer::FlightH5Writer(std::string path, std::vector<std::string> names,
+                               Eigen::Index samples, const std::vector<std::string>& inputs)
+    : path_(std::move(path)), names_(std::move(names)), inputs_(inputs), samples_(samples) {
   H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
-  check_output_path(path, inputs);
-  const std::string tmp = temporary_path(path);
-  {
-    H5Handle file(H5Fcreate(tmp.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose);
-    if (file.id < 0) throw Error(path + ": cannot create file");
-    auto write = [&](const std::string& name, const double* values, hsize_t n, bool scalar) {
-      H5Handle space(scalar ? H5Screate(H5S_SCALAR) : H5Screate_simple(1, &n, nullptr), H5Sclose);
-      H5Handle ds(H5Dcreate2(file.id, name.c_str(), H5T_IEEE_F64LE, space.id, H5P_DEFAULT,
-                             H5P_DEFAULT, H5P_DEFAULT),
-                  H5Dclose);
-      if (ds.id < 0 ||
-          H5Dwrite(ds.id, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, values) < 0) {
-        throw Error(path + ": cannot write field '" + name + "'");
-      }
-    };
-    try {
-      const hsize_t n = static_cast<hsize_t>(std::max<Eigen::Index>(data.size(), 0));
-      for (const std::string& name : data.names()) {
-        if (name == "N" || name == "dt") continue;
-        write(name, data.column(name).data(), n, false);
-      }
-      const double count = static_cast<double>(n);
-      write("N", &count, 1, true);
-      const double dt = n > 1 ? data.dt_s() : 0.1;
-      write("dt", &dt, 1, true);
-    } catch (...) {
-      std::remove(tmp.c_str());
-      throw;
+  check_output_path(path_, inputs_);
+  tmp_ = temporary_path(path_);
+  file_ = H5Fcreate(tmp_.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
+  if (file_ < 0) throw Error(path_ + ": cannot create file");
+  datasets_.reserve(names_.size());
+  const hsize_t n = static_cast<hsize_t>(std::max<Eigen::Index>(samples_, 0));
+  for (const std::string& name : names_) {
+    H5Handle space(H5Screate_simple(1, &n, nullptr), H5Sclose);
+    const hid_t ds = H5Dcreate2(file_, name.c_str(), H5T_IEEE_F64LE, space.id, H5P_DEFAULT,
+                                H5P_DEFAULT, H5P_DEFAULT);
+    if (ds < 0) {
+      discard();
+      throw Error(path_ + ": cannot write field '" + name + "'");
     }
-    if (H5Fflush(file.id, H5F_SCOPE_GLOBAL) < 0) {
-      std::remove(tmp.c_str());
-      throw Error(path + ": write failed (flush)");
+    datasets_.push_back(ds);
+  }
+}
+
+FlightH5Writer::~FlightH5Writer() { discard(); }
+
+void FlightH5Writer::discard() {
+  for (int64_t ds : datasets_) {
+    if (ds >= 0) H5Dclose(ds);
+  }
+  datasets_.clear();
+  if (file_ >= 0) {
+    H5Fclose(file_);
+    file_ = -1;
+    std::remove(tmp_.c_str());
+  }
+}
+
+void FlightH5Writer::write_rows(size_t column, Eigen::Index first, Eigen::Index count,
+                                const double* values) {
+  if (column >= datasets_.size() || first < 0 || count < 0 || first + count > samples_) {
+    throw Error(path_ + ": rows [" + std::to_string(first) + ", " + std::to_string(first + count) +
+                ") of column " + std::to_string(column) + " outside the file");
+  }
+  if (count == 0) return;
+  const hsize_t start = static_cast<hsize_t>(first), n = static_cast<hsize_t>(count);
+  H5Handle file_space(H5Dget_space(datasets_[column]), H5Sclose);
+  H5Handle memory_space(H5Screate_simple(1, &n, nullptr), H5Sclose);
+  if (file_space.id < 0 || memory_space.id < 0 ||
+      H5Sselect_hyperslab(file_space.id, H5S_SELECT_SET, &start, nullptr, &n, nullptr) < 0 ||
+      H5Dwrite(datasets_[column], H5T_NATIVE_DOUBLE, memory_space.id, file_space.id, H5P_DEFAULT,
+               values) < 0) {
+    throw Error(path_ + ": cannot write field '" + names_[column] + "'");
+  }
+}
+
+void FlightH5Writer::finish(double dt_s) {
+  auto scalar = [&](const char* name, double value) {
+    H5Handle space(H5Screate(H5S_SCALAR), H5Sclose);
+    H5Handle ds(H5Dcreate2(file_, name, H5T_IEEE_F64LE, space.id, H5P_DEFAULT, H5P_DEFAULT,
+                           H5P_DEFAULT),
+                H5Dclose);
+    if (ds.id < 0 || H5Dwrite(ds.id, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, &value) < 0) {
+      throw Error(path_ + ": cannot write field '" + name + "'");
     }
-    const hid_t id = file.id;
-    file.id = -1;
-    if (H5Fclose(id) < 0) {
-      std::remove(tmp.c_str());
-      throw Error(path + ": write failed (close)");
+  };
+  scalar("N", static_cast<double>(samples_));
+  scalar("dt", dt_s);
+  for (int64_t& ds : datasets_) {
+    const hid_t id = ds;
+    ds = -1;
+    if (H5Dclose(id) < 0) {
+      discard();
+      throw Error(path_ + ": write failed (close)");
     }
   }
-  commit_temporary(tmp, path, inputs);
+  datasets_.clear();
+  if (H5Fflush(file_, H5F_SCOPE_GLOBAL) < 0) {
+    discard();
+    throw Error(path_ + ": write failed (flush)");
+  }
+  const hid_t id = file_;
+  file_ = -1;
+  if (H5Fclose(id) < 0) {
+    std::remove(tmp_.c_str());
+    throw Error(path_ + ": write failed (close)");
+  }
+  commit_temporary(tmp_, path_, inputs_);
+}
+
+void write_flight_h5(const FlightData& data, const std::string& path,
+                     const std::vector<std::string>& inputs) {
+  std::vector<std::string> names;
+  for (const std::string& name : data.names()) {
+    if (name != "N" && name != "dt") names.push_back(name);
+  }
+  const Eigen::Index n = std::max<Eigen::Index>(data.size(), 0);
+  FlightH5Writer writer(path, names, n, inputs);
+  for (size_t c = 0; c < names.size(); ++c) writer.write_rows(c, 0, n, data.column(names[c]).data());
+  writer.finish(n > 1 ? data.dt_s() : 0.1);
 }
 
 }  // namespace magcomp

@@ -97,18 +97,22 @@ class Checker {
   }
 
   // A connection record's data is itself a header (topic, type, md5sum, message_definition):
-  // rosbag parses it with ros::Header, which trusts each field's length.
-  void check_header_bytes(const Bytes& b, uint64_t from, uint64_t len, uint64_t at) const {
+  // rosbag parses it with ros::Header, which trusts each field's length. Returns its type.
+  std::string check_header_bytes(const Bytes& b, uint64_t from, uint64_t len, uint64_t at) const {
     uint64_t p = from;
     const uint64_t end = from + len;
+    std::string type;
     while (p < end) {
       if (end - p < 4) fail(at, "connection header field length past its end");
       const uint32_t flen = b.u32(p);
       p += 4;
       if (flen > end - p) fail(at, "connection header field past its end");
-      if (!std::memchr(b.at(p), '=', flen)) fail(at, "connection header field without '='");
+      const char* f = reinterpret_cast<const char*>(b.at(p));
+      if (!std::memchr(f, '=', flen)) fail(at, "connection header field without '='");
+      if (flen >= 5 && std::memcmp(f, "type=", 5) == 0) type.assign(f + 5, flen - 5);
       p += flen;
     }
+    return type;
   }
 
   uint64_t field_u(const Record& r, const std::string& name, size_t bytes, uint64_t at) const {
@@ -130,14 +134,26 @@ class Checker {
       if (r.op() == kOpConnection) check_header_bytes(c, r.data_pos, r.data_len, base + p);
       if (r.op() == kOpMessage) {
         const uint64_t conn = field_u(r, "conn", 4, base + p);
-        if (!connections_.count(static_cast<uint32_t>(conn)))
+        auto it = connections_.find(static_cast<uint32_t>(conn));
+        if (it == connections_.end())
           fail(base + p, "message on an unknown connection " + std::to_string(conn));
+        if (visitor_ && it->second.wanted)
+          visitor_->message(it->second.topic, c.at(r.data_pos), r.data_len);
       }
       p = r.end;
     }
   }
 
-  void run() {
+  // Lets the process's memory go of the file's bytes [from, to) (read, no longer needed).
+  void release(uint64_t from, uint64_t to) const {
+    const uint64_t page = static_cast<uint64_t>(::sysconf(_SC_PAGESIZE));
+    const uint64_t a = (from + page - 1) / page * page, z = to / page * page;
+    if (z > a) ::madvise(const_cast<uint8_t*>(b_.at(a)), z - a, MADV_DONTNEED);
+  }
+
+  bool run(BagVisitor* visitor) {
+    visitor_ = visitor;
+    bool all_delivered = true;
     static const char kMagic[] = "#ROSBAG V2.0\n";
     if (!b_.has(0, 13) || std::memcmp(b_.at(0), kMagic, 13) != 0)
       fail(0, "no '#ROSBAG V2.0' version line");
@@ -152,10 +168,30 @@ class Checker {
     for (uint64_t k = 0; k < conn_count; ++k) {
       const Record r = record(b_, p);
       if (r.op() != kOpConnection) fail(p, "expected a connection record in the index");
-      connections_[static_cast<uint32_t>(field_u(r, "conn", 4, p))] = true;
       if (!r.fields.count("topic")) fail(p, "connection without a topic");
-      check_header_bytes(b_, r.data_pos, r.data_len, p);
+      Connection& c = connections_[static_cast<uint32_t>(field_u(r, "conn", 4, p))];
+      c.topic = r.fields.at("topic");
+      const std::string type = check_header_bytes(b_, r.data_pos, r.data_len, p);
+      c.wanted = visitor_ && visitor_->wants(c.topic, type);
       p = r.end;
+    }
+    if (visitor_) {  // the wanted messages the chunk infos count (conn, count pairs), by topic
+      std::map<std::string, uint64_t> wanted;
+      for (const auto& [id, c] : connections_) {
+        if (c.wanted) wanted[c.topic];
+      }
+      uint64_t q = p;
+      for (uint64_t k = 0; k < chunk_count; ++k) {
+        const Record info = record(b_, q);
+        if (info.op() != kOpChunkInfo) fail(q, "expected a chunk info record in the index");
+        for (uint64_t e = 0; e + 8 <= info.data_len; e += 8) {
+          auto it = connections_.find(b_.u32(info.data_pos + e));
+          if (it != connections_.end() && it->second.wanted)
+            wanted[it->second.topic] += b_.u32(info.data_pos + e + 4);
+        }
+        q = info.end;
+      }
+      for (const auto& [topic, n] : wanted) visitor_->counted(topic, n);
     }
     for (uint64_t k = 0; k < chunk_count; ++k) {
       const Record info = record(b_, p);
@@ -172,11 +208,14 @@ class Checker {
       if (compression == "none") {
         if (size != chunk.data_len) fail(chunk_pos, "chunk size does not match its data");
         check_chunk_content(chunk.data_pos, Bytes(b_.at(chunk.data_pos), chunk.data_len));
-      } else if (compression != "bz2" && compression != "lz4") {
-        fail(chunk_pos, "unknown chunk compression '" + compression + "'");
-      } else if (size > kMaxChunkBytes || size < chunk.data_len / 1000) {
-        fail(chunk_pos, "compressed chunk of an implausible size (" + std::to_string(size) +
-                            " bytes from " + std::to_string(chunk.data_len) + ")");
+      } else {
+        all_delivered = false;  // its messages are rosbag's to inflate
+        if (compression != "bz2" && compression != "lz4") {
+          fail(chunk_pos, "unknown chunk compression '" + compression + "'");
+        } else if (size > kMaxChunkBytes || size < chunk.data_len / 1000) {
+          fail(chunk_pos, "compressed chunk of an implausible size (" + std::to_string(size) +
+                              " bytes from " + std::to_string(chunk.data_len) + ")");
+        }
       }
       // The chunk's index records, right after it.
       uint64_t q = chunk.end;
@@ -193,19 +232,26 @@ class Checker {
         }
         q = ix.end;
       }
+      release(chunk_pos, q);
       p = info.end;
     }
+    return all_delivered;
   }
 
  private:
+  struct Connection {
+    std::string topic;
+    bool wanted = false;
+  };
   std::string path_;
   Bytes b_;
-  std::map<uint32_t, bool> connections_;
+  std::map<uint32_t, Connection> connections_;
+  BagVisitor* visitor_ = nullptr;
 };
 
 }  // namespace
 
-void check_bag_structure(const std::string& path) {
+bool check_bag_structure(const std::string& path, BagVisitor* visitor) {
   const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
   if (fd < 0) throw Error(path + ": file not found or not readable");
   struct stat st {};
@@ -221,13 +267,15 @@ void check_bag_structure(const std::string& path) {
   void* map = ::mmap(nullptr, size, PROT_READ, MAP_PRIVATE, fd, 0);
   ::close(fd);
   if (map == MAP_FAILED) throw Error(path + ": cannot read");
+  bool all_delivered = true;
   try {
-    Checker(path, Bytes(static_cast<const uint8_t*>(map), size)).run();
+    all_delivered = Checker(path, Bytes(static_cast<const uint8_t*>(map), size)).run(visitor);
   } catch (...) {
     ::munmap(map, size);
     throw;
   }
   ::munmap(map, size);
+  return all_delivered;
 }
 
 }  // namespace magcomp::rosio

@@ -13,12 +13,16 @@
 #include <unistd.h>
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstring>
 #include <cstdio>
 #include <ctime>
 #include <fstream>
+#include <functional>
+#include <memory>
+#include <unordered_map>
 
 #include "magcomp/core/error.h"
 #include "magcomp/core/file_io.h"
@@ -28,18 +32,19 @@
 
 namespace magcomp::rosio {
 
-FlightData bag_to_flight_checked(const std::string& bag_path);
-
 namespace {
 
 // The serialised bytes of a bag message, read with every length checked against them (a
 // corrupt length in ROS's own deserialiser allocates whatever it says before failing).
 class RawMessage {
  public:
-  explicit RawMessage(const rosbag::MessageInstance& m) : bytes_(m.size()) {
-    ros::serialization::OStream out(bytes_.data(), static_cast<uint32_t>(bytes_.size()));
+  explicit RawMessage(const rosbag::MessageInstance& m) : own_(m.size()) {
+    ros::serialization::OStream out(own_.data(), static_cast<uint32_t>(own_.size()));
     m.write(out);
+    bytes_ = Span{own_.data(), own_.size()};
   }
+  /// The message's bytes where they lie (valid while this object is used).
+  RawMessage(const uint8_t* data, size_t size) : bytes_{data, size} {}
   bool u32(uint32_t* v) {
     if (bytes_.size() - pos_ < 4) return false;
     std::memcpy(v, bytes_.data() + pos_, 4);
@@ -79,7 +84,14 @@ class RawMessage {
   uint32_t seq() const { return seq_; }
 
  private:
-  std::vector<uint8_t> bytes_;
+  struct Span {
+    const uint8_t* p;
+    size_t n;
+    size_t size() const { return n; }
+    const uint8_t* data() const { return p; }
+  };
+  std::vector<uint8_t> own_;
+  Span bytes_{nullptr, 0};
   size_t pos_ = 0;
   uint32_t seq_ = 0;
 };
@@ -91,13 +103,55 @@ constexpr double kDeg = M_PI / 180.0;
 
 bool exists(const std::string& path) { return std::ifstream(path).good(); }
 
+// Rows a conversion holds at a time: the columns are read and written a block of rows at a
+// time, so a long flight is never held whole.
+constexpr Eigen::Index kChunkRows = 1 << 16;
+
 double first_finite(const FlightData& f, const std::string& name) {
-  const auto v = f.column(name);
-  for (Eigen::Index i = 0; i < v.size(); ++i) {
-    if (std::isfinite(v[i])) return v[i];
+  for (Eigen::Index i0 = 0; i0 < f.size(); i0 += kChunkRows) {
+    const Eigen::VectorXd v = f.column_rows(name, i0, std::min(kChunkRows, f.size() - i0));
+    for (Eigen::Index k = 0; k < v.size(); ++k) {
+      if (std::isfinite(v[k])) return v[k];
+    }
   }
   throw Error(f.source() + ": field '" + name + "' has no finite value");
 }
+
+// A block of rows [first, first + count) of a flight's columns: where a column lies in memory
+// or is read in place, its values there; otherwise those rows read into a buffer. ptr(c)[k] is
+// row first + k of column c.
+class ChunkedColumns {
+ public:
+  explicit ChunkedColumns(const FlightData& f) : f_(f), names_(f.names()) {
+    for (size_t c = 0; c < names_.size(); ++c) index_[names_[c]] = c;
+    buffers_.resize(names_.size());
+    pointers_.resize(names_.size(), nullptr);
+  }
+  void load(Eigen::Index first, Eigen::Index count) {
+    for (size_t c = 0; c < names_.size(); ++c) {
+      if (const double* in_place = f_.values_in_place(names_[c])) {
+        pointers_[c] = in_place + first;
+      } else {
+        buffers_[c] = f_.column_rows(names_[c], first, count);
+        pointers_[c] = buffers_[c].data();
+      }
+    }
+  }
+  const double* ptr(size_t c) const { return pointers_[c]; }
+  /// The column's values for this block, nullptr when the flight has no such column.
+  const double* ptr(const std::string& name) const {
+    auto it = index_.find(FlightData::canonical_name(name));
+    return it == index_.end() ? nullptr : pointers_[it->second];
+  }
+  size_t size() const { return names_.size(); }
+
+ private:
+  const FlightData& f_;
+  std::vector<std::string> names_;
+  std::unordered_map<std::string, size_t> index_;
+  std::vector<Eigen::VectorXd> buffers_;
+  std::vector<const double*> pointers_;
+};
 
 }  // namespace
 
@@ -152,22 +206,11 @@ class TypedTopics {
     }
     has_att_ = f.has("ins_roll") && f.has("ins_pitch") && f.has("ins_yaw");
     has_fix_ = f.has("lat") && f.has("lon");
-    auto col = [&](const std::string& name) {
-      return f.has(name) ? f.column(name).data() : nullptr;
-    };
-    for (const auto& s : scalars_) scalar_cols_.push_back(col(s));
-    for (const auto& a : aux_) aux_cols_.push_back(col(a));
-    for (const auto& b : fluxes_)
-      flux_cols_.push_back({col(b + "_x"), col(b + "_y"), col(b + "_z")});
-    ref_ = col("mag_1_c");
-    roll_ = col("ins_roll"), pitch_ = col("ins_pitch"), yaw_ = col("ins_yaw");
-    roll_rate_ = col("roll_rate"), pitch_rate_ = col("pitch_rate"), yaw_rate_ = col("yaw_rate");
-    acc_x_ = col("ins_acc_x"), acc_y_ = col("ins_acc_y"), acc_z_ = col("ins_acc_z");
-    lat_ = col("lat"), lon_ = col("lon"), alt_ = col("utm_z");
+    has_ref_ = f.has("mag_1_c");
     for (const auto& s : scalars_)
       c_scalar_.push_back(
           bag.connection<magcomp::ScalarMagnetometer>(std::string(BagTopics::kScalarPrefix) + s));
-    c_ref_ = ref_ ? bag.connection<magcomp::ScalarMagnetometer>(BagTopics::kReference) : 0;
+    c_ref_ = has_ref_ ? bag.connection<magcomp::ScalarMagnetometer>(BagTopics::kReference) : 0;
     for (const auto& b : fluxes_)
       c_flux_.push_back(
           bag.connection<sensor_msgs::MagneticField>(std::string(BagTopics::kFluxPrefix) + b));
@@ -181,7 +224,26 @@ class TypedTopics {
     am_.values.resize(aux_.size());
   }
 
-  /// Writes sample i, stamped t, on every typed topic; returns the number of messages.
+  /// Takes the columns of the next block of rows.
+  void bind(const ChunkedColumns& chunk) {
+    scalar_cols_.clear();
+    aux_cols_.clear();
+    flux_cols_.clear();
+    for (const auto& s : scalars_) scalar_cols_.push_back(chunk.ptr(s));
+    for (const auto& a : aux_) aux_cols_.push_back(chunk.ptr(a));
+    for (const auto& b : fluxes_)
+      flux_cols_.push_back({chunk.ptr(b + "_x"), chunk.ptr(b + "_y"), chunk.ptr(b + "_z")});
+    ref_ = chunk.ptr("mag_1_c");
+    roll_ = chunk.ptr("ins_roll"), pitch_ = chunk.ptr("ins_pitch"), yaw_ = chunk.ptr("ins_yaw");
+    roll_rate_ = chunk.ptr("roll_rate"), pitch_rate_ = chunk.ptr("pitch_rate");
+    yaw_rate_ = chunk.ptr("yaw_rate");
+    acc_x_ = chunk.ptr("ins_acc_x"), acc_y_ = chunk.ptr("ins_acc_y");
+    acc_z_ = chunk.ptr("ins_acc_z");
+    lat_ = chunk.ptr("lat"), lon_ = chunk.ptr("lon"), alt_ = chunk.ptr("utm_z");
+  }
+
+  /// Writes row i of the bound block, stamped t, on every typed topic; returns the number of
+  /// messages.
   long write(Eigen::Index i, const ros::Time& t) {
     sm_.header.stamp = t;
     for (size_t k = 0; k < scalars_.size(); ++k) {
@@ -189,7 +251,7 @@ class TypedTopics {
       sm_.field_nT = scalar_cols_[k][i];
       bag_.write(c_scalar_[k], t, sm_);
     }
-    if (ref_) {
+    if (has_ref_) {
       sm_.header.frame_id = "mag_1";
       sm_.field_nT = ref_[i];
       bag_.write(c_ref_, t, sm_);
@@ -216,7 +278,7 @@ class TypedTopics {
       for (size_t k = 0; k < aux_.size(); ++k) am_.values[k] = aux_cols_[k][i];
       bag_.write(c_aux_, t, am_);
     }
-    return static_cast<long>(scalars_.size() + fluxes_.size()) + (ref_ ? 1 : 0) +
+    return static_cast<long>(scalars_.size() + fluxes_.size()) + (has_ref_ ? 1 : 0) +
            (has_att_ ? 1 : 0) + (has_fix_ ? 1 : 0) + (aux_.empty() ? 0 : 1);
   }
 
@@ -247,7 +309,7 @@ class TypedTopics {
 
   BagWriter& bag_;
   std::vector<std::string> scalars_, fluxes_, aux_, scalar_frames_;
-  bool has_att_ = false, has_fix_ = false;
+  bool has_att_ = false, has_fix_ = false, has_ref_ = false;
   std::vector<const double*> scalar_cols_, aux_cols_;
   std::vector<std::array<const double*, 3>> flux_cols_;
   const double *ref_ = nullptr, *roll_ = nullptr, *pitch_ = nullptr, *yaw_ = nullptr;
@@ -285,19 +347,24 @@ ConvertReport flight_to_bag(const FlightData& f, const std::string& bag_path, bo
     bag.write(bag.connection<magcomp::FlightSchema>(BagTopics::kSchema), schema.header.stamp,
               schema);
     rep.messages++;
-    std::vector<const double*> cols;
-    for (const auto& name : f.names()) cols.push_back(f.column(name).data());
     const uint32_t c_record = bag.connection<magcomp::FlightRecord>(BagTopics::kRecord);
     TypedTopics typed(f, bag);
+    ChunkedColumns chunk(f);
     magcomp::FlightRecord rec;
-    rec.values.resize(cols.size());
-    for (Eigen::Index i = 0; i < f.size(); ++i) {
-      const ros::Time t = stamp_of(year, doy, tt[i]);
-      rec.header.stamp = t;
-      rec.header.seq = static_cast<uint32_t>(i);
-      for (size_t c = 0; c < cols.size(); ++c) rec.values[c] = cols[c][i];
-      bag.write(c_record, t, rec);
-      rep.messages += 1 + typed.write(i, t);
+    rec.values.resize(chunk.size());
+    for (Eigen::Index first = 0; first < f.size(); first += kChunkRows) {
+      const Eigen::Index count = std::min(kChunkRows, f.size() - first);
+      chunk.load(first, count);
+      typed.bind(chunk);
+      for (Eigen::Index k = 0; k < count; ++k) {
+        const ros::Time t = stamp_of(year, doy, tt[first + k]);
+        rec.header.stamp = t;
+        rec.header.seq = static_cast<uint32_t>(first + k);
+        for (size_t c = 0; c < chunk.size(); ++c) rec.values[c] = chunk.ptr(c)[k];
+        bag.write(c_record, t, rec);
+        rep.messages += 1 + typed.write(k, t);
+      }
+      f.drop_mapped_pages(first + count);  // the rows written need not stay resident
     }
     bag.close();
   } catch (...) {
@@ -308,73 +375,225 @@ ConvertReport flight_to_bag(const FlightData& f, const std::string& bag_path, bo
   return rep;
 }
 
-FlightData bag_to_flight(const std::string& bag_path) {
+namespace {
+
+// A bag written by flight_to_bag, read back record by record: the schema's field names, the
+// number of records, then each record's values in order (every length and sequence number
+// checked). Throws magcomp::Error naming the file.
+class RecordReader {
+ public:
+  explicit RecordReader(const std::string& bag_path) : path_(bag_path) {
+    if (!exists(bag_path)) throw Error(bag_path + ": file not found or not readable");
+    check_bag_structure(bag_path);
+    try {
+      bag_.open(bag_path, rosbag::bagmode::Read);
+    } catch (const rosbag::BagException& e) {
+      throw Error(bag_path + ": not a readable rosbag (" + e.what() + ")");
+    }
+    {
+      rosbag::View v(bag_, rosbag::TopicQuery(std::string(BagTopics::kSchema)));
+      for (const auto& m : v) {
+        if (m.getDataType() != "magcomp/FlightSchema") continue;
+        RawMessage raw(m);
+        if (!raw.skip_header() || !raw.strings(&names_)) {
+          throw Error(bag_path + ": the message on '" + BagTopics::kSchema + "' is corrupt");
+        }
+        break;
+      }
+    }
+    if (names_.empty()) {
+      throw Error(
+          bag_path + ": topic '" + BagTopics::kSchema +
+          "' not found: only bags written by magcomp convert can be turned back into flights");
+    }
+    records_ = std::make_unique<rosbag::View>(bag_, [](const rosbag::ConnectionInfo* c) {
+      return c->topic == BagTopics::kRecord && c->datatype == "magcomp/FlightRecord";
+    });
+  }
+  const std::vector<std::string>& names() const { return names_; }
+  /// Records in the bag's index.
+  long records() const { return static_cast<long>(records_->size()); }
+  /// Calls each(index, values) for every record in order.
+  void for_each(const std::function<void(long, const std::vector<double>&)>& each) {
+    long expected_seq = 0;
+    std::vector<double> values;
+    for (const auto& m : *records_) {
+      RawMessage raw(m);
+      if (!raw.skip_header() || !raw.doubles(&values)) {
+        throw Error(path_ + ": record " + std::to_string(expected_seq) + " on '" +
+                    BagTopics::kRecord + "' is corrupt");
+      }
+      if (values.size() != names_.size()) {
+        throw Error(path_ + ": a record on '" + BagTopics::kRecord + "' has " +
+                    std::to_string(values.size()) + " values, the schema names " +
+                    std::to_string(names_.size()));
+      }
+      if (static_cast<long>(raw.seq()) != expected_seq) {
+        throw Error(path_ + ": record " + std::to_string(expected_seq) +
+                    " missing or out of order on '" + BagTopics::kRecord + "'");
+      }
+      each(expected_seq++, values);
+    }
+    if (expected_seq != records()) {
+      throw Error(path_ + ": the index lists " + std::to_string(records()) + " records on '" +
+                  BagTopics::kRecord + "', the bag holds " + std::to_string(expected_seq));
+    }
+  }
+
+ private:
+  std::string path_;
+  rosbag::Bag bag_;
+  std::vector<std::string> names_;
+  std::unique_ptr<rosbag::View> records_;
+};
+
+// Runs a conversion step, naming the file on anything rosbag or the deserialiser throws.
+template <class F>
+auto naming_bag_errors(const std::string& bag_path, F&& f) {
   try {
-    return bag_to_flight_checked(bag_path);
+    return f();
   } catch (const Error&) {
     throw;
-  } catch (const std::exception& e) {  // rosbag or deserialisation: name the file
+  } catch (const std::exception& e) {
     throw Error(bag_path + ": not a readable rosbag (" + e.what() + ")");
   }
 }
 
-FlightData bag_to_flight_checked(const std::string& bag_path) {
-  if (!exists(bag_path)) throw Error(bag_path + ": file not found or not readable");
-  check_bag_structure(bag_path);
-  rosbag::Bag bag;
-  try {
-    bag.open(bag_path, rosbag::bagmode::Read);
-  } catch (const rosbag::BagException& e) {
-    throw Error(bag_path + ": not a readable rosbag (" + e.what() + ")");
+}  // namespace
+
+FlightData bag_to_flight(const std::string& bag_path) {
+  return naming_bag_errors(bag_path, [&] {
+    RecordReader reader(bag_path);
+    const size_t fields = reader.names().size();
+    std::vector<Eigen::VectorXd> cols(fields, Eigen::VectorXd(reader.records()));
+    reader.for_each([&](long i, const std::vector<double>& values) {
+      for (size_t c = 0; c < fields; ++c) cols[c][i] = values[c];
+    });
+    FlightData f;
+    f.set_source(bag_path);
+    for (size_t c = 0; c < fields; ++c) f.set(reader.names()[c], std::move(cols[c]));
+    return f;
+  });
+}
+
+namespace {
+
+// A bag the streaming reader cannot take in one pass (compressed chunks, records out of order in
+// the file): it is read through rosbag's index instead.
+struct NeedsIndex {};
+
+// The schema and records of a bag written by flight_to_bag, handed over in file order while the
+// bag is checked, written to an HDF5 flight file a block of rows at a time.
+class RecordsToH5 : public BagVisitor {
+ public:
+  RecordsToH5(std::string bag_path, std::string h5_path)
+      : bag_(std::move(bag_path)), h5_(std::move(h5_path)) {}
+
+  bool wants(const std::string& topic, const std::string& type) override {
+    return (topic == BagTopics::kSchema && type == "magcomp/FlightSchema") ||
+           (topic == BagTopics::kRecord && type == "magcomp/FlightRecord");
   }
-  std::vector<std::string> names;
-  {
-    rosbag::View v(bag, rosbag::TopicQuery(std::string(BagTopics::kSchema)));
-    for (const auto& m : v) {
-      if (m.getDataType() != "magcomp/FlightSchema") continue;
-      RawMessage raw(m);
-      if (!raw.skip_header() || !raw.strings(&names)) {
-        throw Error(bag_path + ": the message on '" + BagTopics::kSchema + "' is corrupt");
+  void counted(const std::string& topic, uint64_t messages) override {
+    if (topic == BagTopics::kRecord) records_ = static_cast<long>(messages);
+  }
+  void message(const std::string& topic, const uint8_t* data, uint64_t size) override {
+    RawMessage raw(data, size);
+    if (topic == BagTopics::kSchema) {
+      if (!names_.empty()) return;  // the first schema
+      if (!raw.skip_header() || !raw.strings(&names_)) {
+        throw Error(bag_ + ": the message on '" + BagTopics::kSchema + "' is corrupt");
       }
-      break;
+      return;
     }
-  }
-  if (names.empty()) {
-    throw Error(
-        bag_path + ": topic '" + BagTopics::kSchema +
-        "' not found: only bags written by magcomp convert can be turned back into flights");
-  }
-  std::vector<std::vector<double>> cols(names.size());
-  rosbag::View v(bag, rosbag::TopicQuery(std::string(BagTopics::kRecord)));
-  long expected_seq = 0;
-  std::vector<double> values;
-  for (const auto& m : v) {
-    if (m.getDataType() != "magcomp/FlightRecord") continue;
-    RawMessage raw(m);
-    if (!raw.skip_header() || !raw.doubles(&values)) {
-      throw Error(bag_path + ": record " + std::to_string(expected_seq) + " on '" +
-                  BagTopics::kRecord + "' is corrupt");
+    if (names_.empty()) throw NeedsIndex{};  // a record before the schema in the file
+    if (!writer_) start();
+    if (!raw.skip_header() || !raw.doubles(&values_)) {
+      throw Error(bag_ + ": record " + std::to_string(seq_) + " on '" + BagTopics::kRecord +
+                  "' is corrupt");
     }
-    if (values.size() != names.size()) {
-      throw Error(bag_path + ": a record on '" + BagTopics::kRecord + "' has " +
-                  std::to_string(values.size()) + " values, the schema names " +
-                  std::to_string(names.size()));
+    if (values_.size() != names_.size()) {
+      throw Error(bag_ + ": a record on '" + BagTopics::kRecord + "' has " +
+                  std::to_string(values_.size()) + " values, the schema names " +
+                  std::to_string(names_.size()));
     }
-    if (static_cast<long>(raw.seq()) != expected_seq) {
-      throw Error(bag_path + ": record " + std::to_string(expected_seq) +
-                  " missing or out of order on '" + BagTopics::kRecord + "'");
+    if (static_cast<long>(raw.seq()) != seq_ || seq_ >= records_) throw NeedsIndex{};
+    const long row = seq_ - first_;
+    for (size_t c = 0; c < columns_.size(); ++c) block_[c][row] = values_[from_[c]];
+    tt_[seq_] = values_[from_[tt_column_]];
+    if (++seq_ - first_ == kChunkRows) flush();
+  }
+
+  /// After the walk: the last rows, N and dt, and the file put in place.
+  ConvertReport finish() {
+    if (names_.empty()) {
+      throw Error(
+          bag_ + ": topic '" + BagTopics::kSchema +
+          "' not found: only bags written by magcomp convert can be turned back into flights");
     }
-    ++expected_seq;
-    for (size_t c = 0; c < names.size(); ++c) cols[c].push_back(values[c]);
+    if (!writer_) start();
+    if (seq_ != records_) {
+      throw Error(bag_ + ": the index lists " + std::to_string(records_) + " records on '" +
+                  BagTopics::kRecord + "', the bag holds " + std::to_string(seq_));
+    }
+    flush();
+    FlightData times;
+    times.set("tt", std::move(tt_));
+    writer_->finish(records_ > 1 ? times.dt_s() : 0.1);
+    ConvertReport rep;
+    rep.samples = records_;
+    rep.fields = static_cast<long>(names_.size());
+    return rep;
   }
-  bag.close();
-  FlightData f;
-  f.set_source(bag_path);
-  for (size_t c = 0; c < names.size(); ++c) {
-    f.set(names[c],
-          Eigen::Map<Eigen::VectorXd>(cols[c].data(), static_cast<Eigen::Index>(cols[c].size())));
+
+ private:
+  void start() {
+    for (size_t c = 0; c < names_.size(); ++c) {
+      if (names_[c] == "N" || names_[c] == "dt") continue;  // the writer writes them
+      columns_.push_back(names_[c]);
+      from_.push_back(c);
+    }
+    const auto tt_at = std::find(columns_.begin(), columns_.end(), "tt");
+    if (tt_at == columns_.end()) throw Error(bag_ + ": field 'tt' not found");
+    tt_column_ = static_cast<size_t>(tt_at - columns_.begin());
+    writer_ = std::make_unique<FlightH5Writer>(h5_, columns_, records_,
+                                               std::vector<std::string>{bag_});
+    block_.assign(columns_.size(), Eigen::VectorXd(kChunkRows));
+    tt_.resize(records_);
   }
-  return f;
+  void flush() {
+    for (size_t c = 0; c < columns_.size(); ++c)
+      writer_->write_rows(c, first_, seq_ - first_, block_[c].data());
+    first_ = seq_;
+  }
+
+  std::string bag_, h5_;
+  std::vector<std::string> names_, columns_;
+  std::vector<size_t> from_;  // each column's place in a record
+  size_t tt_column_ = 0;
+  long records_ = 0, seq_ = 0, first_ = 0;
+  std::vector<double> values_;
+  std::vector<Eigen::VectorXd> block_;  // a block of rows per column, written when full
+  Eigen::VectorXd tt_;                  // the time base, kept whole for the sample period
+  std::unique_ptr<FlightH5Writer> writer_;
+};
+
+}  // namespace
+
+ConvertReport bag_to_h5(const std::string& bag_path, const std::string& h5_path) {
+  if (!exists(bag_path)) throw Error(bag_path + ": file not found or not readable");
+  {
+    RecordsToH5 sink(bag_path, h5_path);
+    try {
+      if (check_bag_structure(bag_path, &sink)) return sink.finish();
+    } catch (const NeedsIndex&) {
+    }
+  }  // an unfinished output is removed here
+  FlightData f = bag_to_flight(bag_path);
+  write_flight_h5(f, h5_path, {bag_path});
+  ConvertReport rep;
+  rep.samples = f.size();
+  rep.fields = static_cast<long>(f.names().size());
+  return rep;
 }
 
 }  // namespace magcomp::rosio

@@ -3,6 +3,7 @@
 
 #include <Eigen/Core>
 #include <atomic>
+#include <cstdint>
 #include <limits>
 #include <memory>
 #include <mutex>
@@ -176,5 +177,35 @@ FlightData read_flight_h5(const std::string& path);
 /// magcomp::Error naming the file on failure.
 void write_flight_h5(const FlightData& data, const std::string& path,
                      const std::vector<std::string>& inputs = {});
+
+/// Writes a flight file of known size a block of rows at a time (the schema of write_flight_h5),
+/// so a long flight need not be held whole: the columns are declared first, rows [first, first +
+/// count) of each are written in any order, and finish() adds `N` and `dt` and puts the file in
+/// place atomically. A writer destroyed unfinished leaves nothing behind. Throws magcomp::Error
+/// naming the file on failure.
+class FlightH5Writer {
+ public:
+  /// `names`: the columns in file order; `samples`: their common length; `inputs`: files the
+  /// output must not replace (file_io.h).
+  FlightH5Writer(std::string path, std::vector<std::string> names, Eigen::Index samples,
+                 const std::vector<std::string>& inputs = {});
+  ~FlightH5Writer();
+  FlightH5Writer(const FlightH5Writer&) = delete;
+  FlightH5Writer& operator=(const FlightH5Writer&) = delete;
+  /// Rows [first, first + count) of column c (in `names` order): count values at `values`.
+  void write_rows(size_t column, Eigen::Index first, Eigen::Index count, const double* values);
+  /// Writes the scalars N and dt (the sample period, s) and renames the file into place.
+  void finish(double dt_s);
+
+ private:
+  void discard();  // closes what is open and removes the temporary file
+
+  std::string path_, tmp_;
+  std::vector<std::string> names_;
+  std::vector<std::string> inputs_;
+  Eigen::Index samples_;
+  int64_t file_ = -1;               // the HDF5 file (hid_t)
+  std::vector<int64_t> datasets_;  // one per column (hid_t)
+};
 
 }  // namespace magcomp

@@ -40,4 +40,11 @@ ConvertReport flight_to_bag(const FlightData& flight, const std::string& bag_pat
 /// Reads a bag written by flight_to_bag back into a flight (every field, every sample, exact).
 FlightData bag_to_flight(const std::string& bag_path);
 
+/// The same written straight to an HDF5 flight file a block of rows at a time, read from the bag
+/// in one pass without rosbag's index (memory: a block per field, the time base and one chunk
+/// of the bag, whatever the flight's length), atomically (FlightH5Writer); `h5_path` must not be
+/// the bag. The file equals write_flight_h5(bag_to_flight(bag_path)). A bag with compressed
+/// chunks or records out of order in the file is read through rosbag's index instead.
+ConvertReport bag_to_h5(const std::string& bag_path, const std::string& h5_path);
+
 }  // namespace magcomp::rosio
