@@ -4,10 +4,12 @@
 #include <iostream>
 
 #include "magcomp/core/error.h"
+#include "magcomp/core/file_io.h"
 
 namespace magcomp::cli {
 
 int run_reporting_errors(const std::function<int()>& body) {
+  exit_cleanly_on_truncated_file();
   try {
     return body();
   } catch (const Error& e) {

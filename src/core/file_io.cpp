@@ -2,6 +2,7 @@
 #include "magcomp/core/file_io.h"
 
 #include <fcntl.h>
+#include <signal.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -75,6 +76,23 @@ void write_file_atomic(const std::string& path, const std::string& content,
     throw Error(path + ": write failed (" + why + ")");
   }
   commit_temporary(tmp, path, inputs);
+}
+
+namespace {
+void on_bus_error(int) {
+  static const char kMessage[] =
+      "error: a file read in place was changed or truncated while it was read (SIGBUS)\n";
+  const ssize_t written = ::write(2, kMessage, sizeof kMessage - 1);
+  (void)written;
+  ::_exit(2);
+}
+}  // namespace
+
+void exit_cleanly_on_truncated_file() {
+  struct sigaction action {};
+  action.sa_handler = on_bus_error;
+  sigemptyset(&action.sa_mask);
+  ::sigaction(SIGBUS, &action, nullptr);
 }
 
 }  // namespace magcomp

@@ -368,6 +368,7 @@ CalibrationBlocks calibration_blocks(const Model& model,
                calibration_runs(s, part, std::move(rows), a, y, &report->warnings), &blocks,
                report);
     }
+    data.drop_mapped_pages();  // this flight's segments are in the blocks: one flight at a time
   }
   return blocks;
 }

@@ -1,5 +1,6 @@
 // FlightData: HDF5 schema read/write, naming generations, sorting, selection, and bad input.
 #include <gtest/gtest.h>
+#include <unistd.h>
 #include <hdf5.h>
 
 #include <cmath>
@@ -8,6 +9,7 @@
 #include <limits>
 
 #include "magcomp/core/error.h"
+#include "magcomp/core/file_io.h"
 #include "magcomp/core/flight_data.h"
 #include "test_util.h"
 
@@ -137,6 +139,29 @@ TEST(FlightData, BadInputsNameFileAndField) {
   write_raw(dir + "/rank.h5", {{"tt", {1, 2}}}, false, true);
   EXPECT_NE(expect_error([&] { read_flight_h5(dir + "/rank.h5"); }).find("'matrix'"),
             std::string::npos);
+}
+
+TEST(FlightDataDeathTest, AFileTruncatedWhileReadInPlaceEndsInOneLine) {
+  // A column read in place from its file: another program truncates the file under it.
+  const std::string path = test::temp_dir("truncated") + "/flight.h5";
+  FlightData d;
+  const Eigen::Index n = 200000;
+  d.set("tt", Eigen::VectorXd::LinSpaced(n, 0.0, 0.1 * static_cast<double>(n - 1)));
+  d.set("mag_5_uc", Eigen::VectorXd::Constant(n, 50000.0));
+  write_flight_h5(d, path);
+  const FlightData r = read_flight_h5(path);
+  ASSERT_NE(r.values_in_place("mag_5_uc"), nullptr);  // mapped, not copied
+  EXPECT_EXIT(
+      {
+        exit_cleanly_on_truncated_file();
+        if (::truncate(path.c_str(), 4096) != 0) std::exit(9);
+        double sum = 0;
+        const auto x = r.column("mag_5_uc");
+        for (Eigen::Index i = 0; i < x.size(); ++i) sum += x[i];
+        std::printf("%g\n", sum);
+        std::exit(0);
+      },
+      ::testing::ExitedWithCode(2), "changed or truncated while it was read");
 }
 
 }  // namespace

@@ -25,4 +25,10 @@ void commit_temporary(const std::string& tmp, const std::string& path,
 void write_file_atomic(const std::string& path, const std::string& content,
                        const std::vector<std::string>& inputs = {});
 
+/// A flight column read in place (FlightData maps plain HDF5 datasets) whose file another
+/// program truncates meanwhile raises SIGBUS when read. After this call the process then says so
+/// in one line on stderr and exits with status 2, as for any bad input; the command-line tools
+/// call it first.
+void exit_cleanly_on_truncated_file();
+
 }  // namespace magcomp
