@@ -718,9 +718,12 @@ Diagnosis diagnose(const Model& model_in, const FlightData& data, const std::str
                    const DiagnoseOptions& options) {
   const Model model = prepared_model(model_in, data, truth_name);
   Diagnosis dx;
+  // Each step copies the columns it reads: between steps the file's pages need not stay
+  // resident (they are mapped again when read).
   const Search search(model, data, truth_name, &dx);
   const std::vector<std::string> sources =
       source_fields(model, data, truth_name, options.full_search, &dx.notes);
+  data.drop_mapped_pages();
   std::vector<Job> jobs = make_jobs(model, sources);
   std::vector<Scored> scored = run_jobs(search, jobs, options.threads);
   const std::vector<Job> products =
@@ -730,10 +733,13 @@ Diagnosis diagnose(const Model& model_in, const FlightData& data, const std::str
     jobs.insert(jobs.end(), products.begin(), products.end());
     scored.insert(scored.end(), more.begin(), more.end());
   }
+  data.drop_mapped_pages();
   add_candidates(jobs, scored, search, &dx);
   add_lag_candidate(model, data, search, &dx);
   judge_and_rank(search, options, &dx.candidates);
+  data.drop_mapped_pages();
   dx.associations = residual_associations(data, search.held, search.e0, search.line, truth_name);
+  data.drop_mapped_pages();
   if (options.explainable_share) {
     dx.explainable =
         remaining_share(data, search, sources, dx.baseline_std_nT, options.resolution_nT);
