@@ -372,7 +372,8 @@ void TransformChain::reset() {
 }
 
 Eigen::MatrixXd apply_transforms(const std::vector<Transform>& transforms,
-                                 const Eigen::VectorXd& t_s, const Eigen::MatrixXd& x) {
+                                 const Eigen::Ref<const Eigen::VectorXd>& t_s,
+                                 const Eigen::MatrixXd& x) {
   if (transforms.empty()) return x;
   Eigen::MatrixXd y(x.rows(), x.cols());
   for (Eigen::Index c = 0; c < x.cols(); ++c) {

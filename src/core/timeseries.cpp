@@ -9,7 +9,7 @@ namespace magcomp {
 
 namespace {
 // Cubic (Catmull-Rom) value between samples i and i + 1 at fraction f in [0, 1).
-double cubic_between(const Eigen::VectorXd& x, Eigen::Index i, double f) {
+double cubic_between(const Eigen::Ref<const Eigen::VectorXd>& x, Eigen::Index i, double f) {
   const Eigen::Index n = x.size();
   auto at = [&](Eigen::Index k) { return x[std::clamp<Eigen::Index>(k, 0, n - 1)]; };
   const double p0 = at(i - 1), p1 = at(i), p2 = at(i + 1), p3 = at(i + 2);
@@ -18,12 +18,12 @@ double cubic_between(const Eigen::VectorXd& x, Eigen::Index i, double f) {
 }
 }  // namespace
 
-double cubic_at(const Eigen::VectorXd& x, double u) {
+double cubic_at(const Eigen::Ref<const Eigen::VectorXd>& x, double u) {
   const Eigen::Index i = static_cast<Eigen::Index>(std::floor(u));
   return cubic_between(x, i, u - static_cast<double>(i));
 }
 
-Eigen::VectorXd shift_samples(const Eigen::VectorXd& x, double shift, bool hold_ends) {
+Eigen::VectorXd shift_samples(const Eigen::Ref<const Eigen::VectorXd>& x, double shift, bool hold_ends) {
   const Eigen::Index n = x.size();
   Eigen::VectorXd y(n);
   const double whole = std::round(shift);
@@ -46,7 +46,7 @@ Eigen::VectorXd shift_samples(const Eigen::VectorXd& x, double shift, bool hold_
   return y;
 }
 
-Eigen::VectorXd central_rate(const Eigen::VectorXd& x, double dt_s, bool wrap_angle) {
+Eigen::VectorXd central_rate(const Eigen::Ref<const Eigen::VectorXd>& x, double dt_s, bool wrap_angle) {
   const Eigen::Index n = x.size();
   Eigen::VectorXd d(n);
   for (Eigen::Index i = 0; i < n; ++i) {

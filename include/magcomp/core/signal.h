@@ -111,6 +111,7 @@ class TransformChain {
 /// Runs the transforms over a whole series (time t_s, values x: N x width, NaN kept) with the
 /// same recursion a TransformChain runs on a stream. Returns N x width.
 Eigen::MatrixXd apply_transforms(const std::vector<Transform>& transforms,
-                                 const Eigen::VectorXd& t_s, const Eigen::MatrixXd& x);
+                                 const Eigen::Ref<const Eigen::VectorXd>& t_s,
+                                 const Eigen::MatrixXd& x);
 
 }  // namespace magcomp
