@@ -8,6 +8,7 @@
 #include "common.h"
 #include "magcomp/core/diagnose.h"
 #include "magcomp/core/diagnose_loop.h"
+#include "magcomp/core/diagnose_season.h"
 #include "magcomp/core/error.h"
 #include "magcomp/core/file_io.h"
 #include "subcommands.h"
@@ -127,6 +128,85 @@ nlohmann::json to_json(const Diagnosis& dx) {
   return j;
 }
 
+// Several flights: each diagnosed in turn (read, diagnosed, released: one flight in memory at a
+// time), then the candidates ranked across them.
+void diagnose_several(const Model& model_in, const std::vector<std::string>& paths,
+                      const std::string& model_path, const std::string& truth,
+                      const std::string& json_path, int top, const DiagnoseOptions& options) {
+  Model model = model_in;
+  if (!model.fitted()) {  // fitted on every flight's calibration segments
+    std::vector<FlightData> flights;
+    for (const auto& p : paths) flights.push_back(read_flight(p));
+    std::vector<const FlightData*> all;
+    for (const auto& f : flights) all.push_back(&f);
+    fit_model(model, all);
+  }
+  std::vector<Diagnosis> per_flight;
+  nlohmann::json j;
+  j["data"] = paths;
+  j["model"] = model_path;
+  j["truth"] = truth;
+  j["flights"] = nlohmann::json::array();
+  for (const std::string& path : paths) {
+    const FlightData flight = read_flight(path);
+    per_flight.push_back(diagnose(model, flight, truth, options));
+    const Diagnosis& dx = per_flight.back();
+    std::printf("flight %s: held-out std %.3f nT; top:", path.c_str(), dx.baseline_std_nT);
+    for (size_t k = 0; k < dx.candidates.size() && k < 3; ++k) {
+      const Candidate& c = dx.candidates[k];
+      std::printf(" %s %.1f%%%s", c.term.c_str(), 100 * c.explained_fraction,
+                  c.accepted ? "" : " [rejected]");
+    }
+    std::printf("\n  verdict: %s\n", dx.verdict.c_str());
+    std::fflush(stdout);
+    nlohmann::json f = to_json(dx);
+    f["data"] = path;
+    j["flights"].push_back(f);
+  }
+  const SeasonDiagnosis season = merge_diagnoses(per_flight);
+  std::printf("\n%-4s %-34s %9s %14s  %s\n", "rank", "term (--term)", "accepted", "mean_explained",
+              "per flight");
+  nlohmann::json candidates = nlohmann::json::array();
+  for (size_t k = 0; k < season.candidates.size(); ++k) {
+    const SeasonCandidate& c = season.candidates[k];
+    nlohmann::json per = nlohmann::json::array();
+    for (double e : c.explained)
+      per.push_back(std::isfinite(e) ? nlohmann::json(e) : nlohmann::json());
+    candidates.push_back({{"term", c.term},
+                          {"shape", c.shape},
+                          {"accepted_on", c.accepted_on},
+                          {"scored_on", c.scored_on},
+                          {"mean_explained", c.mean_explained},
+                          {"mean_ranking_share", c.mean_ranking_share},
+                          {"explained", per}});
+    if (static_cast<int>(k) >= top) continue;
+    std::printf("%-4zu %-34s %5d/%-3zu %13.1f%% ", k + 1, c.term.c_str(), c.accepted_on,
+                paths.size(), 100 * c.mean_explained);
+    for (double e : c.explained) {
+      if (std::isfinite(e)) {
+        std::printf(" %5.1f%%", 100 * e);
+      } else {
+        std::printf(" %6s", "-");
+      }
+    }
+    std::printf("\n");
+  }
+  std::printf("\nverdict: %s\n", season.verdict.c_str());
+  if (season.verdict.rfind("add ", 0) == 0) {
+    std::string all;
+    for (const auto& p : paths) all += (all.empty() ? "" : ",") + p;
+    std::printf("to add it:\n  magcomp calibrate --data %s --model %s --term '%s' --out NEW.yaml\n",
+                all.c_str(), model_path.c_str(), season.candidates.front().term.c_str());
+  }
+  j["season"] = {{"candidates", candidates}, {"verdict", season.verdict}};
+  j["verdict"] = season.verdict;
+  if (!json_path.empty()) {
+    std::vector<std::string> inputs = paths;
+    inputs.push_back(model_path);
+    write_file_atomic(json_path, j.dump(2) + "\n", inputs);
+  }
+}
+
 }  // namespace
 
 void add_diagnose(CLI::App& app) {
@@ -141,7 +221,10 @@ void add_diagnose(CLI::App& app) {
   auto rounds = std::make_shared<int>(5);
   auto min_share = std::make_shared<double>(0.05);
   auto quick = std::make_shared<bool>(false);
-  cmd->add_option("--data", *data, "flight HDF5 file")->required();
+  cmd->add_option("--data", *data,
+                  "flight HDF5 file; several, comma-separated: each diagnosed in turn, the "
+                  "candidates ranked across them")
+      ->required();
   cmd->add_option("--model", *model_path, "model YAML (fitted or not)")->required();
   cmd->add_option("--truth", *truth, "reference field (default mag_1_c)");
   cmd->add_option("--json", *json_path, "write the diagnosis JSON here (with --apply: the rounds)");
@@ -161,9 +244,19 @@ void add_diagnose(CLI::App& app) {
     if (*rounds < 1 || *rounds > 50) throw Error("--rounds: must be in 1..50");
     if (*top < 0) throw Error("--top: must be >= 0");
     const Model model = load_model_yaml(*model_path);
-    const FlightData flight = read_flight(*data);
     DiagnoseOptions options;
     options.full_search = !*quick;
+    const std::vector<std::string> paths = split_commas(*data);
+    if (paths.size() > 1) {
+      if (*apply) {
+        throw Error("--apply takes one flight (--data holds " + std::to_string(paths.size()) +
+                    "): diagnose the flights together, then add the season's term with "
+                    "calibrate --data <all> --term");
+      }
+      diagnose_several(model, paths, *model_path, *truth, *json_path, *top, options);
+      return;
+    }
+    const FlightData flight = read_flight(*data);
     if (!*apply) {
       if (!model.fitted()) {
         Model fitted = model;

@@ -72,5 +72,59 @@ TEST(SeveralFlights, EvaluateTakesEachFlightInTurnAndPoolsThem) {
   EXPECT_NE(out.find("--report takes one flight"), std::string::npos) << out;
 }
 
+TEST(SeveralFlights, DiagnoseTakesEachFlightInTurnAndRanksTheSeason) {
+  // Two short flights hiding the strobe wire and a 0.3 s lag: each flight's diagnosis is the one
+  // it gets alone, and the season adds the lag (each flight's first choice).
+  const std::string dir = test::temp_dir("several_diagnose");
+  std::vector<std::string> flights;
+  for (unsigned seed : {31u, 32u}) {
+    sim::Scenario s = sim::load_scenario(test::source_dir() + "/config/scenarios/rostest_short.yaml");
+    s.seed = seed;
+    flights.push_back(dir + "/f" + std::to_string(seed) + ".h5");
+    sim::write_simulation(sim::simulate(s, Igrf::installed()), flights.back());
+  }
+  const std::string both = flights[0] + "," + flights[1];
+  std::string out;
+  ASSERT_EQ(test::run(test::cli() + " calibrate --data " + both + " --model " +
+                          test::source_dir() + "/config/models/tl_sim.yaml --out " + dir +
+                          "/m.yaml",
+                      &out),
+            0)
+      << out;
+  ASSERT_EQ(test::run(test::cli() + " diagnose --channels-only --data " + both + " --model " +
+                          dir + "/m.yaml --json " + dir + "/season.json",
+                      &out),
+            0)
+      << out;
+  const nlohmann::json season = read_json(dir + "/season.json");
+  ASSERT_EQ(season["flights"].size(), 2u);
+  for (size_t k = 0; k < 2; ++k) {
+    ASSERT_EQ(test::run(test::cli() + " diagnose --channels-only --data " + flights[k] +
+                            " --model " + dir + "/m.yaml --json " + dir + "/one.json",
+                        &out),
+              0)
+        << out;
+    const nlohmann::json one = read_json(dir + "/one.json");
+    const nlohmann::json& in_season = season["flights"][k];
+    EXPECT_EQ(in_season["data"], flights[k]);
+    EXPECT_EQ(in_season["candidates"], one["candidates"]);
+    EXPECT_EQ(in_season["verdict"], one["verdict"]);
+    EXPECT_EQ(in_season["baseline_std_nT"], one["baseline_std_nT"]);
+  }
+  const nlohmann::json& top = season["season"]["candidates"][0];
+  EXPECT_EQ(top["term"], "lag:0.3");
+  EXPECT_EQ(top["accepted_on"], 2);
+  EXPECT_EQ(season["verdict"].get<std::string>().rfind("add lag:0.3: accepted on 2 of 2", 0), 0u)
+      << season["verdict"];
+  EXPECT_NE(out.find("verdict"), std::string::npos);
+  // The loop (--apply) works on one flight.
+  EXPECT_EQ(test::run(test::cli() + " diagnose --apply --out " + dir + "/x.yaml --data " + both +
+                          " --model " + dir + "/m.yaml",
+                      &out),
+            2)
+      << out;
+  EXPECT_NE(out.find("--apply takes one flight"), std::string::npos) << out;
+}
+
 }  // namespace
 }  // namespace magcomp
