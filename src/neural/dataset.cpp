@@ -28,6 +28,7 @@ std::vector<FlightSamples> flight_samples(const Model& model,
     fs.inputs = neural_inputs(model, f);
     fs.target_nT = neural_target(model, f, fs.inputs);
     v.push_back(std::move(fs));
+    f.drop_mapped_pages();  // its features are built: one flight's file pages at a time
   }
   return v;
 }
