@@ -21,6 +21,17 @@ int run_reporting_errors(const std::function<int()>& body) {
   }
 }
 
+int parse_and_run(CLI::App& app, int argc, char** argv) {
+  return run_reporting_errors([&] {
+    try {
+      app.parse(argc, argv);
+    } catch (const CLI::ParseError& e) {
+      return app.exit(e);
+    }
+    return 0;
+  });
+}
+
 std::vector<std::string> split_commas(const std::string& s) {
   std::vector<std::string> out;
   size_t start = 0;

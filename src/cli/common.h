@@ -1,6 +1,7 @@
 // magcomp CLI: helpers shared by the subcommands.
 #pragma once
 
+#include <CLI/CLI.hpp>
 #include <functional>
 #include <memory>
 #include <string>
@@ -20,6 +21,10 @@ std::vector<FlightData> read_flights(const std::string& comma_list);
 /// Runs a program's body and turns an escaping exception into the one-line `error: ...` message
 /// and exit status every magcomp program uses (2: bad input, magcomp::Error; 3: anything else).
 int run_reporting_errors(const std::function<int()>& body);
+
+/// Parses the command line into `app` and runs the chosen callback the same way (a usage error
+/// prints CLI11's message and exits with its status).
+int parse_and_run(CLI::App& app, int argc, char** argv);
 
 /// Splits "a,b,c".
 std::vector<std::string> split_commas(const std::string& s);

@@ -19,12 +19,5 @@ int main(int argc, char** argv) {
   CLI::App app{"magcomp convert: IN.h5 OUT.bag or IN.bag OUT.h5 (lossless)"};
   app.name("magcomp convert");
   magcomp::cli::setup_convert(&app);
-  return magcomp::cli::run_reporting_errors([&] {
-    try {
-      app.parse(argc, argv);
-    } catch (const CLI::ParseError& e) {
-      return app.exit(e);
-    }
-    return 0;
-  });
+  return magcomp::cli::parse_and_run(app, argc, argv);
 }

@@ -49,12 +49,5 @@ int main(int argc, char** argv) {
   magcomp::cli::add_info(app);
   app.add_subcommand("train",
                      "train a model's neural stage (runs magcomp_train; see magcomp train --help)");
-  return magcomp::cli::run_reporting_errors([&] {
-    try {
-      app.parse(argc, argv);
-    } catch (const CLI::ParseError& e) {
-      return app.exit(e);
-    }
-    return 0;
-  });
+  return magcomp::cli::parse_and_run(app, argc, argv);
 }

@@ -17,23 +17,34 @@ nlohmann::json read_json(const std::string& path) {
   return nlohmann::json::parse(f);
 }
 
-TEST(SeveralFlights, EvaluateTakesEachFlightInTurnAndPoolsThem) {
-  const std::string dir = test::temp_dir("several_flights");
+// Short simulated flights (rostest_short.yaml, one per seed) in `dir`, and a TL model calibrated
+// on all of them through the command line (dir/m.yaml); returns the flights' paths.
+std::vector<std::string> calibrated_flights(const std::string& dir,
+                                            const std::vector<unsigned>& seeds) {
   std::vector<std::string> flights;
-  for (unsigned seed : {21u, 22u}) {
+  std::string all;
+  for (unsigned seed : seeds) {
     sim::Scenario s = sim::load_scenario(test::source_dir() + "/config/scenarios/rostest_short.yaml");
     s.seed = seed;
     flights.push_back(dir + "/f" + std::to_string(seed) + ".h5");
     sim::write_simulation(sim::simulate(s, Igrf::installed()), flights.back());
+    all += (all.empty() ? "" : ",") + flights.back();
   }
-  const std::string both = flights[0] + "," + flights[1];
   std::string out;
-  ASSERT_EQ(test::run(test::cli() + " calibrate --data " + both + " --model " +
+  EXPECT_EQ(test::run(test::cli() + " calibrate --data " + all + " --model " +
                           test::source_dir() + "/config/models/tl_sim.yaml --out " + dir +
                           "/m.yaml",
                       &out),
             0)
       << out;
+  return flights;
+}
+
+TEST(SeveralFlights, EvaluateTakesEachFlightInTurnAndPoolsThem) {
+  const std::string dir = test::temp_dir("several_flights");
+  const std::vector<std::string> flights = calibrated_flights(dir, {21u, 22u});
+  const std::string both = flights[0] + "," + flights[1];
+  std::string out;
   ASSERT_EQ(test::run(test::cli() + " evaluate --data " + both + " --model " + dir +
                           "/m.yaml --json " + dir + "/both.json",
                       &out),
@@ -76,21 +87,9 @@ TEST(SeveralFlights, DiagnoseTakesEachFlightInTurnAndRanksTheSeason) {
   // Two short flights hiding the strobe wire and a 0.3 s lag: each flight's diagnosis is the one
   // it gets alone, and the season adds the lag (each flight's first choice).
   const std::string dir = test::temp_dir("several_diagnose");
-  std::vector<std::string> flights;
-  for (unsigned seed : {31u, 32u}) {
-    sim::Scenario s = sim::load_scenario(test::source_dir() + "/config/scenarios/rostest_short.yaml");
-    s.seed = seed;
-    flights.push_back(dir + "/f" + std::to_string(seed) + ".h5");
-    sim::write_simulation(sim::simulate(s, Igrf::installed()), flights.back());
-  }
+  const std::vector<std::string> flights = calibrated_flights(dir, {31u, 32u});
   const std::string both = flights[0] + "," + flights[1];
   std::string out;
-  ASSERT_EQ(test::run(test::cli() + " calibrate --data " + both + " --model " +
-                          test::source_dir() + "/config/models/tl_sim.yaml --out " + dir +
-                          "/m.yaml",
-                      &out),
-            0)
-      << out;
   ASSERT_EQ(test::run(test::cli() + " diagnose --channels-only --data " + both + " --model " +
                           dir + "/m.yaml --json " + dir + "/season.json",
                       &out),
