@@ -47,8 +47,7 @@ void setup_convert(CLI::App* cmd) {
         throw Error(*out + ": exists; pass --force to overwrite");
       check_output_path(*out, {*in});
       const rosio::ConvertReport r = rosio::bag_to_h5(*in, *out);
-      std::cout << "wrote " << *out << ": " << r.samples << " samples x " << r.fields
-                << " fields";
+      std::cout << "wrote " << *out << ": " << r.samples << " samples x " << r.fields << " fields";
     } else {
       throw Error("convert: give IN.h5 OUT.bag or IN.bag OUT.h5 (got '" + *in + "' '" + *out +
                   "')");

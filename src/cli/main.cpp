@@ -36,7 +36,8 @@ int main(int argc, char** argv) {
   // reused, rather than mapped and unmapped by the allocator each time, they are paged in once.
   mallopt(M_MMAP_THRESHOLD, 1 << 30);
   mallopt(M_TRIM_THRESHOLD, 1 << 30);
-  if (argc >= 2 && std::string(argv[1]) == "train") return exec_program("magcomp_train", argc, argv);
+  if (argc >= 2 && std::string(argv[1]) == "train")
+    return exec_program("magcomp_train", argc, argv);
   if (argc >= 2 && std::string(argv[1]) == "convert")
     return exec_program("magcomp_convert", argc, argv);
   CLI::App app{"magcomp: airborne magnetic compensation (Tolles-Lawson + physical terms)"};

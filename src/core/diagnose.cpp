@@ -139,8 +139,8 @@ Search::Search(const Model& m, const FlightData& d, const std::string& truth_nam
   const auto terms = model.make_terms();
   const Eigen::MatrixXd a_all = design_matrix(model, terms, data);  // names a missing field
   scalar = aligned_scalar(model, data);
-  line = data.has("line") ? Eigen::VectorXd(data.column("line"))
-                          : Eigen::VectorXd::Zero(data.size());
+  line =
+      data.has("line") ? Eigen::VectorXd(data.column("line")) : Eigen::VectorXd::Zero(data.size());
   const Eigen::Index n = data.size();
   dt = data.dt_s();
   span = n > 1 ? data.tt()[n - 1] - data.tt()[0] : 1.0;

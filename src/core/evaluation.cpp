@@ -84,8 +84,7 @@ void line_table(const std::map<double, LineSums>& groups, Evaluation* ev) {
 
 // The std by flight condition and by heading sector, each line's mean removed first.
 void condition_and_heading_stats(const FlightData& data, const Eigen::VectorXd& error_nT,
-                                 const double* line_column,
-                                 std::map<double, LineSums>& groups,
+                                 const double* line_column, std::map<double, LineSums>& groups,
                                  const std::vector<FlightCondition>& cond, Evaluation* ev) {
   const double* yaw = data.has("ins_yaw") ? data.column("ins_yaw").data() : nullptr;
   std::vector<double> ss_c(kConditionCount, 0), ss_h(8, 0);

@@ -220,8 +220,9 @@ double bootstrap_sd(const Ranked& r, int units) {
 
 // Where the predicted part sits: by time scale (low-passes along the held-out samples in time
 // order) and by line.
-void locate_prediction(const Eigen::VectorXd& prediction, const Eigen::Ref<const Eigen::VectorXd>& t_s,
-                       const Eigen::VectorXd& line, ExplainableShare* out) {
+void locate_prediction(const Eigen::VectorXd& prediction,
+                       const Eigen::Ref<const Eigen::VectorXd>& t_s, const Eigen::VectorXd& line,
+                       ExplainableShare* out) {
   const Eigen::Index n = prediction.size();
   std::vector<Eigen::Index> rows;
   for (Eigen::Index i = 0; i < n; ++i) {

@@ -20,8 +20,8 @@ const char* heading4(double yaw_deg) {
 }
 
 // The series band-passed over the run [first, last] (zero-phase), NaN held at the nearest value.
-Eigen::VectorXd band(const Eigen::Ref<const Eigen::VectorXd>& x, Eigen::Index first, Eigen::Index last,
-                     const Butterworth& bp) {
+Eigen::VectorXd band(const Eigen::Ref<const Eigen::VectorXd>& x, Eigen::Index first,
+                     Eigen::Index last, const Butterworth& bp) {
   Eigen::VectorXd seg = x.segment(first, last - first + 1);
   double hold = 0.0;
   bool any = false;

@@ -152,9 +152,7 @@ class WindowStats {
 std::vector<FlightCondition> classify_conditions(const FlightData& data, double window_s) {
   const Eigen::Index n = data.size();
   const Eigen::Index w = std::max<Eigen::Index>(3, std::llround(window_s / data.dt_s()));
-  auto col = [&](const char* name) {
-    return data.has(name) ? data.column(name).data() : nullptr;
-  };
+  auto col = [&](const char* name) { return data.has(name) ? data.column(name).data() : nullptr; };
   WindowStats windows({col("pitch_rate"), col("roll_rate"), col("yaw_rate"), col("ins_vu")}, n, w);
   std::vector<FlightCondition> out(static_cast<size_t>(n), FlightCondition::kStraightLevel);
   constexpr Eigen::Index kBlock = 4096;
@@ -217,7 +215,8 @@ std::vector<int> heading_sectors(const FlightData& data) {
   std::vector<int> out(static_cast<size_t>(data.size()), -1);
   if (!data.has("ins_yaw")) return out;
   const FlightData::Column yaw = data.column("ins_yaw");
-  for (Eigen::Index i = 0; i < data.size(); ++i) out[static_cast<size_t>(i)] = heading_sector(yaw[i]);
+  for (Eigen::Index i = 0; i < data.size(); ++i)
+    out[static_cast<size_t>(i)] = heading_sector(yaw[i]);
   return out;
 }
 

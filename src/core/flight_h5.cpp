@@ -1,6 +1,6 @@
 // magcomp: MIT challenge HDF5 flight files, read and write (HDF5 C API).
-#include <hdf5.h>
 #include <fcntl.h>
+#include <hdf5.h>
 #include <sys/mman.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -524,10 +524,11 @@ void FlightH5Writer::write_rows(size_t column, Eigen::Index first, Eigen::Index 
 void FlightH5Writer::finish(double dt_s) {
   auto scalar = [&](const char* name, double value) {
     H5Handle space(H5Screate(H5S_SCALAR), H5Sclose);
-    H5Handle ds(H5Dcreate2(file_, name, H5T_IEEE_F64LE, space.id, H5P_DEFAULT, H5P_DEFAULT,
-                           H5P_DEFAULT),
-                H5Dclose);
-    if (ds.id < 0 || H5Dwrite(ds.id, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, &value) < 0) {
+    H5Handle ds(
+        H5Dcreate2(file_, name, H5T_IEEE_F64LE, space.id, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
+        H5Dclose);
+    if (ds.id < 0 ||
+        H5Dwrite(ds.id, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, &value) < 0) {
       throw Error(path_ + ": cannot write field '" + name + "'");
     }
   };
@@ -563,7 +564,8 @@ void write_flight_h5(const FlightData& data, const std::string& path,
   }
   const Eigen::Index n = std::max<Eigen::Index>(data.size(), 0);
   FlightH5Writer writer(path, names, n, inputs);
-  for (size_t c = 0; c < names.size(); ++c) writer.write_rows(c, 0, n, data.column(names[c]).data());
+  for (size_t c = 0; c < names.size(); ++c)
+    writer.write_rows(c, 0, n, data.column(names[c]).data());
   writer.finish(n > 1 ? data.dt_s() : 0.1);
 }
 

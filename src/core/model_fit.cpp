@@ -12,8 +12,8 @@
 #include "magcomp/core/butterworth.h"
 #include "magcomp/core/error.h"
 #include "magcomp/core/model.h"
-#include "magcomp/core/quadratic_form.h"
 #include "magcomp/core/parameter_fit.h"
+#include "magcomp/core/quadratic_form.h"
 #include "magcomp/core/terms_expr.h"
 #include "magcomp/core/timeseries.h"
 
@@ -538,10 +538,9 @@ double sample_variance_nT2(const Model& model, const Eigen::Ref<const Eigen::Row
   return row_variance_nT2(model, row, &buffer);
 }
 
-void for_each_correction_block(
-    const Model& model, const FlightData& data, bool with_variance,
-    const std::function<void(Eigen::Index, const Eigen::VectorXd&, const Eigen::VectorXd*)>&
-        block) {
+void for_each_correction_block(const Model& model, const FlightData& data, bool with_variance,
+                               const std::function<void(Eigen::Index, const Eigen::VectorXd&,
+                                                        const Eigen::VectorXd*)>& block) {
   if (!model.fitted()) throw Error("model: not calibrated (no coefficients)");
   const Eigen::MatrixXd& cov = model.report.coefficient_covariance;
   const double noise_nT2 = model.report.noise_variance_nT2;

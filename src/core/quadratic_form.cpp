@@ -9,7 +9,8 @@ namespace magcomp {
 
 namespace {
 
-constexpr Eigen::Index kLanes = 32;  // rows computed together (independent sums keep the adders busy)
+constexpr Eigen::Index kLanes =
+    32;  // rows computed together (independent sums keep the adders busy)
 
 // The per-row form, as the reference and the fallback.
 void per_row(const Eigen::MatrixXd& c, const Eigen::Ref<const Eigen::MatrixXd>& a, double add,
@@ -111,10 +112,9 @@ void lanes(const double* c, Eigen::Index p, const double* a_in, Eigen::Index lda
 void row_quadratic_forms(const Eigen::MatrixXd& c, const Eigen::Ref<const Eigen::MatrixXd>& a,
                          double add, double* out) {
   const Eigen::Index m = a.rows(), p = a.cols();
-  constexpr bool kTwoDoublePackets =
-      Eigen::internal::packet_traits<double>::size == 2
+  constexpr bool kTwoDoublePackets = Eigen::internal::packet_traits<double>::size == 2
 #ifdef EIGEN_VECTORIZE_FMA
-      && false
+                                     && false
 #endif
       ;
   if (!kTwoDoublePackets || p == 0 || m < kLanes || a.innerStride() != 1) {

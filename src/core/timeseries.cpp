@@ -23,7 +23,8 @@ double cubic_at(const Eigen::Ref<const Eigen::VectorXd>& x, double u) {
   return cubic_between(x, i, u - static_cast<double>(i));
 }
 
-Eigen::VectorXd shift_samples(const Eigen::Ref<const Eigen::VectorXd>& x, double shift, bool hold_ends) {
+Eigen::VectorXd shift_samples(const Eigen::Ref<const Eigen::VectorXd>& x, double shift,
+                              bool hold_ends) {
   const Eigen::Index n = x.size();
   Eigen::VectorXd y(n);
   const double whole = std::round(shift);
@@ -46,7 +47,8 @@ Eigen::VectorXd shift_samples(const Eigen::Ref<const Eigen::VectorXd>& x, double
   return y;
 }
 
-Eigen::VectorXd central_rate(const Eigen::Ref<const Eigen::VectorXd>& x, double dt_s, bool wrap_angle) {
+Eigen::VectorXd central_rate(const Eigen::Ref<const Eigen::VectorXd>& x, double dt_s,
+                             bool wrap_angle) {
   const Eigen::Index n = x.size();
   Eigen::VectorXd d(n);
   for (Eigen::Index i = 0; i < n; ++i) {

@@ -16,8 +16,8 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <cstring>
 #include <cstdio>
+#include <cstring>
 #include <ctime>
 #include <fstream>
 #include <functional>
@@ -555,8 +555,8 @@ class RecordsToH5 : public BagVisitor {
     const auto tt_at = std::find(columns_.begin(), columns_.end(), "tt");
     if (tt_at == columns_.end()) throw Error(bag_ + ": field 'tt' not found");
     tt_column_ = static_cast<size_t>(tt_at - columns_.begin());
-    writer_ = std::make_unique<FlightH5Writer>(h5_, columns_, records_,
-                                               std::vector<std::string>{bag_});
+    writer_ =
+        std::make_unique<FlightH5Writer>(h5_, columns_, records_, std::vector<std::string>{bag_});
     block_.assign(columns_.size(), Eigen::VectorXd(kChunkRows));
     tt_.resize(records_);
   }

@@ -31,9 +31,8 @@ std::vector<std::string> calibrated_flights(const std::string& dir,
     all += (all.empty() ? "" : ",") + flights.back();
   }
   std::string out;
-  EXPECT_EQ(test::run(test::cli() + " calibrate --data " + all + " --model " +
-                          test::source_dir() + "/config/models/tl_sim.yaml --out " + dir +
-                          "/m.yaml",
+  EXPECT_EQ(test::run(test::cli() + " calibrate --data " + all + " --model " + test::source_dir() +
+                          "/config/models/tl_sim.yaml --out " + dir + "/m.yaml",
                       &out),
             0)
       << out;
@@ -90,8 +89,8 @@ TEST(SeveralFlights, DiagnoseTakesEachFlightInTurnAndRanksTheSeason) {
   const std::vector<std::string> flights = calibrated_flights(dir, {31u, 32u});
   const std::string both = flights[0] + "," + flights[1];
   std::string out;
-  ASSERT_EQ(test::run(test::cli() + " diagnose --channels-only --data " + both + " --model " +
-                          dir + "/m.yaml --json " + dir + "/season.json",
+  ASSERT_EQ(test::run(test::cli() + " diagnose --channels-only --data " + both + " --model " + dir +
+                          "/m.yaml --json " + dir + "/season.json",
                       &out),
             0)
       << out;

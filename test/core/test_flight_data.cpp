@@ -1,7 +1,7 @@
 // FlightData: HDF5 schema read/write, naming generations, sorting, selection, and bad input.
 #include <gtest/gtest.h>
-#include <unistd.h>
 #include <hdf5.h>
+#include <unistd.h>
 
 #include <cmath>
 #include <cstring>

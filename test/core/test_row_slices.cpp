@@ -91,7 +91,8 @@ TEST(RowSlices, DesignBlocksEqualTheWholeMatrixBitForBit) {
   // A term with a history (a causal low-pass) is built whole, in one block.
   m.terms.push_back("field:cur_strb|lp(20)");
   int history_blocks = 0;
-  for_each_design_block(m, d, [&](Eigen::Index, const Eigen::Ref<const Eigen::MatrixXd>&) { ++history_blocks; });
+  for_each_design_block(
+      m, d, [&](Eigen::Index, const Eigen::Ref<const Eigen::MatrixXd>&) { ++history_blocks; });
   EXPECT_EQ(history_blocks, 1);
 }
 

@@ -11,10 +11,10 @@ namespace magcomp {
 
 /// One candidate effect across the flights.
 struct SeasonCandidate {
-  std::string term;   ///< as diagnosed on the flight where it explained most (--term accepts it)
-  std::string shape;  ///< what is matched between flights: the term without its parameter values
-  int accepted_on = 0;          ///< flights whose diagnosis accepted it
-  int scored_on = 0;            ///< flights whose diagnosis scored it
+  std::string term;     ///< as diagnosed on the flight where it explained most (--term accepts it)
+  std::string shape;    ///< what is matched between flights: the term without its parameter values
+  int accepted_on = 0;  ///< flights whose diagnosis accepted it
+  int scored_on = 0;    ///< flights whose diagnosis scored it
   double mean_explained = 0.0;  ///< mean conservative explained share over the flights scoring it
   /// Mean share it is ranked by on the flights scoring it (Candidate::ranking_share: for a lag,
   /// with the channel term whose timing it explains).

@@ -204,7 +204,7 @@ class FlightH5Writer {
   std::vector<std::string> names_;
   std::vector<std::string> inputs_;
   Eigen::Index samples_;
-  int64_t file_ = -1;               // the HDF5 file (hid_t)
+  int64_t file_ = -1;              // the HDF5 file (hid_t)
   std::vector<int64_t> datasets_;  // one per column (hid_t)
 };
 

@@ -17,6 +17,7 @@ Eigen::VectorXd shift_samples(const Eigen::Ref<const Eigen::VectorXd>& x, double
 
 /// The rate of x (units per s), samples dt_s apart, by central differences (one-sided at the
 /// ends). With `wrap_angle`, x is an angle in rad and each difference is wrapped to (-pi, pi].
-Eigen::VectorXd central_rate(const Eigen::Ref<const Eigen::VectorXd>& x, double dt_s, bool wrap_angle = false);
+Eigen::VectorXd central_rate(const Eigen::Ref<const Eigen::VectorXd>& x, double dt_s,
+                             bool wrap_angle = false);
 
 }  // namespace magcomp
