@@ -57,7 +57,9 @@ TEST(OnlineOffline, WholeReplayedFlightEqualsOfflineWithNoSampleLost) {
                          relay_max_delay_s);
   // Every fluxgate message reached the relay (in another process): the player's publishers
   // outlive the bag, so none queued for TCP is lost at its end.
-  if (relay) EXPECT_EQ(relay->relayed(), static_cast<long>(f.size()));
+  if (relay) {
+    EXPECT_EQ(relay->relayed(), static_cast<long>(f.size()));
+  }
   // Every input in time: a sample computed before its inputs arrived would differ from offline.
   EXPECT_EQ(diagnostics.count("stale_inputs_held"), 0);
   EXPECT_EQ(diagnostics.count("late_inputs_dropped"), 0);
