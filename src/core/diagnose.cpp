@@ -669,7 +669,8 @@ ExplainableShare remaining_share(const FlightData& data, const Search& search,
   std::vector<std::pair<std::string, Eigen::Map<const Eigen::VectorXd>>> channels;
   for (const auto& s : sources) channels.emplace_back(s, data.column(s));
   ExplainableShare x =
-      explainable_share(r, search.unit, search.line, data.tt(), search.inputs.direction, channels);
+      explainable_share(r, search.unit, search.line, data.tt(), search.inputs.direction, channels,
+                        [&data] { data.drop_mapped_pages(); });
   // A predictable remainder below the resolution is noise for every practical purpose.
   if (std::sqrt(std::max(0.0, x.share)) * baseline_std_nT < resolution_nT) x.within_noise = true;
   return x;

@@ -262,7 +262,8 @@ void locate_prediction(const Eigen::VectorXd& prediction,
 ExplainableShare explainable_share(
     const Eigen::VectorXd& residual, const std::vector<int>& unit, const Eigen::VectorXd& line,
     const Eigen::Ref<const Eigen::VectorXd>& t_s, const Eigen::MatrixX3d& direction,
-    const std::vector<std::pair<std::string, Eigen::Map<const Eigen::VectorXd>>>& channels) {
+    const std::vector<std::pair<std::string, Eigen::Map<const Eigen::VectorXd>>>& channels,
+    const std::function<void()>& channels_read) {
   ExplainableShare out;
   const Problem p = make_problem(residual, unit, direction);
   int filled = 0;
@@ -272,6 +273,7 @@ ExplainableShare explainable_share(
   for (size_t k = 0; k < channels.size(); ++k) {
     functions[k] = channel_functions(channels[k].second, t_s);
   }
+  if (channels_read) channels_read();
   // The real fit, and four nulls with the channels shifted by a fifth of the flight each, in
   // parallel (each is independent).
   Eigen::VectorXd prediction = Eigen::VectorXd::Constant(p.n, NAN);

@@ -9,6 +9,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <functional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -34,9 +35,12 @@ struct ExplainableShare {
 /// Inputs: the residual on the held-out samples (line means removed; NaN elsewhere), the unit of
 /// each sample (0, 1, ... in time order; -1: not held out), its line, the time base (s), the
 /// field direction B̂ (N x 3) and the candidate channels (name, values over the whole flight).
+/// `channels_read` (optional) is called once every channel has been read, before the fits: the
+/// caller may let the channels' memory go.
 ExplainableShare explainable_share(
     const Eigen::VectorXd& residual, const std::vector<int>& unit, const Eigen::VectorXd& line,
     const Eigen::Ref<const Eigen::VectorXd>& t_s, const Eigen::MatrixX3d& direction,
-    const std::vector<std::pair<std::string, Eigen::Map<const Eigen::VectorXd>>>& channels);
+    const std::vector<std::pair<std::string, Eigen::Map<const Eigen::VectorXd>>>& channels,
+    const std::function<void()>& channels_read = {});
 
 }  // namespace magcomp
