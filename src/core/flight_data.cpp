@@ -32,34 +32,38 @@ bool FlightData::has(const std::string& name) const {
   return index_.count(name) > 0 || index_.count(canonical_name(name)) > 0;
 }
 
-FlightData::Column FlightData::column(const std::string& name) const {
+size_t FlightData::index_of(const std::string& name) const {
   auto it = index_.find(name);
   if (it == index_.end()) it = index_.find(canonical_name(name));
-  if (it == index_.end()) {
-    throw Error(source_ + ": field '" + name + "' not found");
-  }
-  ensure_loaded(it->second);
-  return Column(values(it->second), size_);
+  if (it == index_.end()) throw Error(source_ + ": field '" + name + "' not found");
+  return it->second;
+}
+
+void FlightData::try_map(size_t i) const {
+  Lazy& z = lazy_[i];
+  if (!z.loader || z.map_tried) return;
+  z.mapped = z.loader->map(z.stored_name);
+  z.map_tried = true;
+}
+
+FlightData::Column FlightData::column(const std::string& name) const {
+  const size_t i = index_of(name);
+  ensure_loaded(i);
+  return Column(values(i), size_);
 }
 
 Eigen::VectorXd FlightData::column_rows(const std::string& name, Eigen::Index first,
                                         Eigen::Index count) const {
-  auto it = index_.find(name);
-  if (it == index_.end()) it = index_.find(canonical_name(name));
-  if (it == index_.end()) throw Error(source_ + ": field '" + name + "' not found");
+  const size_t i = index_of(name);
   if (first < 0 || count < 0 || first + count > size_) {
     throw Error(source_ + ": field '" + name + "': rows outside the flight");
   }
-  const size_t i = it->second;
   {
     // The read itself under the lock too: the HDF5 library is not thread-safe, and a slice's
     // loader may read through its parent's.
     std::lock_guard<std::mutex> lock(*load_mutex_);
     Lazy& z = lazy_[i];
-    if (z.loader && !z.map_tried) {
-      z.mapped = z.loader->map(z.stored_name);
-      z.map_tried = true;
-    }
+    try_map(i);
     if (z.mapped) {  // in place: only these rows' pages are read
       return Eigen::Map<const Eigen::VectorXd>(z.mapped + first, count);
     }
@@ -79,27 +83,19 @@ Eigen::VectorXd FlightData::column_rows(const std::string& name, Eigen::Index fi
 }
 
 const double* FlightData::values_in_place(const std::string& name) const {
-  auto it = index_.find(name);
-  if (it == index_.end()) it = index_.find(canonical_name(name));
-  if (it == index_.end()) throw Error(source_ + ": field '" + name + "' not found");
+  const size_t i = index_of(name);
   std::lock_guard<std::mutex> lock(*load_mutex_);
-  Lazy& z = lazy_[it->second];
-  if (z.loader && !z.map_tried) {
-    z.mapped = z.loader->map(z.stored_name);
-    z.map_tried = true;
-  }
+  try_map(i);
+  const Lazy& z = lazy_[i];
   if (z.mapped) return z.mapped;
-  return z.loader ? nullptr : columns_[it->second].data();
+  return z.loader ? nullptr : columns_[i].data();
 }
 
 void FlightData::ensure_loaded(size_t i) const {
   std::lock_guard<std::mutex> lock(*load_mutex_);
   Lazy& z = lazy_[i];
   if (!z.loader) return;
-  if (!z.map_tried) {
-    z.mapped = z.loader->map(z.stored_name);
-    z.map_tried = true;
-  }
+  try_map(i);
   if (z.mapped) {
     z.mapping = std::move(z.loader);
     z.loader.reset();
@@ -122,8 +118,8 @@ void FlightData::set_lazy(const std::string& name, std::string stored_name,
     throw Error(source_ + ": field '" + name + "' has " + std::to_string(size) +
                 " samples, expected " + std::to_string(size_));
   }
-  if (canonical_name(name) == "tt") dt_cache_.s.store(std::numeric_limits<double>::quiet_NaN());
   const std::string key = canonical_name(name);
+  if (key == "tt") dt_cache_.s.store(std::numeric_limits<double>::quiet_NaN());
   auto it = index_.find(key);
   size_t i;
   if (it != index_.end()) {
@@ -162,11 +158,8 @@ void FlightData::drop_mapped_pages(Eigen::Index end_row) const {
 }
 
 Eigen::VectorXd& FlightData::mutable_column(const std::string& name) {
-  if (canonical_name(name) == "tt") dt_cache_.s.store(std::numeric_limits<double>::quiet_NaN());
-  auto it = index_.find(name);
-  if (it == index_.end()) it = index_.find(canonical_name(name));
-  if (it == index_.end()) throw Error(source_ + ": field '" + name + "' not found");
-  const size_t i = it->second;
+  const size_t i = index_of(name);
+  if (names_[i] == "tt") dt_cache_.s.store(std::numeric_limits<double>::quiet_NaN());
   ensure_loaded(i);
   Lazy& z = lazy_[i];
   if (z.mapped) {  // a copy of its own from now on

@@ -524,12 +524,10 @@ namespace {
 double row_variance_nT2(const Model& model, const Eigen::Ref<const Eigen::RowVectorXd>& row,
                         Eigen::VectorXd* buffer) {
   const Eigen::MatrixXd& cov = model.report.coefficient_covariance;
-  if (cov.rows() != row.size() || !std::isfinite(model.report.noise_variance_nT2) ||
-      !row.allFinite()) {
+  if (cov.rows() != row.size() || !std::isfinite(model.report.noise_variance_nT2)) {
     return std::numeric_limits<double>::quiet_NaN();
   }
-  buffer->noalias() = cov * row.transpose();
-  return row.dot(*buffer) + model.report.noise_variance_nT2;
+  return row_quadratic_form(cov, row, model.report.noise_variance_nT2, buffer);
 }
 }  // namespace
 

@@ -12,20 +12,12 @@ namespace {
 constexpr Eigen::Index kLanes =
     32;  // rows computed together (independent sums keep the adders busy)
 
-// The per-row form, as the reference and the fallback.
+// The per-row form row by row (the fallback).
 void per_row(const Eigen::MatrixXd& c, const Eigen::Ref<const Eigen::MatrixXd>& a, double add,
              double* out) {
   Eigen::VectorXd buffer;
-  Eigen::RowVectorXd row;
-  for (Eigen::Index i = 0; i < a.rows(); ++i) {
-    row = a.row(i);
-    if (!row.allFinite()) {
-      out[i] = NAN;
-      continue;
-    }
-    buffer.noalias() = c * row.transpose();
-    out[i] = row.dot(buffer) + add;
-  }
+  for (Eigen::Index i = 0; i < a.rows(); ++i)
+    out[i] = row_quadratic_form(c, a.row(i), add, &buffer);
 }
 
 // Four doubles side by side: each operation is the elementwise IEEE one (two SSE2 instructions,
@@ -108,6 +100,13 @@ void lanes(const double* c, Eigen::Index p, const double* a_in, Eigen::Index lda
 }
 
 }  // namespace
+
+double row_quadratic_form(const Eigen::MatrixXd& c, const Eigen::Ref<const Eigen::RowVectorXd>& row,
+                          double add, Eigen::VectorXd* buffer) {
+  if (!row.allFinite()) return NAN;
+  buffer->noalias() = c * row.transpose();
+  return row.dot(*buffer) + add;
+}
 
 void row_quadratic_forms(const Eigen::MatrixXd& c, const Eigen::Ref<const Eigen::MatrixXd>& a,
                          double add, double* out) {

@@ -377,6 +377,41 @@ ConvertReport flight_to_bag(const FlightData& f, const std::string& bag_path, bo
 
 namespace {
 
+// The field names of a bag's schema message.
+std::vector<std::string> schema_names(RawMessage& raw, const std::string& bag_path) {
+  std::vector<std::string> names;
+  if (!raw.skip_header() || !raw.strings(&names)) {
+    throw Error(bag_path + ": the message on '" + BagTopics::kSchema + "' is corrupt");
+  }
+  return names;
+}
+
+Error no_schema(const std::string& bag_path) {
+  return Error(bag_path + ": topic '" + BagTopics::kSchema +
+               "' not found: only bags written by magcomp convert can be turned back into flights");
+}
+
+// The values of record `index` into *values, as many as the schema names; returns its sequence
+// number.
+uint32_t record_values(RawMessage& raw, const std::string& bag_path, long index, size_t fields,
+                       std::vector<double>* values) {
+  if (!raw.skip_header() || !raw.doubles(values)) {
+    throw Error(bag_path + ": record " + std::to_string(index) + " on '" + BagTopics::kRecord +
+                "' is corrupt");
+  }
+  if (values->size() != fields) {
+    throw Error(bag_path + ": a record on '" + BagTopics::kRecord + "' has " +
+                std::to_string(values->size()) + " values, the schema names " +
+                std::to_string(fields));
+  }
+  return raw.seq();
+}
+
+Error records_missing(const std::string& bag_path, long listed, long held) {
+  return Error(bag_path + ": the index lists " + std::to_string(listed) + " records on '" +
+               BagTopics::kRecord + "', the bag holds " + std::to_string(held));
+}
+
 // A bag written by flight_to_bag, read back record by record: the schema's field names, the
 // number of records, then each record's values in order (every length and sequence number
 // checked). Throws magcomp::Error naming the file.
@@ -395,17 +430,11 @@ class RecordReader {
       for (const auto& m : v) {
         if (m.getDataType() != "magcomp/FlightSchema") continue;
         RawMessage raw(m);
-        if (!raw.skip_header() || !raw.strings(&names_)) {
-          throw Error(bag_path + ": the message on '" + BagTopics::kSchema + "' is corrupt");
-        }
+        names_ = schema_names(raw, bag_path);
         break;
       }
     }
-    if (names_.empty()) {
-      throw Error(
-          bag_path + ": topic '" + BagTopics::kSchema +
-          "' not found: only bags written by magcomp convert can be turned back into flights");
-    }
+    if (names_.empty()) throw no_schema(bag_path);
     records_ = std::make_unique<rosbag::View>(bag_, [](const rosbag::ConnectionInfo* c) {
       return c->topic == BagTopics::kRecord && c->datatype == "magcomp/FlightRecord";
     });
@@ -419,25 +448,14 @@ class RecordReader {
     std::vector<double> values;
     for (const auto& m : *records_) {
       RawMessage raw(m);
-      if (!raw.skip_header() || !raw.doubles(&values)) {
-        throw Error(path_ + ": record " + std::to_string(expected_seq) + " on '" +
-                    BagTopics::kRecord + "' is corrupt");
-      }
-      if (values.size() != names_.size()) {
-        throw Error(path_ + ": a record on '" + BagTopics::kRecord + "' has " +
-                    std::to_string(values.size()) + " values, the schema names " +
-                    std::to_string(names_.size()));
-      }
-      if (static_cast<long>(raw.seq()) != expected_seq) {
+      if (static_cast<long>(record_values(raw, path_, expected_seq, names_.size(), &values)) !=
+          expected_seq) {
         throw Error(path_ + ": record " + std::to_string(expected_seq) +
                     " missing or out of order on '" + BagTopics::kRecord + "'");
       }
       each(expected_seq++, values);
     }
-    if (expected_seq != records()) {
-      throw Error(path_ + ": the index lists " + std::to_string(records()) + " records on '" +
-                  BagTopics::kRecord + "', the bag holds " + std::to_string(expected_seq));
-    }
+    if (expected_seq != records()) throw records_missing(path_, records(), expected_seq);
   }
 
  private:
@@ -499,24 +517,13 @@ class RecordsToH5 : public BagVisitor {
   void message(const std::string& topic, const uint8_t* data, uint64_t size) override {
     RawMessage raw(data, size);
     if (topic == BagTopics::kSchema) {
-      if (!names_.empty()) return;  // the first schema
-      if (!raw.skip_header() || !raw.strings(&names_)) {
-        throw Error(bag_ + ": the message on '" + BagTopics::kSchema + "' is corrupt");
-      }
+      if (names_.empty()) names_ = schema_names(raw, bag_);  // the first schema
       return;
     }
     if (names_.empty()) throw NeedsIndex{};  // a record before the schema in the file
     if (!writer_) start();
-    if (!raw.skip_header() || !raw.doubles(&values_)) {
-      throw Error(bag_ + ": record " + std::to_string(seq_) + " on '" + BagTopics::kRecord +
-                  "' is corrupt");
-    }
-    if (values_.size() != names_.size()) {
-      throw Error(bag_ + ": a record on '" + BagTopics::kRecord + "' has " +
-                  std::to_string(values_.size()) + " values, the schema names " +
-                  std::to_string(names_.size()));
-    }
-    if (static_cast<long>(raw.seq()) != seq_ || seq_ >= records_) throw NeedsIndex{};
+    const long seq = record_values(raw, bag_, seq_, names_.size(), &values_);
+    if (seq != seq_ || seq_ >= records_) throw NeedsIndex{};
     const long row = seq_ - first_;
     for (size_t c = 0; c < columns_.size(); ++c) block_[c][row] = values_[from_[c]];
     tt_[seq_] = values_[from_[tt_column_]];
@@ -525,16 +532,9 @@ class RecordsToH5 : public BagVisitor {
 
   /// After the walk: the last rows, N and dt, and the file put in place.
   ConvertReport finish() {
-    if (names_.empty()) {
-      throw Error(
-          bag_ + ": topic '" + BagTopics::kSchema +
-          "' not found: only bags written by magcomp convert can be turned back into flights");
-    }
+    if (names_.empty()) throw no_schema(bag_);
     if (!writer_) start();
-    if (seq_ != records_) {
-      throw Error(bag_ + ": the index lists " + std::to_string(records_) + " records on '" +
-                  BagTopics::kRecord + "', the bag holds " + std::to_string(seq_));
-    }
+    if (seq_ != records_) throw records_missing(bag_, records_, seq_);
     flush();
     FlightData times;
     times.set("tt", std::move(tt_));

@@ -126,6 +126,10 @@ class FlightData {
  private:
   /// Loads column i if it is lazy and not loaded yet.
   void ensure_loaded(size_t i) const;
+  /// The index of a column (older aliases accepted); throws magcomp::Error naming the field.
+  size_t index_of(const std::string& name) const;
+  /// Asks column i's loader once whether its values can be used in place (under the lock).
+  void try_map(size_t i) const;
 
   /// Where column i's values are: in columns_[i], or in place in a file mapping (`mapped`, kept
   /// valid by `mapping`).

@@ -16,4 +16,9 @@ namespace magcomp {
 void row_quadratic_forms(const Eigen::MatrixXd& c, const Eigen::Ref<const Eigen::MatrixXd>& a,
                          double add, double* out);
 
+/// The per-row form itself, for one row: row C row' + add (nT²), NaN for a row holding NaN or
+/// Inf; `buffer` receives C row' (a per-sample caller reuses it).
+double row_quadratic_form(const Eigen::MatrixXd& c, const Eigen::Ref<const Eigen::RowVectorXd>& row,
+                          double add, Eigen::VectorXd* buffer);
+
 }  // namespace magcomp
