@@ -6,7 +6,6 @@ set -euo pipefail
 
 MAGCOMP_REPO="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 MAGCOMP_WS="${MAGCOMP_WS:-$MAGCOMP_REPO/.ws}"
-MAGCOMP_REFERENCE_DIR="${MAGCOMP_REFERENCE_DIR:-$MAGCOMP_REPO/../shared/reference}"
 # Debian's python3 first: the pyenv python3 on PATH lacks catkin_pkg and friends.
 export PATH="/usr/bin:/bin:/usr/sbin:/sbin:$PATH"
 
@@ -22,8 +21,7 @@ magcomp_build() {
     ln -s "$MAGCOMP_REPO" "$MAGCOMP_WS/src/magcomp"
   fi
   (cd "$MAGCOMP_WS" && catkin_make -j2 -DCMAKE_BUILD_TYPE=Release \
-      -DPYTHON_EXECUTABLE=/usr/bin/python3 \
-      -DMAGCOMP_REFERENCE_DIR="$MAGCOMP_REFERENCE_DIR" "$@")
+      -DPYTHON_EXECUTABLE=/usr/bin/python3 "$@")
   # shellcheck disable=SC1091
   set +u
   source "$MAGCOMP_WS/devel/setup.bash"

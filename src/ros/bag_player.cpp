@@ -40,6 +40,9 @@ BagPlayer::BagPlayer(ros::NodeHandle nh, ros::NodeHandle pnh) : nh_(nh), pnh_(pn
   if (!pnh_.getParam("bag", bag_path_) || bag_path_.empty())
     reject_param("bag", "required (a bag written by magcomp convert, or any bag)");
   pnh_.getParam("topics", topics_);
+  // A bag stores resolved (absolute) names: "magcomp/aux" and "/magcomp/aux" select the same.
+  for (auto& topic : topics_)
+    if (topic.rfind('/', 0) != 0) topic = "/" + topic;
   // Defaults: the members' initialisers in bag_player.h (one place).
   pnh_.param("rate", rate_, rate_);
   pnh_.param("start_delay_s", start_delay_s_, start_delay_s_);
@@ -120,24 +123,26 @@ void BagPlayer::run() {
   for (const rosbag::ConnectionInfo* c : view->getConnections()) {
     if (out.count(c->topic)) continue;
     TopicOut& t = out[c->topic];
-    t.topic = c->topic;
+    // The bag's names are absolute (/magcomp/...): they are published in the player's namespace,
+    // so a player in the root namespace keeps them and one under <group ns="uav1"> moves them.
+    t.topic = c->topic.rfind('/', 0) == 0 ? c->topic.substr(1) : c->topic;
     if (c->datatype == "magcomp/ScalarMagnetometer") {
-      t.pub = nh_.advertise<magcomp::ScalarMagnetometer>(c->topic, q);
+      t.pub = nh_.advertise<magcomp::ScalarMagnetometer>(t.topic, q);
       t.publish = typed_publisher<magcomp::ScalarMagnetometer>(t.pub);
     } else if (c->datatype == "magcomp/AuxChannels") {
-      t.pub = nh_.advertise<magcomp::AuxChannels>(c->topic, q);
+      t.pub = nh_.advertise<magcomp::AuxChannels>(t.topic, q);
       t.publish = typed_publisher<magcomp::AuxChannels>(t.pub);
     } else if (c->datatype == "sensor_msgs/MagneticField") {
-      t.pub = nh_.advertise<sensor_msgs::MagneticField>(c->topic, q);
+      t.pub = nh_.advertise<sensor_msgs::MagneticField>(t.topic, q);
       t.publish = typed_publisher<sensor_msgs::MagneticField>(t.pub);
     } else if (c->datatype == "sensor_msgs/NavSatFix") {
-      t.pub = nh_.advertise<sensor_msgs::NavSatFix>(c->topic, q);
+      t.pub = nh_.advertise<sensor_msgs::NavSatFix>(t.topic, q);
       t.publish = typed_publisher<sensor_msgs::NavSatFix>(t.pub);
     } else if (c->datatype == "sensor_msgs/Imu") {
-      t.pub = nh_.advertise<sensor_msgs::Imu>(c->topic, q);
+      t.pub = nh_.advertise<sensor_msgs::Imu>(t.topic, q);
       t.publish = typed_publisher<sensor_msgs::Imu>(t.pub);
     } else {  // any other type: its serialised bytes, as rosbag play does
-      ros::AdvertiseOptions opts(c->topic, q, c->md5sum, c->datatype, c->msg_def);
+      ros::AdvertiseOptions opts(t.topic, q, c->md5sum, c->datatype, c->msg_def);
       t.pub = nh_.advertise(opts);
       ros::Publisher pub = t.pub;
       t.publish = [pub](const rosbag::MessageInstance& m) { pub.publish(m); };

@@ -1,5 +1,5 @@
 // Tolles-Lawson verified against MagNav.jl's results on real flight data
-// (shared/reference/magnav_tl).
+// (test/data/reference/magnav_tl).
 #include <gtest/gtest.h>
 
 #include <cmath>

@@ -1,10 +1,18 @@
 // magcomp tests: small helpers (CSV reading, temporary paths, running the CLI).
 #pragma once
 
+#include <unistd.h>
+
 #include <Eigen/Core>
+#include <cerrno>
 #include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
 #include <fstream>
+#include <mutex>
 #include <sstream>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -43,13 +51,42 @@ inline Eigen::MatrixXd read_csv(const std::string& path, bool header,
 inline std::string reference_dir() { return MAGCOMP_REFERENCE_DIR; }
 inline std::string source_dir() { return MAGCOMP_SOURCE_DIR; }
 
-/// A fresh temporary directory for one test.
-inline std::string temp_dir(const std::string& tag) {
-  char tmpl[256];
-  std::snprintf(tmpl, sizeof(tmpl), "/tmp/magcomp_%s_XXXXXX", tag.c_str());
-  const char* d = mkdtemp(tmpl);
-  return d ? d : "/tmp";
-}
+/// The temporary directories a test binary made: removed, with everything in them, when the
+/// process that made them exits normally, whether its tests passed or failed. A death test's
+/// child (another process) removes nothing.
+class TempDirs {
+ public:
+  static TempDirs& instance() {
+    static TempDirs dirs;
+    return dirs;
+  }
+  std::string make(const std::string& tag) {
+    const char* base = std::getenv("TMPDIR");
+    const std::string pattern =
+        std::string(base && *base ? base : "/tmp") + "/magcomp_" + tag + "_XXXXXX";
+    std::vector<char> tmpl(pattern.begin(), pattern.end());
+    tmpl.push_back('\0');
+    if (!mkdtemp(tmpl.data()))
+      throw std::runtime_error(pattern + ": cannot create: " + std::strerror(errno));
+    std::lock_guard<std::mutex> lock(mutex_);
+    dirs_.emplace_back(tmpl.data());
+    return dirs_.back();
+  }
+  ~TempDirs() {
+    if (getpid() != owner_) return;
+    std::error_code ec;
+    for (const auto& d : dirs_) std::filesystem::remove_all(d, ec);
+  }
+
+ private:
+  TempDirs() : owner_(getpid()) {}
+  pid_t owner_;
+  std::mutex mutex_;
+  std::vector<std::string> dirs_;
+};
+
+/// A fresh temporary directory for one test (removed when the test binary exits).
+inline std::string temp_dir(const std::string& tag) { return TempDirs::instance().make(tag); }
 
 /// Runs a shell command; returns its exit status and fills `output` with stdout + stderr.
 inline int run(const std::string& cmd, std::string* output) {

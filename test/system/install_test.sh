@@ -16,7 +16,8 @@ if [ "$(id -u)" -ne 0 ]; then
     exit 0
   fi
 fi
-PREFIX=$(mktemp -d /tmp/magcomp_install.XXXXXX)
+PREFIX=$(mktemp -d "${TMPDIR:-/tmp}/magcomp_install.XXXXXX")
+trap 'rm -rf "$PREFIX" "$PREFIX.log" "$PREFIX.run.sh"' EXIT   # pass or fail
 set +u
 source "$WS/devel/setup.bash"
 set -u
@@ -32,7 +33,7 @@ env -i HOME="\$HOME" PATH=/usr/bin:/bin bash -c '
   export ROS_MASTER_URI="http://localhost:\$(( 20000 + RANDOM % 10000 ))"
   share=\$(rospack find magcomp)
   case "\$share" in "$PREFIX"/*) ;; *) echo "rospack found magcomp at \$share, not in the install space"; exit 1;; esac
-  cd "\$(mktemp -d)"
+  mkdir "$PREFIX/run" && cd "$PREFIX/run"
   magcomp simulate --scenario "\$share/config/scenarios/rostest_short.yaml" --out f.h5
   magcomp calibrate --data f.h5 --model "\$share/config/models/tl_sim.yaml" --out m.yaml
   magcomp evaluate --data f.h5 --model m.yaml --report report | tail -n 1
@@ -50,6 +51,5 @@ set +e
 $SUDO unshare -m --propagation private bash "$PREFIX.run.sh"
 rc=$?
 set -e
-rm -rf "$PREFIX" "$PREFIX.log" "$PREFIX.run.sh"
 [ $rc -eq 0 ] && echo "install test: PASS" || echo "install test: FAIL"
 exit $rc

@@ -8,6 +8,7 @@ block=$(awk '/<!-- quickstart -->/{f=1; next} /<!-- \/quickstart -->/{f=0} f' "$
         sed '/^```/d')
 [ -n "$block" ] || { echo "quickstart test: no quick-start block in README.md" >&2; exit 1; }
 work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
 out="$work/output.txt"
 cd "$REPO"
 export PATH="/usr/bin:/bin:$PATH"
