@@ -4,8 +4,8 @@
 
 #include "common.h"
 #include "magcomp/core/error.h"
-#include "magcomp/core/file_io.h"
-#include "magcomp/core/model.h"
+#include "magcomp/core/io/file_io.h"
+#include "magcomp/core/model/model.h"
 #include "subcommands.h"
 
 namespace magcomp::cli {

@@ -4,7 +4,7 @@
 #include <iostream>
 
 #include "magcomp/core/error.h"
-#include "magcomp/core/file_io.h"
+#include "magcomp/core/io/file_io.h"
 
 namespace magcomp::cli {
 

@@ -7,7 +7,7 @@
 #include <string>
 #include <vector>
 
-#include "magcomp/core/flight_data.h"
+#include "magcomp/core/io/flight_data.h"
 
 namespace magcomp::cli {
 

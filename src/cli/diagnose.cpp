@@ -6,11 +6,11 @@
 #include <nlohmann/json.hpp>
 
 #include "common.h"
-#include "magcomp/core/diagnose.h"
-#include "magcomp/core/diagnose_loop.h"
-#include "magcomp/core/diagnose_season.h"
+#include "magcomp/core/diagnose/diagnose.h"
+#include "magcomp/core/diagnose/diagnose_loop.h"
+#include "magcomp/core/diagnose/diagnose_season.h"
 #include "magcomp/core/error.h"
-#include "magcomp/core/file_io.h"
+#include "magcomp/core/io/file_io.h"
 #include "subcommands.h"
 
 namespace magcomp::cli {
@@ -42,9 +42,10 @@ void print_diagnosis(const Model& model, const Diagnosis& dx, int top, const std
   }
   const ExplainableShare& x = dx.explainable;
   if (x.computed) {
-    std::printf("\nwhat remains: a flexible model of all channels predicts %.1f%% ± %.1f%% of the "
-                "held-out residual (noise floor %.1f%%)\n",
-                100 * x.share, 100 * x.uncertainty, 100 * x.noise_floor);
+    std::printf(
+        "\nwhat remains: a flexible model of all channels predicts %.1f%% ± %.1f%% of the "
+        "held-out residual (noise floor %.1f%%)\n",
+        100 * x.share, 100 * x.uncertainty, 100 * x.noise_floor);
     std::printf("  channels (alone):");
     for (size_t k = 0; k < x.channels.size() && k < 5; ++k)
       std::printf(" %s %.1f%%", x.channels[k].first.c_str(), 100 * x.channels[k].second);
@@ -312,13 +313,13 @@ void add_diagnose(CLI::App& app) {
       j["out"] = *out;
       j["rounds"] = nlohmann::json::array();
       for (const auto& lr : r.rounds) {
-        j["rounds"].push_back({{"round", lr.round},
-                               {"added", lr.added},
-                               {"explained_fraction", lr.explained},
-                               {"heldout_std_nT", lr.heldout_std_nT},
-                               {"all_std_nT", lr.all_std_nT},
-                               {"fom_nT", std::isfinite(lr.fom_nT) ? nlohmann::json(lr.fom_nT)
-                                                                   : nlohmann::json()}});
+        j["rounds"].push_back(
+            {{"round", lr.round},
+             {"added", lr.added},
+             {"explained_fraction", lr.explained},
+             {"heldout_std_nT", lr.heldout_std_nT},
+             {"all_std_nT", lr.all_std_nT},
+             {"fom_nT", std::isfinite(lr.fom_nT) ? nlohmann::json(lr.fom_nT) : nlohmann::json()}});
       }
       j["stop"] = r.stop_reason;
       j["last_diagnosis"] = to_json(r.last);

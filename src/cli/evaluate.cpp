@@ -11,12 +11,11 @@
 
 #include "common.h"
 #include "magcomp/core/error.h"
-#include "magcomp/core/file_io.h"
-#include "magcomp/core/paths.h"
-#include "magcomp/core/evaluation.h"
-#include "magcomp/core/flight_conditions.h"
+#include "magcomp/core/evaluate/evaluation.h"
+#include "magcomp/core/evaluate/flight_conditions.h"
+#include "magcomp/core/io/file_io.h"
+#include "magcomp/core/io/paths.h"
 #include "subcommands.h"
-
 
 namespace magcomp::cli {
 namespace {
@@ -48,12 +47,13 @@ nlohmann::json to_json(const Evaluation& ev) {
   fom["where"] = ev.fom.where;
   fom["signatures"] = nlohmann::json::array();
   for (const auto& s : ev.fom.signatures) {
-    fom["signatures"].push_back({{"axis", s.axis},
-                                 {"heading", s.heading},
-                                 {"start_tt_s", s.start_tt_s},
-                                 {"end_tt_s", s.end_tt_s},
-                                 {"peak_to_peak_nT", s.peak_to_peak_nT},
-                                 {"uncompensated_peak_to_peak_nT", s.uncompensated_peak_to_peak_nT}});
+    fom["signatures"].push_back(
+        {{"axis", s.axis},
+         {"heading", s.heading},
+         {"start_tt_s", s.start_tt_s},
+         {"end_tt_s", s.end_tt_s},
+         {"peak_to_peak_nT", s.peak_to_peak_nT},
+         {"uncompensated_peak_to_peak_nT", s.uncompensated_peak_to_peak_nT}});
   }
   j["fom"] = fom;
   for (const auto& [key, groups] :
@@ -107,8 +107,8 @@ void write_series(const std::string& path, const FlightData& flight, const Model
 
 // The per-line table, the groups, the FOM, the coverage and the total line of one evaluation.
 void print_evaluation(const Evaluation& ev, const Evaluation* base) {
-  std::printf("%-10s %8s %12s %10s %16s %9s%s\n", "line", "n", "rmse_nT", "std_nT",
-              "uncomp_std_nT", "IR", base ? "   baseline_std_nT" : "");
+  std::printf("%-10s %8s %12s %10s %16s %9s%s\n", "line", "n", "rmse_nT", "std_nT", "uncomp_std_nT",
+              "IR", base ? "   baseline_std_nT" : "");
   for (size_t k = 0; k < ev.per_line.size(); ++k) {
     const auto& l = ev.per_line[k];
     std::printf("%-10.2f %8ld %12.3f %10.3f %16.3f %9.1f", l.line, static_cast<long>(l.n),
@@ -138,8 +138,8 @@ void print_evaluation(const Evaluation& ev, const Evaluation* base) {
     std::printf("\nuncertainty: %.1f%% of the errors within 1 sigma, %.1f%% within 2 sigma\n",
                 100 * ev.coverage_1sigma, 100 * ev.coverage_2sigma);
   }
-  std::printf("\n%-10s %8ld %12.3f %10.3f %16.3f %9.1f", "all", static_cast<long>(ev.n),
-              ev.rmse_nT, ev.std_nT, ev.uncompensated_std_nT, ev.improvement_ratio);
+  std::printf("\n%-10s %8ld %12.3f %10.3f %16.3f %9.1f", "all", static_cast<long>(ev.n), ev.rmse_nT,
+              ev.std_nT, ev.uncompensated_std_nT, ev.improvement_ratio);
   if (base) std::printf(" %17.3f", base->std_nT);
   std::printf("\n");
 }
@@ -147,8 +147,8 @@ void print_evaluation(const Evaluation& ev, const Evaluation* base) {
 // One flight: the table, the JSON and the report.
 void evaluate_one(const std::string& data, const Model& model, const Model* baseline_model,
                   const std::string& model_path, const std::string& baseline_path,
-                  const std::string& truth, const std::string& json_path,
-                  const std::string& report, const std::vector<std::string>& inputs) {
+                  const std::string& truth, const std::string& json_path, const std::string& report,
+                  const std::vector<std::string>& inputs) {
   const FlightData flight = read_flight(data);
   // The per-sample variance is kept only for the report's series (the table shows its coverage).
   const bool series = !report.empty();
@@ -252,8 +252,8 @@ void add_evaluate(CLI::App& app) {
     }
     const double rmse = std::sqrt(sum_sq / n), std_nT = std::sqrt(sum_var / n);
     const double unc = n_unc > 0 ? std::sqrt(sum_unc / n_unc) : NAN;
-    std::printf("%-10s %8ld %12.3f %10.3f %16.3f %9.1f   (%zu flights)\n", "all", static_cast<long>(n),
-                rmse, std_nT, unc, unc / std_nT, paths.size());
+    std::printf("%-10s %8ld %12.3f %10.3f %16.3f %9.1f   (%zu flights)\n", "all",
+                static_cast<long>(n), rmse, std_nT, unc, unc / std_nT, paths.size());
     auto num = [](double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(); };
     j["n"] = static_cast<long>(n);
     j["rmse_nT"] = rmse;

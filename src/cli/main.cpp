@@ -10,7 +10,7 @@
 
 #include "common.h"
 #include "magcomp/core/error.h"
-#include "magcomp/core/paths.h"
+#include "magcomp/core/io/paths.h"
 #include "subcommands.h"
 
 namespace {

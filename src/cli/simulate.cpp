@@ -2,7 +2,7 @@
 #include <chrono>
 #include <iostream>
 
-#include "magcomp/core/file_io.h"
+#include "magcomp/core/io/file_io.h"
 #include "magcomp/core/sim/simulator.h"
 #include "subcommands.h"
 

@@ -4,7 +4,7 @@
 #include <cmath>
 
 #include "magcomp/core/error.h"
-#include "magcomp/core/igrf.h"
+#include "magcomp/core/geo/igrf.h"
 
 namespace magcomp {
 

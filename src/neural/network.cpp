@@ -10,8 +10,8 @@
 #include <mutex>
 
 #include "magcomp/core/error.h"
+#include "magcomp/core/io/paths.h"
 #include "magcomp/neural/features.h"
-#include "magcomp/core/paths.h"
 
 namespace magcomp {
 namespace {
@@ -24,10 +24,10 @@ CreateNetworkFn create_function() {
   std::vector<std::string> candidates;
   if (const char* env = std::getenv("MAGCOMP_NEURAL_LIB")) candidates.push_back(env);
   const std::string dir = executable_dir();
-  candidates.push_back(dir + "/libmagcomp_neural.so");     // installed beside lib/
-  candidates.push_back(dir + "/../libmagcomp_neural.so");  // catkin: lib/magcomp/<exe>
+  candidates.push_back(dir + "/libmagcomp_neural.so");         // installed beside lib/
+  candidates.push_back(dir + "/../libmagcomp_neural.so");      // catkin: lib/magcomp/<exe>
   candidates.push_back(dir + "/../lib/libmagcomp_neural.so");  // catkin: bin/<exe>
-  candidates.push_back("libmagcomp_neural.so");            // LD_LIBRARY_PATH
+  candidates.push_back("libmagcomp_neural.so");                // LD_LIBRARY_PATH
   std::string errors;
   for (const auto& c : candidates) {
     void* handle = ::dlopen(c.c_str(), RTLD_NOW | RTLD_LOCAL);

@@ -8,7 +8,7 @@
 
 #include "../cli/common.h"
 #include "magcomp/core/error.h"
-#include "magcomp/core/model.h"
+#include "magcomp/core/model/model.h"
 #include "magcomp/neural/network.h"
 #include "magcomp/neural/trainer.h"
 

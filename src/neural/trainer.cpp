@@ -12,7 +12,7 @@
 #include <random>
 
 #include "magcomp/core/error.h"
-#include "magcomp/core/file_io.h"
+#include "magcomp/core/io/file_io.h"
 #include "networks.h"
 
 namespace magcomp {

@@ -8,7 +8,7 @@
 #include <set>
 
 #include "magcomp/core/error.h"
-#include "magcomp/core/time_base.h"
+#include "magcomp/core/io/time_base.h"
 #include "magcomp/ros/params.h"
 
 namespace magcomp::rosio {
@@ -49,8 +49,10 @@ CalibratorRos::CalibratorRos(ros::NodeHandle nh, ros::NodeHandle pnh)
   pnh_.param("max_wait_s", a.max_wait_s, a.max_wait_s);
   pnh_.param("jump_back_s", a.jump_back_s, a.jump_back_s);
   pnh_.param("buffer_s", a.buffer_s, a.buffer_s);
-  for (const auto& [v, k] : {std::pair{a.max_gap_s, "max_gap_s"}, {a.max_wait_s, "max_wait_s"},
-                             {a.jump_back_s, "jump_back_s"}, {a.buffer_s, "buffer_s"}}) {
+  for (const auto& [v, k] : {std::pair{a.max_gap_s, "max_gap_s"},
+                             {a.max_wait_s, "max_wait_s"},
+                             {a.jump_back_s, "jump_back_s"},
+                             {a.buffer_s, "buffer_s"}}) {
     require_positive(v, k);
   }
   int queue = 1000;
@@ -108,8 +110,9 @@ CalibratorRos::CalibratorRos(ros::NodeHandle nh, ros::NodeHandle pnh)
                                        [process](const ros::WallTimerEvent&) { process(); });
   updater_.setHardwareID("magcomp calibrator: " + m.scalar + " with " + m.vector);
   updater_.add("calibrator", this, &CalibratorRos::diagnose);
-  diag_timer_ = nh_.createWallTimer(ros::WallDuration(kStatusPeriod_s),
-                                    [this](const ros::WallTimerEvent&) { updater_.force_update(); });
+  diag_timer_ =
+      nh_.createWallTimer(ros::WallDuration(kStatusPeriod_s),
+                          [this](const ros::WallTimerEvent&) { updater_.force_update(); });
   ROS_INFO("magcomp calibrator: %s with %s, template %s", m.scalar.c_str(), m.vector.c_str(),
            template_path.c_str());
 }
@@ -117,8 +120,9 @@ CalibratorRos::CalibratorRos(ros::NodeHandle nh, ros::NodeHandle pnh)
 bool CalibratorRos::in_segment(double t) const {
   if (manual_segment_) return true;
   if (auto_segments_ && !maneuver_.empty()) {  // the detector's latest verdict at or before t
-    auto it = std::upper_bound(maneuver_.begin(), maneuver_.end(), t,
-                               [](double x, const std::pair<double, bool>& v) { return x < v.first; });
+    auto it =
+        std::upper_bound(maneuver_.begin(), maneuver_.end(), t,
+                         [](double x, const std::pair<double, bool>& v) { return x < v.first; });
     if (it != maneuver_.begin() && (it - 1)->second) return true;
   }
   const FitSettings& fs = calibrator_->model().fit;
@@ -146,9 +150,9 @@ void CalibratorRos::add(const AlignedSample& a) {
 void CalibratorRos::on_imu(const sensor_msgs::Imu::ConstPtr& m) {
   // base_link (FLU) body rates -> MIT convention (pitch nose up, yaw clockwise), deg/s.
   const double t = input_->rel(m->header.stamp);
-  const bool on = detector_.update(t, -m->angular_velocity.y * kRadToDeg,
-                                   m->angular_velocity.x * kRadToDeg,
-                                   -m->angular_velocity.z * kRadToDeg);
+  const bool on =
+      detector_.update(t, -m->angular_velocity.y * kRadToDeg, m->angular_velocity.x * kRadToDeg,
+                       -m->angular_velocity.z * kRadToDeg);
   if (!maneuver_.empty() && t <= maneuver_.back().first) return;
   maneuver_.emplace_back(t, on);
   while (maneuver_.size() > kMaxVerdicts) maneuver_.pop_front();

@@ -8,25 +8,25 @@
 #include <set>
 
 #include "magcomp/core/error.h"
-#include "magcomp/core/igrf.h"
-#include "magcomp/core/time_base.h"
+#include "magcomp/core/geo/igrf.h"
+#include "magcomp/core/io/time_base.h"
 #include "magcomp/ros/params.h"
 
 namespace magcomp::rosio {
 namespace {
 
 const std::set<std::string> kKnownParams = {
-    "model_path",    "scalar_topic",      "vector_topic",     "aux_topic",        "fix_topic",
-    "reference_topic", "output_topic",    "frame_id",         "max_gap_s",        "max_wait_s",
-    "jump_back_s",   "buffer_s",          "watch_model",      "marker_stride",    "expected_rate_hz",
-    "flush_after_s", "base_frame",        "tcp_nodelay",      "queue_size",       "end_of_stream_topic",
+    "model_path",      "scalar_topic", "vector_topic", "aux_topic",     "fix_topic",
+    "reference_topic", "output_topic", "frame_id",     "max_gap_s",     "max_wait_s",
+    "jump_back_s",     "buffer_s",     "watch_model",  "marker_stride", "expected_rate_hz",
+    "flush_after_s",   "base_frame",   "tcp_nodelay",  "queue_size",    "end_of_stream_topic",
     "publish_track_tf"};
 
-constexpr double kTimerPeriod_s = 0.25;      // model-file watch, held inputs, end of stream
+constexpr double kTimerPeriod_s = 0.25;  // model-file watch, held inputs, end of stream
 constexpr double kDiagnosticsPeriod_s = 1.0;
-constexpr int kOutputQueue = 10000;          // deep: a fast replay's bursts are never dropped
-constexpr long kTrackTfEvery = 5;            // outputs between two poses of the aircraft
-constexpr size_t kMinHistory = 256;          // samples re-fed to a swapped-in model (at least)
+constexpr int kOutputQueue = 10000;  // deep: a fast replay's bursts are never dropped
+constexpr long kTrackTfEvery = 5;    // outputs between two poses of the aircraft
+constexpr size_t kMinHistory = 256;  // samples re-fed to a swapped-in model (at least)
 
 double file_mtime(const std::string& path) {
   struct stat st {};
@@ -125,8 +125,9 @@ CompensatorRos::CompensatorRos(ros::NodeHandle nh, ros::NodeHandle pnh)
   freq_ = std::make_unique<diagnostic_updater::FrequencyStatus>(
       diagnostic_updater::FrequencyStatusParam(&min_freq_, &max_freq_, 0.1, 10));
   updater_.add(*freq_);
-  diag_timer_ = nh_.createWallTimer(ros::WallDuration(kDiagnosticsPeriod_s),
-                                    [this](const ros::WallTimerEvent&) { updater_.force_update(); });
+  diag_timer_ =
+      nh_.createWallTimer(ros::WallDuration(kDiagnosticsPeriod_s),
+                          [this](const ros::WallTimerEvent&) { updater_.force_update(); });
   ROS_INFO("magcomp compensator: %s -> %s (model %s)", topics.scalar.c_str(), out_topic.c_str(),
            model_path_.c_str());
 }
@@ -227,10 +228,11 @@ void CompensatorRos::feed(const AlignedSample& a) {
   if (std::isfinite(flushed_at_t_)) {  // a wall-time flush, and the stream went on
     if (a.t_s > flushed_at_t_ && !a.starts_stream) {
       ++n_premature_flushes_;
-      ROS_WARN("magcomp: the input stalled for more than flush_after_s (%.2f s of wall time) and "
-               "then went on at data time %.3f s: the samples before it were flushed without "
-               "their successors (premature_flushes)",
-               flush_after_s_, a.t_s);
+      ROS_WARN(
+          "magcomp: the input stalled for more than flush_after_s (%.2f s of wall time) and "
+          "then went on at data time %.3f s: the samples before it were flushed without "
+          "their successors (premature_flushes)",
+          flush_after_s_, a.t_s);
     }
     flushed_at_t_ = NAN;
   }
@@ -291,8 +293,8 @@ void CompensatorRos::publish(const StreamOutput& o) {
   // rviz: the track in a local east-north-up frame, coloured by the error (or the anomaly).
   Eigen::Vector3d fix;
   if (input_->aligner().fix_at(o.t_s, &fix)) {
-    const bool due =
-        track_->add(fix.x(), fix.y(), fix.z(), std::isfinite(msg.error_nT) ? msg.error_nT : msg.anomaly_nT);
+    const bool due = track_->add(fix.x(), fix.y(), fix.z(),
+                                 std::isfinite(msg.error_nT) ? msg.error_nT : msg.anomaly_nT);
     if (tf_broadcaster_ && n_out_ % kTrackTfEvery == 0) {
       tf_broadcaster_->sendTransform(track_->pose(msg.header.stamp, base_frame_));
     }
@@ -309,7 +311,8 @@ void CompensatorRos::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat)
   if (!comp_) {
     stat.summary(diagnostic_msgs::DiagnosticStatus::ERROR, "no model: " + model_error_);
   } else if (faults > 0) {
-    stat.summary(diagnostic_msgs::DiagnosticStatus::WARN, "running; input faults seen (see counts)");
+    stat.summary(diagnostic_msgs::DiagnosticStatus::WARN,
+                 "running; input faults seen (see counts)");
   } else {
     stat.summary(diagnostic_msgs::DiagnosticStatus::OK, "running");
   }

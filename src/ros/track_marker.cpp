@@ -4,10 +4,10 @@
 #include <algorithm>
 #include <cstdio>
 
+#include "magcomp/core/math/constants.h"
+
 namespace magcomp::rosio {
 namespace {
-constexpr double kEarthRadius_m = 6371000.0;  // local tangent plane: spherical Earth is enough
-constexpr double kDeg = M_PI / 180.0;
 constexpr int kPublishEvery = 20;  // points
 constexpr double kLineWidth_m = 120.0;
 constexpr double kTextHeight_m = 300.0;
@@ -28,8 +28,8 @@ bool TrackMarker::add(double lat, double lon, double alt, double value) {
     origin_lon_ = lon;
     origin_alt_ = std::isfinite(alt) ? alt : 0.0;
   }
-  last_ = {(lon - origin_lon_) * kDeg * kEarthRadius_m * std::cos(origin_lat_ * kDeg),
-           (lat - origin_lat_) * kDeg * kEarthRadius_m,
+  last_ = {(lon - origin_lon_) * kDegToRad * kMeanEarthRadius_m * std::cos(origin_lat_ * kDegToRad),
+           (lat - origin_lat_) * kDegToRad * kMeanEarthRadius_m,
            std::isfinite(alt) ? alt - origin_alt_ : 0.0};
   if (seen_++ % stride_ != 0 || points_.size() >= max_points_) return false;
   points_.push_back({last_[0], last_[1], 0.0, value});
@@ -64,7 +64,8 @@ visualization_msgs::MarkerArray TrackMarker::markers(const ros::Time& stamp) con
   for (double v : finite) mags.push_back(std::abs(v - centre));
   double limit = 1e-3;
   if (!mags.empty()) {
-    auto k = mags.begin() + static_cast<std::ptrdiff_t>(0.95 * static_cast<double>(mags.size() - 1));
+    auto k =
+        mags.begin() + static_cast<std::ptrdiff_t>(0.95 * static_cast<double>(mags.size() - 1));
     std::nth_element(mags.begin(), k, mags.end());
     limit = std::max(*k, 1e-3);
   }
@@ -111,8 +112,7 @@ visualization_msgs::MarkerArray TrackMarker::markers(const ros::Time& stamp) con
     t.color.b = c[2];
     t.color.a = 1.0f;
     char buf[96];
-    std::snprintf(buf, sizeof(buf), "%+.2f nT%s", centre + values[k],
-                  k == 1 ? " (median)" : "");
+    std::snprintf(buf, sizeof(buf), "%+.2f nT%s", centre + values[k], k == 1 ? " (median)" : "");
     t.text = buf;
     out.markers.push_back(t);
   }

@@ -9,7 +9,7 @@
 #include <cstdlib>
 #include <random>
 
-#include "magcomp/core/diagnose.h"
+#include "magcomp/core/diagnose/diagnose.h"
 #include "magcomp/core/sim/simulator.h"
 
 int main(int argc, char** argv) {
@@ -40,11 +40,11 @@ int main(int argc, char** argv) {
     const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     struct rusage ru {};
     getrusage(RUSAGE_SELF, &ru);
-    std::printf("samples %ld fields %zu candidates %zu terms_fitted %ld seconds %.2f peak_MB %.0f "
-                "top %s\n",
-                static_cast<long>(f.size()), f.names().size(), dx.candidates.size(),
-                dx.candidates_tried, s, ru.ru_maxrss / 1024.0,
-                dx.candidates.empty() ? "-" : dx.candidates.front().term.c_str());
+    std::printf(
+        "samples %ld fields %zu candidates %zu terms_fitted %ld seconds %.2f peak_MB %.0f "
+        "top %s\n",
+        static_cast<long>(f.size()), f.names().size(), dx.candidates.size(), dx.candidates_tried, s,
+        ru.ru_maxrss / 1024.0, dx.candidates.empty() ? "-" : dx.candidates.front().term.c_str());
     return 0;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "error: %s\n", e.what());

@@ -1,7 +1,8 @@
-// magcomp benchmark: (1) one training epoch of the CNN of Laoué's report (window 80) on N windows of
-// simulated flights with libtorch, writing the very same standardised data for the PyTorch script
-// (scripts/bench_neural_torch.py); (2) batch-1 streaming inference per sample (MLP, CNN, LSTM).
-// Usage: magcomp_bench_neural N_WINDOWS DATA_OUT.bin     (simulate, write the data, time, latency)
+// magcomp benchmark: (1) one training epoch of the CNN of Laoué's report (window 80) on N windows
+// of simulated flights with libtorch, writing the very same standardised data for the PyTorch
+// script (scripts/bench_neural_torch.py); (2) batch-1 streaming inference per sample (MLP, CNN,
+// LSTM). Usage: magcomp_bench_neural N_WINDOWS DATA_OUT.bin     (simulate, write the data, time,
+// latency)
 //        magcomp_bench_neural --epoch DATA.bin           (time one epoch on a written file)
 #include <torch/torch.h>
 #include <algorithm>
@@ -10,9 +11,9 @@
 #include <fstream>
 #include <string>
 
-#include "magcomp/neural/dataset.h"
 #include "magcomp/core/sim/simulator.h"
-#include "magcomp/core/streaming_compensator.h"
+#include "magcomp/core/stream/streaming_compensator.h"
+#include "magcomp/neural/dataset.h"
 #include "magcomp/neural/trainer.h"
 
 using namespace magcomp;

@@ -23,7 +23,7 @@
 #include <mutex>
 #include <thread>
 
-#include "magcomp/core/model.h"
+#include "magcomp/core/model/model.h"
 #include "magcomp/ros/bag_converter.h"
 
 namespace {

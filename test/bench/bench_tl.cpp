@@ -7,8 +7,8 @@
 #include <cstdio>
 #include <cstdlib>
 
-#include "magcomp/core/butterworth.h"
-#include "magcomp/core/model.h"
+#include "magcomp/core/math/butterworth.h"
+#include "magcomp/core/model/model.h"
 
 using Clock = std::chrono::steady_clock;
 

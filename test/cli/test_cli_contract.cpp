@@ -7,8 +7,8 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 
-#include "magcomp/core/flight_data.h"
-#include "magcomp/core/model.h"
+#include "magcomp/core/io/flight_data.h"
+#include "magcomp/core/model/model.h"
 #include "magcomp/core/sim/simulator.h"
 #include "scenario_cache.h"
 #include "synthetic_flight.h"

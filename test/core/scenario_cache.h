@@ -4,10 +4,10 @@
 #include <map>
 #include <string>
 
-#include "magcomp/core/evaluation.h"
-#include "magcomp/core/model.h"
+#include "magcomp/core/evaluate/evaluation.h"
+#include "magcomp/core/model/model.h"
 #include "magcomp/core/sim/simulator.h"
-#include "magcomp/core/streaming_compensator.h"
+#include "magcomp/core/stream/streaming_compensator.h"
 #include "test_util.h"
 
 namespace magcomp::test {

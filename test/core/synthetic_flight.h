@@ -4,8 +4,8 @@
 #include <Eigen/Geometry>
 #include <cmath>
 
-#include "magcomp/core/flight_data.h"
-#include "magcomp/core/model.h"
+#include "magcomp/core/io/flight_data.h"
+#include "magcomp/core/model/model.h"
 
 namespace magcomp::test {
 

@@ -3,8 +3,8 @@
 
 #include <cmath>
 
-#include "magcomp/core/butterworth.h"
 #include "magcomp/core/error.h"
+#include "magcomp/core/math/butterworth.h"
 
 namespace magcomp {
 namespace {

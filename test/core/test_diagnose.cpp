@@ -8,10 +8,10 @@
 #include <nlohmann/json.hpp>
 #include <set>
 
-#include "magcomp/core/diagnose.h"
-#include "magcomp/core/diagnose_loop.h"
+#include "magcomp/core/diagnose/diagnose.h"
+#include "magcomp/core/diagnose/diagnose_loop.h"
 #include "magcomp/core/error.h"
-#include "magcomp/core/terms_expr.h"
+#include "magcomp/core/model/terms_expr.h"
 #include "scenario_cache.h"
 
 namespace magcomp {
@@ -74,11 +74,11 @@ TEST(Diagnose, EveryShippedHiddenEffectIsRankedFirstAndAddingItRemovesTheExcess)
     EXPECT_TRUE(top.accepted) << name;
     const double before = evaluate_model(tl, f, "mag_1_c").std_nT;
     const double after = test::tl_std(f, {top.term});
-    std::printf("  %-18s top %-18s explains %5.1f%% (selection %5.1f%%, confirmation %5.1f%%): "
-                "std %.3f -> %.3f nT (floor %.3f); %ld terms fitted\n",
-                name.c_str(), top.term.c_str(), 100 * top.explained_fraction,
-                100 * top.explained_selection, 100 * top.explained_confirmation, before, after,
-                floor, dx.candidates_tried);
+    std::printf(
+        "  %-18s top %-18s explains %5.1f%% (selection %5.1f%%, confirmation %5.1f%%): "
+        "std %.3f -> %.3f nT (floor %.3f); %ld terms fitted\n",
+        name.c_str(), top.term.c_str(), 100 * top.explained_fraction, 100 * top.explained_selection,
+        100 * top.explained_confirmation, before, after, floor, dx.candidates_tried);
     EXPECT_TRUE(after * 5.0 <= before || after <= 1.5 * floor) << name;
     // The best candidate of another channel explains far less: the ranking is not a coin toss.
     // (For the lag, the other timing errors are its near-equivalents: a first-order response
@@ -88,7 +88,8 @@ TEST(Diagnose, EveryShippedHiddenEffectIsRankedFirstAndAddingItRemovesTheExcess)
       if (c.family == "scalar lag") continue;
       if (timing && (c.family == "scalar sensor response" || c.channel.empty())) continue;
       if (!top.channel.empty() && c.channel.find(top.channel) != std::string::npos) continue;
-      EXPECT_LT(c.explained_fraction, 0.5 * top.explained_fraction) << name << " " << c.term << " (" << c.family << ")";
+      EXPECT_LT(c.explained_fraction, 0.5 * top.explained_fraction)
+          << name << " " << c.term << " (" << c.family << ")";
       break;
     }
   }
@@ -118,11 +119,10 @@ TEST(Diagnose, TheLoopReachesTheTruthErrorWithTheRightParametersOnEveryNewEffect
     double lag_s;                                              // truth, NaN: none
     size_t rounds;                                             // terms the loop should add
   };
-  const std::vector<Case> cases = {
-      {"thermal_heater", {{TransformKind::LowPass, 150.0}}, NAN, 1},
-      {"eddy_decay", {{TransformKind::Decay, 0.8}}, NAN, 1},
-      {"flex_load", {}, NAN, 1},
-      {"wire_thermal_lag", {{TransformKind::LowPass, 150.0}}, 0.2, 3}};
+  const std::vector<Case> cases = {{"thermal_heater", {{TransformKind::LowPass, 150.0}}, NAN, 1},
+                                   {"eddy_decay", {{TransformKind::Decay, 0.8}}, NAN, 1},
+                                   {"flex_load", {}, NAN, 1},
+                                   {"wire_thermal_lag", {{TransformKind::LowPass, 150.0}}, 0.2, 3}};
   for (const Case& c : cases) {
     const sim::Simulation& s = test::scenario(c.scenario);
     const Model start = test::reference_tl(s.flight);
@@ -166,7 +166,8 @@ TEST(Diagnose, NothingIsAcceptedWhereNothingIsHiddenAndTheRestIsWithinNoise) {
   Model tl_only = test::reference_tl(test::scenario("tl_only").flight);
   tl_only.fit.lines = {1001.02, 1001.04, 1001.10, 1001.12, 1001.14};
   const std::vector<std::pair<std::string, Model>> cases = {
-      {"tl_only", tl_only}, {"noise_only", test::reference_tl(test::scenario("noise_only").flight)}};
+      {"tl_only", tl_only},
+      {"noise_only", test::reference_tl(test::scenario("noise_only").flight)}};
   for (const auto& [name, start] : cases) {
     const FlightData& f = test::scenario(name).flight;
     Model m = start;
@@ -174,11 +175,12 @@ TEST(Diagnose, NothingIsAcceptedWhereNothingIsHiddenAndTheRestIsWithinNoise) {
     const Diagnosis dx = diagnose(m, f, "mag_1_c");
     size_t accepted = 0;
     for (const auto& c : dx.candidates) accepted += c.accepted;
-    std::printf("  %-10s held-out %.3f nT, %zu candidates (%ld terms fitted), %zu accepted; "
-                "explainable share %.1f%% +- %.1f%% (floor %.1f%%)\n  verdict: %s\n",
-                name.c_str(), dx.baseline_std_nT, dx.candidates.size(), dx.candidates_tried,
-                accepted, 100 * dx.explainable.share, 100 * dx.explainable.uncertainty,
-                100 * dx.explainable.noise_floor, dx.verdict.c_str());
+    std::printf(
+        "  %-10s held-out %.3f nT, %zu candidates (%ld terms fitted), %zu accepted; "
+        "explainable share %.1f%% +- %.1f%% (floor %.1f%%)\n  verdict: %s\n",
+        name.c_str(), dx.baseline_std_nT, dx.candidates.size(), dx.candidates_tried, accepted,
+        100 * dx.explainable.share, 100 * dx.explainable.uncertainty,
+        100 * dx.explainable.noise_floor, dx.verdict.c_str());
     EXPECT_EQ(accepted, 0u) << name << ": " << dx.candidates.front().term;
     EXPECT_GT(dx.candidates.size(), 200u);
     EXPECT_TRUE(dx.explainable.computed);

@@ -4,7 +4,7 @@
 
 #include <cmath>
 
-#include "magcomp/core/diagnose_season.h"
+#include "magcomp/core/diagnose/diagnose_season.h"
 
 namespace magcomp {
 namespace {

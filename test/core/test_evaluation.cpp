@@ -4,7 +4,7 @@
 
 #include <cmath>
 
-#include "magcomp/core/evaluation.h"
+#include "magcomp/core/evaluate/evaluation.h"
 
 namespace magcomp {
 namespace {

@@ -3,7 +3,7 @@
 // ratio.
 #include <gtest/gtest.h>
 
-#include "magcomp/core/figure_of_merit.h"
+#include "magcomp/core/evaluate/figure_of_merit.h"
 #include "scenario_cache.h"
 
 namespace magcomp {

@@ -5,7 +5,7 @@
 #include <algorithm>
 #include <cmath>
 
-#include "magcomp/core/flight_conditions.h"
+#include "magcomp/core/evaluate/flight_conditions.h"
 
 namespace magcomp {
 namespace {

@@ -9,8 +9,8 @@
 #include <limits>
 
 #include "magcomp/core/error.h"
-#include "magcomp/core/file_io.h"
-#include "magcomp/core/flight_data.h"
+#include "magcomp/core/io/file_io.h"
+#include "magcomp/core/io/flight_data.h"
 #include "test_util.h"
 
 namespace magcomp {

@@ -2,7 +2,7 @@
 #include <gtest/gtest.h>
 
 #include "magcomp/core/error.h"
-#include "magcomp/core/igrf.h"
+#include "magcomp/core/geo/igrf.h"
 #include "test_util.h"
 
 namespace magcomp {

@@ -1,8 +1,8 @@
 // In-flight calibration: the batch solution equals `calibrate`; the recursive one converges to it.
 #include <gtest/gtest.h>
 
-#include "magcomp/core/flight_conditions.h"
-#include "magcomp/core/inflight_calibrator.h"
+#include "magcomp/core/evaluate/flight_conditions.h"
+#include "magcomp/core/fit/inflight_calibrator.h"
 #include "scenario_cache.h"
 
 namespace magcomp {

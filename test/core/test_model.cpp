@@ -5,8 +5,8 @@
 #include <nlohmann/json.hpp>
 
 #include "magcomp/core/error.h"
-#include "magcomp/core/evaluation.h"
-#include "magcomp/core/model.h"
+#include "magcomp/core/evaluate/evaluation.h"
+#include "magcomp/core/model/model.h"
 #include "synthetic_flight.h"
 #include "test_util.h"
 

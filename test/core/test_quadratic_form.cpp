@@ -5,7 +5,7 @@
 #include <cmath>
 #include <random>
 
-#include "magcomp/core/quadratic_form.h"
+#include "magcomp/core/model/quadratic_form.h"
 
 namespace magcomp {
 namespace {

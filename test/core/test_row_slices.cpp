@@ -5,9 +5,9 @@
 #include <mutex>
 
 #include "magcomp/core/error.h"
-#include "magcomp/core/evaluation.h"
-#include "magcomp/core/flight_data.h"
-#include "magcomp/core/model.h"
+#include "magcomp/core/evaluate/evaluation.h"
+#include "magcomp/core/io/flight_data.h"
+#include "magcomp/core/model/model.h"
 #include "synthetic_flight.h"
 #include "test_util.h"
 

@@ -5,7 +5,7 @@
 #include <limits>
 
 #include "magcomp/core/error.h"
-#include "magcomp/core/signal.h"
+#include "magcomp/core/model/signal.h"
 
 namespace magcomp {
 namespace {
@@ -129,8 +129,8 @@ TEST(Signal, AStreamEqualsTheBatchForEveryTransformExactly) {
   }
   x[1234] = NAN;
   for (const std::string s :
-       {"x|d", "x|int", "x|abs", "x|lp(3)", "x|hp(40)", "x|delay(0.75)", "x|pow(2)",
-        "x|pow(1.5)", "x|decay(0.8)", "x|pow(2)|lp(150)", "x|d|d", "x|int|hp(100)|delay(0.3)"}) {
+       {"x|d", "x|int", "x|abs", "x|lp(3)", "x|hp(40)", "x|delay(0.75)", "x|pow(2)", "x|pow(1.5)",
+        "x|decay(0.8)", "x|pow(2)|lp(150)", "x|d|d", "x|int|hp(100)|delay(0.3)"}) {
     const SignalExpr e = parse_signal(s, s);
     const Eigen::VectorXd batch = apply_transforms(e.transforms, t, x).col(0);
     TransformChain chain(e.transforms);

@@ -5,7 +5,7 @@
 #include <fstream>
 
 #include <yaml-cpp/yaml.h>
-#include "magcomp/core/diagnose.h"
+#include "magcomp/core/diagnose/diagnose.h"
 #include "magcomp/core/error.h"
 #include "magcomp/core/sim/anomaly_map.h"
 #include "magcomp/core/sim/electrical.h"

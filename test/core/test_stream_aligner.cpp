@@ -3,7 +3,7 @@
 
 #include <cmath>
 
-#include "magcomp/core/stream_aligner.h"
+#include "magcomp/core/stream/stream_aligner.h"
 
 namespace magcomp {
 namespace {
@@ -37,12 +37,13 @@ TEST(StreamAligner, CountsEveryFaultExactly) {
     const double t = 0.1 * k;
     f.inputs(k, t);
     f.scalar(t, k == 10 ? NAN : 100.0 + k);  // one NaN
-    if (k == 20) f.scalar(t, 1.0);            // a duplicate stamp
-    if (k == 30) f.scalar(t - 0.5, 1.0);         // 0.5 s back: out of order
+    if (k == 20) f.scalar(t, 1.0);           // a duplicate stamp
+    if (k == 30) f.scalar(t - 0.5, 1.0);     // 0.5 s back: out of order
   }
-  f.a.add_vector(9.0, Eigen::Vector3d::Zero());  // an input older than the last: late
+  f.a.add_vector(9.0, Eigen::Vector3d::Zero());   // an input older than the last: late
   f.a.add_aux(9.95, {"cur", "cur_heat"}, {1.0});  // names and values of different lengths
-  EXPECT_EQ(f.a.add_scalar(1.0, 5.0, f.wall), StreamAligner::ScalarResult::kJumpedBack);  // 8.9 s back
+  EXPECT_EQ(f.a.add_scalar(1.0, 5.0, f.wall),
+            StreamAligner::ScalarResult::kJumpedBack);  // 8.9 s back
   const AlignerCounts& c = f.a.counts();
   EXPECT_EQ(c.scalar_in, 73);  // 70 samples + duplicate + out of order + the jump
   EXPECT_EQ(c.nan_scalar, 1);

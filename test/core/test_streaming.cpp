@@ -3,7 +3,7 @@
 
 #include <chrono>
 
-#include "magcomp/core/streaming_compensator.h"
+#include "magcomp/core/stream/streaming_compensator.h"
 #include "scenario_cache.h"
 
 namespace magcomp {

@@ -2,7 +2,7 @@
 #include <gtest/gtest.h>
 
 #include "magcomp/core/error.h"
-#include "magcomp/core/terms_expr.h"
+#include "magcomp/core/model/terms_expr.h"
 #include "scenario_cache.h"
 
 namespace magcomp {
@@ -20,9 +20,9 @@ TEST(TermsExpr, ShorthandsKeepTheirNamesAndEqualTheirExpressions) {
   const FlightData& f = test::scenario("wire_strobe").flight;
   const auto cur = make_term("current:cur_strb");
   EXPECT_EQ(cur->spec(), "current:cur_strb");
-  EXPECT_EQ(cur->column_names(),
-            (std::vector<std::string>{"current:cur_strb.x", "current:cur_strb.y",
-                                      "current:cur_strb.z"}));
+  EXPECT_EQ(
+      cur->column_names(),
+      (std::vector<std::string>{"current:cur_strb.x", "current:cur_strb.y", "current:cur_strb.z"}));
   EXPECT_EQ(make_term("dcurrent:cur_strb")->spec(), "dcurrent:cur_strb");
   EXPECT_EQ(make_term("rate:pitch_rate")->column_names()[2], "rate:pitch_rate.z");
   EXPECT_EQ(columns("current:cur_strb", f), columns("field:cur_strb", f));
@@ -54,10 +54,10 @@ TEST(TermsExpr, ProjectionsGiveTheirColumns) {
   const Eigen::MatrixXd ind = columns("induced:cur_heat", f);
   const Eigen::MatrixXd sc = columns("scalar:cur_heat*cur_strb", f);
   const Eigen::Index k = 1234;
-  EXPECT_NEAR(ind(k, 1),
-              in.direction(k, 0) * in.direction(k, 1) * in.total_nT[k] *
-                  f.column("cur_heat")[k] / 50000.0,
-              1e-12);
+  EXPECT_NEAR(
+      ind(k, 1),
+      in.direction(k, 0) * in.direction(k, 1) * in.total_nT[k] * f.column("cur_heat")[k] / 50000.0,
+      1e-12);
   EXPECT_DOUBLE_EQ(sc(k, 0), f.column("cur_heat")[k] * f.column("cur_strb")[k]);
   EXPECT_THROW(make_term("induced:B"), Error);
   EXPECT_THROW(make_term("current:cur_strb|d"), Error);
@@ -128,9 +128,10 @@ TEST(TermsExpr, TheStreamingCompensatorRunsEveryTransformAsTheBatchDoes) {
     }
     worst = std::max(worst, std::abs(a - b));
   }
-  std::printf("  %zu terms, lookahead %d samples: worst |stream - batch| = %.2e nT (%ld NaN at "
-              "the edges in both)\n",
-              m.terms.size(), lookahead, worst, nan);
+  std::printf(
+      "  %zu terms, lookahead %d samples: worst |stream - batch| = %.2e nT (%ld NaN at "
+      "the edges in both)\n",
+      m.terms.size(), lookahead, worst, nan);
   EXPECT_LT(worst, 1e-6);
   EXPECT_LT(nan, 10);
 }

@@ -5,7 +5,7 @@
 
 #include <cmath>
 
-#include "magcomp/core/timeseries.h"
+#include "magcomp/core/math/timeseries.h"
 
 namespace magcomp {
 namespace {

@@ -4,8 +4,8 @@
 
 #include <cmath>
 
-#include "magcomp/core/butterworth.h"
-#include "magcomp/core/model.h"
+#include "magcomp/core/math/butterworth.h"
+#include "magcomp/core/model/model.h"
 #include "test_util.h"
 
 namespace magcomp {

@@ -7,7 +7,7 @@
 #include <string>
 
 #include "magcomp/core/error.h"
-#include "magcomp/core/flight_data.h"
+#include "magcomp/core/io/flight_data.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   static const std::string path = "/tmp/magcomp_fuzz_h5_" + std::to_string(::getpid()) + ".h5";

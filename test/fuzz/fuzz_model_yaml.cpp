@@ -6,7 +6,7 @@
 #include <string>
 
 #include "magcomp/core/error.h"
-#include "magcomp/core/model.h"
+#include "magcomp/core/model/model.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   static const std::string path = "/tmp/magcomp_fuzz_model_" + std::to_string(::getpid()) + ".yaml";

@@ -6,13 +6,13 @@
 #include <cmath>
 #include <fstream>
 
-#include "magcomp/core/apply.h"
 #include "magcomp/core/error.h"
-#include "magcomp/core/evaluation.h"
+#include "magcomp/core/evaluate/evaluation.h"
+#include "magcomp/core/model/apply.h"
+#include "magcomp/core/sim/simulator.h"
+#include "magcomp/core/stream/streaming_compensator.h"
 #include "magcomp/neural/dataset.h"
 #include "magcomp/neural/network.h"
-#include "magcomp/core/sim/simulator.h"
-#include "magcomp/core/streaming_compensator.h"
 #include "magcomp/neural/trainer.h"
 #include "test_util.h"
 
@@ -218,9 +218,8 @@ TEST(Neural, EveryApplyEntryPointRunsTheNetworkAndGivesTheSameNumbers) {
   const Eigen::VectorXd compensated = compensate(model, f);
   const Evaluation evaluated = evaluate_model(model, f, "mag_1_c");
   auto same = [](const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
-    return a.size() == b.size() && ((a.array() == b.array()) || (a.array() != a.array() &&
-                                                                 b.array() != b.array()))
-                                       .all();
+    return a.size() == b.size() &&
+           ((a.array() == b.array()) || (a.array() != a.array() && b.array() != b.array())).all();
   };
   EXPECT_TRUE(same(applied.compensated_nT, reference.compensated_nT));
   EXPECT_TRUE(same(compensated, reference.compensated_nT));

@@ -8,7 +8,7 @@
 #include <cstdio>
 #include <mutex>
 
-#include "magcomp/core/evaluation.h"
+#include "magcomp/core/evaluate/evaluation.h"
 #include "rostest_util.h"
 
 namespace {

@@ -12,7 +12,7 @@
 #include <map>
 #include <mutex>
 
-#include "magcomp/core/flight_data.h"
+#include "magcomp/core/io/flight_data.h"
 #include "rostest_util.h"
 
 namespace {

@@ -9,7 +9,7 @@
 #include <fstream>
 #include <mutex>
 
-#include "magcomp/core/model.h"
+#include "magcomp/core/model/model.h"
 #include "rostest_util.h"
 
 namespace {

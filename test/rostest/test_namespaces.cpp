@@ -9,7 +9,7 @@
 #include <cmath>
 #include <memory>
 
-#include "magcomp/core/model.h"
+#include "magcomp/core/model/model.h"
 #include "rostest_util.h"
 
 namespace {

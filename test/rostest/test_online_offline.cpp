@@ -7,7 +7,7 @@
 #include <cmath>
 #include <mutex>
 
-#include "magcomp/core/model.h"
+#include "magcomp/core/model/model.h"
 #include "magcomp/neural/network.h"
 #include "magcomp/ros/bag_converter.h"
 #include "rostest_util.h"
@@ -53,8 +53,9 @@ TEST(OnlineOffline, WholeReplayedFlightEqualsOfflineWithNoSampleLost) {
                         "premature_flushes", "gaps", "out_of_order_dropped"}) {
     std::printf("  diagnostics %s = %ld\n", k, diagnostics.count(k));
   }
-  if (relay) std::printf("  relayed %ld messages with delays up to %.2f s\n", relay->relayed(),
-                         relay_max_delay_s);
+  if (relay)
+    std::printf("  relayed %ld messages with delays up to %.2f s\n", relay->relayed(),
+                relay_max_delay_s);
   // Every fluxgate message reached the relay (in another process): the player's publishers
   // outlive the bag, so none queued for TCP is lost at its end.
   if (relay) {

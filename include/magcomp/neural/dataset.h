@@ -5,7 +5,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "magcomp/core/model.h"
+#include "magcomp/core/model/model.h"
 #include "magcomp/neural/features.h"
 
 namespace magcomp {

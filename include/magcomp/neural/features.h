@@ -6,9 +6,9 @@
 #include <string>
 #include <vector>
 
-#include "magcomp/core/flight_data.h"
-#include "magcomp/core/igrf.h"
-#include "magcomp/core/model.h"
+#include "magcomp/core/geo/igrf.h"
+#include "magcomp/core/io/flight_data.h"
+#include "magcomp/core/model/model.h"
 
 namespace magcomp {
 

@@ -9,9 +9,9 @@
 #include <string>
 #include <vector>
 
-#include "magcomp/core/flight_data.h"
-#include "magcomp/core/apply.h"
-#include "magcomp/core/model.h"
+#include "magcomp/core/io/flight_data.h"
+#include "magcomp/core/model/apply.h"
+#include "magcomp/core/model/model.h"
 
 namespace magcomp {
 

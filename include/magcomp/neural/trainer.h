@@ -7,7 +7,7 @@
 #include <string>
 #include <vector>
 
-#include "magcomp/core/model.h"
+#include "magcomp/core/model/model.h"
 #include "magcomp/neural/dataset.h"
 #include "magcomp/neural/spec.h"
 

@@ -5,7 +5,7 @@
 
 #include <string>
 
-#include "magcomp/core/flight_data.h"
+#include "magcomp/core/io/flight_data.h"
 
 namespace magcomp::rosio {
 

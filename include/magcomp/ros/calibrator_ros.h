@@ -10,8 +10,8 @@
 #include <memory>
 #include <string>
 
-#include "magcomp/core/flight_conditions.h"
-#include "magcomp/core/inflight_calibrator.h"
+#include "magcomp/core/evaluate/flight_conditions.h"
+#include "magcomp/core/fit/inflight_calibrator.h"
 #include "magcomp/ros/input_stream.h"
 
 namespace magcomp::rosio {

@@ -11,8 +11,8 @@
 #include <memory>
 #include <string>
 
-#include "magcomp/core/igrf.h"
-#include "magcomp/core/streaming_compensator.h"
+#include "magcomp/core/geo/igrf.h"
+#include "magcomp/core/stream/streaming_compensator.h"
 #include "magcomp/ros/input_stream.h"
 #include "magcomp/ros/track_marker.h"
 

@@ -15,7 +15,7 @@
 #include <memory>
 #include <string>
 
-#include "magcomp/core/stream_aligner.h"
+#include "magcomp/core/stream/stream_aligner.h"
 
 namespace magcomp::rosio {
 

@@ -6,8 +6,8 @@
 #include <cmath>
 #include <random>
 
+#include "magcomp/core/math/timeseries.h"
 #include "magcomp/core/sim/scenario.h"
-#include "magcomp/core/timeseries.h"
 
 namespace magcomp::sim {
 

@@ -14,19 +14,17 @@
 #include <random>
 
 #include "magcomp/core/error.h"
-#include "magcomp/core/file_io.h"
-#include "magcomp/core/igrf.h"
-#include "magcomp/core/signal.h"
+#include "magcomp/core/geo/igrf.h"
+#include "magcomp/core/io/file_io.h"
+#include "magcomp/core/io/time_base.h"
+#include "magcomp/core/math/timeseries.h"
+#include "magcomp/core/model/signal.h"
 #include "magcomp/core/sim/anomaly_map.h"
 #include "magcomp/core/sim/electrical.h"
 #include "magcomp/core/sim/trajectory.h"
-#include "magcomp/core/time_base.h"
-#include "magcomp/core/timeseries.h"
 
 namespace magcomp::sim {
 namespace {
-
-constexpr double kDeg = kDegToRad;
 
 using Vectors = std::vector<Eigen::Vector3d>;
 
@@ -146,8 +144,8 @@ void Simulator::earth_field() {
       igrf_ned[static_cast<size_t>(i)] = (1 - w) * a + w * b;
     }
   }
-  const AnomalyMap map = AnomalyMap::random(s_.anomaly_grid_n, s_.anomaly_grid_m,
-                                            s_.anomaly_rms_nT, s_.anomaly_spectral_slope, s_.seed);
+  const AnomalyMap map = AnomalyMap::random(s_.anomaly_grid_n, s_.anomaly_grid_m, s_.anomaly_rms_nT,
+                                            s_.anomaly_spectral_slope, s_.seed);
   const double h_min = tr_.alt_m.minCoeff() - s_.terrain_m;
   const double h_max = tr_.alt_m.maxCoeff() - s_.terrain_m;
   const LayeredMap layers(map, h_min, h_max, 100.0);
@@ -194,9 +192,9 @@ std::map<std::string, Eigen::VectorXd> Simulator::ins_quantities() const {
         unwrapped_yaw[i - 1] + std::remainder(tr_.yaw_rad[i] - tr_.yaw_rad[i - 1], 2 * M_PI);
   }
   std::map<std::string, Eigen::VectorXd> ins;
-  ins["pitch_rate"] = central_rate(tr_.pitch_rad, dt_) / kDeg;
-  ins["roll_rate"] = central_rate(tr_.roll_rad, dt_) / kDeg;
-  ins["yaw_rate"] = central_rate(unwrapped_yaw, dt_) / kDeg;
+  ins["pitch_rate"] = central_rate(tr_.pitch_rad, dt_) / kDegToRad;
+  ins["roll_rate"] = central_rate(tr_.roll_rad, dt_) / kDegToRad;
+  ins["yaw_rate"] = central_rate(unwrapped_yaw, dt_) / kDegToRad;
   const Eigen::VectorXd acc_fwd = central_rate(tr_.speed_mps, dt_);
   const Eigen::VectorXd acc_up = central_rate(tr_.vu_mps, dt_);
   const Eigen::VectorXd turn = central_rate(unwrapped_yaw, dt_);
@@ -259,8 +257,8 @@ Vectors Simulator::sensor_field(const AircraftField& a) const {
   Vectors field(static_cast<size_t>(n_));  // Earth + aircraft, body frame
   for (Eigen::Index i = 0; i < n_; ++i) {
     const auto k = static_cast<size_t>(i);
-    field[k] = earth_.body[k] + a.permanent_nT + a.induced * earth_.body[k] +
-               a.eddy_s * earth_.rate[k];
+    field[k] =
+        earth_.body[k] + a.permanent_nT + a.induced * earth_.body[k] + a.eddy_s * earth_.rate[k];
   }
   return field;
 }
@@ -408,10 +406,10 @@ void Simulator::scalar(const SensorMount& m, const Vectors& field) {
   for (const auto& [k, contrib] : contributions) {
     const std::string col = m.name + ".hidden." + std::to_string(k) + "." + s_.hidden[k].type;
     sim_.truth.set(col, contrib);
-    y_ << YAML::BeginMap << YAML::Key << "effect" << YAML::Value << static_cast<int>(k)
-       << YAML::Key << "type" << YAML::Value << s_.hidden[k].type << YAML::Key << "column"
-       << YAML::Value << col << YAML::Key << "rms_nT" << YAML::Value << rms(contrib)
-       << YAML::Key << "std_nT" << YAML::Value << stdev(contrib) << YAML::EndMap;
+    y_ << YAML::BeginMap << YAML::Key << "effect" << YAML::Value << static_cast<int>(k) << YAML::Key
+       << "type" << YAML::Value << s_.hidden[k].type << YAML::Key << "column" << YAML::Value << col
+       << YAML::Key << "rms_nT" << YAML::Value << rms(contrib) << YAML::Key << "std_nT"
+       << YAML::Value << stdev(contrib) << YAML::EndMap;
   }
   y_ << YAML::EndSeq;
 }
@@ -532,9 +530,10 @@ void Simulator::reference_and_survey_fields() {
 void Simulator::ins_fields() {
   FlightData& f = sim_.flight;
   Eigen::VectorXd yaw_deg(n_);
-  for (Eigen::Index i = 0; i < n_; ++i) yaw_deg[i] = std::fmod(tr_.yaw_rad[i] / kDeg + 360.0, 360.0);
-  f.set("ins_pitch", tr_.pitch_rad / kDeg);
-  f.set("ins_roll", tr_.roll_rad / kDeg);
+  for (Eigen::Index i = 0; i < n_; ++i)
+    yaw_deg[i] = std::fmod(tr_.yaw_rad[i] / kDegToRad + 360.0, 360.0);
+  f.set("ins_pitch", tr_.pitch_rad / kDegToRad);
+  f.set("ins_roll", tr_.roll_rad / kDegToRad);
   f.set("ins_yaw", yaw_deg);
   f.set("pitch_rate", ins_.at("pitch_rate"));
   f.set("roll_rate", ins_.at("roll_rate"));
@@ -542,8 +541,8 @@ void Simulator::ins_fields() {
   f.set("ins_vn", tr_.vn_mps);
   f.set("ins_vw", -tr_.ve_mps);
   f.set("ins_vu", tr_.vu_mps);
-  f.set("ins_lat", tr_.lat_deg * kDeg);
-  f.set("ins_lon", tr_.lon_deg * kDeg);
+  f.set("ins_lat", tr_.lat_deg * kDegToRad);
+  f.set("ins_lon", tr_.lon_deg * kDegToRad);
   f.set("ins_alt", tr_.alt_m);
   f.set("ins_wander", Eigen::VectorXd::Zero(n_));
   for (const char* k : {"ins_acc_x", "ins_acc_y", "ins_acc_z", "lgtl_acc", "ltrl_acc", "nrml_acc"})

@@ -5,12 +5,11 @@
 #include <random>
 #include <vector>
 
+#include "magcomp/core/math/constants.h"
+
 namespace magcomp::sim {
 namespace {
 
-constexpr double kG = 9.80665;
-constexpr double kDeg = M_PI / 180.0;
-constexpr double kEarthRadiusM = 6371000.0;
 constexpr double kRampS = 2.0;  // roll-in / roll-out of a turn
 
 // One leg of the expanded plan.
@@ -28,10 +27,10 @@ double wrap(double a) { return std::atan2(std::sin(a), std::cos(a)); }
 class Planner {
  public:
   explicit Planner(const Scenario& s)
-      : s_(s), rate_(kG * std::tan(s.turn_bank_deg * kDeg) / s.speed_mps) {}
+      : s_(s), rate_(kStandardGravity_mps2 * std::tan(s.turn_bank_deg * kDegToRad) / s.speed_mps) {}
 
   std::vector<Leg> expand() {
-    heading_ = s_.segments.front().heading_deg * kDeg;
+    heading_ = s_.segments.front().heading_deg * kDegToRad;
     altitude_ = s_.start_altitude_m;
     const double transit_line = std::floor(s_.flight) + 0.99;
     for (const Segment& g : s_.segments) {
@@ -44,12 +43,12 @@ class Planner {
         legs_.push_back(c);
         altitude_ = g.altitude_m;
       }
-      const double h = g.heading_deg * kDeg;
+      const double h = g.heading_deg * kDegToRad;
       if (g.type == "box" || g.type == "cloverleaf") {
         const double order_box[4] = {0, 90, 180, 270};
         const double order_clover[4] = {0, 180, 90, 270};
         for (int k = 0; k < 4; ++k) {
-          const double target = h + (g.type == "box" ? order_box[k] : order_clover[k]) * kDeg;
+          const double target = h + (g.type == "box" ? order_box[k] : order_clover[k]) * kDegToRad;
           turn_to(target, transit_line, g.type == "cloverleaf");
           straight(g.duration_s, g.line, true);
         }
@@ -127,9 +126,9 @@ int calibration_maneuver(double tau, double leg_s, double* pitch, double* roll,
   const double u = (tau - part * third) / third;
   const double e = envelope(u);
   const double local = tau - part * third;
-  if (part == 0) *pitch += 5 * kDeg * e * std::sin(2 * M_PI * local / 6.0);
-  if (part == 1) *roll += 10 * kDeg * e * std::sin(2 * M_PI * local / 8.0);
-  if (part == 2) *yaw_offset = 5 * kDeg * e * std::sin(2 * M_PI * local / 7.0);
+  if (part == 0) *pitch += 5 * kDegToRad * e * std::sin(2 * M_PI * local / 6.0);
+  if (part == 1) *roll += 10 * kDegToRad * e * std::sin(2 * M_PI * local / 8.0);
+  if (part == 2) *yaw_offset = 5 * kDegToRad * e * std::sin(2 * M_PI * local / 7.0);
   return 1 + part;
 }
 
@@ -161,9 +160,9 @@ Track fly(const Scenario& s) {
   std::normal_distribution<double> normal(0.0, 1.0);
   // Turbulence: first-order Gauss-Markov processes on the attitude, correlation 1.5 s.
   const double corr = std::exp(-dt / 1.5);
-  const double drive = std::sqrt(1 - corr * corr) * s.turbulence_deg * kDeg;
+  const double drive = std::sqrt(1 - corr * corr) * s.turbulence_deg * kDegToRad;
   double tb_roll = 0, tb_pitch = 0, tb_yaw = 0, tb_speed = 0;
-  double heading = s.segments.front().heading_deg * kDeg;
+  double heading = s.segments.front().heading_deg * kDegToRad;
   double north = 0, east = 0, alt = s.start_altitude_m;
   Eigen::Index i = 0;
   for (size_t k = 0; k < legs.size(); ++k) {
@@ -183,7 +182,7 @@ Track fly(const Scenario& s) {
       if (l.turn_rad != 0) {
         const double ramp = std::min({tau / kRampS, (leg_s - tau) / kRampS, 1.0});
         heading_rate = rate * std::max(ramp, 0.0);  // trapezoid: its integral is turn_rad
-        roll = std::atan(heading_rate * s.speed_mps / kG);
+        roll = std::atan(heading_rate * s.speed_mps / kStandardGravity_mps2);
       } else if (!std::isnan(l.heading_rad)) {
         heading += 0.05 * wrap(l.heading_rad - heading) * dt;  // autopilot holds the heading
       }
@@ -213,9 +212,10 @@ Track fly(const Scenario& s) {
       tr.ve_mps[i] = ve;
       tr.vu_mps[i] = vu;
       tr.speed_mps[i] = v;
-      tr.lat_deg[i] = s.origin_lat_deg + north / kEarthRadiusM / kDeg;
+      tr.lat_deg[i] = s.origin_lat_deg + north / kMeanEarthRadius_m / kDegToRad;
       tr.lon_deg[i] =
-          s.origin_lon_deg + east / (kEarthRadiusM * std::cos(s.origin_lat_deg * kDeg)) / kDeg;
+          s.origin_lon_deg +
+          east / (kMeanEarthRadius_m * std::cos(s.origin_lat_deg * kDegToRad)) / kDegToRad;
       tr.maneuver[i] = maneuver;
     }
   }

@@ -3,8 +3,8 @@
 
 #include <string>
 
-#include "magcomp/core/flight_data.h"
-#include "magcomp/core/igrf.h"
+#include "magcomp/core/geo/igrf.h"
+#include "magcomp/core/io/flight_data.h"
 #include "magcomp/core/sim/scenario.h"
 
 namespace magcomp::sim {

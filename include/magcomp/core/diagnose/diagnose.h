@@ -1,0 +1,87 @@
+// magcomp: which physical effect is the model missing? A search over the term language, ranked on
+// lines the fit never saw and confirmed on lines used neither to fit nor to choose, and an honest
+// verdict on what remains.
+#pragma once
+
+#include <Eigen/Core>
+#include <cmath>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "magcomp/core/diagnose/associations.h"
+#include "magcomp/core/diagnose/explainable_share.h"
+#include "magcomp/core/io/flight_data.h"
+#include "magcomp/core/model/model.h"
+
+namespace magcomp {
+
+/// One candidate effect, evaluated by adding its term to the model and refitting on the fit rows.
+struct Candidate {
+  std::string term;           ///< exactly what `--term` accepts (estimated parameters as numbers)
+  std::string effect;         ///< its physics in words
+  std::string channel;        ///< the channel(s) it uses ("" if none)
+  std::string family;         ///< the kind of effect searched: tl, current, rate, thermal, lag, ...
+  double std_after_nT = 0.0;  ///< held-out error std (line means removed) with the term, nT
+  /// The conservative share of the held-out error variance it explains: the smaller of its share
+  /// on the selection lines and on the confirmation lines.
+  double explained_fraction = 0.0;
+  double explained_selection = 0.0;     ///< 1 - (std_after / baseline)² on the selection lines
+  double explained_confirmation = 0.0;  ///< the same on the confirmation lines
+  /// The share it is ranked by: its selection share, or for a lag the selection share of the lag
+  /// together with the channel term whose timing it explains (added in the next round).
+  double ranking_share = NAN;
+  /// True when it improves the selection lines (where it was ranked) and also the confirmation
+  /// lines (used neither to fit nor to choose it) by at least DiagnoseOptions::accept_fraction
+  /// of the variance and DiagnoseOptions::resolution_nT of the std.
+  bool accepted = false;
+  /// fitted size in physical units, e.g. "19.2 nT/A, lp.time_constant_s 150"
+  std::string estimate;
+  /// Estimated parameters in physical units: {"lp.time_constant_s", 150}, {"lag_s", 0.3},
+  /// {"gain_nT_per_unit", 19.2}, ...
+  std::vector<std::pair<std::string, double>> parameters;
+};
+
+/// Settings of a diagnosis (defaults: the full search).
+struct DiagnoseOptions {
+  bool full_search = true;        ///< every field, every transform family; false: cur_/vol_ only
+  double accept_fraction = 0.02;  ///< the share a term must explain on both nested splits
+  /// The smallest error that counts, nT: a term must lower the held-out error std by this much on
+  /// both splits, and a predictable remainder smaller than this (rms) is called noise.
+  double resolution_nT = 0.03;
+  int threads = 2;                ///< worker threads for the search
+  bool explainable_share = true;  ///< estimate what a flexible model of all channels predicts
+};
+
+struct Diagnosis {
+  double baseline_std_nT = 0.0;  ///< held-out error std of the model refitted as it is
+  double baseline_selection_std_nT = 0.0;
+  double baseline_confirmation_std_nT = 0.0;
+  Eigen::Index heldout_samples = 0;
+  Eigen::Index fit_samples = 0;
+  std::string split;                       ///< how fit, selection and confirmation were chosen
+  std::vector<double> selection_lines;     ///< held-out lines the candidates are ranked on
+  std::vector<double> confirmation_lines;  ///< held-out lines that confirm (or reject) them
+  std::vector<Candidate> candidates;       ///< accepted first (best first), then the rejected
+  long candidates_tried = 0;               ///< terms fitted, parameter scans included
+  std::vector<ChannelAssociation> associations;  ///< strongest |Spearman| first
+  ExplainableShare explainable;                  ///< what remains predictable, and where
+  std::string verdict;                           ///< "add <term>", "structure remains", "complete"
+  std::vector<std::string> notes;                ///< skipped channels and why
+};
+
+/// The data fields diagnose uses as sources: every non-constant, mostly finite field except the
+/// bookkeeping ones (tt, line, flight, year, doy), the magnetometers, the fluxgates and `truth`.
+std::vector<std::string> source_fields(const Model& model, const FlightData& data,
+                                       const std::string& truth, bool full_search,
+                                       std::vector<std::string>* notes);
+
+/// Ranks candidate terms for what the model misses. Fit rows: the model's own calibration
+/// (band-pass segments, or reference-fit lines) when this flight holds them; otherwise a
+/// reference fit against `truth` on every other line. The other lines are held out and split,
+/// line by line in time order, into selection and confirmation lines. Throws magcomp::Error
+/// naming the file and field on bad input.
+Diagnosis diagnose(const Model& model, const FlightData& data, const std::string& truth,
+                   const DiagnoseOptions& options = {});
+
+}  // namespace magcomp

@@ -1,0 +1,38 @@
+// magcomp: the user's loop as one call: diagnose, add the accepted top term, refit, repeat.
+#pragma once
+
+#include <cmath>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "magcomp/core/diagnose/diagnose.h"
+
+namespace magcomp {
+
+/// One round of the loop (round 0: the model as given, refitted).
+struct LoopRound {
+  int round = 0;
+  std::string added;            ///< the term added in this round ("" for round 0)
+  double explained = 0.0;       ///< its conservative explained share (Candidate)
+  double heldout_std_nT = 0.0;  ///< error std (line means removed) on the held-out lines
+  double all_std_nT = 0.0;      ///< the same on every line of the flight
+  double fom_nT = NAN;          ///< figure of merit on the model's calibration maneuvers
+};
+
+struct LoopResult {
+  Model model;                    ///< the final model, fitted
+  std::vector<LoopRound> rounds;  ///< round 0 first
+  Diagnosis last;                 ///< the last diagnosis (the one that stopped the loop)
+  std::string stop_reason;
+};
+
+/// Runs diagnose -> add the top candidate if it is accepted and explains at least `min_share`
+/// -> refit (model.fit, on `data`) -> repeat, at most `max_rounds` times. The error is measured
+/// against `truth` on the lines held out by the first diagnosis. `on_round` (optional) is called
+/// after each diagnosis with the round number and the diagnosis.
+LoopResult diagnose_loop(const Model& model, const FlightData& data, const std::string& truth,
+                         int max_rounds, double min_share, const DiagnoseOptions& options,
+                         const std::function<void(int, const Diagnosis&)>& on_round = {});
+
+}  // namespace magcomp

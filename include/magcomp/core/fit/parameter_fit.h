@@ -1,0 +1,73 @@
+// magcomp: profile least squares for the nonlinear parameters of terms (time constants, delays,
+// exponents): the fit rows, a ridge solve that reuses the fixed columns' normal equations, and the
+// coarse-scan + golden-section search.
+#pragma once
+
+#include <Eigen/Core>
+#include <functional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "magcomp/core/model/model.h"
+#include "magcomp/core/model/signal.h"
+
+namespace magcomp {
+
+/// The rows a model's fit uses on some flights: each flight's calibration runs (fit.lines /
+/// fit.windows, NaN rows dropped), band-passed and trimmed for a bandpass fit.
+class FitRowSet {
+ public:
+  /// Runs are chosen with the model's terms as given (`model` must have no free parameter).
+  FitRowSet(const Model& model, const std::vector<const FlightData*>& flights,
+            std::vector<std::string>* warnings);
+  /// Stacks per-flight columns (N_f x k each, one matrix per flight) into fit rows. NaN in a
+  /// candidate's columns is taken as 0.
+  Eigen::MatrixXd stack(const std::vector<Eigen::MatrixXd>& per_flight) const;
+  /// The stacked target (scalar, or scalar - reference), nT.
+  const Eigen::VectorXd& y() const { return y_; }
+  Eigen::Index rows() const { return y_.size(); }
+  int segments() const { return segments_; }
+
+ private:
+  FitSettings fit_;
+  std::vector<const FlightData*> flights_;
+  std::vector<std::vector<std::pair<Eigen::Index, Eigen::Index>>> runs_;
+  Eigen::VectorXd y_;
+  int segments_ = 0;
+};
+
+/// Ridge least squares of y on [base, candidate] with the base's normal equations formed once.
+class RidgeProfile {
+ public:
+  RidgeProfile(const Eigen::MatrixXd& base, const Eigen::VectorXd& y, double lambda);
+  /// Coefficients [base; candidate] and the residual sum of squares (nT²) in *rss.
+  Eigen::VectorXd solve(const Eigen::MatrixXd& candidate, double* rss) const;
+  Eigen::Index base_columns() const { return g00_.cols(); }
+
+ private:
+  const Eigen::MatrixXd& base_;
+  const Eigen::VectorXd& y_;
+  Eigen::MatrixXd g00_;
+  Eigen::VectorXd b0_;
+  double yy_ = 0.0, lambda_ = 0.0;
+};
+
+/// The values a free parameter of this kind is scanned over, for a flight sampled every dt_s and
+/// lasting span_s (time constants on a geometric grid, delays on a uniform one).
+std::vector<double> parameter_grid(TransformKind kind, double dt_s, double span_s);
+
+/// Minimises objective(value) over the grid, then by golden section between the best value's
+/// neighbours (in log space for time constants). Returns the minimiser rounded to 3 significant
+/// digits and the objective there in *best.
+double scan_parameter(TransformKind kind, const std::vector<double>& grid,
+                      const std::function<double(double)>& objective, double* best = nullptr);
+
+/// Estimates every free parameter ('?') of the model's terms by profile least squares on the fit
+/// rows of `flights`: each in turn, the others held (two sweeps when there are several). Replaces
+/// the specs in model.terms by their numbers and returns one line per parameter for the report.
+/// Throws magcomp::Error when no fit row holds the term.
+std::vector<std::string> estimate_free_parameters(Model& model,
+                                                  const std::vector<const FlightData*>& flights);
+
+}  // namespace magcomp

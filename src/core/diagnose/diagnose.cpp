@@ -1,0 +1,754 @@
+// magcomp: diagnose: the nested split, the base refit, the search over the term language, the
+// verdict.
+#include "magcomp/core/diagnose/diagnose.h"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <cstdio>
+#include <future>
+#include <map>
+#include <set>
+#include <sstream>
+
+#include "magcomp/core/error.h"
+#include "magcomp/core/fit/parameter_fit.h"
+#include "magcomp/core/math/timeseries.h"
+#include "magcomp/core/model/terms_expr.h"
+
+namespace magcomp {
+namespace {
+
+const std::set<std::string> kBookkeeping = {"tt", "line", "flight", "year", "doy", "N", "dt"};
+
+bool is_current(const std::string& n) { return n.rfind("cur_", 0) == 0; }
+bool is_electrical(const std::string& n) {
+  return n.rfind("cur_", 0) == 0 || n.rfind("vol_", 0) == 0;
+}
+bool is_rate(const std::string& n) {
+  return n.size() > 5 && n.compare(n.size() - 5, 5, "_rate") == 0;
+}
+
+// The shorthand a plain source is written with: current:X, rate:X, or field:X.
+std::string plain_spec(const std::string& x) {
+  if (is_electrical(x)) return "current:" + x;
+  if (is_rate(x)) return "rate:" + x;
+  return "field:" + x;
+}
+
+std::string family_of_tl(const std::string& spec) {
+  for (const char* f : {"permanent", "induced", "eddy"}) {
+    if (spec.rfind(f, 0) == 0 && spec.find(':') == std::string::npos) return f;
+  }
+  return spec;
+}
+
+// One term to try: its spec (free parameters as ?), what kind of effect, which channel.
+struct Job {
+  std::string spec;
+  std::string family;
+  std::string channel;
+};
+
+// Result of one job.
+struct Scored {
+  bool ok = false;
+  std::string spec;  // parameters as numbers
+  double sel = 0, conf = 0, held = 0;
+  Eigen::VectorXd coef;  // the candidate's coefficients
+  long fits = 0;
+  std::string note;
+};
+
+// Mean-removed RMS per line over the rows of one fold (-1: every held-out row).
+double fold_std(const Eigen::VectorXd& e, const std::vector<Eigen::Index>& held,
+                const std::vector<int>& fold, const Eigen::VectorXd& line, int which) {
+  std::map<double, std::pair<double, double>> acc;
+  for (Eigen::Index i : held) {
+    if (which >= 0 && fold[static_cast<size_t>(i)] != which) continue;
+    if (!std::isfinite(e[i])) continue;
+    auto& a = acc[line[i]];
+    a.first += e[i];
+    a.second += 1;
+  }
+  double ss = 0, n = 0;
+  for (Eigen::Index i : held) {
+    if (which >= 0 && fold[static_cast<size_t>(i)] != which) continue;
+    if (!std::isfinite(e[i])) continue;
+    const auto& a = acc[line[i]];
+    const double d = e[i] - a.first / a.second;
+    ss += d * d;
+    n += 1;
+  }
+  return n > 1 ? std::sqrt(ss / n) : 0.0;
+}
+
+// Everything a candidate is scored against: read-only once built, shared by the workers.
+class Search {
+ public:
+  Search(const Model& model, const FlightData& data, const std::string& truth_name, Diagnosis* dx);
+
+  // Scores a term's columns (N x k): fit on the fit rows with the base columns, errors on the
+  // held-out rows of each fold.
+  Scored score(const Eigen::MatrixXd& cols) const;
+  // The fit's residual sum of squares with these columns added.
+  double fit_rss(const Eigen::MatrixXd& cols) const;
+  // Builds, scans (free parameters) and scores one job.
+  Scored run(const Job& job) const;
+  // The realigned-scalar lag scan, alone or with partner columns (N x k).
+  Scored lag_candidate(double* tau_out, const Eigen::MatrixXd& partner) const;
+  // The lag fixed at tau (s), with partner columns.
+  Scored lag_at(double tau, const Eigen::MatrixXd& partner) const;
+  // The columns of a term on this flight.
+  Eigen::MatrixXd columns_of(const std::string& spec) const {
+    const auto t = make_term(spec);
+    Eigen::MatrixXd c(data.size(), t->columns());
+    t->build(inputs, c);
+    return c;
+  }
+
+  const Model& model;
+  const FlightData& data;
+  Eigen::VectorXd scalar, truth, line;
+  FitSettings fs;
+  std::vector<std::pair<Eigen::Index, Eigen::Index>> runs;
+  std::vector<Eigen::Index> held;
+  std::vector<int> fold;  // per sample: 0 selection, 1 confirmation, -1 not held out
+  std::vector<int> unit;  // per sample: its held-out unit, in time order (-1: not held out)
+  TermInputs inputs;
+  Eigen::MatrixXd a0;  // the base's fittable columns, N x p
+  Eigen::MatrixXd af0;
+  Eigen::VectorXd yf;
+  std::unique_ptr<RidgeProfile> profile;
+  Eigen::VectorXd e0;              // base error, N
+  double base_std[3] = {0, 0, 0};  // selection, confirmation, all held out
+  double dt = 0.1, span = 1.0;
+
+ private:
+  Eigen::MatrixXd stacked(const Eigen::MatrixXd& cols) const {
+    const Eigen::MatrixXd z = cols.unaryExpr([](double v) { return std::isfinite(v) ? v : 0.0; });
+    return stack_runs(fs, dt, z, runs);
+  }
+};
+
+Search::Search(const Model& m, const FlightData& d, const std::string& truth_name, Diagnosis* dx)
+    : model(m), data(d) {
+  truth = data.column(truth_name);
+  const auto terms = model.make_terms();
+  const Eigen::MatrixXd a_all = design_matrix(model, terms, data);  // names a missing field
+  scalar = aligned_scalar(model, data);
+  line =
+      data.has("line") ? Eigen::VectorXd(data.column("line")) : Eigen::VectorXd::Zero(data.size());
+  const Eigen::Index n = data.size();
+  dt = data.dt_s();
+  span = n > 1 ? data.tt()[n - 1] - data.tt()[0] : 1.0;
+  // --- Fit rows: the model's own calibration when this flight holds it.
+  fs = model.fit;
+  Eigen::VectorXd y;
+  bool own = false;
+  if (!(fs.lines.empty() && fs.windows.empty())) {
+    if (fs.method == FitMethod::kReference && !data.has(fs.reference)) {
+      throw Error(data.source() + ": field '" + fs.reference + "' (fit.reference) not found");
+    }
+    y = fs.method == FitMethod::kBandpass ? scalar
+                                          : Eigen::VectorXd(scalar - data.column(fs.reference));
+    runs = calibration_runs(fs, data, a_all, y, nullptr);
+    own = !runs.empty();
+  }
+  std::vector<bool> in_fit(static_cast<size_t>(n), false);
+  if (own) {
+    for (Eigen::Index i : data.select(fs.lines, fs.windows)) in_fit[static_cast<size_t>(i)] = true;
+    dx->split = fs.method == FitMethod::kBandpass
+                    ? "fit on the model's calibration segments (band-pass)"
+                    : "fit on the model's fit lines (reference " + fs.reference + ")";
+  } else {
+    std::vector<double> lines;
+    for (Eigen::Index i = 0; i < n; ++i) {
+      if (std::isfinite(line[i]) && std::find(lines.begin(), lines.end(), line[i]) == lines.end())
+        lines.push_back(line[i]);
+    }
+    std::sort(lines.begin(), lines.end());
+    if (lines.size() < 3) {
+      throw Error(data.source() +
+                  ": diagnose needs three lines, or the model's calibration segments and two more");
+    }
+    fs.method = FitMethod::kReference;
+    fs.reference = truth_name;
+    fs.windows.clear();
+    fs.lines.clear();
+    for (size_t k = 0; k < lines.size(); k += 2) fs.lines.push_back(lines[k]);
+    y = scalar - truth;
+    runs = calibration_runs(fs, data, a_all, y, nullptr);
+    for (Eigen::Index i : data.select(fs.lines, {})) in_fit[static_cast<size_t>(i)] = true;
+    dx->split = "fit: reference fit against " + truth_name + " on every other line";
+  }
+  if (runs.empty()) throw Error(data.source() + ": no usable fit samples for diagnose");
+  // --- The base: the model's fittable columns, refitted.
+  const std::vector<Eigen::Index> keep = fittable_columns(fs.method, terms);
+  a0.resize(n, static_cast<Eigen::Index>(keep.size()));
+  for (size_t k = 0; k < keep.size(); ++k)
+    a0.col(static_cast<Eigen::Index>(k)) = a_all.col(keep[k]);
+  af0 = stack_runs(fs, dt, a0, runs);
+  yf = stack_runs(fs, dt, y, runs).col(0);
+  dx->fit_samples = yf.size();
+  profile = std::make_unique<RidgeProfile>(af0, yf, fs.lambda);
+  const Eigen::VectorXd c0 = profile->solve(Eigen::MatrixXd(yf.size(), 0), nullptr);
+  e0 = scalar - truth - a0 * c0;
+  // --- Held out: every other line, in units (a line, or each contiguous piece of a line flown in
+  // pieces) dealt in time order into selection and confirmation.
+  unit.assign(static_cast<size_t>(n), -1);
+  int units = 0;
+  Eigen::Index prev = -2;
+  for (Eigen::Index i = 0; i < n; ++i) {
+    if (in_fit[static_cast<size_t>(i)] || !std::isfinite(e0[i]) || !std::isfinite(line[i]))
+      continue;
+    if (prev != i - 1 || line[i] != line[prev]) ++units;
+    unit[static_cast<size_t>(i)] = units - 1;
+    held.push_back(i);
+    prev = i;
+  }
+  if (held.size() < 100) throw Error(data.source() + ": too few held-out samples for diagnose");
+  fold.assign(static_cast<size_t>(n), -1);
+  if (units >= 2) {
+    for (Eigen::Index i : held) fold[static_cast<size_t>(i)] = unit[static_cast<size_t>(i)] % 2;
+  } else {  // one held-out piece: its first and second halves
+    for (size_t k = 0; k < held.size(); ++k) {
+      fold[static_cast<size_t>(held[k])] = k < held.size() / 2 ? 0 : 1;
+      unit[static_cast<size_t>(held[k])] = k < held.size() / 2 ? 0 : 1;
+    }
+  }
+  for (Eigen::Index i : held) {
+    auto& v = fold[static_cast<size_t>(i)] == 0 ? dx->selection_lines : dx->confirmation_lines;
+    if (std::find(v.begin(), v.end(), line[i]) == v.end()) v.push_back(line[i]);
+  }
+  dx->split +=
+      "; held out: the other lines, ranked on the selection lines and confirmed on the "
+      "confirmation lines (alternate lines, or pieces of a line, in time order)";
+  dx->heldout_samples = static_cast<Eigen::Index>(held.size());
+  for (int f = 0; f < 2; ++f) base_std[f] = fold_std(e0, held, fold, line, f);
+  base_std[2] = fold_std(e0, held, fold, line, -1);
+  dx->baseline_selection_std_nT = base_std[0];
+  dx->baseline_confirmation_std_nT = base_std[1];
+  dx->baseline_std_nT = base_std[2];
+  inputs = make_term_inputs(data, model.vector, model.bt_scale_nT);
+}
+
+double Search::fit_rss(const Eigen::MatrixXd& cols) const {
+  double rss = 0;
+  profile->solve(stacked(cols), &rss);
+  return std::isfinite(rss) ? rss : std::numeric_limits<double>::infinity();
+}
+
+Scored Search::score(const Eigen::MatrixXd& cols) const {
+  Scored s;
+  const Eigen::VectorXd coef = profile->solve(stacked(cols), nullptr);
+  const Eigen::Index p = a0.cols(), k = cols.cols();
+  Eigen::VectorXd e = Eigen::VectorXd::Constant(data.size(), NAN);
+  for (Eigen::Index i : held) {
+    double v = scalar[i] - truth[i] - a0.row(i).dot(coef.head(p));
+    for (Eigen::Index j = 0; j < k; ++j) {
+      if (std::isfinite(cols(i, j))) v -= cols(i, j) * coef[p + j];  // no data: no correction
+    }
+    e[i] = v;
+  }
+  s.sel = fold_std(e, held, fold, line, 0);
+  s.conf = fold_std(e, held, fold, line, 1);
+  s.held = fold_std(e, held, fold, line, -1);
+  s.coef = coef.tail(k);
+  s.ok = std::isfinite(s.sel) && std::isfinite(s.conf);
+  return s;
+}
+
+Scored Search::run(const Job& job) const {
+  auto term = make_term(job.spec);
+  auto columns = [&](const Term& t) {
+    Eigen::MatrixXd c(data.size(), t.columns());
+    t.build(inputs, c);
+    return c;
+  };
+  long fits = 0;
+  const auto* expr = dynamic_cast<const ExprTerm*>(term.get());
+  if (expr && expr->signal().has_free()) {
+    TransformKind kind = TransformKind::LowPass;
+    for (const auto& tr : expr->signal().transforms)
+      if (tr.free) kind = tr.kind;
+    std::vector<double> grid = parameter_grid(kind, dt, span);
+    if (kind == TransformKind::Delay) {  // delays up to 2 s at the grid's step: a periodic
+      grid.erase(std::remove_if(grid.begin(), grid.end(), [](double v) { return v > 2.0 + 1e-9; }),
+                 grid.end());       // source (a strobe) makes the objective many-valleyed
+    } else if (grid.size() > 12) {  // a coarser grid; the golden section refines it
+      std::vector<double> thin;
+      for (size_t k = 0; k < grid.size(); k += (grid.size() + 11) / 12) thin.push_back(grid[k]);
+      grid = thin;
+    }
+    double v = scan_parameter(kind, grid, [&](double x) {
+      ++fits;
+      return fit_rss(columns(*make_term(expr->with_parameters({x}))));
+    });
+    if (kind == TransformKind::Delay && v < 0.5 * dt) {  // no delay: the plain form says it
+      Scored none;
+      none.fits = fits;
+      return none;
+    }
+    term = make_term(expr->with_parameters({v}));
+  }
+  const Eigen::MatrixXd cols = columns(*term);
+  Scored s = score(cols);
+  s.spec = term->spec();
+  s.fits = fits + 1;
+  if (!(cols.array().isFinite().any())) s.ok = false;
+  return s;
+}
+
+Scored Search::lag_candidate(double* tau_out, const Eigen::MatrixXd& partner) const {
+  // The raw scalar realigned by tau (absolute); only the target changes, so each trial is one
+  // filter of y and one small solve. Coarse grid over the model's lag +-1 s, then golden-section
+  // refinement to 0.01 s. A model that has a lag gets it re-estimated. With partner columns
+  // (N x k) the lag is scanned and scored together with them: a lag moves the signature of every
+  // effect, so it is judged with the term whose timing it explains.
+  const FlightData::Column raw = data.column(model.scalar);
+  const double current = model.scalar_lag_s();
+  const Eigen::MatrixXd pf = stacked(partner);
+  Eigen::MatrixXd base(af0.rows(), af0.cols() + pf.cols());
+  base << af0, pf;
+  const Eigen::MatrixXd g = base.transpose() * base;
+  Eigen::MatrixXd r = g;
+  r.diagonal().array() +=
+      fs.lambda + 1e-12 * std::max(g.trace() / std::max<double>(g.cols(), 1), 1e-300);
+  const auto ldlt = r.ldlt();
+  const bool bandpass = fs.method == FitMethod::kBandpass;
+  const Eigen::MatrixXd partner0 =
+      partner.unaryExpr([](double v) { return std::isfinite(v) ? v : 0.0; });
+  auto errors = [&](double tau) {
+    const Eigen::VectorXd s = shift_samples(raw, -tau / dt);             // NaN past the ends
+    const Eigen::VectorXd s_held = shift_samples(raw, -tau / dt, true);  // filters need no NaN
+    const Eigen::VectorXd yl =
+        bandpass ? s_held : Eigen::VectorXd(s_held - data.column(fs.reference));
+    const Eigen::VectorXd ylf = stack_runs(fs, dt, yl, runs).col(0);
+    const Eigen::VectorXd c = ldlt.solve(base.transpose() * ylf);
+    Eigen::VectorXd e = s - truth - a0 * c.head(a0.cols());
+    if (partner.cols() > 0) e -= partner0 * c.tail(partner.cols());
+    return e;
+  };
+  auto cost = [&](double tau) {  // scored on the selection lines, as every candidate is ranked
+    return fold_std(errors(tau), held, fold, line, 0);
+  };
+  std::vector<double> grid;
+  for (double tau = current - 1.0; tau <= current + 1.0 + 1e-9; tau += 0.05) grid.push_back(tau);
+  const double tau = std::round(scan_parameter(TransformKind::Delay, grid, cost) * 100) / 100;
+  Scored s = lag_at(tau, partner);
+  s.fits = static_cast<long>(grid.size()) + 26;
+  *tau_out = tau;
+  return s;
+}
+
+Scored Search::lag_at(double tau, const Eigen::MatrixXd& partner) const {
+  const FlightData::Column raw = data.column(model.scalar);
+  const double current = model.scalar_lag_s();
+  const Eigen::MatrixXd pf = stacked(partner);
+  Eigen::MatrixXd base(af0.rows(), af0.cols() + pf.cols());
+  base << af0, pf;
+  const Eigen::MatrixXd g = base.transpose() * base;
+  Eigen::MatrixXd r = g;
+  r.diagonal().array() +=
+      fs.lambda + 1e-12 * std::max(g.trace() / std::max<double>(g.cols(), 1), 1e-300);
+  const bool bandpass = fs.method == FitMethod::kBandpass;
+  const Eigen::VectorXd sh = shift_samples(raw, -tau / dt);            // NaN past the ends
+  const Eigen::VectorXd s_held = shift_samples(raw, -tau / dt, true);  // filters need no NaN
+  const Eigen::VectorXd yl =
+      bandpass ? s_held : Eigen::VectorXd(s_held - data.column(fs.reference));
+  const Eigen::VectorXd ylf = stack_runs(fs, dt, yl, runs).col(0);
+  const Eigen::VectorXd c = r.ldlt().solve(base.transpose() * ylf);
+  Eigen::VectorXd e = sh - truth - a0 * c.head(a0.cols());
+  if (partner.cols() > 0) {
+    e -= partner.unaryExpr([](double v) { return std::isfinite(v) ? v : 0.0; }) *
+         c.tail(partner.cols());
+  }
+  Scored s;
+  s.ok = std::abs(tau - current) >= 0.005;
+  s.spec = "lag";
+  s.sel = fold_std(e, held, fold, line, 0);
+  s.conf = fold_std(e, held, fold, line, 1);
+  s.held = fold_std(e, held, fold, line, -1);
+  s.fits = 1;
+  return s;
+}
+
+// Candidate jobs for the sources and the model.
+std::vector<Job> make_jobs(const Model& model, const std::vector<std::string>& sources) {
+  std::vector<Job> jobs;
+  std::set<std::string> have(model.terms.begin(), model.terms.end());
+  std::set<std::string> shapes;  // a term of the model is re-estimated with ?, not searched again
+  for (const auto& t : model.terms) {
+    if (const auto e = parse_expr_term(t)) shapes.insert(e->shape());
+  }
+  std::set<std::string> families;
+  for (const auto& t : model.terms) families.insert(family_of_tl(t));
+  auto add = [&](const std::string& spec, const std::string& family, const std::string& ch) {
+    if (have.count(spec)) return;
+    if (const auto e = parse_expr_term(spec); e && shapes.count(e->shape())) return;
+    jobs.push_back({spec, family, ch});
+  };
+  for (const char* f : {"permanent", "induced", "eddy"}) {
+    if (!families.count(f)) add(f, "tolles-lawson", "");
+  }
+  add("second_order", "second order", "");
+  add("field:B|decay(?)", "eddy currents that decay", "");
+  add("scalar:Bt", "induced field scaling with |B|", "");
+  add("scalar:" + model.scalar + "|d", "scalar sensor response", model.scalar);
+  for (const std::string& x : sources) {
+    add(plain_spec(x), is_rate(x) ? "attitude rate" : "field of a channel", x);
+    add(is_electrical(x) ? "dcurrent:" + x : "field:" + x + "|d", "rate of change", x);
+    add("field:" + x + "|lp(?)", "slow response (thermal)", x);
+    add("field:" + x + "|delay(?)", "delayed response", x);
+    add("scalar:" + x + "|lp(?)", "drift of the reading", x);
+    if (is_current(x)) {
+      add("field:" + x + "|pow(2)|lp(?)", "heating (I²) response", x);
+      add("field:" + x + "|int", "state (integral of a current)", x);
+    }
+  }
+  return jobs;
+}
+
+// Runs jobs on `threads` workers.
+std::vector<Scored> run_jobs(const Search& search, const std::vector<Job>& jobs, int threads) {
+  std::vector<Scored> out(jobs.size());
+  std::atomic<size_t> next{0};
+  auto worker = [&] {
+    for (size_t k; (k = next++) < jobs.size();) {
+      try {
+        out[k] = search.run(jobs[k]);
+      } catch (const std::exception& e) {
+        out[k].ok = false;
+        out[k].note = "candidate '" + jobs[k].spec + "' skipped: " + e.what();
+      }
+    }
+  };
+  std::vector<std::future<void>> pool;
+  for (int t = 1; t < std::max(threads, 1); ++t)
+    pool.push_back(std::async(std::launch::async, worker));
+  worker();
+  for (auto& f : pool) f.get();
+  return out;
+}
+
+// How much a term says: its sources and transforms (a shorthand or TL family counts 1).
+int complexity(const std::string& spec) {
+  const auto e = parse_expr_term(spec);
+  if (!e) return 1;
+  int n = static_cast<int>(e->signal().sources.size() + e->signal().transforms.size());
+  for (const auto& t : e->signal().transforms) n += t.has_param();
+  return n;
+}
+
+double share(double after, double before) {
+  return before > 0 ? 1.0 - (after / before) * (after / before) : 0.0;
+}
+
+}  // namespace
+
+std::vector<std::string> source_fields(const Model& model, const FlightData& data,
+                                       const std::string& truth, bool full_search,
+                                       std::vector<std::string>* notes) {
+  std::vector<std::string> out;
+  for (const std::string& name : data.names()) {
+    if (kBookkeeping.count(name) || name.rfind("mag_", 0) == 0 || name.rfind("flux_", 0) == 0 ||
+        name == truth || name == model.fit.reference || name == "diurnal" ||
+        name.rfind("ogs_", 0) == 0 || name == "drape" || name.front() == '~') {
+      continue;
+    }
+    if (!full_search && !is_electrical(name) && !is_rate(name)) continue;
+    const FlightData::Column x = data.column(name);
+    double lo = INFINITY, hi = -INFINITY;
+    Eigen::Index finite = 0;
+    for (Eigen::Index i = 0; i < x.size(); ++i) {
+      if (std::isfinite(x[i])) {
+        lo = std::min(lo, x[i]);
+        hi = std::max(hi, x[i]);
+        ++finite;
+      }
+    }
+    if (!(hi > lo)) {
+      if (notes) notes->push_back("channel '" + name + "' is constant (or all NaN); skipped");
+      continue;
+    }
+    if (finite < x.size() * 9 / 10) {
+      if (notes) notes->push_back("channel '" + name + "' is more than 10 % NaN; skipped");
+      continue;
+    }
+    out.push_back(name);
+  }
+  return out;
+}
+
+namespace {
+
+// The model to diagnose: the reference checked, and a template's free parameters estimated.
+Model prepared_model(const Model& model_in, const FlightData& data, const std::string& truth_name) {
+  if (!data.has(truth_name)) {
+    throw Error(data.source() + ": reference field '" + truth_name + "' not found");
+  }
+  if (!data.column(truth_name).array().isFinite().any()) {
+    throw Error(data.source() + ": reference field '" + truth_name + "' holds no finite sample");
+  }
+  Model model = model_in;
+  for (const auto& t : model.terms) {
+    if (t.find('?') != std::string::npos) {
+      fit_model(model, {&data});
+      break;
+    }
+  }
+  return model;
+}
+
+// Products of the strongest sources (their best single form explains more than
+// accept_fraction on the selection lines): at most 4 sources, so 6 products.
+std::vector<Job> product_jobs(const Model& model, const Search& search,
+                              const std::vector<Job>& jobs, const std::vector<Scored>& scored,
+                              double accept_fraction) {
+  std::map<std::string, double> best_by_source;
+  for (size_t k = 0; k < jobs.size(); ++k) {
+    if (!scored[k].ok || jobs[k].channel.empty() || jobs[k].channel == model.scalar) continue;
+    auto& b = best_by_source[jobs[k].channel];
+    b = std::max(b, share(scored[k].sel, search.base_std[0]));
+  }
+  std::vector<std::pair<double, std::string>> strongest;
+  for (const auto& [ch, v] : best_by_source) {
+    if (v > accept_fraction) strongest.emplace_back(v, ch);
+  }
+  std::sort(strongest.rbegin(), strongest.rend());
+  if (strongest.size() > 4) strongest.resize(4);
+  std::vector<Job> products;
+  for (size_t a = 0; a < strongest.size(); ++a) {
+    for (size_t b = a + 1; b < strongest.size(); ++b) {
+      const std::string& x = strongest[a].second;
+      const std::string& y = strongest[b].second;
+      products.push_back({"field:" + x + "*" + y, "product of two channels", x + "*" + y});
+    }
+  }
+  return products;
+}
+
+// Every scored job becomes a candidate (each term once), with its fit counted.
+void add_candidates(const std::vector<Job>& jobs, const std::vector<Scored>& scored,
+                    const Search& search, Diagnosis* dx) {
+  std::set<std::string> seen;
+  for (size_t k = 0; k < jobs.size(); ++k) {
+    dx->candidates_tried += std::max(scored[k].fits, 1L);
+    if (!scored[k].note.empty()) dx->notes.push_back(scored[k].note);
+    if (!scored[k].ok || !seen.insert(scored[k].spec).second) continue;
+    const auto term = make_term(scored[k].spec);
+    Candidate c;
+    c.term = term->spec();
+    c.effect = term->effect();
+    c.channel = jobs[k].channel;
+    c.family = jobs[k].family;
+    c.std_after_nT = scored[k].held;
+    c.explained_selection = share(scored[k].sel, search.base_std[0]);
+    c.explained_confirmation = share(scored[k].conf, search.base_std[1]);
+    if (const auto* e = dynamic_cast<const ExprTerm*>(term.get())) {
+      c.estimate = e->size_in_words(scored[k].coef);
+      c.parameters = e->parameters();
+      c.parameters.emplace_back("gain_nT_per_unit", scored[k].coef.norm());
+    }
+    dx->candidates.push_back(c);
+  }
+}
+
+// A channel's term without a delay of its own (the partner a scalar lag is judged with).
+std::string undelayed(const std::string& term) {
+  const auto e = parse_expr_term(term);
+  if (!e) return term;
+  SignalExpr sig = e->signal();
+  sig.transforms.erase(
+      std::remove_if(sig.transforms.begin(), sig.transforms.end(),
+                     [](const Transform& t) { return t.kind == TransformKind::Delay; }),
+      sig.transforms.end());
+  if (sig.transforms.empty() && sig.sources.size() == 1) return plain_spec(sig.sources[0]);
+  return ExprTerm(e->projection(), sig).spec();
+}
+
+// The lag, alone; and, when the best candidate so far is a channel's term, together with that
+// channel's term without a delay of its own: a scalar lag delays the channel's signature too,
+// and the pair may explain more than the delayed term (round 1 adds the lag, round 2 the term).
+void add_lag_candidate(const Model& model, const FlightData& data, const Search& search,
+                       Diagnosis* dx) {
+  double tau = 0;
+  Scored lag = search.lag_candidate(&tau, Eigen::MatrixXd(data.size(), 0));
+  dx->candidates_tried += lag.fits;
+  double lag_pair_share = NAN;
+  std::string partner_note;
+  const Candidate* best = nullptr;
+  for (const auto& c : dx->candidates) {
+    if (!best || c.explained_selection > best->explained_selection) best = &c;
+  }
+  if (best && !best->channel.empty() && best->channel != model.scalar) {
+    const std::string partner = undelayed(best->term);
+    double tau2 = 0;
+    const Scored pair = search.lag_candidate(&tau2, search.columns_of(partner));
+    dx->candidates_tried += pair.fits;
+    const double pair_share = share(pair.sel, search.base_std[0]);
+    if (pair.ok && pair_share > best->explained_selection + 0.01) {
+      lag = search.lag_at(tau2, Eigen::MatrixXd(data.size(), 0));  // the lag by itself there
+      tau = tau2;
+      char buf[160];
+      std::snprintf(buf, sizeof(buf), "; with %s next: %.1f%% together", partner.c_str(),
+                    100 * pair_share);
+      partner_note = buf;
+      lag_pair_share = pair_share;
+    }
+  }
+  if (!lag.ok) return;
+  const auto term = make_term("lag:" + std::to_string(tau));
+  Candidate c;
+  c.term = term->spec();
+  c.effect = term->effect();
+  c.family = "scalar lag";
+  c.std_after_nT = lag.held;
+  c.explained_selection = share(lag.sel, search.base_std[0]);
+  c.explained_confirmation = share(lag.conf, search.base_std[1]);
+  std::ostringstream est;
+  est.precision(3);
+  est << "scalar late by " << tau << " s";
+  if (model.scalar_lag_s() != 0.0) est << " (model: " << model.scalar_lag_s() << ")";
+  c.estimate = est.str() + partner_note;
+  c.parameters = {{"lag_s", tau}};
+  c.ranking_share = std::isfinite(lag_pair_share) ? lag_pair_share : c.explained_selection;
+  dx->candidates.push_back(c);
+}
+
+// Acceptance on both halves, then the ranking: accepted first, by their share on the selection
+// lines; among the accepted within one percentage point of the best, the simplest first
+// (nrml_acc before nrml_acc*vol_res_p).
+void judge_and_rank(const Search& search, const DiagnoseOptions& options,
+                    std::vector<Candidate>* candidates) {
+  for (auto& c : *candidates) {
+    if (!std::isfinite(c.ranking_share)) c.ranking_share = c.explained_selection;
+    c.explained_fraction = std::min(c.explained_selection, c.explained_confirmation);
+    // The std it removes on each split, nT.
+    const double gain_sel =
+        search.base_std[0] * (1 - std::sqrt(std::max(0.0, 1 - c.explained_selection)));
+    const double gain_conf =
+        search.base_std[1] * (1 - std::sqrt(std::max(0.0, 1 - c.explained_confirmation)));
+    c.accepted = c.explained_selection >= options.accept_fraction &&
+                 c.explained_confirmation >= options.accept_fraction &&
+                 gain_sel >= options.resolution_nT && gain_conf >= options.resolution_nT;
+  }
+  std::stable_sort(candidates->begin(), candidates->end(),
+                   [](const Candidate& a, const Candidate& b) {
+                     if (a.accepted != b.accepted) return a.accepted;
+                     return a.ranking_share > b.ranking_share;
+                   });
+  if (candidates->empty() || !candidates->front().accepted) return;
+  const double best = candidates->front().ranking_share;
+  size_t pick = 0;
+  for (size_t k = 1; k < candidates->size(); ++k) {
+    const Candidate& c = (*candidates)[k];
+    if (!c.accepted || c.ranking_share < best - 0.01) break;
+    if (complexity(c.term) < complexity((*candidates)[pick].term)) pick = k;
+  }
+  std::rotate(candidates->begin(), candidates->begin() + static_cast<long>(pick),
+              candidates->begin() + static_cast<long>(pick) + 1);
+}
+
+// What remains: the base residual on the held-out lines (each line's mean removed) against a
+// flexible model of the source channels.
+ExplainableShare remaining_share(const FlightData& data, const Search& search,
+                                 const std::vector<std::string>& sources, double baseline_std_nT,
+                                 double resolution_nT) {
+  Eigen::VectorXd r = Eigen::VectorXd::Constant(data.size(), NAN);
+  std::map<double, std::pair<double, double>> mean;
+  for (Eigen::Index i : search.held) {
+    auto& m = mean[search.line[i]];
+    m.first += search.e0[i];
+    m.second += 1;
+  }
+  for (Eigen::Index i : search.held) {
+    const auto& m = mean[search.line[i]];
+    r[i] = search.e0[i] - m.first / m.second;
+  }
+  std::vector<std::pair<std::string, Eigen::Map<const Eigen::VectorXd>>> channels;
+  for (const auto& s : sources) channels.emplace_back(s, data.column(s));
+  ExplainableShare x =
+      explainable_share(r, search.unit, search.line, data.tt(), search.inputs.direction, channels,
+                        [&data] { data.drop_mapped_pages(); });
+  // A predictable remainder below the resolution is noise for every practical purpose.
+  if (std::sqrt(std::max(0.0, x.share)) * baseline_std_nT < resolution_nT) x.within_noise = true;
+  return x;
+}
+
+// The verdict: add the top term, or say that structure remains (and where), or complete.
+std::string verdict_of(const Diagnosis& dx, double resolution_nT) {
+  char buf[512];
+  const ExplainableShare& x = dx.explainable;
+  if (!dx.candidates.empty() && dx.candidates.front().accepted &&
+      dx.candidates.front().explained_fraction >= 0.05) {
+    const Candidate& c = dx.candidates.front();
+    std::snprintf(buf, sizeof(buf),
+                  "add %s: it explains %.1f%% of the held-out error on the selection lines and "
+                  "%.1f%% on the confirmation lines",
+                  c.term.c_str(), 100 * c.explained_selection, 100 * c.explained_confirmation);
+    return buf;
+  }
+  if (x.computed && !x.within_noise) {
+    std::string chans;
+    for (size_t k = 0; k < x.channels.size() && k < 3; ++k) {
+      if (x.channels[k].second <= 0) break;
+      chans += (k ? ", " : "") + x.channels[k].first;
+    }
+    std::snprintf(buf, sizeof(buf),
+                  "structure remains: %.1f%% ± %.1f%% of the held-out residual is predictable "
+                  "(noise floor %.1f%%), mostly from %s, and no term of the search explains it",
+                  100 * x.share, 100 * x.uncertainty, 100 * x.noise_floor,
+                  chans.empty() ? "no single channel" : chans.c_str());
+    return buf;
+  }
+  if (x.computed) {
+    std::snprintf(buf, sizeof(buf),
+                  "complete: what remains is within noise (predictable share %.1f%% ± %.1f%%, "
+                  "noise floor %.1f%%; predictable part %.3f nT rms, resolution %.3f nT)",
+                  100 * x.share, 100 * x.uncertainty, 100 * x.noise_floor,
+                  std::sqrt(x.share) * dx.baseline_std_nT, resolution_nT);
+    return buf;
+  }
+  return "no candidate explains 5 % on both halves (the explainable share was not computed)";
+}
+
+}  // namespace
+
+Diagnosis diagnose(const Model& model_in, const FlightData& data, const std::string& truth_name,
+                   const DiagnoseOptions& options) {
+  const Model model = prepared_model(model_in, data, truth_name);
+  Diagnosis dx;
+  // Each step copies the columns it reads: between steps the file's pages need not stay
+  // resident (they are mapped again when read).
+  const Search search(model, data, truth_name, &dx);
+  const std::vector<std::string> sources =
+      source_fields(model, data, truth_name, options.full_search, &dx.notes);
+  data.drop_mapped_pages();
+  std::vector<Job> jobs = make_jobs(model, sources);
+  std::vector<Scored> scored = run_jobs(search, jobs, options.threads);
+  const std::vector<Job> products =
+      product_jobs(model, search, jobs, scored, options.accept_fraction);
+  if (!products.empty()) {
+    std::vector<Scored> more = run_jobs(search, products, options.threads);
+    jobs.insert(jobs.end(), products.begin(), products.end());
+    scored.insert(scored.end(), more.begin(), more.end());
+  }
+  data.drop_mapped_pages();
+  add_candidates(jobs, scored, search, &dx);
+  add_lag_candidate(model, data, search, &dx);
+  judge_and_rank(search, options, &dx.candidates);
+  data.drop_mapped_pages();
+  dx.associations = residual_associations(data, search.held, search.e0, search.line, truth_name);
+  data.drop_mapped_pages();
+  if (options.explainable_share) {
+    dx.explainable =
+        remaining_share(data, search, sources, dx.baseline_std_nT, options.resolution_nT);
+  }
+  dx.verdict = verdict_of(dx, options.resolution_nT);
+  return dx;
+}
+
+}  // namespace magcomp

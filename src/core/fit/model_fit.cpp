@@ -1,0 +1,589 @@
+// magcomp: design matrix, band-pass / reference fit, compensation.
+#include <Eigen/Dense>
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <exception>
+#include <limits>
+#include <mutex>
+#include <sstream>
+#include <thread>
+
+#include "magcomp/core/error.h"
+#include "magcomp/core/fit/parameter_fit.h"
+#include "magcomp/core/math/butterworth.h"
+#include "magcomp/core/math/timeseries.h"
+#include "magcomp/core/model/model.h"
+#include "magcomp/core/model/quadratic_form.h"
+#include "magcomp/core/model/terms_expr.h"
+
+namespace magcomp {
+
+std::vector<std::unique_ptr<Term>> Model::make_terms() const {
+  std::vector<std::unique_ptr<Term>> out;
+  for (const std::string& spec : terms) out.push_back(make_term(spec));
+  return out;
+}
+
+std::vector<std::string> Model::make_column_names() const {
+  std::vector<std::string> names;
+  for (const auto& t : make_terms()) {
+    for (const auto& c : t->column_names()) names.push_back(c);
+  }
+  return names;
+}
+
+double Model::scalar_lag_s() const {
+  double lag = 0.0;
+  for (const auto& t : make_terms()) lag += t->scalar_lag_s();
+  return lag;
+}
+
+Eigen::VectorXd aligned_scalar(const Model& model, const FlightData& data) {
+  return aligned_scalar(model, data, model.scalar_lag_s());
+}
+
+Eigen::VectorXd aligned_scalar(const Model& model, const FlightData& data, double lag) {
+  const auto s = data.column(model.scalar);
+  if (lag == 0.0) return s;
+  return shift_samples(s, -lag / data.dt_s());
+}
+
+bool Model::add_term(const std::string& spec) {
+  const std::string canonical = make_term(spec)->spec();
+  if (std::find(terms.begin(), terms.end(), canonical) != terms.end()) return false;
+  if (const auto e = parse_expr_term(canonical)) {
+    for (auto& t : terms) {
+      const auto old = parse_expr_term(t);
+      if (old && old->shape() == e->shape() && old->spec().find('(') != std::string::npos) {
+        t = canonical;  // the same expression with new parameter values
+        coefficients.resize(0);
+        return true;
+      }
+    }
+  }
+  if (canonical.rfind("lag:", 0) == 0) {  // one lag per model: a new one replaces the old
+    terms.erase(std::remove_if(terms.begin(), terms.end(),
+                               [](const std::string& t) { return t.rfind("lag:", 0) == 0; }),
+                terms.end());
+  }
+  terms.push_back(canonical);
+  return true;
+}
+
+std::vector<Eigen::Index> fittable_columns(FitMethod method,
+                                           const std::vector<std::unique_ptr<Term>>& terms) {
+  const bool bandpass = method == FitMethod::kBandpass;
+  std::vector<Eigen::Index> out;
+  Eigen::Index c = 0;
+  for (const auto& t : terms) {
+    for (Eigen::Index k = 0; k < t->columns(); ++k, ++c) {
+      if (!bandpass || t->bandpass_observable()) out.push_back(c);
+    }
+  }
+  return out;
+}
+
+const char* fit_method_name(FitMethod m) {
+  return m == FitMethod::kReference ? "reference" : "bandpass";
+}
+
+Eigen::MatrixXd design_matrix(const Model& model, const FlightData& data) {
+  return design_matrix(model, model.make_terms(), data);
+}
+
+Eigen::MatrixXd design_matrix(const Model& model, const std::vector<std::unique_ptr<Term>>& terms,
+                              const FlightData& data) {
+  for (const auto& t : terms) {
+    for (const auto& f : t->fields()) {
+      if (!data.has(f)) {
+        throw Error(data.source() + ": field '" + f + "' needed by term '" + t->spec() +
+                    "' not found");
+      }
+    }
+  }
+  const TermInputs in = make_term_inputs(data, model.vector, model.bt_scale_nT);
+  Eigen::Index cols = 0;
+  for (const auto& t : terms) cols += t->columns();
+  Eigen::MatrixXd a(data.size(), cols);
+  Eigen::Index c = 0;
+  for (const auto& t : terms) {
+    const Eigen::Index w = t->columns();
+    t->build(in, a.middleCols(c, w));
+    c += w;
+  }
+  return a;
+}
+
+namespace {
+// A'A as a symmetric rank update (half the work of a general product).
+Eigen::MatrixXd gram(const Eigen::MatrixXd& a) {
+  Eigen::MatrixXd g = Eigen::MatrixXd::Zero(a.cols(), a.cols());
+  g.selfadjointView<Eigen::Lower>().rankUpdate(a.transpose());
+  return g.selfadjointView<Eigen::Lower>();
+}
+
+Eigen::VectorXd ridge_from_normal(Eigen::MatrixXd g, const Eigen::VectorXd& aty, double lambda) {
+  g.diagonal().array() += lambda;
+  return g.ldlt().solve(aty);
+}
+}  // namespace
+
+Eigen::VectorXd ridge_solve(const Eigen::MatrixXd& a, const Eigen::VectorXd& y, double lambda) {
+  return ridge_from_normal(gram(a), a.transpose() * y, lambda);
+}
+
+namespace {
+
+// Condition number of the column-normalised matrix whose Gram matrix is g.
+double condition_number(Eigen::MatrixXd g) {
+  if (g.cols() == 0) return 0.0;
+  const Eigen::VectorXd norms = g.diagonal().cwiseMax(0.0).cwiseSqrt();
+  for (Eigen::Index i = 0; i < g.rows(); ++i) {
+    for (Eigen::Index j = 0; j < g.cols(); ++j) {
+      const double s = norms[i] * norms[j];
+      g(i, j) = s > 0 ? g(i, j) / s : 0.0;
+    }
+  }
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(g, Eigen::EigenvaluesOnly);
+  const double lo = std::max(es.eigenvalues().minCoeff(), 0.0);
+  const double hi = es.eigenvalues().maxCoeff();
+  return lo > 0 ? std::sqrt(hi / lo) : std::numeric_limits<double>::infinity();
+}
+
+double std_dev(const Eigen::VectorXd& v) {
+  if (v.size() < 2) return 0.0;
+  const double mean = v.mean();
+  return std::sqrt((v.array() - mean).square().sum() / static_cast<double>(v.size() - 1));
+}
+
+}  // namespace
+
+std::vector<std::pair<Eigen::Index, Eigen::Index>> calibration_runs(
+    const FitSettings& s, const FlightData& data, const Eigen::MatrixXd& a,
+    const Eigen::VectorXd& y, std::vector<std::string>* warnings) {
+  std::vector<Eigen::Index> selected;
+  if (s.lines.empty() && s.windows.empty()) {
+    if (s.method == FitMethod::kBandpass)
+      throw Error("fit: bandpass needs calibration segments (fit.lines or fit.windows)");
+    selected.resize(static_cast<size_t>(data.size()));
+    for (Eigen::Index i = 0; i < data.size(); ++i) selected[static_cast<size_t>(i)] = i;
+  } else {
+    selected = data.select(s.lines, s.windows);
+  }
+  return calibration_runs(s, data, std::move(selected), a, y, warnings);
+}
+
+std::vector<std::pair<Eigen::Index, Eigen::Index>> calibration_runs(
+    const FitSettings& s, const FlightData& data, std::vector<Eigen::Index> selected,
+    const Eigen::MatrixXd& a, const Eigen::VectorXd& y, std::vector<std::string>* warnings) {
+  const bool bandpass = s.method == FitMethod::kBandpass;
+  // Rows with NaN anywhere in the regression are dropped: a segment is split there.
+  selected.erase(
+      std::remove_if(selected.begin(), selected.end(),
+                     [&](Eigen::Index i) { return !std::isfinite(y[i]) || !a.row(i).allFinite(); }),
+      selected.end());
+  const auto runs = data.contiguous_runs(selected, 1.5 * data.dt_s());
+  const Eigen::Index min_len = bandpass ? 2 * s.trim + 10 : 1;
+  std::vector<std::pair<Eigen::Index, Eigen::Index>> kept;
+  for (const auto& run : runs) {
+    const Eigen::Index len = run.second - run.first + 1;
+    if (len >= min_len) {
+      kept.push_back(run);
+    } else if (warnings) {
+      std::ostringstream w;
+      w << data.source() << ": segment at tt " << data.tt()[run.first] << " s has " << len
+        << " samples, too short for the band-pass and trim; skipped";
+      warnings->push_back(w.str());
+    }
+  }
+  return kept;
+}
+
+Eigen::Index slice_margin(const Model& model, const std::vector<std::unique_ptr<Term>>& terms,
+                          double dt_s) {
+  int reach = 0;
+  for (const auto& t : terms) {
+    const int r = t->row_reach();
+    if (r < 0) return -1;
+    reach = std::max(reach, r);
+  }
+  const double lag_samples = std::abs(model.scalar_lag_s()) / dt_s;
+  if (!std::isfinite(lag_samples) || lag_samples > 1e6) return -1;
+  // +2: the cubic interpolation of a fractional shift reads two samples past the shifted one.
+  return reach + static_cast<Eigen::Index>(std::ceil(lag_samples)) + 2;
+}
+
+void for_each_design_block(
+    const Model& model, const FlightData& data,
+    const std::function<void(Eigen::Index, const Eigen::Ref<const Eigen::MatrixXd>&)>& block,
+    int threads) {
+  const auto terms = model.make_terms();
+  const Eigen::Index n = data.size();
+  const Eigen::Index margin = n > 1 ? slice_margin(model, terms, data.dt_s()) : -1;
+  constexpr Eigen::Index kBlockRows = 16384;  // ~2.4 MB for 18 columns: stays in cache
+  if (margin < 0 || n <= 2 * kBlockRows) {
+    const Eigen::MatrixXd a = design_matrix(model, terms, data);
+    block(0, a);
+    return;
+  }
+  const Eigen::Index blocks = (n + kBlockRows - 1) / kBlockRows;
+  std::atomic<Eigen::Index> next{0};
+  std::mutex error_mutex;
+  std::exception_ptr error;
+  auto worker = [&] {
+    for (Eigen::Index b; (b = next++) < blocks;) {
+      try {
+        const Eigen::Index first = b * kBlockRows;
+        const Eigen::Index count = std::min(kBlockRows, n - first);
+        const Eigen::Index lo = std::max<Eigen::Index>(0, first - margin);
+        const Eigen::Index hi = std::min(n, first + count + margin);
+        const FlightData part = data.rows(lo, hi - lo);
+        const Eigen::MatrixXd a = design_matrix(model, terms, part);
+        block(first, a.middleRows(first - lo, count));
+      } catch (...) {
+        std::lock_guard<std::mutex> lock(error_mutex);
+        if (!error) error = std::current_exception();
+        next = blocks;  // no more blocks
+      }
+    }
+  };
+  std::vector<std::thread> pool;
+  for (int t = 1; t < std::min<Eigen::Index>(threads, blocks); ++t) pool.emplace_back(worker);
+  worker();
+  for (auto& t : pool) t.join();
+  if (error) std::rethrow_exception(error);
+}
+
+Eigen::MatrixXd stack_runs(const FitSettings& s, double dt_s, const Eigen::MatrixXd& x,
+                           const std::vector<std::pair<Eigen::Index, Eigen::Index>>& runs) {
+  const bool bandpass = s.method == FitMethod::kBandpass;
+  Eigen::Index rows = 0;
+  for (const auto& [first, last] : runs) rows += (last - first + 1) - (bandpass ? 2 * s.trim : 0);
+  Eigen::MatrixXd out(rows, x.cols());
+  Eigen::Index r = 0;
+  if (!(dt_s > 0) || !std::isfinite(dt_s)) {
+    throw Error("fit: the flight's sample period (" + std::to_string(dt_s) + " s) is not positive");
+  }
+  const Butterworth bp = [&] {
+    try {
+      return Butterworth::band_pass(s.order, s.band_low_hz, s.band_high_hz, 1.0 / dt_s);
+    } catch (const Error& e) {
+      throw Error(std::string("fit.band_hz: ") + e.what());
+    }
+  }();
+  for (const auto& [first, last] : runs) {
+    const Eigen::Index len = last - first + 1;
+    if (bandpass) {
+      const Eigen::Index n = len - 2 * s.trim;
+      static const int threads = std::max(1u, std::thread::hardware_concurrency());
+      out.middleRows(r, n) =
+          bp.filtfilt_parallel(x.middleRows(first, len), threads).middleRows(s.trim, n);
+      r += n;
+    } else {
+      out.middleRows(r, len) = x.middleRows(first, len);
+      r += len;
+    }
+  }
+  return out;
+}
+
+Eigen::VectorXd fit_target(const Model& model, const FlightData& data) {
+  Eigen::VectorXd y = aligned_scalar(model, data);
+  if (model.fit.method == FitMethod::kReference) {
+    if (!data.has(model.fit.reference)) {
+      throw Error(data.source() + ": field '" + model.fit.reference +
+                  "' (fit.reference) not found");
+    }
+    y -= data.column(model.fit.reference);
+  }
+  return y;
+}
+
+namespace {
+
+// A model with no column the fit method can fit is refused, naming its terms.
+void require_fittable_column(const Model& model) {
+  const auto terms = model.make_terms();
+  if (fittable_columns(model.fit.method, terms).empty()) {
+    std::string list;
+    for (const auto& t : terms) list += (list.empty() ? "" : ", ") + t->spec();
+    throw Error("fit: the model has no column to fit (terms: [" + list + "]" +
+                (model.fit.method == FitMethod::kBandpass
+                     ? "; a band-pass fit cannot fit bias, and a lag "
+                       "is not a column"
+                     : "; a lag is not a column") +
+                "): add a term, e.g. permanent, induced, eddy");
+  }
+}
+
+// The calibration rows of every flight, filtered as the method wants: one block of design rows
+// and targets per contiguous run of calibration samples.
+struct CalibrationBlocks {
+  std::vector<Eigen::MatrixXd> a;
+  std::vector<Eigen::VectorXd> y;
+  Eigen::Index rows = 0;
+};
+
+// The blocks of one run of a flight (or part of one) whose design `a` and target `y` are built.
+void add_runs(const FitSettings& s, double dt_s, const Eigen::MatrixXd& a, const Eigen::VectorXd& y,
+              const std::vector<std::pair<Eigen::Index, Eigen::Index>>& runs,
+              CalibrationBlocks* blocks, FitReport* report) {
+  if (runs.empty()) return;
+  blocks->a.push_back(stack_runs(s, dt_s, a, runs));
+  blocks->y.push_back(stack_runs(s, dt_s, y, runs).col(0));
+  blocks->rows += blocks->y.back().size();
+  report->segments += static_cast<int>(runs.size());
+}
+
+CalibrationBlocks calibration_blocks(const Model& model,
+                                     const std::vector<std::unique_ptr<Term>>& terms,
+                                     const std::vector<const FlightData*>& flights,
+                                     FitReport* report) {
+  const FitSettings& s = model.fit;
+  CalibrationBlocks blocks;
+  for (const FlightData* flight : flights) {
+    const FlightData& data = *flight;
+    const Eigen::Index margin =
+        data.size() > 1 ? slice_margin(model, terms, data.dt_s()) : Eigen::Index(-1);
+    if (margin < 0 || (s.lines.empty() && s.windows.empty())) {
+      const Eigen::MatrixXd a = design_matrix(model, terms, data);
+      const Eigen::VectorXd y = fit_target(model, data);
+      add_runs(s, data.dt_s(), a, y, calibration_runs(s, data, a, y, &report->warnings), &blocks,
+               report);
+      continue;
+    }
+    // Only the calibration segments (and a margin) are built: the same rows as on the whole
+    // flight, at the cost of the segments alone.
+    const std::vector<Eigen::Index> selected = data.select(s.lines, s.windows);
+    for (const auto& [first, last] : data.contiguous_runs(selected, 1.5 * data.dt_s())) {
+      const Eigen::Index lo = std::max<Eigen::Index>(0, first - margin);
+      const Eigen::Index hi = std::min(data.size(), last + 1 + margin);
+      const FlightData part = data.rows(lo, hi - lo);
+      const Eigen::MatrixXd a = design_matrix(model, terms, part);
+      const Eigen::VectorXd y = fit_target(model, part);
+      std::vector<Eigen::Index> rows(static_cast<size_t>(last - first + 1));
+      for (size_t k = 0; k < rows.size(); ++k) rows[k] = first - lo + static_cast<Eigen::Index>(k);
+      add_runs(s, data.dt_s(), a, y,
+               calibration_runs(s, part, std::move(rows), a, y, &report->warnings), &blocks,
+               report);
+    }
+    data.drop_mapped_pages();  // this flight's segments are in the blocks: one flight at a time
+  }
+  return blocks;
+}
+
+// The blocks stacked into one system, keeping the columns in `keep` (no copy for one block of
+// every column).
+void stack_blocks(CalibrationBlocks* blocks, const std::vector<bool>& keep, Eigen::MatrixXd* a,
+                  Eigen::VectorXd* y) {
+  const Eigen::Index p = static_cast<Eigen::Index>(keep.size());
+  const Eigen::Index fitted_cols = std::count(keep.begin(), keep.end(), true);
+  if (blocks->a.size() == 1 && fitted_cols == p) {
+    *a = std::move(blocks->a[0]);
+    *y = std::move(blocks->y[0]);
+    return;
+  }
+  a->resize(blocks->rows, fitted_cols);
+  y->resize(blocks->rows);
+  Eigen::Index r = 0;
+  for (size_t b = 0; b < blocks->y.size(); ++b) {
+    Eigen::Index c = 0;
+    for (Eigen::Index j = 0; j < p; ++j) {
+      if (keep[static_cast<size_t>(j)]) {
+        a->block(r, c++, blocks->y[b].size(), 1) = blocks->a[b].col(j);
+      }
+    }
+    y->segment(r, blocks->y[b].size()) = blocks->y[b];
+    r += blocks->y[b].size();
+  }
+}
+
+// The coefficients' covariance (ridge sandwich, p x p with zeros for the columns not fitted),
+// from the Gram matrix g of the fitted columns and the noise variance (nT^2).
+Eigen::MatrixXd coefficient_covariance(const Eigen::MatrixXd& g, double lambda,
+                                       double noise_variance_nT2, const std::vector<bool>& keep) {
+  const Eigen::Index p = static_cast<Eigen::Index>(keep.size());
+  const Eigen::Index fitted_cols = g.rows();
+  Eigen::MatrixXd gl = g;
+  gl.diagonal().array() += lambda;
+  const Eigen::MatrixXd inv = gl.ldlt().solve(Eigen::MatrixXd::Identity(fitted_cols, fitted_cols));
+  const Eigen::MatrixXd cov_fit = noise_variance_nT2 * (inv * g * inv);
+  Eigen::MatrixXd cov = Eigen::MatrixXd::Zero(p, p);
+  for (Eigen::Index i = 0, ci = 0; i < p; ++i) {
+    if (!keep[static_cast<size_t>(i)]) continue;
+    for (Eigen::Index j = 0, cj = 0; j < p; ++j) {
+      if (!keep[static_cast<size_t>(j)]) continue;
+      cov(i, j) = cov_fit(ci, cj++);
+    }
+    ++ci;
+  }
+  if (!cov.allFinite()) cov.resize(0, 0);
+  return cov;
+}
+
+// Warnings for the columns a band-pass fit cannot see, the unexcited ones (no energy in the
+// filtered calibration data) and an ill-conditioned design.
+void add_column_warnings(const Model& model, const Eigen::MatrixXd& g,
+                         const std::vector<bool>& keep, FitReport* report) {
+  const Eigen::Index p = static_cast<Eigen::Index>(keep.size());
+  const Eigen::VectorXd norms = g.diagonal().cwiseMax(0.0).cwiseSqrt();
+  const double max_norm = norms.maxCoeff();
+  for (Eigen::Index j = 0, c = 0; j < p; ++j) {
+    if (!keep[static_cast<size_t>(j)]) {
+      report->warnings.push_back("column '" + model.column_names[static_cast<size_t>(j)] +
+                                 "' is not observable by a band-pass fit; set to 0");
+      continue;
+    }
+    if (!(norms[c] > 1e-9 * max_norm)) {
+      report->warnings.push_back("column '" + model.column_names[static_cast<size_t>(j)] +
+                                 "' is not excited by the calibration segments");
+    }
+    ++c;
+  }
+  if (report->condition_number > 1e6) {
+    std::ostringstream w;
+    w << "design matrix is ill-conditioned (condition number " << report->condition_number
+      << "): the calibration segments do not excite every term; ridge lambda holds the fit";
+    report->warnings.push_back(w.str());
+  }
+}
+
+}  // namespace
+
+void fit_model(Model& model, const std::vector<const FlightData*>& flights) {
+  if (flights.empty()) throw Error("fit: no flight given");
+  require_fittable_column(model);
+  const std::vector<std::string> estimates = estimate_free_parameters(model, flights);
+  const FitSettings& s = model.fit;
+  const auto terms = model.make_terms();
+  Eigen::Index columns = 0;
+  for (const auto& t : terms) columns += t->columns();
+  std::vector<bool> keep(static_cast<size_t>(columns), false);  // columns the method can fit
+  for (Eigen::Index c : fittable_columns(model.fit.method, terms))
+    keep[static_cast<size_t>(c)] = true;
+  std::string sources;
+  for (const FlightData* flight : flights) {
+    sources += (sources.empty() ? "" : ",") + flight->source();
+  }
+  FitReport report;
+  CalibrationBlocks blocks = calibration_blocks(model, terms, flights, &report);
+  const Eigen::Index rows = blocks.rows;
+  const Eigen::Index p = static_cast<Eigen::Index>(keep.size());
+  const Eigen::Index fitted_cols = std::count(keep.begin(), keep.end(), true);
+  if (rows == 0) {
+    throw Error(
+        "fit: the calibration selection (fit.lines / fit.windows) holds no usable sample in " +
+        sources);
+  }
+  if (rows < 2 * fitted_cols) {
+    throw Error("fit: only " + std::to_string(rows) + " usable samples for " +
+                std::to_string(fitted_cols) + " coefficients in " + sources);
+  }
+  Eigen::MatrixXd a;
+  Eigen::VectorXd y;
+  stack_blocks(&blocks, keep, &a, &y);
+  if (!a.allFinite() || !y.allFinite()) {
+    throw Error("fit: the filtered calibration data hold NaN or Inf (fit.band_hz [" +
+                std::to_string(s.band_low_hz) + ", " + std::to_string(s.band_high_hz) +
+                "] Hz against the sample rate, or non-finite inputs) in " + sources);
+  }
+  const Eigen::MatrixXd g = gram(a);
+  const Eigen::VectorXd c_fit = ridge_from_normal(g, a.transpose() * y, s.lambda);
+  if (!c_fit.allFinite()) {
+    throw Error("fit: the solution is not finite (fit.lambda " + std::to_string(s.lambda) +
+                ", condition number of the data too high) in " + sources + "; nothing written");
+  }
+  model.coefficients = Eigen::VectorXd::Zero(p);
+  for (Eigen::Index j = 0, c = 0; j < p; ++j) {
+    if (keep[static_cast<size_t>(j)]) model.coefficients[j] = c_fit[c++];
+  }
+  model.column_names = model.make_column_names();
+  report.samples = rows;
+  report.condition_number = condition_number(g);
+  const Eigen::VectorXd residual = y - a * c_fit;
+  report.residual_std_nT = std_dev(residual);
+  report.estimates = estimates;
+  const double dof = static_cast<double>(std::max<Eigen::Index>(rows - fitted_cols, 1));
+  report.noise_variance_nT2 = residual.squaredNorm() / dof;
+  report.coefficient_covariance =
+      coefficient_covariance(g, s.lambda, report.noise_variance_nT2, keep);
+  add_column_warnings(model, g, keep, &report);
+  model.report = report;
+}
+
+Eigen::VectorXd model_correction(const Model& model, const FlightData& data) {
+  Eigen::VectorXd correction;
+  model_correction_and_variance(model, data, &correction, nullptr);
+  return correction;
+}
+
+namespace {
+// sample_variance_nT2 with the product's buffer given (per-sample callers).
+double row_variance_nT2(const Model& model, const Eigen::Ref<const Eigen::RowVectorXd>& row,
+                        Eigen::VectorXd* buffer) {
+  const Eigen::MatrixXd& cov = model.report.coefficient_covariance;
+  if (cov.rows() != row.size() || !std::isfinite(model.report.noise_variance_nT2)) {
+    return std::numeric_limits<double>::quiet_NaN();
+  }
+  return row_quadratic_form(cov, row, model.report.noise_variance_nT2, buffer);
+}
+}  // namespace
+
+double sample_variance_nT2(const Model& model, const Eigen::Ref<const Eigen::RowVectorXd>& row) {
+  Eigen::VectorXd buffer;
+  return row_variance_nT2(model, row, &buffer);
+}
+
+void for_each_correction_block(const Model& model, const FlightData& data, bool with_variance,
+                               const std::function<void(Eigen::Index, const Eigen::VectorXd&,
+                                                        const Eigen::VectorXd*)>& block) {
+  if (!model.fitted()) throw Error("model: not calibrated (no coefficients)");
+  const Eigen::MatrixXd& cov = model.report.coefficient_covariance;
+  const double noise_nT2 = model.report.noise_variance_nT2;
+  // Blocks on two threads (each sample's numbers do not depend on which thread computes them).
+  static const int threads =
+      static_cast<int>(std::clamp(std::thread::hardware_concurrency(), 1u, 2u));
+  for_each_design_block(
+      model, data,
+      [&](Eigen::Index first, const Eigen::Ref<const Eigen::MatrixXd>& a) {
+        if (a.cols() != model.coefficients.size()) {
+          throw Error("model: " + std::to_string(model.coefficients.size()) + " coefficients for " +
+                      std::to_string(a.cols()) + " columns");
+        }
+        Eigen::VectorXd correction(a.rows());
+        correction.noalias() = a * model.coefficients;
+        if (!with_variance) {
+          block(first, correction, nullptr);
+          return;
+        }
+        Eigen::VectorXd variance(a.rows());
+        if (cov.rows() != a.cols() || !std::isfinite(noise_nT2)) {
+          variance.setConstant(std::numeric_limits<double>::quiet_NaN());
+        } else {
+          row_quadratic_forms(cov, a, noise_nT2, variance.data());
+        }
+        block(first, correction, &variance);
+      },
+      threads);
+}
+
+void model_correction_and_variance(const Model& model, const FlightData& data,
+                                   Eigen::VectorXd* correction_nT, Eigen::VectorXd* variance_nT2) {
+  correction_nT->resize(data.size());
+  if (variance_nT2) variance_nT2->resize(data.size());
+  for_each_correction_block(
+      model, data, variance_nT2 != nullptr,
+      [&](Eigen::Index first, const Eigen::VectorXd& correction, const Eigen::VectorXd* variance) {
+        correction_nT->segment(first, correction.size()) = correction;
+        if (variance) variance_nT2->segment(first, variance->size()) = *variance;
+      });
+}
+
+Eigen::VectorXd compensation_variance_nT2(const Model& model, const FlightData& data) {
+  Eigen::VectorXd correction, variance;
+  model_correction_and_variance(model, data, &correction, &variance);
+  return variance;
+}
+
+}  // namespace magcomp

@@ -1,0 +1,308 @@
+// magcomp: profile least squares for the nonlinear parameters of terms.
+#include "magcomp/core/fit/parameter_fit.h"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <map>
+
+#include "magcomp/core/error.h"
+#include "magcomp/core/model/terms_expr.h"
+
+namespace magcomp {
+
+FitRowSet::FitRowSet(const Model& model, const std::vector<const FlightData*>& flights,
+                     std::vector<std::string>* warnings)
+    : fit_(model.fit), flights_(flights) {
+  std::vector<Eigen::VectorXd> ys;
+  for (const FlightData* f : flights) {
+    const Eigen::MatrixXd a = design_matrix(model, *f);
+    const Eigen::VectorXd y = fit_target(model, *f);
+    runs_.push_back(calibration_runs(fit_, *f, a, y, warnings));
+    segments_ += static_cast<int>(runs_.back().size());
+    ys.push_back(runs_.back().empty()
+                     ? Eigen::VectorXd()
+                     : Eigen::VectorXd(stack_runs(fit_, f->dt_s(), y, runs_.back()).col(0)));
+  }
+  Eigen::Index n = 0;
+  for (const auto& y : ys) n += y.size();
+  y_.resize(n);
+  n = 0;
+  for (const auto& y : ys) {
+    y_.segment(n, y.size()) = y;
+    n += y.size();
+  }
+}
+
+Eigen::MatrixXd FitRowSet::stack(const std::vector<Eigen::MatrixXd>& per_flight) const {
+  const Eigen::Index k = per_flight.empty() ? 0 : per_flight[0].cols();
+  Eigen::MatrixXd out(y_.size(), k);
+  Eigen::Index r = 0;
+  for (size_t f = 0; f < flights_.size(); ++f) {
+    if (runs_[f].empty()) continue;
+    const Eigen::MatrixXd x =
+        per_flight[f].unaryExpr([](double v) { return std::isfinite(v) ? v : 0.0; });
+    const Eigen::MatrixXd s = stack_runs(fit_, flights_[f]->dt_s(), x, runs_[f]);
+    out.middleRows(r, s.rows()) = s;
+    r += s.rows();
+  }
+  return out;
+}
+
+RidgeProfile::RidgeProfile(const Eigen::MatrixXd& base, const Eigen::VectorXd& y, double lambda)
+    : base_(base), y_(y), lambda_(lambda) {
+  g00_ = base.transpose() * base;
+  b0_ = base.transpose() * y;
+  yy_ = y.squaredNorm();
+}
+
+Eigen::VectorXd RidgeProfile::solve(const Eigen::MatrixXd& cand, double* rss) const {
+  const Eigen::Index p = g00_.cols(), k = cand.cols();
+  Eigen::MatrixXd g(p + k, p + k);
+  g.topLeftCorner(p, p) = g00_;
+  if (k > 0) {
+    g.topRightCorner(p, k) = base_.transpose() * cand;
+    g.bottomLeftCorner(k, p) = g.topRightCorner(p, k).transpose();
+    g.bottomRightCorner(k, k) = cand.transpose() * cand;
+  }
+  Eigen::VectorXd b(p + k);
+  b.head(p) = b0_;
+  if (k > 0) b.tail(k) = cand.transpose() * y_;
+  // (G + lambda I) c = b, solved on the column-normalised system by eigen-decomposition with
+  // directions below 1e-10 of the largest dropped: exactly collinear columns (second_order's
+  // quartics hold the induced quadratics) share their coefficients instead of blowing up.
+  Eigen::MatrixXd r = g;
+  r.diagonal().array() += lambda_;
+  const Eigen::VectorXd scale = r.diagonal().cwiseMax(1e-300).cwiseSqrt().cwiseInverse();
+  const Eigen::MatrixXd rn = scale.asDiagonal() * r * scale.asDiagonal();
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(rn);
+  const Eigen::VectorXd ev = es.eigenvalues();
+  const double cut = 1e-10 * std::max(ev.maxCoeff(), 1e-300);
+  const Eigen::VectorXd bn = es.eigenvectors().transpose() * scale.asDiagonal() * b;
+  Eigen::VectorXd z(bn.size());
+  for (Eigen::Index i = 0; i < bn.size(); ++i) z[i] = ev[i] > cut ? bn[i] / ev[i] : 0.0;
+  const Eigen::VectorXd c = scale.asDiagonal() * (es.eigenvectors() * z);
+  if (rss) {
+    Eigen::VectorXd e = y_ - base_ * c.head(p);
+    if (k > 0) e -= cand * c.tail(k);
+    *rss = e.squaredNorm();
+  }
+  return c;
+}
+
+std::vector<double> parameter_grid(TransformKind kind, double dt_s, double span_s) {
+  std::vector<double> g;
+  auto geometric = [&](double lo, double hi, double factor) {
+    for (double v = lo; v <= hi * (1 + 1e-9); v *= factor) g.push_back(v);
+  };
+  switch (kind) {
+    case TransformKind::LowPass:
+    case TransformKind::HighPass: {
+      const double lo = std::max(2 * dt_s, 0.1);
+      geometric(lo, std::min(3000.0, std::max(span_s / 3, 10 * lo)), 1.5);
+      break;
+    }
+    case TransformKind::Decay:
+      geometric(std::max(0.5 * dt_s, 0.02), 20.0, 1.4);
+      break;
+    case TransformKind::Delay: {
+      const double step = std::max(dt_s, 0.05);
+      for (double v = 0; v <= std::min(5.0, span_s / 10) + 1e-9; v += step) g.push_back(v);
+      break;
+    }
+    case TransformKind::Power:
+      for (double v = 0.5; v <= 4.0 + 1e-9; v += 0.25) g.push_back(v);
+      break;
+    default:
+      break;
+  }
+  return g;
+}
+
+namespace {
+double round3(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%.3g", v);
+  return std::strtod(buf, nullptr);
+}
+bool logarithmic(TransformKind k) {
+  return k == TransformKind::LowPass || k == TransformKind::HighPass || k == TransformKind::Decay;
+}
+}  // namespace
+
+double scan_parameter(TransformKind kind, const std::vector<double>& grid,
+                      const std::function<double(double)>& objective, double* best_out) {
+  if (grid.empty()) throw Error("parameter scan: empty grid");
+  size_t k = 0;
+  double best = std::numeric_limits<double>::infinity();
+  std::vector<double> f(grid.size());
+  for (size_t i = 0; i < grid.size(); ++i) {
+    f[i] = objective(grid[i]);
+    if (f[i] < best) {
+      best = f[i];
+      k = i;
+    }
+  }
+  double best_x = grid[k];
+  if (grid.size() >= 2) {
+    const bool lg = logarithmic(kind);
+    auto to = [&](double v) { return lg ? std::log(v) : v; };
+    auto from = [&](double u) { return lg ? std::exp(u) : u; };
+    double lo = to(grid[k > 0 ? k - 1 : 0]), hi = to(grid[std::min(k + 1, grid.size() - 1)]);
+    const double phi = 0.5 * (std::sqrt(5.0) - 1.0);
+    double x1 = hi - phi * (hi - lo), x2 = lo + phi * (hi - lo);
+    double f1 = objective(from(x1)), f2 = objective(from(x2));
+    for (int it = 0; it < 24 && hi - lo > 1e-4 * std::max(1.0, std::abs(hi)); ++it) {
+      if (f1 < f2) {
+        hi = x2;
+        x2 = x1;
+        f2 = f1;
+        x1 = hi - phi * (hi - lo);
+        f1 = objective(from(x1));
+      } else {
+        lo = x1;
+        x1 = x2;
+        f1 = f2;
+        x2 = lo + phi * (hi - lo);
+        f2 = objective(from(x2));
+      }
+    }
+    const double x = from(0.5 * (lo + hi));
+    const double r = round3(x);
+    const double fr = objective(r);
+    if (fr <= best) {
+      best = fr;
+      best_x = r;
+    }
+  }
+  if (round3(best_x) != best_x) {  // a grid value: written with 3 significant digits too
+    best_x = round3(best_x);
+    best = objective(best_x);
+  }
+  if (best_out) *best_out = best;
+  return best_x;
+}
+
+namespace {
+
+struct FreeRef {
+  size_t term;     // index in model.terms
+  size_t ordinal;  // index among that term's free parameters
+  TransformKind kind;
+};
+
+double initial_guess(TransformKind k) {
+  switch (k) {
+    case TransformKind::LowPass:
+    case TransformKind::HighPass:
+      return 30.0;
+    case TransformKind::Decay:
+      return 0.5;
+    case TransformKind::Delay:
+      return 0.5;
+    case TransformKind::Power:
+      return 2.0;
+    default:
+      return 1.0;
+  }
+}
+
+// The design of `model` on one flight, restricted to the columns its fit method can fit.
+Eigen::MatrixXd fittable_design(const Model& model, const std::vector<std::unique_ptr<Term>>& terms,
+                                const FlightData& f) {
+  const Eigen::MatrixXd a = design_matrix(model, terms, f);
+  const std::vector<Eigen::Index> keep = fittable_columns(model.fit.method, terms);
+  Eigen::MatrixXd kept(a.rows(), static_cast<Eigen::Index>(keep.size()));
+  for (size_t k = 0; k < keep.size(); ++k) kept.col(static_cast<Eigen::Index>(k)) = a.col(keep[k]);
+  return kept;
+}
+
+}  // namespace
+
+std::vector<std::string> estimate_free_parameters(Model& model,
+                                                  const std::vector<const FlightData*>& flights) {
+  std::vector<FreeRef> refs;
+  std::vector<std::unique_ptr<ExprTerm>> free_terms(model.terms.size());
+  for (size_t t = 0; t < model.terms.size(); ++t) {
+    auto e = parse_expr_term(model.terms[t]);
+    if (!e || !e->signal().has_free()) continue;
+    size_t ord = 0;
+    for (const auto& tr : e->signal().transforms) {
+      if (tr.free) refs.push_back({t, ord++, tr.kind});
+    }
+    free_terms[t] = std::move(e);
+  }
+  if (refs.empty()) return {};
+  if (flights.empty()) throw Error("fit: no flight to estimate the free parameters on");
+  std::vector<double> value(refs.size());
+  for (size_t i = 0; i < refs.size(); ++i) value[i] = initial_guess(refs[i].kind);
+  // The spec of term t with the current values (and `override` for parameter i).
+  auto spec_of = [&](size_t t, long i = -1, double v = 0.0) {
+    std::vector<double> vals;
+    for (size_t j = 0; j < refs.size(); ++j) {
+      if (refs[j].term == t) vals.push_back(static_cast<long>(j) == i ? v : value[j]);
+    }
+    return free_terms[t]->with_parameters(vals);
+  };
+  const FlightData& first = *flights[0];
+  const double dt = first.dt_s();
+  const double span = first.size() > 1 ? first.tt()[first.size() - 1] - first.tt()[0] : 1.0;
+  std::vector<std::string> lines;
+  const int sweeps = refs.size() > 1 ? 2 : 1;
+  for (int sweep = 0; sweep < sweeps; ++sweep) {
+    for (size_t i = 0; i < refs.size(); ++i) {
+      const size_t t = refs[i].term;
+      Model base = model;
+      base.terms.clear();
+      for (size_t u = 0; u < model.terms.size(); ++u) {
+        if (u == t) continue;
+        base.terms.push_back(free_terms[u] ? spec_of(u) : model.terms[u]);
+      }
+      base.coefficients.resize(0);
+      const FitRowSet rows(base, flights, nullptr);
+      if (rows.rows() == 0) {
+        throw Error("fit: no usable fit sample to estimate '" + model.terms[t] + "'");
+      }
+      // The base's fittable columns, stacked.
+      const auto base_terms = base.make_terms();
+      std::vector<Eigen::MatrixXd> per_flight;
+      std::vector<TermInputs> inputs;
+      for (const FlightData* f : flights) {
+        per_flight.push_back(fittable_design(base, base_terms, *f));
+        inputs.push_back(make_term_inputs(*f, model.vector, model.bt_scale_nT));
+      }
+      const Eigen::MatrixXd base_rows = rows.stack(per_flight);
+      const RidgeProfile profile(base_rows, rows.y(), model.fit.lambda);
+      auto objective = [&](double v) {
+        const auto term = make_term(spec_of(t, static_cast<long>(i), v));
+        std::vector<Eigen::MatrixXd> cols;
+        for (size_t f = 0; f < flights.size(); ++f) {
+          Eigen::MatrixXd c(flights[f]->size(), term->columns());
+          term->build(inputs[f], c);
+          cols.push_back(std::move(c));
+        }
+        double rss = 0;
+        profile.solve(rows.stack(cols), &rss);
+        return std::isfinite(rss) ? rss : std::numeric_limits<double>::infinity();
+      };
+      const std::vector<double> grid = parameter_grid(refs[i].kind, dt, span);
+      value[i] = scan_parameter(refs[i].kind, grid, objective);
+      if (sweep == sweeps - 1) {
+        char buf[256];
+        std::snprintf(buf, sizeof(buf), "'%s': %s estimated %.3g (scanned %.3g to %.3g)",
+                      model.terms[t].c_str(),
+                      Transform{refs[i].kind, 0.0, false}.param_meaning().c_str(), value[i],
+                      grid.front(), grid.back());
+        lines.push_back(buf);
+      }
+    }
+  }
+  for (size_t t = 0; t < model.terms.size(); ++t) {
+    if (free_terms[t]) model.terms[t] = spec_of(t);
+  }
+  return lines;
+}
+
+}  // namespace magcomp
