@@ -117,6 +117,15 @@ nlohmann::json to_json(const Diagnosis& dx) {
   e["lines"] = nlohmann::json::array();
   for (const auto& [l, v] : x.lines) e["lines"].push_back({{"line", l}, {"fraction", v}});
   j["explainable_share"] = e;
+  const ResidualFloor& f = dx.floor;
+  j["residual_floor"] = {{"computed", f.computed},
+                         {"residual_std_nT", f.residual_std_nT},
+                         {"floor_nT", f.floor_nT},
+                         {"band_lo_hz", f.band_lo_hz},
+                         {"segments", f.segments},
+                         {"amplitude_channel", f.amplitude_channel},
+                         {"amplitude_correlation", f.amplitude_correlation},
+                         {"amplitude_windows", f.amplitude_windows}};
   j["verdict"] = dx.verdict;
   j["associations"] = nlohmann::json::array();
   for (const auto& a : dx.associations) {

@@ -240,5 +240,28 @@ TEST(Diagnose, BadInputsGiveClearMessagesAndConstantChannelsAreSkipped) {
   }
 }
 
+TEST(Diagnose, ARippleOfUnrecordedPhaseIsNeverCompleteAndItsAmplitudeChannelIsNamed) {
+  // A 2 Hz ripple whose amplitude follows cur_acpwr and whose phase no channel records: no term
+  // can explain it, the residual stays far above its floor, and the verdict says what its power
+  // follows.
+  const sim::Simulation& s = test::scenario("ripple_bus");
+  const LoopResult r =
+      diagnose_loop(test::reference_tl(s.flight), s.flight, "mag_1_c", 5, 0.05, {});
+  const ResidualFloor& f = r.last.floor;
+  std::printf("  held-out %.3f nT, floor %.3f nT; amplitude follows '%s' (rho %.2f)\n  stop: %s\n",
+              f.residual_std_nT, f.floor_nT, f.amplitude_channel.c_str(), f.amplitude_correlation,
+              r.stop_reason.c_str());
+  ASSERT_TRUE(f.computed);
+  EXPECT_GT(f.residual_std_nT, 1.5 * f.floor_nT);
+  EXPECT_EQ(r.stop_reason.find("complete"), std::string::npos) << r.stop_reason;
+  EXPECT_EQ(f.amplitude_channel, "cur_acpwr");
+  EXPECT_NE(r.stop_reason.find("its amplitude follows cur_acpwr"), std::string::npos);
+  // Nothing of the position channels was added as a term.
+  for (const auto& t : r.model.terms) {
+    for (const char* p : {"lat", "lon", "utm_", "ins_lat", "ins_lon", "baro"})
+      EXPECT_EQ(t.find(p), std::string::npos) << t;
+  }
+}
+
 }  // namespace
 }  // namespace magcomp

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstdio>
 #include <future>
+#include <iomanip>
 #include <map>
 #include <set>
 #include <sstream>
@@ -678,7 +679,60 @@ ExplainableShare remaining_share(const FlightData& data, const Search& search,
   return x;
 }
 
-// The verdict: add the top term, or say that structure remains (and where), or complete.
+// "complete" only while the held-out residual is within this factor of its own noise floor (or,
+// for a floor far below the resolution, within the resolution of it).
+constexpr double kCompleteWithinFloor = 1.5;
+
+// What is known of a residual no term explains: how far above its floor, what predicts it,
+// whether it follows position (map or trajectory leakage), and what its power follows.
+std::string remainder_description(const Diagnosis& dx) {
+  const ExplainableShare& x = dx.explainable;
+  const ResidualFloor& f = dx.floor;
+  std::ostringstream o;
+  o.setf(std::ios::fixed);
+  o.precision(3);
+  o << "the held-out residual is " << f.residual_std_nT << " nT, " << f.residual_std_nT - f.floor_nT
+    << " nT above a noise floor of " << f.floor_nT << " nT (its spectrum's white level above "
+    << std::setprecision(1) << f.band_lo_hz << " Hz)";
+  const bool predictable = x.computed && !x.within_noise;
+  if (predictable) {
+    std::vector<std::string> chans;
+    bool position = false;
+    for (size_t k = 0; k < x.channels.size() && chans.size() < 3; ++k) {
+      if (x.channels[k].second <= 0) break;
+      chans.push_back(x.channels[k].first);
+      if (chans.size() == 1) position = is_position_channel(x.channels[k].first);
+    }
+    o << std::setprecision(1) << "; " << 100 * x.share << "% +- " << 100 * x.uncertainty
+      << "% of it is predictable (noise floor " << 100 * x.noise_floor << "%)";
+    if (!chans.empty()) {
+      o << ", mostly from ";
+      for (size_t k = 0; k < chans.size(); ++k) o << (k ? ", " : "") << chans[k];
+    }
+    if (position) {
+      o << ": it follows position, so it is map or trajectory leakage (the reference fit, IGRF "
+           "or diurnal), not an aircraft field";
+    } else {
+      o << ", and no term of the search explains it";
+    }
+    if (!x.time_scales.empty()) {
+      const auto top =
+          std::max_element(x.time_scales.begin(), x.time_scales.end(),
+                           [](const auto& a, const auto& b) { return a.second < b.second; });
+      o << "; mostly " << top->first;
+    }
+  } else {
+    o << "; no recorded channel predicts its sign";
+  }
+  if (!f.amplitude_channel.empty()) {
+    o << std::setprecision(2) << "; its amplitude follows " << f.amplitude_channel
+      << " (rank correlation of the local variance " << f.amplitude_correlation << ")";
+    if (!predictable) o << ": its phase is not recorded";
+  }
+  return o.str();
+}
+
+// The verdict: add the top term, or complete (within the floor), or what remains and where.
 std::string verdict_of(const Diagnosis& dx, double resolution_nT) {
   char buf[512];
   const ExplainableShare& x = dx.explainable;
@@ -690,6 +744,19 @@ std::string verdict_of(const Diagnosis& dx, double resolution_nT) {
                   "%.1f%% on the confirmation lines",
                   c.term.c_str(), 100 * c.explained_selection, 100 * c.explained_confirmation);
     return buf;
+  }
+  const ResidualFloor& f = dx.floor;
+  if (f.computed) {
+    if (f.residual_std_nT <=
+        std::max(kCompleteWithinFloor * f.floor_nT, f.floor_nT + resolution_nT)) {
+      std::snprintf(buf, sizeof(buf),
+                    "complete: the held-out residual (%.3f nT) is within %.1fx its noise floor "
+                    "(%.3f nT, its spectrum's white level above %.1f Hz) or %.3f nT of it",
+                    f.residual_std_nT, kCompleteWithinFloor, f.floor_nT, f.band_lo_hz,
+                    resolution_nT);
+      return buf;
+    }
+    return "structure remains: " + remainder_description(dx);
   }
   if (x.computed && !x.within_noise) {
     std::string chans;
@@ -707,12 +774,23 @@ std::string verdict_of(const Diagnosis& dx, double resolution_nT) {
   if (x.computed) {
     std::snprintf(buf, sizeof(buf),
                   "complete: what remains is within noise (predictable share %.1f%% ± %.1f%%, "
-                  "noise floor %.1f%%; predictable part %.3f nT rms, resolution %.3f nT)",
+                  "noise floor %.1f%%; predictable part %.3f nT rms, resolution %.3f nT; the "
+                  "held-out lines are too short for a spectral floor)",
                   100 * x.share, 100 * x.uncertainty, 100 * x.noise_floor,
                   std::sqrt(x.share) * dx.baseline_std_nT, resolution_nT);
     return buf;
   }
   return "no candidate explains 5 % on both halves (the explainable share was not computed)";
+}
+
+// The base residual's floor and what its power follows, on the held-out samples.
+ResidualFloor floor_of(const FlightData& data, const Search& search,
+                       const std::vector<std::string>& sources) {
+  Eigen::VectorXd r = Eigen::VectorXd::Constant(data.size(), NAN);
+  for (Eigen::Index i : search.held) r[i] = search.e0[i];
+  std::vector<std::pair<std::string, Eigen::Map<const Eigen::VectorXd>>> channels;
+  for (const auto& s : sources) channels.emplace_back(s, data.column(s));
+  return residual_floor(r, search.unit, 1.0 / search.dt, channels);
 }
 
 }  // namespace
@@ -727,7 +805,12 @@ Diagnosis diagnose(const Model& model_in, const FlightData& data, const std::str
   const std::vector<std::string> sources =
       source_fields(model, data, truth_name, options.full_search, &dx.notes);
   data.drop_mapped_pages();
-  std::vector<Job> jobs = make_jobs(model, sources);
+  // Position and trajectory channels are no source of aircraft field: never a term (the
+  // explainable share still reads them, to report leakage).
+  std::vector<std::string> aircraft_sources;
+  for (const auto& s : sources)
+    if (!is_position_channel(s)) aircraft_sources.push_back(s);
+  std::vector<Job> jobs = make_jobs(model, aircraft_sources);
   std::vector<Scored> scored = run_jobs(search, jobs, options.threads);
   const std::vector<Job> products =
       product_jobs(model, search, jobs, scored, options.accept_fraction);
@@ -747,6 +830,8 @@ Diagnosis diagnose(const Model& model_in, const FlightData& data, const std::str
     dx.explainable =
         remaining_share(data, search, sources, dx.baseline_std_nT, options.resolution_nT);
   }
+  dx.floor = floor_of(data, search, sources);
+  data.drop_mapped_pages();
   dx.verdict = verdict_of(dx, options.resolution_nT);
   return dx;
 }

@@ -5,9 +5,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <set>
 #include <type_traits>
-#include <cstdio>
 
 #include "magcomp/core/error.h"
 
@@ -215,14 +215,17 @@ void read_plan(const Reader& r, const YAML::Node& root, Scenario* out) {
     r.range(g.duration_s, 1e-3, 86400, where + ".duration_s");
     r.range(g.altitude_m, 0, 20000, where + ".altitude_m");
     r.range(g.heading_deg, -360, 360, where + ".heading_deg");
-    if (g.lines < 1 || g.lines > 1000) throw Error(path + ": key '" + where + ".lines' must be in 1..1000");
+    if (g.lines < 1 || g.lines > 1000)
+      throw Error(path + ": key '" + where + ".lines' must be in 1..1000");
     s.segments.push_back(g);
   }
   // The flight's length, before anything is allocated: segments (box and cloverleaf fly four
   // legs, a grid `lines` lines) plus a generous allowance for the turns and climbs between them.
   double seconds = 0;
   for (const Segment& g : s.segments) {
-    const double legs = g.type == "box" || g.type == "cloverleaf" ? 4 : g.type == "grid" ? g.lines : 1;
+    const double legs = g.type == "box" || g.type == "cloverleaf" ? 4
+                        : g.type == "grid"                        ? g.lines
+                                                                  : 1;
     seconds += g.duration_s * legs + 600.0;
   }
   constexpr double kMaxSamples = 5e6;  // ~140 h at 10 Hz: every field of it is ~4 GB
@@ -237,11 +240,11 @@ HiddenEffect read_hidden_effect(const Reader& r, const YAML::Node& e, const std:
                                 const std::set<std::string>& channels,
                                 const std::set<std::string>& sensors) {
   const std::string& path = r.path;
-  r.check_keys(
-      e,
-      {"type", "channel", "position_m", "direction", "length_m", "gain", "lag_s", "time_constant_s",
-       "scale", "nonorthogonality_rad", "offset_nT", "sensors", "exponent", "threshold"},
-      where);
+  r.check_keys(e,
+               {"type", "channel", "position_m", "direction", "length_m", "gain", "lag_s",
+                "time_constant_s", "scale", "nonorthogonality_rad", "offset_nT", "sensors",
+                "exponent", "threshold", "frequency_hz", "phase_walk_rad"},
+               where);
   HiddenEffect x;
   r.get(e, "type", where, &x.type);
   r.get(e, "channel", where, &x.channel);
@@ -257,18 +260,20 @@ HiddenEffect read_hidden_effect(const Reader& r, const YAML::Node& e, const std:
   r.get(e, "sensors", where, &x.sensors);
   r.get(e, "exponent", where, &x.exponent);
   r.get(e, "threshold", where, &x.threshold);
+  r.get(e, "frequency_hz", where, &x.frequency_hz);
+  r.get(e, "phase_walk_rad", where, &x.phase_walk_rad);
   static const std::set<std::string> kTypes = {"wire",       "inductive", "lag",     "fluxgate",
                                                "heading",    "drift",     "thermal", "flex",
-                                               "eddy_decay", "relay"};
+                                               "eddy_decay", "relay",     "ripple"};
   if (!kTypes.count(x.type)) {
     throw Error(path + ": key '" + where +
                 ".type' must be wire, inductive, lag, fluxgate, heading, drift, thermal, "
-                "eddy_decay, flex or relay");
+                "eddy_decay, flex, relay or ripple");
   }
   if (x.type == "flex" && x.channel.empty()) x.channel = "nrml_acc";
   if (x.type == "flex" && !e["time_constant_s"]) x.time_constant_s = 0.0;
   const bool needs_channel = x.type == "wire" || x.type == "inductive" || x.type == "drift" ||
-                             x.type == "thermal" || x.type == "relay";
+                             x.type == "thermal" || x.type == "relay" || x.type == "ripple";
   if (needs_channel && !channels.count(x.channel)) {
     throw Error(path + ": key '" + where + ".channel': unknown channel '" + x.channel + "'");
   }
@@ -281,7 +286,8 @@ HiddenEffect read_hidden_effect(const Reader& r, const YAML::Node& e, const std:
                 "ins_acc_*, *_rate), not '" +
                 x.channel + "'");
   }
-  for (const char* k : {"gain", "lag_s", "time_constant_s", "length_m", "exponent", "threshold"}) {
+  for (const char* k : {"gain", "lag_s", "time_constant_s", "length_m", "exponent", "threshold",
+                        "frequency_hz", "phase_walk_rad"}) {
     if (e[k] && !std::isfinite(e[k].as<double>())) {
       throw Error(path + ": key '" + where + "." + k + "' must be finite");
     }
@@ -298,6 +304,10 @@ HiddenEffect read_hidden_effect(const Reader& r, const YAML::Node& e, const std:
   }
   if (x.type == "wire") r.range(x.length_m, 1e-3, 100, where + ".length_m");
   if (x.type == "lag") r.range(x.lag_s, 0, 60, where + ".lag_s");
+  if (x.type == "ripple") {
+    r.range(x.frequency_hz, 1e-3, 1e3, where + ".frequency_hz");
+    r.range(x.phase_walk_rad, 0, 100, where + ".phase_walk_rad");
+  }
   r.range(x.gain, -1e6, 1e6, where + ".gain");
   if (e["time_constant_s"]) r.range(x.time_constant_s, 0, 1e6, where + ".time_constant_s");
   if (x.type == "drift") r.positive(x.time_constant_s, where + ".time_constant_s");
@@ -350,7 +360,8 @@ Scenario load_scenario(const std::string& path) {
   } catch (const Error&) {
     throw;
   } catch (const YAML::Exception& e) {
-    throw Error(path + ": not a valid scenario (" + e.msg + ", line " + std::to_string(e.mark.line + 1) + ")");
+    throw Error(path + ": not a valid scenario (" + e.msg + ", line " +
+                std::to_string(e.mark.line + 1) + ")");
   } catch (const std::exception& e) {
     throw Error(path + ": cannot read the scenario (" + e.what() + ")");
   }

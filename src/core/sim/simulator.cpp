@@ -355,6 +355,19 @@ Eigen::VectorXd Simulator::hidden_contribution(const HiddenEffect& e, const Sens
       contrib[i] = e.gain * field[static_cast<size_t>(i)].normalized().dot(e.direction);
     }
     *scalar_extra += contrib;
+  } else if (e.type == "ripple") {
+    // Its own random stream (the scenario's seed and the sensor): the other fields of a
+    // scenario without a ripple are unchanged.
+    std::mt19937 rng(s_.seed * 2654435761u +
+                     static_cast<unsigned>(std::hash<std::string>{}(m.name)));
+    std::normal_distribution<double> step(0.0, e.phase_walk_rad * std::sqrt(dt_));
+    const Eigen::VectorXd& x = channels_.at(e.channel);
+    double phase = 0.0;
+    for (Eigen::Index i = 0; i < n_; ++i) {
+      phase += step(rng);
+      contrib[i] = e.gain * x[i] * std::sin(2 * kPi * e.frequency_hz * dt_ * i + phase);
+    }
+    *scalar_extra += contrib;
   } else if (e.type == "drift") {
     const Eigen::VectorXd& x = channels_.at(e.channel);
     const double alpha = std::exp(-dt_ / e.time_constant_s);
@@ -445,7 +458,7 @@ void Simulator::hidden_effect_truth(const HiddenEffect& e) {
     y << YAML::Key << "expected_term" << YAML::Value << lag_term;
   }
   if (e.type == "heading" || e.type == "drift" || e.type == "inductive" || e.type == "thermal" ||
-      e.type == "flex" || e.type == "relay" || e.type == "eddy_decay") {
+      e.type == "flex" || e.type == "relay" || e.type == "eddy_decay" || e.type == "ripple") {
     y << YAML::Key << "gain" << YAML::Value << e.gain;
   }
   if (e.type == "thermal" || e.type == "drift" || e.type == "eddy_decay" ||
@@ -465,6 +478,13 @@ void Simulator::hidden_effect_truth(const HiddenEffect& e) {
   if (e.type == "eddy_decay") {
     y << YAML::Key << "expected_term" << YAML::Value
       << "field:B|decay(" + format_param(e.time_constant_s) + ")";
+  }
+  if (e.type == "ripple") {
+    y << YAML::Key << "frequency_hz" << YAML::Value << e.frequency_hz;
+    y << YAML::Key << "phase_walk_rad" << YAML::Value << e.phase_walk_rad;
+    y << YAML::Key << "expected_term" << YAML::Value
+      << "(none: a ripple whose amplitude follows " + e.channel +
+             " and whose phase no channel records)";
   }
   if (e.type == "relay") {
     y << YAML::Key << "threshold" << YAML::Value << e.threshold;

@@ -11,6 +11,7 @@
 
 #include "magcomp/core/diagnose/associations.h"
 #include "magcomp/core/diagnose/explainable_share.h"
+#include "magcomp/core/diagnose/residual_floor.h"
 #include "magcomp/core/io/flight_data.h"
 #include "magcomp/core/model/model.h"
 
@@ -66,8 +67,10 @@ struct Diagnosis {
   long candidates_tried = 0;               ///< terms fitted, parameter scans included
   std::vector<ChannelAssociation> associations;  ///< strongest |Spearman| first
   ExplainableShare explainable;                  ///< what remains predictable, and where
-  std::string verdict;                           ///< "add <term>", "structure remains", "complete"
-  std::vector<std::string> notes;                ///< skipped channels and why
+  ResidualFloor
+      floor;  ///< the held-out residual against its own noise floor; what its power follows
+  std::string verdict;             ///< "add <term>", "structure remains", "complete"
+  std::vector<std::string> notes;  ///< skipped channels and why
 };
 
 /// The data fields diagnose uses as sources: every non-constant, mostly finite field except the

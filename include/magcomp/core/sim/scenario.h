@@ -19,7 +19,8 @@ struct Segment {
 
 /// A hidden (or visible) physical effect the simulator adds to the scalar sensors.
 struct HiddenEffect {
-  /// wire | inductive | lag | fluxgate | heading | drift | thermal | eddy_decay | flex | relay
+  /// wire | inductive | lag | fluxgate | heading | drift | thermal | eddy_decay | flex | relay |
+  /// ripple
   std::string type;
   std::string channel;                  ///< wire / inductive / drift: the current or other channel
   Eigen::Vector3d position_m{0, 0, 0};  ///< wire: midpoint in base_link (x fwd, y left, z up)
@@ -27,7 +28,7 @@ struct HiddenEffect {
   double length_m = 1.0;                ///< wire length
   /// inductive: nT per A/s at 1 m scale; heading: nT; drift, flex: nT per unit of the channel;
   /// thermal: nT per unit of lp(|I|^exponent); eddy_decay: s (scale of its 3x3 eddy matrix);
-  /// relay: nT while the channel is above the threshold
+  /// relay: nT while the channel is above the threshold; ripple: nT per unit of the channel
   double gain = 0.0;
   double lag_s = 0.0;  ///< lag: scalar sensors read the field lag_s late
   /// drift, thermal: low-pass of the channel; eddy_decay: decay of the eddy currents; flex: the
@@ -35,6 +36,10 @@ struct HiddenEffect {
   double time_constant_s = 300.0;
   double exponent = 2.0;   ///< thermal: heating ∝ |I|^exponent (2: Joule heating)
   double threshold = 0.0;  ///< relay: the channel value above which the device is on
+  /// ripple: a sine on the scalar of amplitude gain x channel at frequency_hz, whose phase walks
+  /// at random by phase_walk_rad per sqrt(s) and is recorded by no channel
+  double frequency_hz = 2.0;
+  double phase_walk_rad = 0.3;
   Eigen::Vector3d scale{0, 0, 0};                 ///< fluxgate: scale errors (fraction) per axis
   Eigen::Vector3d nonorthogonality_rad{0, 0, 0};  ///< fluxgate: xy, xz, yz angles
   Eigen::Vector3d offset_nT{0, 0, 0};             ///< fluxgate: offsets

@@ -1,0 +1,176 @@
+// magcomp: a held-out residual's noise floor (from its spectrum) and the channel its power follows.
+#include "magcomp/core/diagnose/residual_floor.h"
+
+#include <algorithm>
+#include <cmath>
+#include <complex>
+#include <numeric>
+#include <set>
+#include <unsupported/Eigen/FFT>
+
+#include "magcomp/core/math/constants.h"
+
+namespace magcomp {
+namespace {
+
+constexpr int kSegment = 256;         // samples per spectral segment (25.6 s at 10 Hz)
+constexpr int kWindow_s = 10;         // local-variance windows, s
+constexpr double kMinRankCorr = 0.3;  // a weaker rank correlation is not reported
+
+// Contiguous runs [first, last) of one held-out unit each, in time order.
+std::vector<std::pair<Eigen::Index, Eigen::Index>> unit_runs(const std::vector<int>& unit,
+                                                             const Eigen::VectorXd& r) {
+  std::vector<std::pair<Eigen::Index, Eigen::Index>> runs;
+  const auto n = static_cast<Eigen::Index>(unit.size());
+  Eigen::Index i = 0;
+  while (i < n) {
+    if (unit[static_cast<size_t>(i)] < 0 || !std::isfinite(r[i])) {
+      ++i;
+      continue;
+    }
+    Eigen::Index j = i + 1;
+    while (j < n && unit[static_cast<size_t>(j)] == unit[static_cast<size_t>(i)] &&
+           std::isfinite(r[j]))
+      ++j;
+    runs.emplace_back(i, j);
+    i = j;
+  }
+  return runs;
+}
+
+// Ranks (average ranks for ties), 0-based.
+std::vector<double> ranks(const std::vector<double>& x) {
+  std::vector<size_t> order(x.size());
+  std::iota(order.begin(), order.end(), 0);
+  std::sort(order.begin(), order.end(), [&](size_t a, size_t b) { return x[a] < x[b]; });
+  std::vector<double> r(x.size());
+  for (size_t k = 0; k < order.size();) {
+    size_t m = k + 1;
+    while (m < order.size() && x[order[m]] == x[order[k]]) ++m;
+    for (size_t q = k; q < m; ++q) r[order[q]] = 0.5 * static_cast<double>(k + m - 1);
+    k = m;
+  }
+  return r;
+}
+
+double pearson(const std::vector<double>& a, const std::vector<double>& b) {
+  const double n = static_cast<double>(a.size());
+  const double ma = std::accumulate(a.begin(), a.end(), 0.0) / n;
+  const double mb = std::accumulate(b.begin(), b.end(), 0.0) / n;
+  double sab = 0, saa = 0, sbb = 0;
+  for (size_t k = 0; k < a.size(); ++k) {
+    sab += (a[k] - ma) * (b[k] - mb);
+    saa += (a[k] - ma) * (a[k] - ma);
+    sbb += (b[k] - mb) * (b[k] - mb);
+  }
+  return saa > 0 && sbb > 0 ? sab / std::sqrt(saa * sbb) : 0.0;
+}
+
+}  // namespace
+
+bool is_position_channel(const std::string& name) {
+  static const std::set<std::string> kPosition = {
+      "lat",     "lon",     "utm_x", "utm_y", "utm_z", "utmX",  "utmY", "utmZ", "ins_lat",
+      "ins_lon", "ins_alt", "msl",   "alt",   "baro",  "radar", "topo", "dem",  "drape"};
+  return kPosition.count(name) > 0;
+}
+
+ResidualFloor residual_floor(
+    const Eigen::VectorXd& residual, const std::vector<int>& unit, double sample_rate_hz,
+    const std::vector<std::pair<std::string, Eigen::Map<const Eigen::VectorXd>>>& channels,
+    double band_lo_fraction) {
+  ResidualFloor out;
+  if (!(sample_rate_hz > 0) || static_cast<Eigen::Index>(unit.size()) != residual.size())
+    return out;
+  const auto runs = unit_runs(unit, residual);
+  // The residual's std, each unit's mean removed.
+  double ss = 0;
+  long n = 0;
+  for (const auto& [a, b] : runs) {
+    const double mean = residual.segment(a, b - a).mean();
+    ss += (residual.segment(a, b - a).array() - mean).square().sum();
+    n += b - a;
+  }
+  if (n < 2) return out;
+  out.residual_std_nT = std::sqrt(ss / static_cast<double>(n - 1));
+
+  // Averaged periodogram (one-sided, nT^2/Hz) of detrended, Hann-windowed segments.
+  Eigen::VectorXd w(kSegment);
+  for (int k = 0; k < kSegment; ++k) w[k] = 0.5 - 0.5 * std::cos(2 * kPi * k / kSegment);
+  const double w2 = w.squaredNorm();
+  Eigen::VectorXd psd = Eigen::VectorXd::Zero(kSegment / 2 + 1);
+  Eigen::FFT<double> fft;
+  std::vector<double> seg(kSegment);
+  std::vector<std::complex<double>> spec;
+  Eigen::VectorXd x(kSegment), tk(kSegment);
+  for (int k = 0; k < kSegment; ++k) tk[k] = k - 0.5 * (kSegment - 1);
+  const double stt = tk.squaredNorm();
+  for (const auto& [a, b] : runs) {
+    for (Eigen::Index s = a; s + kSegment <= b; s += kSegment / 2) {
+      x = residual.segment(s, kSegment);
+      x.array() -= x.mean();
+      x -= tk * (tk.dot(x) / stt);
+      for (int k = 0; k < kSegment; ++k) seg[static_cast<size_t>(k)] = x[k] * w[k];
+      fft.fwd(spec, seg);
+      for (int k = 0; k <= kSegment / 2; ++k) {
+        const double scale = (k == 0 || k == kSegment / 2) ? 1.0 : 2.0;
+        psd[k] += scale * std::norm(spec[static_cast<size_t>(k)]) / (sample_rate_hz * w2);
+      }
+      ++out.segments;
+    }
+  }
+  if (out.segments == 0) return out;
+  psd /= out.segments;
+  const double nyquist = 0.5 * sample_rate_hz;
+  out.band_lo_hz = band_lo_fraction * nyquist;
+  std::vector<double> band;
+  for (int k = 1; k < kSegment / 2; ++k) {
+    if (k * sample_rate_hz / kSegment >= out.band_lo_hz) band.push_back(psd[k]);
+  }
+  if (band.empty()) return out;
+  std::nth_element(band.begin(), band.begin() + static_cast<long>(band.size() / 2), band.end());
+  const double level = band[band.size() / 2];
+  // The median of an average of K periodograms (chi-square, 2K degrees of freedom, over 2K)
+  // lies below its mean by about 2/(3*2K): corrected, so a white noise's floor is its std.
+  const double median_bias = 1.0 - 2.0 / (3.0 * 2.0 * out.segments);
+  out.floor_nT = std::sqrt(level / median_bias * nyquist);
+  out.computed = true;
+
+  // The residual's local variance in windows against each channel's local mean (Spearman).
+  const auto win = static_cast<Eigen::Index>(std::max(2.0, kWindow_s * sample_rate_hz));
+  std::vector<std::pair<Eigen::Index, Eigen::Index>> windows;
+  std::vector<double> local_var;
+  for (const auto& [a, b] : runs) {
+    for (Eigen::Index s = a; s + win <= b; s += win) {
+      const auto r = residual.segment(s, win);
+      windows.emplace_back(s, win);
+      local_var.push_back((r.array() - r.mean()).square().mean());
+    }
+  }
+  out.amplitude_windows = static_cast<int>(windows.size());
+  if (windows.size() < 12) return out;
+  const std::vector<double> rv = ranks(local_var);
+  // Significant: beyond 3 sigma of no correlation, and at least kMinRankCorr.
+  const double threshold =
+      std::max(kMinRankCorr, 3.0 / std::sqrt(static_cast<double>(windows.size()) - 1));
+  for (const auto& [name, values] : channels) {
+    if (is_position_channel(name)) continue;
+    std::vector<double> m;
+    m.reserve(windows.size());
+    bool finite = true;
+    for (const auto& [s, len] : windows) {
+      const double v = values.segment(s, len).mean();
+      finite = finite && std::isfinite(v);
+      m.push_back(v);
+    }
+    if (!finite) continue;
+    const double rho = pearson(rv, ranks(m));
+    if (std::abs(rho) >= threshold && std::abs(rho) > std::abs(out.amplitude_correlation)) {
+      out.amplitude_channel = name;
+      out.amplitude_correlation = rho;
+    }
+  }
+  return out;
+}
+
+}  // namespace magcomp
