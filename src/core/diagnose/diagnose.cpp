@@ -721,13 +721,13 @@ std::string remainder_description(const Diagnosis& dx) {
                            [](const auto& a, const auto& b) { return a.second < b.second; });
       o << "; mostly " << top->first;
     }
-  } else {
+  } else if (x.computed) {
     o << "; no recorded channel predicts its sign";
   }
   if (!f.amplitude_channel.empty()) {
     o << std::setprecision(2) << "; its amplitude follows " << f.amplitude_channel
       << " (rank correlation of the local variance " << f.amplitude_correlation << ")";
-    if (!predictable) o << ": its phase is not recorded";
+    if (x.computed && !predictable) o << ": its phase is not recorded";
   }
   return o.str();
 }
