@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstdio>
 #include <iostream>
+#include <memory>
 #include <nlohmann/json.hpp>
 
 #include "common.h"
@@ -231,6 +232,7 @@ void add_diagnose(CLI::App& app) {
   auto rounds = std::make_shared<int>(5);
   auto min_share = std::make_shared<double>(0.05);
   auto quick = std::make_shared<bool>(false);
+  auto validate = std::make_shared<std::string>();
   cmd->add_option("--data", *data,
                   "flight HDF5 file; several, comma-separated: each diagnosed in turn, the "
                   "candidates ranked across them")
@@ -246,6 +248,9 @@ void add_diagnose(CLI::App& app) {
   cmd->add_option("--rounds", *rounds, "with --apply: at most this many terms added (default 5)");
   cmd->add_option("--min-share", *min_share,
                   "with --apply: the share of the held-out error a term must explain (0.05)");
+  cmd->add_option("--validate", *validate,
+                  "with --apply: another flight of the same aircraft; a term is kept only if it "
+                  "also lowers the error there");
   cmd->add_flag("--channels-only", *quick,
                 "search only the cur_/vol_ and attitude-rate channels (faster)");
   cmd->callback([=] {
@@ -253,6 +258,7 @@ void add_diagnose(CLI::App& app) {
     if (!(*min_share >= 0 && *min_share < 1)) throw Error("--min-share: must be in [0, 1)");
     if (*rounds < 1 || *rounds > 50) throw Error("--rounds: must be in 1..50");
     if (*top < 0) throw Error("--top: must be >= 0");
+    if (!validate->empty() && !*apply) throw Error("--validate: only with --apply");
     const Model model = load_model_yaml(*model_path);
     DiagnoseOptions options;
     options.full_search = !*quick;
@@ -287,8 +293,11 @@ void add_diagnose(CLI::App& app) {
       }
       return;
     }
+    std::unique_ptr<FlightData> validation;
+    if (!validate->empty()) validation = std::make_unique<FlightData>(read_flight(*validate));
     const LoopResult r = diagnose_loop(
-        model, flight, *truth, *rounds, *min_share, options, [&](int round, const Diagnosis& dx) {
+        model, flight, *truth, *rounds, *min_share, options,
+        [&](int round, const Diagnosis& dx) {
           std::printf("== round %d\n", round);
           std::printf("  held-out std %.3f nT; top: %s\n", dx.baseline_std_nT,
                       dx.candidates.empty() ? "(none)" : dx.candidates.front().term.c_str());
@@ -302,13 +311,18 @@ void add_diagnose(CLI::App& app) {
           }
           std::printf("  verdict: %s\n", dx.verdict.c_str());
           std::fflush(stdout);
-        });
-    std::printf("\n%-6s %-36s %10s %14s %12s %12s\n", "round", "added term", "explained",
-                "held-out std", "all-lines", "FOM");
+        },
+        validation.get());
+    std::printf("\n%-6s %-36s %10s %14s %12s %12s%s\n", "round", "added term", "explained",
+                "held-out std", "all-lines", "FOM", validation ? "   validation" : "");
     for (const auto& lr : r.rounds) {
-      std::printf("%-6d %-36s %9.1f%% %11.3f nT %9.3f nT %9.2f nT\n", lr.round,
+      for (const auto& [term, why] : lr.rejected)
+        std::printf("       refused %s: %s\n", term.c_str(), why.c_str());
+      std::printf("%-6d %-36s %9.1f%% %11.3f nT %9.3f nT %9.2f nT", lr.round,
                   lr.round == 0 ? "(the model as given)" : lr.added.c_str(), 100 * lr.explained,
                   lr.heldout_std_nT, lr.all_std_nT, lr.fom_nT);
+      if (validation) std::printf(" %9.3f nT", lr.validation_std_nT);
+      std::printf("\n");
     }
     std::printf("stop: %s\n", r.stop_reason.c_str());
     save_model_yaml(r.model, *out);
@@ -329,7 +343,16 @@ void add_diagnose(CLI::App& app) {
              {"heldout_std_nT", lr.heldout_std_nT},
              {"all_std_nT", lr.all_std_nT},
              {"fom_nT", std::isfinite(lr.fom_nT) ? nlohmann::json(lr.fom_nT) : nlohmann::json()}});
+        auto& jr = j["rounds"].back();
+        const auto number = [](double v) {
+          return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json();
+        };
+        jr["validation_std_nT"] = number(lr.validation_std_nT);
+        jr["rejected"] = nlohmann::json::array();
+        for (const auto& [term, why] : lr.rejected)
+          jr["rejected"].push_back({{"term", term}, {"why", why}});
       }
+      if (validation) j["validation"] = *validate;
       j["stop"] = r.stop_reason;
       j["last_diagnosis"] = to_json(r.last);
       write_file_atomic(*json_path, j.dump(2) + "\n", {*data, *model_path});

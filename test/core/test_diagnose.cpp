@@ -263,5 +263,51 @@ TEST(Diagnose, ARippleOfUnrecordedPhaseIsNeverCompleteAndItsAmplitudeChannelIsNa
   }
 }
 
+TEST(Diagnose, AValidationFlightKeepsOnlyTermsThatCarryOverAndSaysWhy) {
+  // Two flights of one aircraft (aircraft.seed fixed, other flight seeds): the wire and the lag
+  // are kept because they lower the error on the other flight too. On a validation flight where
+  // the strobe wire is not there (the same aircraft with its wiring changed), the wire's term
+  // raises the error there: it is refused, with the reason, and the final model is never worse
+  // on the validation flight than the start.
+  sim::Scenario a = sim::load_scenario(test::source_dir() + "/config/scenarios/two_effects.yaml");
+  a.aircraft_seed = 7;
+  sim::Scenario b = a;
+  b.seed = a.seed + 1;
+  const FlightData fa = sim::simulate(a, Igrf::installed()).flight;
+  const FlightData fb = sim::simulate(b, Igrf::installed()).flight;
+  sim::Scenario c = b;
+  c.hidden.erase(c.hidden.begin());  // the wire
+  ASSERT_EQ(c.hidden.size(), 1u);
+  const FlightData fc = sim::simulate(c, Igrf::installed()).flight;
+  const Model start = test::calibrated_tl(fa);
+
+  const LoopResult same = diagnose_loop(start, fa, "mag_1_c", 5, 0.05, {}, {}, &fb);
+  std::printf("  validation on the next flight:");
+  for (const auto& lr : same.rounds)
+    std::printf(" [%s %.3f nT]", lr.round ? lr.added.c_str() : "start", lr.validation_std_nT);
+  std::printf("\n");
+  ASSERT_GE(same.rounds.size(), 3u) << same.stop_reason;
+  EXPECT_EQ(same.rounds[1].added, "lag:0.3");
+  EXPECT_EQ(same.rounds[2].added, "current:cur_strb");
+  for (size_t k = 1; k < same.rounds.size(); ++k)
+    EXPECT_LT(same.rounds[k].validation_std_nT, same.rounds[k - 1].validation_std_nT);
+  EXPECT_LT(same.rounds.back().validation_std_nT, 0.1 * same.rounds.front().validation_std_nT);
+
+  const LoopResult rewired = diagnose_loop(start, fa, "mag_1_c", 5, 0.05, {}, {}, &fc);
+  std::printf("  validation without the wire:");
+  for (const auto& lr : rewired.rounds)
+    std::printf(" [%s %.3f nT]", lr.round ? lr.added.c_str() : "start", lr.validation_std_nT);
+  std::printf("\n  stop: %s\n", rewired.stop_reason.c_str());
+  for (const auto& t : rewired.model.terms) EXPECT_NE(t, "current:cur_strb");
+  // The refusal and its reason: in the round that kept another term, or in the stop.
+  std::string refusals = rewired.stop_reason;
+  for (const auto& lr : rewired.rounds)
+    for (const auto& [term, why] : lr.rejected) refusals += "; " + term + ": " + why;
+  EXPECT_NE(refusals.find("current:cur_strb: the error on the validation flight would not fall"),
+            std::string::npos)
+      << refusals;
+  EXPECT_LE(rewired.rounds.back().validation_std_nT, rewired.rounds.front().validation_std_nT);
+}
+
 }  // namespace
 }  // namespace magcomp

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 
 #include "magcomp/core/evaluate/evaluation.h"
 
@@ -21,11 +22,42 @@ double std_on_lines(const Evaluation& ev, const std::vector<double>& lines) {
   return n > 0 ? std::sqrt(ss / n) : ev.std_nT;
 }
 
+// Scores of a model: held-out lines, all lines, FOM, validation flight.
+LoopRound score(const Model& model, const FlightData& data, const std::string& truth,
+                const std::vector<double>& held, const FlightData* validation) {
+  LoopRound r;
+  const Evaluation ev = evaluate_model(model, data, truth, false);
+  r.heldout_std_nT = std_on_lines(ev, held);
+  r.all_std_nT = ev.std_nT;
+  r.fom_nT = ev.fom.signatures.empty() ? NAN : ev.fom.fom_nT;
+  if (validation) r.validation_std_nT = evaluate_model(model, *validation, truth, false).std_nT;
+  return r;
+}
+
+// Why a scored candidate model is refused against the current one ("" when it is kept).
+std::string refusal(const LoopRound& next, const LoopRound& now) {
+  char buf[256];
+  if (!(next.heldout_std_nT < now.heldout_std_nT)) {
+    std::snprintf(buf, sizeof(buf), "the held-out error would not fall (%.3f -> %.3f nT)",
+                  now.heldout_std_nT, next.heldout_std_nT);
+    return buf;
+  }
+  if (std::isfinite(now.validation_std_nT) && !(next.validation_std_nT < now.validation_std_nT)) {
+    std::snprintf(buf, sizeof(buf),
+                  "the error on the validation flight would not fall (%.3f -> %.3f nT)",
+                  now.validation_std_nT, next.validation_std_nT);
+    return buf;
+  }
+  return "";
+}
+
 }  // namespace
 
 LoopResult diagnose_loop(const Model& start, const FlightData& data, const std::string& truth,
                          int max_rounds, double min_share, const DiagnoseOptions& options,
-                         const std::function<void(int, const Diagnosis&)>& on_round) {
+                         const std::function<void(int, const Diagnosis&)>& on_round,
+                         const FlightData* validation) {
+  constexpr size_t kTriesPerRound = 3;
   LoopResult r;
   r.model = start;
   if (!r.model.fitted()) fit_model(r.model, {&data});
@@ -35,12 +67,7 @@ LoopResult diagnose_loop(const Model& start, const FlightData& data, const std::
     if (round == 1) {
       held = dx.selection_lines;
       held.insert(held.end(), dx.confirmation_lines.begin(), dx.confirmation_lines.end());
-      LoopRound r0;
-      const Evaluation ev = evaluate_model(r.model, data, truth);
-      r0.heldout_std_nT = std_on_lines(ev, held);
-      r0.all_std_nT = ev.std_nT;
-      r0.fom_nT = ev.fom.signatures.empty() ? NAN : ev.fom.fom_nT;
-      r.rounds.push_back(r0);
+      r.rounds.push_back(score(r.model, data, truth, held, validation));
     }
     if (on_round) on_round(round, dx);
     const Candidate* top = dx.candidates.empty() ? nullptr : &dx.candidates.front();
@@ -54,26 +81,40 @@ LoopResult diagnose_loop(const Model& start, const FlightData& data, const std::
       r.last = std::move(dx);
       break;
     }
-    Model next = r.model;
-    next.add_term(top->term);
-    next.coefficients.resize(0);
-    fit_model(next, {&data});
-    LoopRound lr;
-    lr.round = round;
-    lr.added = top->term;
-    lr.explained = top->explained_fraction;
-    const Evaluation ev = evaluate_model(next, data, truth);
-    lr.heldout_std_nT = std_on_lines(ev, held);
-    lr.all_std_nT = ev.std_nT;
-    lr.fom_nT = ev.fom.signatures.empty() ? NAN : ev.fom.fom_nT;
-    if (!(lr.heldout_std_nT < r.rounds.back().heldout_std_nT)) {  // never worse on unseen lines
-      r.stop_reason = "adding " + top->term + " would not lower the held-out error (" +
-                      std::to_string(lr.heldout_std_nT) + " nT): stopped";
+    // The accepted candidates in rank order: the first that passes every check is kept.
+    std::vector<std::pair<std::string, std::string>> rejected;
+    bool kept = false;
+    for (size_t k = 0; k < dx.candidates.size() && k < kTriesPerRound; ++k) {
+      const Candidate& c = dx.candidates[k];
+      if (!c.accepted || c.explained_fraction < min_share) break;
+      Model next = r.model;
+      next.add_term(c.term);
+      next.coefficients.resize(0);
+      fit_model(next, {&data});
+      LoopRound lr = score(next, data, truth, held, validation);
+      const std::string why = refusal(lr, r.rounds.back());
+      if (!why.empty()) {
+        rejected.emplace_back(c.term, why);
+        continue;
+      }
+      lr.round = round;
+      lr.added = c.term;
+      lr.explained = c.explained_fraction;
+      lr.rejected = std::move(rejected);
+      r.rounds.push_back(std::move(lr));
+      r.model = std::move(next);
+      kept = true;
+      break;
+    }
+    if (!kept) {
+      r.stop_reason = "no accepted term passes: ";
+      for (size_t k = 0; k < rejected.size(); ++k) {
+        r.stop_reason += (k ? "; " : "") + rejected[k].first + ": " + rejected[k].second;
+      }
+      r.stop_reason += ": stopped";
       r.last = std::move(dx);
       break;
     }
-    r.rounds.push_back(lr);
-    r.model = std::move(next);
   }
   return r;
 }

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <functional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "magcomp/core/diagnose/diagnose.h"
@@ -13,11 +14,15 @@ namespace magcomp {
 /// One round of the loop (round 0: the model as given, refitted).
 struct LoopRound {
   int round = 0;
-  std::string added;            ///< the term added in this round ("" for round 0)
-  double explained = 0.0;       ///< its conservative explained share (Candidate)
-  double heldout_std_nT = 0.0;  ///< error std (line means removed) on the held-out lines
-  double all_std_nT = 0.0;      ///< the same on every line of the flight
-  double fom_nT = NAN;          ///< figure of merit on the model's calibration maneuvers
+  std::string added;               ///< the term added in this round ("" for round 0)
+  double explained = 0.0;          ///< its conservative explained share (Candidate)
+  double heldout_std_nT = 0.0;     ///< error std (line means removed) on the held-out lines
+  double all_std_nT = 0.0;         ///< the same on every line of the flight
+  double fom_nT = NAN;             ///< figure of merit on the model's calibration maneuvers
+  double validation_std_nT = NAN;  ///< error std on the validation flight (NaN: none given)
+  /// The terms tried in this round and refused, each with why (a term is kept only if it lowers
+  /// the held-out error and, with a validation flight, the error there).
+  std::vector<std::pair<std::string, std::string>> rejected;
 };
 
 struct LoopResult {
@@ -29,10 +34,15 @@ struct LoopResult {
 
 /// Runs diagnose -> add the top candidate if it is accepted and explains at least `min_share`
 /// -> refit (model.fit, on `data`) -> repeat, at most `max_rounds` times. The error is measured
-/// against `truth` on the lines held out by the first diagnosis. `on_round` (optional) is called
-/// after each diagnosis with the round number and the diagnosis.
+/// against `truth` on the lines held out by the first diagnosis. An accepted candidate is kept
+/// only if the refitted model lowers the held-out error and, with a `validation` flight (another
+/// flight of the same aircraft: same sensors and truth field), the error there; otherwise the next
+/// accepted candidate is tried (up to three per round), and the loop stops when none passes. So the
+/// final model is never worse than the start on either. `on_round` (optional) is called after each
+/// diagnosis with the round number and the diagnosis.
 LoopResult diagnose_loop(const Model& model, const FlightData& data, const std::string& truth,
                          int max_rounds, double min_share, const DiagnoseOptions& options,
-                         const std::function<void(int, const Diagnosis&)>& on_round = {});
+                         const std::function<void(int, const Diagnosis&)>& on_round = {},
+                         const FlightData* validation = nullptr);
 
 }  // namespace magcomp
