@@ -531,6 +531,92 @@ std::vector<Job> product_jobs(const Model& model, const Search& search,
   return products;
 }
 
+constexpr size_t kScreenedProducts = 12;  // pairs fitted in full after the screen
+
+// Every pair of channels screened cheaply for a product term field:x*y: on the selection rows,
+// the share of the base residual (each line's mean removed) that the product's three columns
+// B̂i·x·y explain by least squares (no refit of the base). The best `keep` pairs not already in
+// `taken` become jobs, scored like every other (fitted with the base, confirmed on the other
+// fold). Two threads split the first channel.
+std::vector<Job> screened_products(const Search& search, const std::vector<std::string>& sources,
+                                   const std::vector<Job>& taken, size_t keep, int threads) {
+  std::vector<Eigen::Index> rows;
+  for (Eigen::Index i : search.held)
+    if (search.fold[static_cast<size_t>(i)] == 0) rows.push_back(i);
+  const auto m = static_cast<Eigen::Index>(rows.size());
+  if (m < 100 || sources.size() < 2) return {};
+  // The residual, each line's mean removed; the direction products B̂iB̂j and e·B̂i per row.
+  Eigen::VectorXd e(m);
+  for (Eigen::Index r = 0; r < m; ++r) e[r] = search.e0[rows[static_cast<size_t>(r)]];
+  for (Eigen::Index start = 0, r = 1; r <= m; ++r) {
+    if (r < m &&
+        search.line[rows[static_cast<size_t>(r)]] == search.line[rows[static_cast<size_t>(start)]])
+      continue;
+    e.segment(start, r - start).array() -= e.segment(start, r - start).mean();
+    start = r;
+  }
+  const double ee = e.squaredNorm();
+  if (!(ee > 0)) return {};
+  Eigen::Matrix<double, Eigen::Dynamic, 9> w(m, 9);  // xx xy xz yy yz zz, e·x e·y e·z
+  for (Eigen::Index r = 0; r < m; ++r) {
+    const Eigen::Vector3d d = search.inputs.direction.row(rows[static_cast<size_t>(r)]);
+    w.row(r) << d.x() * d.x(), d.x() * d.y(), d.x() * d.z(), d.y() * d.y(), d.y() * d.z(),
+        d.z() * d.z(), e[r] * d.x(), e[r] * d.y(), e[r] * d.z();
+  }
+  // The channels on those rows, standardised (a product's share does not depend on scale).
+  Eigen::MatrixXd x(m, static_cast<Eigen::Index>(sources.size()));
+  for (size_t c = 0; c < sources.size(); ++c) {
+    const FlightData::Column v = search.data.column(sources[c]);
+    auto col = x.col(static_cast<Eigen::Index>(c));
+    for (Eigen::Index r = 0; r < m; ++r) col[r] = v[rows[static_cast<size_t>(r)]];
+    if (!col.allFinite()) col.setZero();  // a channel with gaps: not screened
+    const double sd = std::sqrt((col.array() - col.mean()).square().mean());
+    if (sd > 0) col /= sd;
+  }
+  std::set<std::string> already;
+  for (const Job& j : taken) already.insert(j.spec);
+  const auto n = static_cast<Eigen::Index>(sources.size());
+  auto screen = [&](int part) {
+    std::vector<std::pair<double, std::pair<Eigen::Index, Eigen::Index>>> out;
+    for (Eigen::Index a = part; a < n; a += std::max(threads, 1)) {
+      for (Eigen::Index b = a + 1; b < n; ++b) {
+        Eigen::Matrix<double, 9, 1> acc = Eigen::Matrix<double, 9, 1>::Zero();
+        for (Eigen::Index r = 0; r < m; ++r) {
+          const double z = x(r, a) * x(r, b), z2 = z * z;
+          acc.head<6>() += z2 * w.row(r).head<6>().transpose();
+          acc.tail<3>() += z * w.row(r).tail<3>().transpose();
+        }
+        Eigen::Matrix3d g;
+        g << acc[0], acc[1], acc[2], acc[1], acc[3], acc[4], acc[2], acc[4], acc[5];
+        g.diagonal().array() += 1e-9 * std::max(g.trace(), 1e-300);
+        const Eigen::Vector3d h = acc.tail<3>();
+        const double explained = h.dot(g.ldlt().solve(h)) / ee;
+        if (std::isfinite(explained)) out.push_back({explained, {a, b}});
+      }
+    }
+    return out;
+  };
+  std::vector<std::future<decltype(screen(0))>> parts;
+  for (int t = 0; t < std::max(threads, 1); ++t)
+    parts.push_back(std::async(std::launch::async, screen, t));
+  std::vector<std::pair<double, std::pair<Eigen::Index, Eigen::Index>>> all;
+  for (auto& p : parts) {
+    auto v = p.get();
+    all.insert(all.end(), v.begin(), v.end());
+  }
+  std::sort(all.begin(), all.end(), [](const auto& p, const auto& q) { return p.first > q.first; });
+  std::vector<Job> jobs;
+  for (const auto& [explained, pair] : all) {
+    if (jobs.size() >= keep) break;
+    const std::string& xa = sources[static_cast<size_t>(pair.first)];
+    const std::string& xb = sources[static_cast<size_t>(pair.second)];
+    Job j{"field:" + xa + "*" + xb, "product of two channels", xa + "*" + xb};
+    if (already.count(j.spec)) continue;
+    jobs.push_back(j);
+  }
+  return jobs;
+}
+
 // Every scored job becomes a candidate (each term once), with its fit counted.
 void add_candidates(const std::vector<Job>& jobs, const std::vector<Scored>& scored,
                     const Search& search, Diagnosis* dx) {
@@ -812,8 +898,12 @@ Diagnosis diagnose(const Model& model_in, const FlightData& data, const std::str
     if (!is_position_channel(s)) aircraft_sources.push_back(s);
   std::vector<Job> jobs = make_jobs(model, aircraft_sources);
   std::vector<Scored> scored = run_jobs(search, jobs, options.threads);
-  const std::vector<Job> products =
-      product_jobs(model, search, jobs, scored, options.accept_fraction);
+  std::vector<Job> products = product_jobs(model, search, jobs, scored, options.accept_fraction);
+  if (options.full_search) {
+    const std::vector<Job> screened =
+        screened_products(search, aircraft_sources, products, kScreenedProducts, options.threads);
+    products.insert(products.end(), screened.begin(), screened.end());
+  }
   if (!products.empty()) {
     std::vector<Scored> more = run_jobs(search, products, options.threads);
     jobs.insert(jobs.end(), products.begin(), products.end());

@@ -243,11 +243,12 @@ HiddenEffect read_hidden_effect(const Reader& r, const YAML::Node& e, const std:
   r.check_keys(e,
                {"type", "channel", "position_m", "direction", "length_m", "gain", "lag_s",
                 "time_constant_s", "scale", "nonorthogonality_rad", "offset_nT", "sensors",
-                "exponent", "threshold", "frequency_hz", "phase_walk_rad"},
+                "exponent", "threshold", "frequency_hz", "phase_walk_rad", "channel2"},
                where);
   HiddenEffect x;
   r.get(e, "type", where, &x.type);
   r.get(e, "channel", where, &x.channel);
+  r.get(e, "channel2", where, &x.channel2);
   r.vec3(e, "position_m", where, &x.position_m);
   r.vec3(e, "direction", where, &x.direction);
   r.get(e, "length_m", where, &x.length_m);
@@ -264,11 +265,11 @@ HiddenEffect read_hidden_effect(const Reader& r, const YAML::Node& e, const std:
   r.get(e, "phase_walk_rad", where, &x.phase_walk_rad);
   static const std::set<std::string> kTypes = {"wire",       "inductive", "lag",     "fluxgate",
                                                "heading",    "drift",     "thermal", "flex",
-                                               "eddy_decay", "relay",     "ripple"};
+                                               "eddy_decay", "relay",     "ripple",  "product"};
   if (!kTypes.count(x.type)) {
     throw Error(path + ": key '" + where +
                 ".type' must be wire, inductive, lag, fluxgate, heading, drift, thermal, "
-                "eddy_decay, flex, relay or ripple");
+                "eddy_decay, flex, relay, ripple or product");
   }
   if (x.type == "flex" && x.channel.empty()) x.channel = "nrml_acc";
   if (x.type == "flex" && !e["time_constant_s"]) x.time_constant_s = 0.0;
@@ -276,6 +277,16 @@ HiddenEffect read_hidden_effect(const Reader& r, const YAML::Node& e, const std:
                              x.type == "thermal" || x.type == "relay" || x.type == "ripple";
   if (needs_channel && !channels.count(x.channel)) {
     throw Error(path + ": key '" + where + ".channel': unknown channel '" + x.channel + "'");
+  }
+  static const std::set<std::string> kInsChannels = {"nrml_acc",   "lgtl_acc",  "ltrl_acc",
+                                                     "ins_acc_x",  "ins_acc_y", "ins_acc_z",
+                                                     "pitch_rate", "roll_rate", "yaw_rate"};
+  if (x.type == "product") {
+    for (const auto& [key, name] :
+         {std::make_pair("channel", x.channel), std::make_pair("channel2", x.channel2)}) {
+      if (!channels.count(name) && !kInsChannels.count(name))
+        throw Error(path + ": key '" + where + "." + key + "': unknown channel '" + name + "'");
+    }
   }
   static const std::set<std::string> kFlexChannels = {"nrml_acc",   "lgtl_acc",  "ltrl_acc",
                                                       "ins_acc_x",  "ins_acc_y", "ins_acc_z",

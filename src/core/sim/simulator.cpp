@@ -350,6 +350,10 @@ Eigen::VectorXd Simulator::hidden_contribution(const HiddenEffect& e, const Sens
       }
       return e.gain * v * e.direction;
     });
+  } else if (e.type == "product") {
+    const Eigen::VectorXd& x = source(e.channel);
+    const Eigen::VectorXd& y = source(e.channel2);
+    body_field([&](Eigen::Index i) { return Eigen::Vector3d(e.gain * x[i] * y[i] * e.direction); });
   } else if (e.type == "heading") {
     for (Eigen::Index i = 0; i < n_; ++i) {
       contrib[i] = e.gain * field[static_cast<size_t>(i)].normalized().dot(e.direction);
@@ -458,7 +462,8 @@ void Simulator::hidden_effect_truth(const HiddenEffect& e) {
     y << YAML::Key << "expected_term" << YAML::Value << lag_term;
   }
   if (e.type == "heading" || e.type == "drift" || e.type == "inductive" || e.type == "thermal" ||
-      e.type == "flex" || e.type == "relay" || e.type == "eddy_decay" || e.type == "ripple") {
+      e.type == "flex" || e.type == "relay" || e.type == "eddy_decay" || e.type == "ripple" ||
+      e.type == "product") {
     y << YAML::Key << "gain" << YAML::Value << e.gain;
   }
   if (e.type == "thermal" || e.type == "drift" || e.type == "eddy_decay" ||
@@ -478,6 +483,10 @@ void Simulator::hidden_effect_truth(const HiddenEffect& e) {
   if (e.type == "eddy_decay") {
     y << YAML::Key << "expected_term" << YAML::Value
       << "field:B|decay(" + format_param(e.time_constant_s) + ")";
+  }
+  if (e.type == "product") {
+    y << YAML::Key << "channel2" << YAML::Value << e.channel2;
+    y << YAML::Key << "expected_term" << YAML::Value << "field:" + e.channel + "*" + e.channel2;
   }
   if (e.type == "ripple") {
     y << YAML::Key << "frequency_hz" << YAML::Value << e.frequency_hz;

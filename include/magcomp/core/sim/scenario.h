@@ -20,9 +20,11 @@ struct Segment {
 /// A hidden (or visible) physical effect the simulator adds to the scalar sensors.
 struct HiddenEffect {
   /// wire | inductive | lag | fluxgate | heading | drift | thermal | eddy_decay | flex | relay |
-  /// ripple
+  /// ripple | product
   std::string type;
-  std::string channel;                  ///< wire / inductive / drift: the current or other channel
+  std::string channel;  ///< wire / inductive / drift: the current or other channel
+  std::string
+      channel2;  ///< product: the second channel (b = gain · direction · channel · channel2)
   Eigen::Vector3d position_m{0, 0, 0};  ///< wire: midpoint in base_link (x fwd, y left, z up)
   Eigen::Vector3d direction{1, 0, 0};   ///< wire: along the wire; inductive/heading: field axis
   double length_m = 1.0;                ///< wire length
