@@ -1,0 +1,48 @@
+// magcomp: a magnetic anomaly map on a regular latitude/longitude grid: bilinear value and
+// gradient, wavenumbers and upward continuation by FFT, read from MagNav.jl's HDF5 map files.
+#pragma once
+
+#include <Eigen/Core>
+#include <string>
+
+namespace magcomp::nav {
+
+/// Grid: map_nT(i, j) at latitude lat_rad[i], longitude lon_rad[j] (both increasing, uniform
+/// steps), altitude alt_m above the WGS-84 ellipsoid; mask(i, j) != 0 where the cell is valid.
+struct AnomalyMap {
+  Eigen::MatrixXd map_nT;
+  Eigen::VectorXd lat_rad, lon_rad;
+  double alt_m = 0.0;
+  Eigen::MatrixXd mask;
+
+  /// Bilinear value at (lat, lon), rad (clamped to the grid's edge cells), nT.
+  double value(double lat_rad, double lon_rad) const;
+  /// Gradient (dmap/dlat nT/rad, dmap/dlon nT/rad) by a central difference of 1e-8 rad (as
+  /// MagNav.jl's map_grad: the float literal 1.0f-8).
+  Eigen::Vector2d gradient(double lat_rad, double lon_rad) const;
+  /// Whether (lat, lon) lies inside the grid and its cell is valid.
+  bool covers(double lat_rad, double lon_rad) const;
+  /// Grid steps in metres at the map's mean latitude: east (x) and north (y).
+  Eigen::Vector2d step_m() const;
+};
+
+/// Wavenumbers (rad/m) of an ny x nx grid of steps dx, dy (m), in the FFT's order: k, kx, ky.
+struct Wavenumbers {
+  Eigen::MatrixXd k, kx, ky;
+};
+Wavenumbers wavenumbers(double dx_m, double dy_m, int nx, int ny);
+
+/// Upward continuation of a gridded potential field by dz_m (m, >= 0) in the wavenumber domain
+/// (exp(-k dz)), without padding: the grid is taken as periodic.
+Eigen::MatrixXd upward_continue(const Eigen::MatrixXd& map_nT, double dx_m, double dy_m,
+                                double dz_m);
+
+/// The map continued up to alt_m (>= the map's altitude).
+AnomalyMap continued_to(const AnomalyMap& map, double alt_m);
+
+/// Reads a map file with MagNav.jl's names: `map` (ny x nx, nT), `xx` (longitude), `yy`
+/// (latitude), `alt` (m), optional `mask`. Angles in degrees are recognised (|yy| > pi/2 or
+/// |xx| > pi) and converted. Throws magcomp::Error naming the file and field.
+AnomalyMap read_anomaly_map(const std::string& path);
+
+}  // namespace magcomp::nav

@@ -1,0 +1,62 @@
+// magcomp: one named float64 array of an HDF5 file.
+#include "magcomp/core/io/h5_array.h"
+
+#include <hdf5.h>
+
+#include "magcomp/core/error.h"
+
+namespace magcomp {
+namespace {
+
+// Closes an HDF5 identifier when it goes out of scope.
+struct Handle {
+  hid_t id;
+  herr_t (*close)(hid_t);
+  ~Handle() {
+    if (id >= 0) close(id);
+  }
+};
+
+}  // namespace
+
+bool h5_has(const std::string& path, const std::string& name) {
+  H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);  // errors are ours to report, in one line
+  {
+    const hid_t file = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+    if (file < 0) return false;
+    Handle f{file, H5Fclose};
+    const hid_t ds = H5Dopen2(file, name.c_str(), H5P_DEFAULT);
+    if (ds < 0) return false;
+    H5Dclose(ds);
+    return true;
+  }
+}
+
+H5Array read_h5_array(const std::string& path, const std::string& name) {
+  H5Array out;
+  H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);  // errors are ours to report, in one line
+  {
+    Handle file{H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose};
+    if (file.id < 0) throw Error(path + ": cannot open as HDF5");
+    Handle ds{H5Dopen2(file.id, name.c_str(), H5P_DEFAULT), H5Dclose};
+    if (ds.id < 0) throw Error(path + ": dataset '" + name + "' not found");
+    Handle space{H5Dget_space(ds.id), H5Sclose};
+    const int rank = space.id < 0 ? -1 : H5Sget_simple_extent_ndims(space.id);
+    if (rank < 0 || rank > 8) throw Error(path + ": dataset '" + name + "' has no simple shape");
+    std::vector<hsize_t> dims(static_cast<size_t>(rank));
+    if (rank > 0) H5Sget_simple_extent_dims(space.id, dims.data(), nullptr);
+    size_t n = 1;
+    for (hsize_t d : dims) {
+      out.dims.push_back(static_cast<size_t>(d));
+      n *= static_cast<size_t>(d);
+    }
+    if (n > (size_t{1} << 31)) throw Error(path + ": dataset '" + name + "' is too large");
+    out.values.resize(n);
+    if (n > 0 &&
+        H5Dread(ds.id, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, out.values.data()) < 0)
+      throw Error(path + ": dataset '" + name + "' cannot be read as numbers");
+  }
+  return out;
+}
+
+}  // namespace magcomp
