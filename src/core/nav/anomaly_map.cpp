@@ -148,19 +148,25 @@ AnomalyMap read_anomaly_map(const std::string& path) {
   if (grid.dims.size() != 2) throw Error(path + ": field 'map' must be a 2-D grid");
   m.lon_rad = axis(read_h5_array(path, "xx"), path, "xx");
   m.lat_rad = axis(read_h5_array(path, "yy"), path, "yy");
-  if (grid.dims[0] != static_cast<size_t>(m.lat_rad.size()) ||
-      grid.dims[1] != static_cast<size_t>(m.lon_rad.size()))
+  // MagNav.jl writes its maps from Julia (column-major): an ny x nx map is stored with the
+  // dimensions (nx, ny). A file whose dimensions are (ny, nx) and not square is read row-major.
+  const auto ny = static_cast<size_t>(m.lat_rad.size()), nx = static_cast<size_t>(m.lon_rad.size());
+  const bool julia = grid.dims[0] == nx && grid.dims[1] == ny;
+  if (!julia && !(grid.dims[0] == ny && grid.dims[1] == nx))
     throw Error(path + ": field 'map' is " + std::to_string(grid.dims[0]) + " x " +
-                std::to_string(grid.dims[1]) + ", but yy has " + std::to_string(m.lat_rad.size()) +
-                " values and xx " + std::to_string(m.lon_rad.size()));
+                std::to_string(grid.dims[1]) + ", but yy has " + std::to_string(ny) +
+                " values and xx " + std::to_string(nx));
   if (m.lat_rad.cwiseAbs().maxCoeff() > kPi / 2 || m.lon_rad.cwiseAbs().maxCoeff() > kPi) {
     m.lat_rad *= kDegToRad;
     m.lon_rad *= kDegToRad;
   }
+  auto element = [&](const H5Array& a, size_t i, size_t j) {
+    return julia ? a.at(j, i) : a.at(i, j);
+  };
   m.map_nT.resize(m.lat_rad.size(), m.lon_rad.size());
-  for (Eigen::Index i = 0; i < m.map_nT.rows(); ++i)
-    for (Eigen::Index j = 0; j < m.map_nT.cols(); ++j)
-      m.map_nT(i, j) = grid.at(static_cast<size_t>(i), static_cast<size_t>(j));
+  for (size_t i = 0; i < ny; ++i)
+    for (size_t j = 0; j < nx; ++j)
+      m.map_nT(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)) = element(grid, i, j);
   const H5Array alt = read_h5_array(path, "alt");
   if (alt.values.empty() || !std::isfinite(alt.values[0]))
     throw Error(path + ": field 'alt' must hold the map's altitude (m)");
@@ -168,9 +174,10 @@ AnomalyMap read_anomaly_map(const std::string& path) {
   if (h5_has(path, "mask")) {
     const H5Array mask = read_h5_array(path, "mask");
     if (mask.dims != grid.dims) throw Error(path + ": field 'mask' must have the map's shape");
-    m.mask =
-        Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(
-            mask.values.data(), m.map_nT.rows(), m.map_nT.cols());
+    m.mask.resize(m.map_nT.rows(), m.map_nT.cols());
+    for (size_t i = 0; i < ny; ++i)
+      for (size_t j = 0; j < nx; ++j)
+        m.mask(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)) = element(mask, i, j);
   }
   return m;
 }

@@ -41,8 +41,10 @@ Eigen::MatrixXd upward_continue(const Eigen::MatrixXd& map_nT, double dx_m, doub
 AnomalyMap continued_to(const AnomalyMap& map, double alt_m);
 
 /// Reads a map file with MagNav.jl's names: `map` (ny x nx, nT), `xx` (longitude), `yy`
-/// (latitude), `alt` (m), optional `mask`. Angles in degrees are recognised (|yy| > pi/2 or
-/// |xx| > pi) and converted. Throws magcomp::Error naming the file and field.
+/// (latitude), `alt` (m), optional `mask`. The grid is taken in MagNav.jl's layout (written from
+/// Julia: dimensions (nx, ny)) unless its dimensions are (ny, nx) and it is not square. Angles in
+/// degrees are recognised (|yy| > pi/2 or |xx| > pi) and converted. Throws magcomp::Error naming
+/// the file and field.
 AnomalyMap read_anomaly_map(const std::string& path);
 
 }  // namespace magcomp::nav
