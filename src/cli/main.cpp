@@ -48,6 +48,7 @@ int main(int argc, char** argv) {
   magcomp::cli::add_diagnose(app);
   app.add_subcommand("convert", "IN.h5 OUT.bag or IN.bag OUT.h5, lossless (runs magcomp_convert)");
   magcomp::cli::add_info(app);
+  magcomp::cli::add_navigate(app);
   app.add_subcommand("train",
                      "train a model's neural stage (runs magcomp_train; see magcomp train --help)");
   return magcomp::cli::parse_and_run(app, argc, argv);

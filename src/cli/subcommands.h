@@ -15,5 +15,6 @@ void add_diagnose(CLI::App& app);
 /// the converter links the ROS bag libraries, which the other subcommands do not load).
 void setup_convert(CLI::App* cmd);
 void add_info(CLI::App& app);
+void add_navigate(CLI::App& app);
 
 }  // namespace magcomp::cli

@@ -1,0 +1,201 @@
+// magcomp navigate: the compensated anomaly steers the map-matching EKF; the compensation scored
+// in metres (DRMS of the filter, of the INS alone and of the Cramér-Rao bound) beside nT.
+#include <Eigen/Dense>
+#include <cmath>
+#include <cstdio>
+#include <nlohmann/json.hpp>
+
+#include "common.h"
+#include "magcomp/core/error.h"
+#include "magcomp/core/geo/igrf.h"
+#include "magcomp/core/io/file_io.h"
+#include "magcomp/core/math/constants.h"
+#include "magcomp/core/model/model.h"
+#include "magcomp/core/nav/anomaly_map.h"
+#include "magcomp/core/nav/ekf.h"
+#include "magcomp/core/nav/nav_model.h"
+#include "magcomp/neural/features.h"
+#include "subcommands.h"
+
+namespace magcomp::cli {
+namespace {
+
+// 95 % bounds of a chi-square with 2 degrees of freedom (one sample): the horizontal NEES.
+constexpr double kNees2Low = 0.0506356, kNees2High = 7.37776;
+
+Eigen::VectorXd column(const FlightData& f, const std::vector<std::string>& names,
+                       const std::string& what) {
+  for (const auto& n : names)
+    if (f.has(n)) return f.column(n);
+  std::string list;
+  for (const auto& n : names) list += (list.empty() ? "" : " or ") + n;
+  throw Error(f.source() + ": field " + list + " (" + what + ") not found");
+}
+
+// An angle column in radians: degrees are recognised against a reference in degrees (the INS
+// latitude of the MIT schema is in radians, MagNav.jl's files give it in degrees).
+Eigen::VectorXd radians_like(const Eigen::VectorXd& v, const Eigen::VectorXd& reference_deg) {
+  const bool degrees = std::abs(v.mean() - reference_deg.mean()) < 1.0;
+  return degrees ? Eigen::VectorXd(v * kDegToRad) : v;
+}
+
+struct Scores {
+  double meas_vs_map_nT = NAN;  // std of the measurement minus the map at the true position
+  double drms_filter_m = NAN, drms_ins_m = NAN, drms_crlb_m = NAN;
+  double nees_in_bounds = NAN;  // share of samples whose horizontal NEES is in its 95 % bounds
+  double innovation_mean_nT = NAN, innovation_std_nT = NAN, nis_mean = NAN;
+};
+
+Scores navigate_once(const nav::NavTrack& ins, const nav::NavTrack& truth,
+                     const Eigen::VectorXd& anomaly_nT, const nav::AnomalyMap& map,
+                     const nav::FilterSettings& settings) {
+  Scores s;
+  const Eigen::Index n = ins.size();
+  Eigen::VectorXd d(n);
+  for (Eigen::Index i = 0; i < n; ++i)
+    d[i] = anomaly_nT[i] - map.value(truth.lat_rad[i], truth.lon_rad[i]);
+  s.meas_vs_map_nT = std::sqrt((d.array() - d.mean()).square().mean());
+  const nav::FilterResult r = nav::run_ekf(ins, anomaly_nT, map, settings);
+  const nav::PositionErrors e = nav::position_errors(ins, r.x, truth.lat_rad, truth.lon_rad);
+  s.drms_filter_m = e.drms_m;
+  s.drms_ins_m = nav::position_errors(ins, {}, truth.lat_rad, truth.lon_rad).drms_m;
+  s.drms_crlb_m = nav::covariance_drms_m(nav::crlb(truth, map, settings), truth.lat_rad);
+  long inside = 0;
+  double nis = 0;
+  for (Eigen::Index i = 0; i < n; ++i) {
+    // Horizontal position covariance in m^2 (latitude and longitude errors to north and east).
+    const double lat = truth.lat_rad[i];
+    const double kn = nav::dlat_to_north_m(1.0, lat), ke = nav::dlon_to_east_m(1.0, lat);
+    const Eigen::MatrixXd& p = r.p[static_cast<size_t>(i)];
+    Eigen::Matrix2d c;
+    c << kn * kn * p(0, 0), kn * ke * p(0, 1), kn * ke * p(1, 0), ke * ke * p(1, 1);
+    const Eigen::Vector2d err(e.north_m[i], e.east_m[i]);
+    const double nees = err.dot(c.ldlt().solve(err));
+    inside += nees >= kNees2Low && nees <= kNees2High;
+    nis += r.innovation_nT[i] * r.innovation_nT[i] / r.innovation_var_nT2[i];
+  }
+  s.nees_in_bounds = static_cast<double>(inside) / static_cast<double>(n);
+  s.innovation_mean_nT = r.innovation_nT.mean();
+  s.innovation_std_nT = std::sqrt((r.innovation_nT.array() - s.innovation_mean_nT).square().mean());
+  s.nis_mean = nis / static_cast<double>(n);
+  return s;
+}
+
+nlohmann::json to_json(const Scores& s) {
+  return {{"measurement_minus_map_std_nT", s.meas_vs_map_nT},
+          {"drms_filter_m", s.drms_filter_m},
+          {"drms_ins_m", s.drms_ins_m},
+          {"drms_crlb_m", s.drms_crlb_m},
+          {"nees_in_95_bounds", s.nees_in_bounds},
+          {"innovation_mean_nT", s.innovation_mean_nT},
+          {"innovation_std_nT", s.innovation_std_nT},
+          {"nis_mean", s.nis_mean}};
+}
+
+// The measured anomaly: a field as it is, or the model's compensated field less the IGRF and,
+// when the file has it, the diurnal field.
+Eigen::VectorXd anomaly_of(const FlightData& f, const std::string& model_path,
+                           const std::string& field) {
+  if (!field.empty()) return column(f, {field}, "--anomaly");
+  const Model m = load_model_yaml(model_path);
+  Eigen::VectorXd a = compensate(m, f) - igrf_total_nT(f, Igrf::installed());
+  if (f.has("diurnal")) a -= Eigen::VectorXd(f.column("diurnal"));
+  return a;
+}
+
+}  // namespace
+
+void add_navigate(CLI::App& app) {
+  auto* cmd = app.add_subcommand(
+      "navigate", "navigate on the compensated anomaly with a map (EKF); DRMS in metres");
+  auto data = std::make_shared<std::string>();
+  auto map_path = std::make_shared<std::string>();
+  auto model_path = std::make_shared<std::string>();
+  auto baseline = std::make_shared<std::string>();
+  auto anomaly_field = std::make_shared<std::string>();
+  auto json_path = std::make_shared<std::string>();
+  auto meas_sigma = std::make_shared<double>(3.0);
+  auto fogm_sigma = std::make_shared<double>(3.0);
+  auto fogm_tau = std::make_shared<double>(600.0);
+  auto init_pos_sigma = std::make_shared<double>(3.0);
+  cmd->add_option("--data", *data,
+                  "flight HDF5: truth lat, lon (deg), alt/msl (m), roll/pitch/yaw; INS ins_lat, "
+                  "ins_lon (rad or deg), ins_alt, ins_roll/pitch/yaw (deg)")
+      ->required();
+  cmd->add_option("--map", *map_path, "anomaly map HDF5 (MagNav.jl's names: map, xx, yy, alt)")
+      ->required();
+  cmd->add_option("--model", *model_path, "fitted model YAML: its compensation less IGRF/diurnal");
+  cmd->add_option("--baseline", *baseline, "another fitted model, scored the same way");
+  cmd->add_option("--anomaly", *anomaly_field,
+                  "a field of --data already holding the anomaly (nT), instead of --model");
+  cmd->add_option("--json", *json_path, "write the figures as JSON here");
+  cmd->add_option("--meas-sigma", *meas_sigma, "measurement noise std, nT (default 3)");
+  cmd->add_option("--fogm-sigma", *fogm_sigma, "FOGM catch-all std, nT (default 3)");
+  cmd->add_option("--fogm-tau", *fogm_tau, "FOGM catch-all time constant, s (default 600)");
+  cmd->add_option("--init-pos-sigma", *init_pos_sigma, "initial position std, m (default 3)");
+  cmd->callback([=] {
+    if (model_path->empty() == anomaly_field->empty())
+      throw Error("navigate: give exactly one of --model and --anomaly");
+    if (!(*meas_sigma > 0 && *fogm_sigma > 0 && *fogm_tau > 0 && *init_pos_sigma > 0))
+      throw Error("navigate: --meas-sigma, --fogm-sigma, --fogm-tau, --init-pos-sigma must be > 0");
+    const FlightData f = read_flight(*data);
+    const double dt = f.dt_s();
+    const Eigen::VectorXd lat_deg = column(f, {"lat"}, "true latitude, deg");
+    const Eigen::VectorXd lon_deg = column(f, {"lon"}, "true longitude, deg");
+    const Eigen::VectorXd alt = column(f, {"alt", "msl", "utm_z"}, "true altitude, m");
+    const nav::NavTrack truth =
+        nav::track_from_positions(dt, lat_deg * kDegToRad, lon_deg * kDegToRad, alt,
+                                  column(f, {"roll", "ins_roll"}, "roll, deg") * kDegToRad,
+                                  column(f, {"pitch", "ins_pitch"}, "pitch, deg") * kDegToRad,
+                                  column(f, {"yaw", "ins_yaw"}, "yaw, deg") * kDegToRad);
+    const nav::NavTrack ins =
+        nav::track_from_positions(dt, radians_like(column(f, {"ins_lat"}, "INS latitude"), lat_deg),
+                                  radians_like(column(f, {"ins_lon"}, "INS longitude"), lon_deg),
+                                  column(f, {"ins_alt"}, "INS altitude, m"),
+                                  column(f, {"ins_roll"}, "INS roll, deg") * kDegToRad,
+                                  column(f, {"ins_pitch"}, "INS pitch, deg") * kDegToRad,
+                                  column(f, {"ins_yaw"}, "INS yaw, deg") * kDegToRad);
+    nav::AnomalyMap map = nav::read_anomaly_map(*map_path);
+    const double flight_alt = alt.mean();
+    if (flight_alt > map.alt_m + 1.0) map = nav::continued_to(map, flight_alt);
+    nav::ModelSigmas sig;
+    sig.meas_var_nT2 = *meas_sigma * *meas_sigma;
+    sig.fogm_nT = *fogm_sigma;
+    sig.taus.fogm_s = *fogm_tau;
+    sig.init_pos_m = *init_pos_sigma;
+    const nav::FilterSettings settings = nav::filter_model(dt, truth.lat_rad[0], sig);
+
+    std::vector<std::pair<std::string, Scores>> rows;
+    rows.emplace_back(
+        anomaly_field->empty() ? *model_path : *anomaly_field,
+        navigate_once(ins, truth, anomaly_of(f, *model_path, *anomaly_field), map, settings));
+    if (!baseline->empty())
+      rows.emplace_back(*baseline,
+                        navigate_once(ins, truth, anomaly_of(f, *baseline, ""), map, settings));
+    std::printf("%s: %ld samples at %.3g s, map %ldx%ld cells at %.0f m\n", data->c_str(),
+                static_cast<long>(f.size()), dt, static_cast<long>(map.map_nT.rows()),
+                static_cast<long>(map.map_nT.cols()), map.alt_m);
+    std::printf("%-32s %12s %11s %9s %10s %12s %16s\n", "measurement", "meas-map nT", "filter m",
+                "INS m", "CRLB m", "NEES in 95%", "innovation nT");
+    for (const auto& [name, s] : rows) {
+      std::printf("%-32s %12.3f %11.1f %9.1f %10.1f %11.0f%% %7.2f +- %-6.2f\n", name.c_str(),
+                  s.meas_vs_map_nT, s.drms_filter_m, s.drms_ins_m, s.drms_crlb_m,
+                  100 * s.nees_in_bounds, s.innovation_mean_nT, s.innovation_std_nT);
+    }
+    if (!json_path->empty()) {
+      nlohmann::json j = to_json(rows.front().second);
+      j["data"] = *data;
+      j["map"] = *map_path;
+      j["measurement"] = rows.front().first;
+      if (rows.size() > 1) {
+        j["baseline"] = to_json(rows.back().second);
+        j["baseline"]["model"] = *baseline;
+      }
+      std::vector<std::string> inputs = {*data, *map_path};
+      if (!model_path->empty()) inputs.push_back(*model_path);
+      write_file_atomic(*json_path, j.dump(2) + "\n", inputs);
+    }
+  });
+}
+
+}  // namespace magcomp::cli
