@@ -1,6 +1,7 @@
 // magcomp navigate: the compensated anomaly steers the map-matching EKF; the compensation scored
 // in metres (DRMS of the filter, of the INS alone and of the Cramér-Rao bound) beside nT.
 #include <Eigen/Dense>
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <nlohmann/json.hpp>
@@ -51,17 +52,24 @@ Scores navigate_once(const nav::NavTrack& ins, const nav::NavTrack& truth,
                      const nav::FilterSettings& settings) {
   Scores s;
   const Eigen::Index n = ins.size();
-  Eigen::VectorXd d(n);
-  for (Eigen::Index i = 0; i < n; ++i)
-    d[i] = anomaly_nT[i] - map.value(truth.lat_rad[i], truth.lon_rad[i]);
-  s.meas_vs_map_nT = std::sqrt((d.array() - d.mean()).square().mean());
+  double sum = 0, sum2 = 0;
+  long used = 0;
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const double d = anomaly_nT[i] - map.value(truth.lat_rad[i], truth.lon_rad[i]);
+    if (!std::isfinite(d)) continue;
+    sum += d;
+    sum2 += d * d;
+    ++used;
+  }
+  if (used == 0) throw Error("navigate: no finite anomaly sample to navigate on");
+  s.meas_vs_map_nT = std::sqrt(std::max(0.0, sum2 / used - (sum / used) * (sum / used)));
   const nav::FilterResult r = nav::run_ekf(ins, anomaly_nT, map, settings);
   const nav::PositionErrors e = nav::position_errors(ins, r.x, truth.lat_rad, truth.lon_rad);
   s.drms_filter_m = e.drms_m;
   s.drms_ins_m = nav::position_errors(ins, {}, truth.lat_rad, truth.lon_rad).drms_m;
   s.drms_crlb_m = nav::covariance_drms_m(nav::crlb(truth, map, settings), truth.lat_rad);
-  long inside = 0;
-  double nis = 0;
+  long inside = 0, updates = 0;
+  double nis = 0, innovation = 0, innovation2 = 0;
   for (Eigen::Index i = 0; i < n; ++i) {
     // Horizontal position covariance in m^2 (latitude and longitude errors to north and east).
     const double lat = truth.lat_rad[i];
@@ -72,12 +80,18 @@ Scores navigate_once(const nav::NavTrack& ins, const nav::NavTrack& truth,
     const Eigen::Vector2d err(e.north_m[i], e.east_m[i]);
     const double nees = err.dot(c.ldlt().solve(err));
     inside += nees >= kNees2Low && nees <= kNees2High;
-    nis += r.innovation_nT[i] * r.innovation_nT[i] / r.innovation_var_nT2[i];
+    const double v = r.innovation_nT[i];
+    if (!std::isfinite(v)) continue;
+    nis += v * v / r.innovation_var_nT2[i];
+    innovation += v;
+    innovation2 += v * v;
+    ++updates;
   }
   s.nees_in_bounds = static_cast<double>(inside) / static_cast<double>(n);
-  s.innovation_mean_nT = r.innovation_nT.mean();
-  s.innovation_std_nT = std::sqrt((r.innovation_nT.array() - s.innovation_mean_nT).square().mean());
-  s.nis_mean = nis / static_cast<double>(n);
+  s.innovation_mean_nT = innovation / static_cast<double>(updates);
+  s.innovation_std_nT =
+      std::sqrt(std::max(0.0, innovation2 / updates - s.innovation_mean_nT * s.innovation_mean_nT));
+  s.nis_mean = nis / static_cast<double>(updates);
   return s;
 }
 
@@ -92,13 +106,15 @@ nlohmann::json to_json(const Scores& s) {
           {"nis_mean", s.nis_mean}};
 }
 
-// The measured anomaly: a field as it is, or the model's compensated field less the IGRF and,
-// when the file has it, the diurnal field.
+// The measured anomaly: a field as it is, or the model's compensated field (its raw scalar when
+// `uncompensated`) less the IGRF and, when the file has it, the diurnal field.
 Eigen::VectorXd anomaly_of(const FlightData& f, const std::string& model_path,
-                           const std::string& field) {
+                           const std::string& field, bool uncompensated = false) {
   if (!field.empty()) return column(f, {field}, "--anomaly");
   const Model m = load_model_yaml(model_path);
-  Eigen::VectorXd a = compensate(m, f) - igrf_total_nT(f, Igrf::installed());
+  Eigen::VectorXd a =
+      uncompensated ? column(f, {m.scalar}, "the model's scalar") : compensate(m, f);
+  a -= igrf_total_nT(f, Igrf::installed());
   if (f.has("diurnal")) a -= Eigen::VectorXd(f.column("diurnal"));
   return a;
 }
@@ -142,7 +158,7 @@ void add_navigate(CLI::App& app) {
     const double dt = f.dt_s();
     const Eigen::VectorXd lat_deg = column(f, {"lat"}, "true latitude, deg");
     const Eigen::VectorXd lon_deg = column(f, {"lon"}, "true longitude, deg");
-    const Eigen::VectorXd alt = column(f, {"alt", "msl", "utm_z"}, "true altitude, m");
+    const Eigen::VectorXd alt = column(f, {"alt", "utm_z", "msl"}, "true altitude, m");
     const nav::NavTrack truth =
         nav::track_from_positions(dt, lat_deg * kDegToRad, lon_deg * kDegToRad, alt,
                                   column(f, {"roll", "ins_roll"}, "roll, deg") * kDegToRad,
@@ -172,6 +188,10 @@ void add_navigate(CLI::App& app) {
     if (!baseline->empty())
       rows.emplace_back(*baseline,
                         navigate_once(ins, truth, anomaly_of(f, *baseline, ""), map, settings));
+    if (!model_path->empty())
+      rows.emplace_back(
+          "uncompensated",
+          navigate_once(ins, truth, anomaly_of(f, *model_path, "", true), map, settings));
     std::printf("%s: %ld samples at %.3g s, map %ldx%ld cells at %.0f m\n", data->c_str(),
                 static_cast<long>(f.size()), dt, static_cast<long>(map.map_nT.rows()),
                 static_cast<long>(map.map_nT.cols()), map.alt_m);
@@ -187,9 +207,11 @@ void add_navigate(CLI::App& app) {
       j["data"] = *data;
       j["map"] = *map_path;
       j["measurement"] = rows.front().first;
-      if (rows.size() > 1) {
-        j["baseline"] = to_json(rows.back().second);
-        j["baseline"]["model"] = *baseline;
+      for (size_t k = 1; k < rows.size(); ++k) {
+        const bool raw = rows[k].first == "uncompensated" && k + 1 == rows.size();
+        nlohmann::json& r = j[raw ? "uncompensated" : "baseline"];
+        r = to_json(rows[k].second);
+        if (!raw) r["model"] = *baseline;
       }
       std::vector<std::string> inputs = {*data, *map_path};
       if (!model_path->empty()) inputs.push_back(*model_path);

@@ -3,7 +3,10 @@
 
 #include <hdf5.h>
 
+#include <cstdio>
+
 #include "magcomp/core/error.h"
+#include "magcomp/core/io/file_io.h"
 
 namespace magcomp {
 namespace {
@@ -18,6 +21,35 @@ struct Handle {
 };
 
 }  // namespace
+
+void write_h5_arrays(const std::string& path,
+                     const std::vector<std::pair<std::string, H5Array>>& arrays,
+                     const std::vector<std::string>& inputs) {
+  check_output_path(path, inputs);
+  const std::string tmp = temporary_path(path);
+  H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
+  try {
+    Handle file{H5Fcreate(tmp.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose};
+    if (file.id < 0) throw Error(path + ": cannot create (" + tmp + ")");
+    for (const auto& [name, a] : arrays) {
+      std::vector<hsize_t> dims(a.dims.begin(), a.dims.end());
+      Handle space{a.dims.empty()
+                       ? H5Screate(H5S_SCALAR)
+                       : H5Screate_simple(static_cast<int>(dims.size()), dims.data(), nullptr),
+                   H5Sclose};
+      Handle ds{H5Dcreate2(file.id, name.c_str(), H5T_IEEE_F64LE, space.id, H5P_DEFAULT,
+                           H5P_DEFAULT, H5P_DEFAULT),
+                H5Dclose};
+      if (space.id < 0 || ds.id < 0 ||
+          H5Dwrite(ds.id, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, a.values.data()) < 0)
+        throw Error(path + ": cannot write dataset '" + name + "'");
+    }
+  } catch (...) {
+    std::remove(tmp.c_str());  // nothing half-written is left
+    throw;
+  }
+  commit_temporary(tmp, path, inputs);
+}
 
 bool h5_has(const std::string& path, const std::string& name) {
   H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);  // errors are ours to report, in one line

@@ -182,4 +182,31 @@ AnomalyMap read_anomaly_map(const std::string& path) {
   return m;
 }
 
+void write_anomaly_map(const AnomalyMap& map, const std::string& path,
+                       const std::vector<std::string>& inputs) {
+  const auto ny = static_cast<size_t>(map.map_nT.rows()),
+             nx = static_cast<size_t>(map.map_nT.cols());
+  auto julia_layout = [&](const Eigen::MatrixXd& m) {
+    H5Array a{{nx, ny}, std::vector<double>(nx * ny)};
+    for (size_t i = 0; i < ny; ++i)
+      for (size_t j = 0; j < nx; ++j)
+        a.values[j * ny + i] = m(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j));
+    return a;
+  };
+  auto degrees = [](const Eigen::VectorXd& v) {
+    H5Array a{{static_cast<size_t>(v.size())}, {}};
+    for (Eigen::Index i = 0; i < v.size(); ++i) a.values.push_back(v[i] / kDegToRad);
+    return a;
+  };
+  const Eigen::MatrixXd mask =
+      map.mask.size() ? map.mask : Eigen::MatrixXd::Ones(map.map_nT.rows(), map.map_nT.cols());
+  write_h5_arrays(path,
+                  {{"map", julia_layout(map.map_nT)},
+                   {"xx", degrees(map.lon_rad)},
+                   {"yy", degrees(map.lat_rad)},
+                   {"alt", H5Array{{}, {map.alt_m}}},
+                   {"mask", julia_layout(mask)}},
+                  inputs);
+}
+
 }  // namespace magcomp::nav

@@ -1,6 +1,8 @@
 // magcomp: the map-matching error-state EKF and the Cramér-Rao bound (see ekf.h).
 #include "magcomp/core/nav/ekf.h"
 
+#include <cmath>
+
 #include "magcomp/core/error.h"
 
 namespace magcomp::nav {
@@ -67,9 +69,11 @@ FilterResult run_ekf(const NavTrack& ins, const Eigen::VectorXd& anomaly_nT, con
     const double resid = anomaly_nT[t] - (map.value(lat, lon) + x[kStates - 1]);
     const Eigen::RowVectorXd h = measurement_row(map, lat, lon);
     const double var = (h * p * h.transpose())(0, 0) + s.r_nT2;
-    const Eigen::VectorXd k = p * h.transpose() / var;
-    x += k * resid;
-    p = (eye - k * h) * p;
+    if (std::isfinite(resid)) {  // a missing measurement (NaN): prediction only
+      const Eigen::VectorXd k = p * h.transpose() / var;
+      x += k * resid;
+      p = (eye - k * h) * p;
+    }
     out.x.col(t) = x;
     out.p.push_back(p);
     out.innovation_nT[t] = resid;

@@ -148,7 +148,7 @@ void read_settings(const Reader& r, const YAML::Node& root, Scenario* out) {
   const std::string& path = r.path;
   r.check_keys(root,
                {"description", "seed", "flight", "date", "start_tt_s", "origin", "aircraft",
-                "earth", "sensors", "start_altitude_m", "plan", "hidden"},
+                "earth", "sensors", "start_altitude_m", "plan", "hidden", "navigation"},
                "");
   r.get(root, "seed", "", &s.seed);
   r.get(root, "flight", "", &s.flight);
@@ -156,6 +156,14 @@ void read_settings(const Reader& r, const YAML::Node& root, Scenario* out) {
   r.get(root, "start_altitude_m", "", &s.start_altitude_m);
   r.range(s.start_tt_s, 0, 86400, "start_tt_s");
   r.range(s.start_altitude_m, 0, 20000, "start_altitude_m");
+  if (const YAML::Node n = root["navigation"]) {
+    r.check_keys(n, {"map", "map_margin_m", "ins_drift", "ins_seed"}, "navigation");
+    r.get(n, "map", "navigation", &s.nav_map);
+    r.get(n, "map_margin_m", "navigation", &s.nav_map_margin_m);
+    r.get(n, "ins_drift", "navigation", &s.nav_ins_drift);
+    r.get(n, "ins_seed", "navigation", &s.nav_ins_seed);
+    r.range(s.nav_map_margin_m, 0, 1e6, "navigation.map_margin_m");
+  }
   if (root["date"]) {
     r.check_keys(root["date"], {"year", "doy"}, "date");
     r.get(root["date"], "year", "date", &s.year);

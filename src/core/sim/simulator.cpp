@@ -19,6 +19,8 @@
 #include "magcomp/core/io/time_base.h"
 #include "magcomp/core/math/timeseries.h"
 #include "magcomp/core/model/signal.h"
+#include "magcomp/core/nav/nav_model.h"
+#include "magcomp/core/nav/pinson.h"
 #include "magcomp/core/sim/anomaly_map.h"
 #include "magcomp/core/sim/electrical.h"
 #include "magcomp/core/sim/trajectory.h"
@@ -49,6 +51,12 @@ std::string truth_path(const std::string& out_h5, const std::string& extension) 
   std::string base = out_h5;
   if (base.size() > 3 && base.substr(base.size() - 3) == ".h5") base.resize(base.size() - 3);
   return base + ".truth." + extension;
+}
+
+std::string map_path(const std::string& out_h5) {
+  std::string base = out_h5;
+  if (base.size() > 3 && base.substr(base.size() - 3) == ".h5") base.resize(base.size() - 3);
+  return base + ".map.h5";
 }
 
 namespace {
@@ -84,11 +92,14 @@ class Simulator {
     y_ << YAML::EndMap;
     hidden_effects_truth();
     reference_and_survey_fields();
+    if (s_.nav_ins_drift) drifting_ins();
     return std::move(sim_);
   }
 
  private:
   void earth_field();
+  void navigation_map(const AnomalyMap& map);
+  void drifting_ins();
   std::map<std::string, Eigen::VectorXd> ins_quantities() const;
   const Eigen::VectorXd& source(const std::string& name) const {
     auto it = channels_.find(name);
@@ -149,6 +160,7 @@ void Simulator::earth_field() {
   const double h_min = tr_.alt_m.minCoeff() - s_.terrain_m;
   const double h_max = tr_.alt_m.maxCoeff() - s_.terrain_m;
   const LayeredMap layers(map, h_min, h_max, 100.0);
+  if (s_.nav_map) navigation_map(map);
   e.anomaly.resize(n_);
   e.diurnal.resize(n_);
   e.igrf_total.resize(n_);
@@ -579,6 +591,72 @@ void Simulator::ins_fields() {
   f.set("tas", tr_.speed_mps);
 }
 
+// The anomaly the flight samples, as a map a navigator would carry: a latitude/longitude grid over
+// the flight and a margin, at the flight's mean height above the (flat) ground, its cell the
+// anomaly grid's. The flight at that height samples exactly this field.
+void Simulator::navigation_map(const AnomalyMap& map) {
+  const double mean_alt = tr_.alt_m.mean();
+  const Eigen::MatrixXd grid = map.continued(mean_alt - s_.terrain_m);
+  const double cell = map.spacing_m(), margin = s_.nav_map_margin_m;
+  const double n0 = tr_.north_m.minCoeff() - margin, n1 = tr_.north_m.maxCoeff() + margin;
+  const double e0 = tr_.east_m.minCoeff() - margin, e1 = tr_.east_m.maxCoeff() + margin;
+  const auto ny = static_cast<Eigen::Index>(std::ceil((n1 - n0) / cell)) + 1;
+  const auto nx = static_cast<Eigen::Index>(std::ceil((e1 - e0) / cell)) + 1;
+  const double deg_per_north_m = 1.0 / kMeanEarthRadius_m / kDegToRad;
+  const double deg_per_east_m =
+      1.0 / (kMeanEarthRadius_m * std::cos(s_.origin_lat_deg * kDegToRad)) / kDegToRad;
+  nav::AnomalyMap& m = sim_.map;
+  m.alt_m = mean_alt;
+  m.lat_rad.resize(ny);
+  m.lon_rad.resize(nx);
+  m.map_nT.resize(ny, nx);
+  m.mask = Eigen::MatrixXd::Ones(ny, nx);
+  for (Eigen::Index i = 0; i < ny; ++i)
+    m.lat_rad[i] = (s_.origin_lat_deg + (n0 + cell * i) * deg_per_north_m) * kDegToRad;
+  for (Eigen::Index j = 0; j < nx; ++j)
+    m.lon_rad[j] = (s_.origin_lon_deg + (e0 + cell * j) * deg_per_east_m) * kDegToRad;
+  for (Eigen::Index i = 0; i < ny; ++i)
+    for (Eigen::Index j = 0; j < nx; ++j)
+      m.map_nT(i, j) = AnomalyMap::sample(grid, cell, n0 + cell * i, e0 + cell * j);
+}
+
+// A navigation-grade INS: its position errors propagated with the filter's own error model
+// (Pinson dynamics, MagNav.jl's default sigmas) from an initial error drawn from P0, on a random
+// stream of their own. The attitude and velocities stay as recorded.
+void Simulator::drifting_ins() {
+  const double dt = 1.0 / s_.sample_rate_hz;
+  const Eigen::VectorXd lat = tr_.lat_deg * kDegToRad, lon = tr_.lon_deg * kDegToRad;
+  const nav::NavTrack truth =
+      nav::track_from_positions(dt, lat, lon, tr_.alt_m, tr_.roll_rad, tr_.pitch_rad, tr_.yaw_rad);
+  const nav::FilterSettings model = nav::filter_model(dt, lat[0], nav::ModelSigmas{});
+  std::mt19937_64 rng(s_.nav_ins_seed * 0x9E3779B97F4A7C15ULL + s_.seed);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  const Eigen::VectorXd sd0 = model.p0.diagonal().cwiseSqrt(),
+                        sdq = model.qd.diagonal().cwiseSqrt();
+  Eigen::VectorXd x(18);
+  for (int k = 0; k < 18; ++k) x[k] = sd0[k] * normal(rng);
+  x[17] = 0.0;  // the catch-all is the filter's, not the INS's
+  Eigen::VectorXd ins_lat(n_), ins_lon(n_), ins_alt(n_);
+  for (Eigen::Index i = 0; i < n_; ++i) {
+    ins_lat[i] = lat[i] + x[0];
+    ins_lon[i] = lon[i] + x[1];
+    ins_alt[i] = tr_.alt_m[i] + x[2];
+    const Eigen::MatrixXd phi = nav::pinson_transition(truth.point(i), model.taus, true, dt);
+    x = phi * x;
+    for (int k = 0; k < 17; ++k) x[k] += sdq[k] * normal(rng);
+  }
+  sim_.flight.set("ins_lat", ins_lat);
+  sim_.flight.set("ins_lon", ins_lon);
+  sim_.flight.set("ins_alt", ins_alt);
+  const nav::PositionErrors e =
+      nav::position_errors(nav::track_from_positions(dt, ins_lat, ins_lon, ins_alt, tr_.roll_rad,
+                                                     tr_.pitch_rad, tr_.yaw_rad),
+                           {}, lat, lon);
+  char line[96];
+  std::snprintf(line, sizeof(line), "ins_drift_drms_m: %.3f\n", e.drms_m);
+  sim_.truth_yaml += line;
+}
+
 }  // namespace
 
 Simulation simulate(const Scenario& s, const Igrf& igrf) { return Simulator(s, igrf).run(); }
@@ -590,6 +668,7 @@ void write_simulation(const Simulation& sim, const std::string& out_h5,
   write_flight_h5(sim.flight, out_h5, inputs);
   write_flight_h5(sim.truth, truth_h5, inputs);
   write_file_atomic(truth_yaml, sim.truth_yaml, inputs);
+  if (sim.map.map_nT.size() > 0) nav::write_anomaly_map(sim.map, map_path(out_h5), inputs);
 }
 
 }  // namespace magcomp::sim

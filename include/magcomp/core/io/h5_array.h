@@ -3,6 +3,7 @@
 #pragma once
 
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace magcomp {
@@ -22,6 +23,12 @@ struct H5Array {
 /// Reads dataset `name` (e.g. "map" or "ekf/P0") of `path` as float64. Throws magcomp::Error
 /// naming the file and dataset when either is missing or unreadable.
 H5Array read_h5_array(const std::string& path, const std::string& name);
+
+/// Writes the arrays (name -> array, top-level datasets) as a new HDF5 file, atomically (a
+/// temporary file renamed; never over one of `inputs`). Throws magcomp::Error naming the file.
+void write_h5_arrays(const std::string& path,
+                     const std::vector<std::pair<std::string, H5Array>>& arrays,
+                     const std::vector<std::string>& inputs = {});
 
 /// Whether `path` holds a dataset `name` (false for a missing file too).
 bool h5_has(const std::string& path, const std::string& name);

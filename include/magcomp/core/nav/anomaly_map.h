@@ -4,6 +4,7 @@
 
 #include <Eigen/Core>
 #include <string>
+#include <vector>
 
 namespace magcomp::nav {
 
@@ -46,5 +47,10 @@ AnomalyMap continued_to(const AnomalyMap& map, double alt_m);
 /// degrees are recognised (|yy| > pi/2 or |xx| > pi) and converted. Throws magcomp::Error naming
 /// the file and field.
 AnomalyMap read_anomaly_map(const std::string& path);
+
+/// Writes a map in MagNav.jl's layout (Julia's: `map` stored with dimensions (nx, ny); `xx`, `yy`
+/// in degrees; `alt`; `mask`), atomically and never over one of `inputs`.
+void write_anomaly_map(const AnomalyMap& map, const std::string& path,
+                       const std::vector<std::string>& inputs = {});
 
 }  // namespace magcomp::nav

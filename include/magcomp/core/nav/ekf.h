@@ -38,7 +38,8 @@ struct FilterResult {
   Eigen::VectorXd innovation_nT, innovation_var_nT2;
 };
 
-/// Runs the filter over an INS track with one scalar anomaly measurement per sample (nT).
+/// Runs the filter over an INS track with one scalar anomaly measurement per sample (nT); a NaN
+/// measurement is skipped (the state is only propagated; its innovation is NaN).
 FilterResult run_ekf(const NavTrack& ins, const Eigen::VectorXd& anomaly_nT, const AnomalyMap& map,
                      const FilterSettings& settings);
 

@@ -79,6 +79,11 @@ struct Scenario {
   double scalar_noise_nT = 0.005;  ///< cesium white noise rms
   double fluxgate_noise_nT = 0.3;  ///< fluxgate white noise rms per axis
   std::vector<HiddenEffect> hidden;
+  // Navigation (optional `navigation:` section; without it the flight is unchanged)
+  bool nav_map = false;              ///< write the anomaly map beside the flight (F.map.h5)
+  double nav_map_margin_m = 3000.0;  ///< map extent beyond the flight's, m
+  bool nav_ins_drift = false;        ///< ins_lat/ins_lon/ins_alt drift as a navigation-grade INS
+  unsigned nav_ins_seed = 1;         ///< the drift's own random stream
 };
 
 /// Loads and validates a scenario YAML. Throws magcomp::Error naming the file and key for an

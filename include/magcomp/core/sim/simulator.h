@@ -5,6 +5,7 @@
 
 #include "magcomp/core/geo/igrf.h"
 #include "magcomp/core/io/flight_data.h"
+#include "magcomp/core/nav/anomaly_map.h"
 #include "magcomp/core/sim/scenario.h"
 
 namespace magcomp::sim {
@@ -16,7 +17,13 @@ struct Simulation {
       truth;  ///< per-sample contributions: `<sensor>.aircraft`, `<sensor>.hidden.<k>.<type>`,
               ///< `<sensor>.noise`, `<flux>.clean_x/y/z`, `earth_total`, ... (nT)
   std::string truth_yaml;  ///< the effects, their parameters, their rms contribution per sensor
+  /// With the scenario's navigation.map: the anomaly the flight samples, on a latitude/longitude
+  /// grid at the flight's mean height (cell = the anomaly grid's), empty otherwise.
+  nav::AnomalyMap map;
 };
+
+/// The map file written beside a flight F.h5: F.map.h5.
+std::string map_path(const std::string& out_h5);
 
 /// Simulates the scenario. The physics is computed as vectors and exact norms (never with the
 /// Tolles-Lawson linearisation): Earth field (the main field `igrf`, e.g. Igrf::installed(), +
