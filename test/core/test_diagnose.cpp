@@ -334,5 +334,26 @@ TEST(Diagnose, AProductOfTwoChannelsThatExplainNothingAloneIsFoundByTheScreen) {
   EXPECT_LE(final_err, 1.5 * truth + 0.05);
 }
 
+TEST(Diagnose, HysteresisIsFoundAsAPlayOfTheCurrentWithItsWidth) {
+  // A soft-iron part magnetised by the bus current with a play of 1.5 A: field:cur_acpwr|play(?)
+  // is searched for every current, and the fit estimates the half-width.
+  const sim::Simulation& s = test::scenario("hysteresis_bus");
+  const Model start = test::reference_tl(s.flight);
+  const LoopResult r = diagnose_loop(start, s.flight, "mag_1_c", 5, 0.05, {});
+  std::vector<double> held;
+  for (const auto& l : evaluate_model(r.model, s.flight, "mag_1_c").per_line) {
+    if (std::find(start.fit.lines.begin(), start.fit.lines.end(), l.line) == start.fit.lines.end())
+      held.push_back(l.line);
+  }
+  const double truth = truth_std(s, start, held), final_err = std_on(r.model, s.flight, held);
+  ASSERT_GE(r.rounds.size(), 2u) << r.stop_reason;
+  const std::string& added = r.rounds[1].added;
+  std::printf("  hysteresis_bus: %s; %.3f nT (the truth gives %.3f)\n", added.c_str(), final_err,
+              truth);
+  ASSERT_EQ(added.rfind("field:cur_acpwr|play(", 0), 0u) << added;
+  EXPECT_NEAR(std::stod(added.substr(added.find('(') + 1)), 1.5, 0.15);
+  EXPECT_LE(final_err, 1.5 * truth + 0.05);
+}
+
 }  // namespace
 }  // namespace magcomp

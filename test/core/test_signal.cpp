@@ -105,6 +105,19 @@ TEST(Signal, TransformsMatchTheirClosedForms) {
   EXPECT_NEAR(run("x|decay(0.5)", t, ramp)[n - 1], 3.0, 1e-9);
 }
 
+TEST(Signal, PlayIsTheBacklashOperator) {
+  // Half-width 1: the output stays until the input has moved 1 past it, then follows at 1 behind.
+  const Eigen::VectorXd t = times(13, 0.1);
+  Eigen::VectorXd x(13), expected(13);
+  x << 0, 1, 2, 3, 2, 1, 0, -1, -2, -1, 0, 1, 2;
+  expected << 0, 0, 1, 2, 2, 2, 1, 0, -1, -1, -1, 0, 1;
+  EXPECT_EQ(run("x|play(1)", t, x), expected);
+  EXPECT_EQ(run("x|play(0)", t, x), x);  // no play: the input itself
+  // Its half-width is a fitted parameter like every '?', and a negative one is refused.
+  EXPECT_TRUE(parse_signal("x|play(?)", "t").has_free());
+  EXPECT_THROW(parse_signal("x|play(-1)", "t"), Error);
+}
+
 TEST(Signal, NanPassesThroughAndTheStateWaits) {
   const Eigen::VectorXd t = times(6, 1.0);
   Eigen::VectorXd x(6);
@@ -128,9 +141,9 @@ TEST(Signal, AStreamEqualsTheBatchForEveryTransformExactly) {
     x[i] = std::sin(0.01 * static_cast<double>(i)) + 0.3 * std::cos(0.37 * static_cast<double>(i));
   }
   x[1234] = NAN;
-  for (const std::string s :
-       {"x|d", "x|int", "x|abs", "x|lp(3)", "x|hp(40)", "x|delay(0.75)", "x|pow(2)", "x|pow(1.5)",
-        "x|decay(0.8)", "x|pow(2)|lp(150)", "x|d|d", "x|int|hp(100)|delay(0.3)"}) {
+  for (const std::string s : {"x|d", "x|int", "x|abs", "x|lp(3)", "x|hp(40)", "x|delay(0.75)",
+                              "x|pow(2)", "x|pow(1.5)", "x|decay(0.8)", "x|pow(2)|lp(150)", "x|d|d",
+                              "x|int|hp(100)|delay(0.3)", "x|play(0.4)", "x|play(0.2)|lp(20)"}) {
     const SignalExpr e = parse_signal(s, s);
     const Eigen::VectorXd batch = apply_transforms(e.transforms, t, x).col(0);
     TransformChain chain(e.transforms);

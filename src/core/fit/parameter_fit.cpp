@@ -92,7 +92,30 @@ Eigen::VectorXd RidgeProfile::solve(const Eigen::MatrixXd& cand, double* rss) co
   return c;
 }
 
-std::vector<double> parameter_grid(TransformKind kind, double dt_s, double span_s) {
+double signal_scale(const SignalExpr& signal, const FlightData& data) {
+  Eigen::VectorXd v = Eigen::VectorXd::Ones(data.size());
+  bool any = false;
+  for (const auto& name : signal.sources) {
+    if (!data.has(name)) continue;
+    v.array() *= data.column(name).array();
+    any = true;
+  }
+  if (!any) return 0.0;
+  std::vector<double> x;
+  for (Eigen::Index i = 0; i < v.size(); ++i)
+    if (std::isfinite(v[i])) x.push_back(v[i]);
+  if (x.size() < 20) return 0.0;
+  const auto at = [&](double q) {
+    const auto k = static_cast<long>(q * static_cast<double>(x.size() - 1));
+    std::nth_element(x.begin(), x.begin() + k, x.end());
+    return x[static_cast<size_t>(k)];
+  };
+  const double lo = at(0.05), hi = at(0.95);
+  return hi > lo ? hi - lo : 0.0;
+}
+
+std::vector<double> parameter_grid(TransformKind kind, double dt_s, double span_s,
+                                   double signal_scale) {
   std::vector<double> g;
   auto geometric = [&](double lo, double hi, double factor) {
     for (double v = lo; v <= hi * (1 + 1e-9); v *= factor) g.push_back(v);
@@ -114,6 +137,9 @@ std::vector<double> parameter_grid(TransformKind kind, double dt_s, double span_
     }
     case TransformKind::Power:
       for (double v = 0.5; v <= 4.0 + 1e-9; v += 0.25) g.push_back(v);
+      break;
+    case TransformKind::Play:
+      if (signal_scale > 0) geometric(0.02 * signal_scale, 0.5 * signal_scale, 1.4);
       break;
     default:
       break;
@@ -287,7 +313,13 @@ std::vector<std::string> estimate_free_parameters(Model& model,
         profile.solve(rows.stack(cols), &rss);
         return std::isfinite(rss) ? rss : std::numeric_limits<double>::infinity();
       };
-      const std::vector<double> grid = parameter_grid(refs[i].kind, dt, span);
+      const auto* expr = dynamic_cast<const ExprTerm*>(make_term(model.terms[t]).get());
+      const double scale = refs[i].kind == TransformKind::Play && expr && !flights.empty()
+                               ? signal_scale(expr->signal(), *flights.front())
+                               : 0.0;
+      const std::vector<double> grid = parameter_grid(refs[i].kind, dt, span, scale);
+      if (grid.empty())
+        throw Error("fit: '" + model.terms[t] + "': no scale to scan its play(?) half-width over");
       value[i] = scan_parameter(refs[i].kind, grid, objective);
       if (sweep == sweeps - 1) {
         char buf[256];

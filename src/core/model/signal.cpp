@@ -1,6 +1,7 @@
 // magcomp: signal expressions: parsing, formatting and the causal transform stages.
 #include "magcomp/core/model/signal.h"
 
+#include <algorithm>
 #include <cctype>
 #include <cmath>
 #include <cstdio>
@@ -29,6 +30,7 @@ const TransformName kTransforms[] = {
     {"delay", TransformKind::Delay, true},
     {"pow", TransformKind::Power, true},
     {"decay", TransformKind::Decay, true},
+    {"play", TransformKind::Play, true},
     // Long forms, read as the short ones.
     {"deriv", TransformKind::Derivative, false},
     {"integral", TransformKind::Integral, false},
@@ -62,6 +64,8 @@ std::string check_param(TransformKind k, double v) {
       return v >= 0 && v <= 3600 ? "" : "delay must be in [0, 3600] s";
     case TransformKind::Power:
       return v != 0 && std::abs(v) <= 10 ? "" : "exponent must be non-zero and in [-10, 10]";
+    case TransformKind::Play:
+      return v >= 0 && v <= 1e9 ? "" : "half-width must be in [0, 1e9]";
     default:
       return "";
   }
@@ -155,6 +159,28 @@ class IntegralStage : public SignalStage {
   double acc_ = 0, xp_ = 0, tp_ = 0;
 };
 
+class PlayStage : public SignalStage {
+ public:
+  explicit PlayStage(double half_width) : r_(half_width) {}
+  bool push(double t, double x, double* t_out, double* y) override {
+    *t_out = t;
+    if (!std::isfinite(x)) {  // NaN passes; the state waits for the next finite sample
+      *y = kNaN;
+      return true;
+    }
+    s_ = init_ ? std::max(x - r_, std::min(x + r_, s_)) : x;
+    init_ = true;
+    *y = s_;
+    return true;
+  }
+  void reset() override { init_ = false; }
+
+ private:
+  double r_;
+  bool init_ = false;
+  double s_ = 0;
+};
+
 class PointwiseStage : public SignalStage {
  public:
   PointwiseStage(TransformKind k, double p)
@@ -228,6 +254,8 @@ std::string Transform::param_meaning() const {
       return "delay (s)";
     case TransformKind::Power:
       return "exponent";
+    case TransformKind::Play:
+      return "half-width (signal units)";
     default:
       return "";
   }
@@ -368,6 +396,9 @@ TransformChain::TransformChain(const std::vector<Transform>& transforms) {
       case TransformKind::Decay:
         stages_.push_back(std::make_unique<DerivativeStage>());
         stages_.push_back(std::make_unique<LowPassStage>(t.param, false));
+        break;
+      case TransformKind::Play:
+        stages_.push_back(std::make_unique<PlayStage>(t.param));
         break;
     }
   }

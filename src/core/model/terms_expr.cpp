@@ -189,6 +189,7 @@ std::vector<std::pair<std::string, double>> ExprTerm::parameters() const {
     if (!t.has_param() || t.free) continue;
     const std::string unit = t.kind == TransformKind::Power   ? "exponent"
                              : t.kind == TransformKind::Delay ? "delay_s"
+                             : t.kind == TransformKind::Play  ? "half_width"
                                                               : "time_constant_s";
     std::string name = t.str();
     name = name.substr(0, name.find('('));
@@ -221,6 +222,7 @@ std::string ExprTerm::size_in_words(const Eigen::VectorXd& c) const {
       if (!t.has_param() || t.free) continue;
       const char* what = t.kind == TransformKind::Power   ? "exponent %.3g"
                          : t.kind == TransformKind::Delay ? "delay %.3g s"
+                         : t.kind == TransformKind::Play  ? "play half-width %.3g"
                                                           : "time constant %.3g s";
       std::snprintf(buf, sizeof(buf), what, t.param);
       out += std::string(", ") + buf;

@@ -271,18 +271,19 @@ HiddenEffect read_hidden_effect(const Reader& r, const YAML::Node& e, const std:
   r.get(e, "threshold", where, &x.threshold);
   r.get(e, "frequency_hz", where, &x.frequency_hz);
   r.get(e, "phase_walk_rad", where, &x.phase_walk_rad);
-  static const std::set<std::string> kTypes = {"wire",       "inductive", "lag",     "fluxgate",
-                                               "heading",    "drift",     "thermal", "flex",
-                                               "eddy_decay", "relay",     "ripple",  "product"};
+  static const std::set<std::string> kTypes = {
+      "wire", "inductive",  "lag",   "fluxgate", "heading", "drift",     "thermal",
+      "flex", "eddy_decay", "relay", "ripple",   "product", "hysteresis"};
   if (!kTypes.count(x.type)) {
     throw Error(path + ": key '" + where +
                 ".type' must be wire, inductive, lag, fluxgate, heading, drift, thermal, "
-                "eddy_decay, flex, relay, ripple or product");
+                "eddy_decay, flex, relay, ripple, product or hysteresis");
   }
   if (x.type == "flex" && x.channel.empty()) x.channel = "nrml_acc";
   if (x.type == "flex" && !e["time_constant_s"]) x.time_constant_s = 0.0;
   const bool needs_channel = x.type == "wire" || x.type == "inductive" || x.type == "drift" ||
-                             x.type == "thermal" || x.type == "relay" || x.type == "ripple";
+                             x.type == "thermal" || x.type == "relay" || x.type == "ripple" ||
+                             x.type == "hysteresis";
   if (needs_channel && !channels.count(x.channel)) {
     throw Error(path + ": key '" + where + ".channel': unknown channel '" + x.channel + "'");
   }

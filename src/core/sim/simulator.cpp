@@ -362,6 +362,15 @@ Eigen::VectorXd Simulator::hidden_contribution(const HiddenEffect& e, const Sens
       }
       return e.gain * v * e.direction;
     });
+  } else if (e.type == "hysteresis") {
+    // A soft-iron part magnetised by a current's field, with play: the backlash operator of
+    // half-width `threshold` on the current.
+    const Eigen::VectorXd& x = channels_.at(e.channel);
+    double state = x[0];
+    body_field([&](Eigen::Index i) {
+      state = std::max(x[i] - e.threshold, std::min(x[i] + e.threshold, state));
+      return Eigen::Vector3d(e.gain * state * e.direction);
+    });
   } else if (e.type == "product") {
     const Eigen::VectorXd& x = source(e.channel);
     const Eigen::VectorXd& y = source(e.channel2);
@@ -475,7 +484,7 @@ void Simulator::hidden_effect_truth(const HiddenEffect& e) {
   }
   if (e.type == "heading" || e.type == "drift" || e.type == "inductive" || e.type == "thermal" ||
       e.type == "flex" || e.type == "relay" || e.type == "eddy_decay" || e.type == "ripple" ||
-      e.type == "product") {
+      e.type == "product" || e.type == "hysteresis") {
     y << YAML::Key << "gain" << YAML::Value << e.gain;
   }
   if (e.type == "thermal" || e.type == "drift" || e.type == "eddy_decay" ||
@@ -495,6 +504,11 @@ void Simulator::hidden_effect_truth(const HiddenEffect& e) {
   if (e.type == "eddy_decay") {
     y << YAML::Key << "expected_term" << YAML::Value
       << "field:B|decay(" + format_param(e.time_constant_s) + ")";
+  }
+  if (e.type == "hysteresis") {
+    y << YAML::Key << "half_width" << YAML::Value << e.threshold;
+    y << YAML::Key << "expected_term" << YAML::Value
+      << "field:" + e.channel + "|play(" + format_param(e.threshold) + ")";
   }
   if (e.type == "product") {
     y << YAML::Key << "channel2" << YAML::Value << e.channel2;

@@ -55,7 +55,12 @@ class RidgeProfile {
 
 /// The values a free parameter of this kind is scanned over, for a flight sampled every dt_s and
 /// lasting span_s (time constants on a geometric grid, delays on a uniform one).
-std::vector<double> parameter_grid(TransformKind kind, double dt_s, double span_s);
+std::vector<double> parameter_grid(TransformKind kind, double dt_s, double span_s,
+                                   double signal_scale = 0.0);
+
+/// The spread of a signal's sources on a flight (their product's 95th less 5th percentile): the
+/// scale a play(?) half-width is scanned over (2 % to 50 % of it). 0 when it cannot be formed.
+double signal_scale(const SignalExpr& signal, const FlightData& data);
 
 /// Minimises objective(value) over the grid, then by golden section between the best value's
 /// neighbours (in log space for time constants). Returns the minimiser rounded to 3 significant

@@ -28,6 +28,10 @@ enum class TransformKind {
   Delay,       ///< delay(s): x(t - s), linear interpolation, the first value before the start
   Power,       ///< pow(p): x^p for an integer p, |x|^p otherwise
   Decay,       ///< decay(tau_s): lp(tau_s) of d: a response to the rate that decays with tau
+  /// play(r): the backlash (play) operator of half-width r, in the signal's unit: the output
+  /// follows the input only once it has moved r past it, y = max(x - r, min(x + r, y_prev)),
+  /// starting at the first input. Hysteresis; sums of them are the Prandtl-Ishlinskii model.
+  Play,
 };
 
 /// A transform and its parameter (time constant or delay in s, or an exponent).

@@ -20,7 +20,7 @@ struct Segment {
 /// A hidden (or visible) physical effect the simulator adds to the scalar sensors.
 struct HiddenEffect {
   /// wire | inductive | lag | fluxgate | heading | drift | thermal | eddy_decay | flex | relay |
-  /// ripple | product
+  /// ripple | product | hysteresis
   std::string type;
   std::string channel;  ///< wire / inductive / drift: the current or other channel
   std::string
@@ -37,7 +37,8 @@ struct HiddenEffect {
   /// structure's response (0: none)
   double time_constant_s = 300.0;
   double exponent = 2.0;   ///< thermal: heating ∝ |I|^exponent (2: Joule heating)
-  double threshold = 0.0;  ///< relay: the channel value above which the device is on
+  double threshold = 0.0;  ///< relay: the channel value above which the device is on;
+                           ///< hysteresis: the play half-width (channel units)
   /// ripple: a sine on the scalar of amplitude gain x channel at frequency_hz, whose phase walks
   /// at random by phase_walk_rad per sqrt(s) and is recorded by no channel
   double frequency_hz = 2.0;
