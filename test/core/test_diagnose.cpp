@@ -31,6 +31,17 @@ double std_on(const Model& m, const FlightData& f, const std::vector<double>& li
   return std::sqrt(ss / n);
 }
 
+// The lines of a flight that the starting model's fit never saw.
+std::vector<double> unfitted_lines(const Model& start, const Model& final_model,
+                                   const FlightData& f) {
+  std::vector<double> held;
+  for (const auto& l : evaluate_model(final_model, f, "mag_1_c").per_line) {
+    if (std::find(start.fit.lines.begin(), start.fit.lines.end(), l.line) == start.fit.lines.end())
+      held.push_back(l.line);
+  }
+  return held;
+}
+
 // The error the truth gives: the hidden effects subtracted from the scalar (truth file), then the
 // same TL fit, on the same held-out lines.
 double truth_std(const sim::Simulation& s, const Model& start, const std::vector<double>& lines) {
@@ -127,12 +138,7 @@ TEST(Diagnose, TheLoopReachesTheTruthErrorWithTheRightParametersOnEveryNewEffect
     const sim::Simulation& s = test::scenario(c.scenario);
     const Model start = test::reference_tl(s.flight);
     const LoopResult r = diagnose_loop(start, s.flight, "mag_1_c", 5, 0.05, {});
-    std::vector<double> held;  // the lines the user never fitted on
-    for (const auto& l : evaluate_model(r.model, s.flight, "mag_1_c").per_line) {
-      if (std::find(start.fit.lines.begin(), start.fit.lines.end(), l.line) ==
-          start.fit.lines.end())
-        held.push_back(l.line);
-    }
+    const std::vector<double> held = unfitted_lines(start, r.model, s.flight);
     Model tl = start;
     fit_model(tl, {&s.flight});
     const double truth = truth_std(s, start, held);
@@ -317,11 +323,7 @@ TEST(Diagnose, AProductOfTwoChannelsThatExplainNothingAloneIsFoundByTheScreen) {
   const sim::Simulation& s = test::scenario("product_rates");
   const Model start = test::reference_tl(s.flight);
   const LoopResult r = diagnose_loop(start, s.flight, "mag_1_c", 5, 0.05, {});
-  std::vector<double> held;
-  for (const auto& l : evaluate_model(r.model, s.flight, "mag_1_c").per_line) {
-    if (std::find(start.fit.lines.begin(), start.fit.lines.end(), l.line) == start.fit.lines.end())
-      held.push_back(l.line);
-  }
+  const std::vector<double> held = unfitted_lines(start, r.model, s.flight);
   const double truth = truth_std(s, start, held);
   const double final_err = std_on(r.model, s.flight, held);
   std::printf("  product_rates: %zu rounds, %s; %.3f nT (the truth gives %.3f)\n",
@@ -340,11 +342,7 @@ TEST(Diagnose, HysteresisIsFoundAsAPlayOfTheCurrentWithItsWidth) {
   const sim::Simulation& s = test::scenario("hysteresis_bus");
   const Model start = test::reference_tl(s.flight);
   const LoopResult r = diagnose_loop(start, s.flight, "mag_1_c", 5, 0.05, {});
-  std::vector<double> held;
-  for (const auto& l : evaluate_model(r.model, s.flight, "mag_1_c").per_line) {
-    if (std::find(start.fit.lines.begin(), start.fit.lines.end(), l.line) == start.fit.lines.end())
-      held.push_back(l.line);
-  }
+  const std::vector<double> held = unfitted_lines(start, r.model, s.flight);
   const double truth = truth_std(s, start, held), final_err = std_on(r.model, s.flight, held);
   ASSERT_GE(r.rounds.size(), 2u) << r.stop_reason;
   const std::string& added = r.rounds[1].added;
