@@ -21,6 +21,13 @@ Eigen::RowVectorXd measurement_row(const AnomalyMap& map, double lat, double lon
   return h;
 }
 
+// The measurement update of the covariance (and the gain it used): P = (I - K H) P.
+Eigen::VectorXd update_covariance(const Eigen::RowVectorXd& h, double var, Eigen::MatrixXd* p) {
+  const Eigen::VectorXd k = *p * h.transpose() / var;
+  *p = (Eigen::MatrixXd::Identity(kStates, kStates) - k * h) * *p;
+  return k;
+}
+
 void check(const NavTrack& track, const FilterSettings& s, const char* who) {
   const Eigen::Index n = track.size();
   for (const Eigen::VectorXd* v : {&track.lon_rad, &track.alt_m, &track.vn_mps, &track.ve_mps,
@@ -62,18 +69,13 @@ FilterResult run_ekf(const NavTrack& ins, const Eigen::VectorXd& anomaly_nT, con
   out.innovation_var_nT2.resize(n);
   Eigen::VectorXd x = Eigen::VectorXd::Zero(kStates);
   Eigen::MatrixXd p = s.p0;
-  const Eigen::MatrixXd eye = Eigen::MatrixXd::Identity(kStates, kStates);
   for (Eigen::Index t = 0; t < n; ++t) {
     const Eigen::MatrixXd phi = pinson_transition(ins.point(t), s.taus, true, ins.dt_s);
     const double lat = ins.lat_rad[t] + x[0], lon = ins.lon_rad[t] + x[1];
     const double resid = anomaly_nT[t] - (map.value(lat, lon) + x[kStates - 1]);
     const Eigen::RowVectorXd h = measurement_row(map, lat, lon);
     const double var = (h * p * h.transpose())(0, 0) + s.r_nT2;
-    if (std::isfinite(resid)) {  // a missing measurement (NaN): prediction only
-      const Eigen::VectorXd k = p * h.transpose() / var;
-      x += k * resid;
-      p = (eye - k * h) * p;
-    }
+    if (std::isfinite(resid)) x += update_covariance(h, var, &p) * resid;  // NaN: predict only
     out.x.col(t) = x;
     out.p.push_back(p);
     out.innovation_nT[t] = resid;
@@ -90,13 +92,11 @@ std::vector<Eigen::MatrixXd> crlb(const NavTrack& truth, const AnomalyMap& map,
   std::vector<Eigen::MatrixXd> out;
   out.reserve(static_cast<size_t>(truth.size()));
   Eigen::MatrixXd p = s.p0;
-  const Eigen::MatrixXd eye = Eigen::MatrixXd::Identity(kStates, kStates);
   for (Eigen::Index t = 0; t < truth.size(); ++t) {
     const Eigen::MatrixXd phi = pinson_transition(truth.point(t), s.taus, true, truth.dt_s);
     const Eigen::RowVectorXd h = measurement_row(map, truth.lat_rad[t], truth.lon_rad[t]);
     const double var = (h * p * h.transpose())(0, 0) + s.r_nT2;
-    const Eigen::VectorXd k = p * h.transpose() / var;
-    p = (eye - k * h) * p;
+    update_covariance(h, var, &p);
     out.push_back(p);
     p = phi * p * phi.transpose() + s.qd;
   }
