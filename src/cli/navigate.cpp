@@ -8,14 +8,13 @@
 
 #include "common.h"
 #include "magcomp/core/error.h"
-#include "magcomp/core/geo/igrf.h"
 #include "magcomp/core/io/file_io.h"
 #include "magcomp/core/math/constants.h"
 #include "magcomp/core/model/model.h"
 #include "magcomp/core/nav/anomaly_map.h"
 #include "magcomp/core/nav/ekf.h"
+#include "magcomp/core/nav/flight_navigation.h"
 #include "magcomp/core/nav/nav_model.h"
-#include "magcomp/neural/features.h"
 #include "subcommands.h"
 
 namespace magcomp::cli {
@@ -23,22 +22,6 @@ namespace {
 
 // 95 % bounds of a chi-square with 2 degrees of freedom (one sample): the horizontal NEES.
 constexpr double kNees2Low = 0.0506356, kNees2High = 7.37776;
-
-Eigen::VectorXd column(const FlightData& f, const std::vector<std::string>& names,
-                       const std::string& what) {
-  for (const auto& n : names)
-    if (f.has(n)) return f.column(n);
-  std::string list;
-  for (const auto& n : names) list += (list.empty() ? "" : " or ") + n;
-  throw Error(f.source() + ": field " + list + " (" + what + ") not found");
-}
-
-// An angle column in radians: degrees are recognised against a reference in degrees (the INS
-// latitude of the MIT schema is in radians, MagNav.jl's files give it in degrees).
-Eigen::VectorXd radians_like(const Eigen::VectorXd& v, const Eigen::VectorXd& reference_deg) {
-  const bool degrees = std::abs(v.mean() - reference_deg.mean()) < 1.0;
-  return degrees ? Eigen::VectorXd(v * kDegToRad) : v;
-}
 
 struct Scores {
   double meas_vs_map_nT = NAN;  // std of the measurement minus the map at the true position
@@ -106,17 +89,14 @@ nlohmann::json to_json(const Scores& s) {
           {"nis_mean", s.nis_mean}};
 }
 
-// The measured anomaly: a field as it is, or the model's compensated field (its raw scalar when
-// `uncompensated`) less the IGRF and, when the file has it, the diurnal field.
+// The measured anomaly: a field as it is, or the model's (flight_navigation.h).
 Eigen::VectorXd anomaly_of(const FlightData& f, const std::string& model_path,
                            const std::string& field, bool uncompensated = false) {
-  if (!field.empty()) return column(f, {field}, "--anomaly");
-  const Model m = load_model_yaml(model_path);
-  Eigen::VectorXd a =
-      uncompensated ? column(f, {m.scalar}, "the model's scalar") : compensate(m, f);
-  a -= igrf_total_nT(f, Igrf::installed());
-  if (f.has("diurnal")) a -= Eigen::VectorXd(f.column("diurnal"));
-  return a;
+  if (!field.empty()) {
+    if (!f.has(field)) throw Error(f.source() + ": field " + field + " (--anomaly) not found");
+    return f.column(field);
+  }
+  return nav::measured_anomaly_nT(f, load_model_yaml(model_path), uncompensated);
 }
 
 }  // namespace
@@ -156,30 +136,17 @@ void add_navigate(CLI::App& app) {
       throw Error("navigate: --meas-sigma, --fogm-sigma, --fogm-tau, --init-pos-sigma must be > 0");
     const FlightData f = read_flight(*data);
     const double dt = f.dt_s();
-    const Eigen::VectorXd lat_deg = column(f, {"lat"}, "true latitude, deg");
-    const Eigen::VectorXd lon_deg = column(f, {"lon"}, "true longitude, deg");
-    const Eigen::VectorXd alt = column(f, {"alt", "utm_z", "msl"}, "true altitude, m");
-    const nav::NavTrack truth =
-        nav::track_from_positions(dt, lat_deg * kDegToRad, lon_deg * kDegToRad, alt,
-                                  column(f, {"roll", "ins_roll"}, "roll, deg") * kDegToRad,
-                                  column(f, {"pitch", "ins_pitch"}, "pitch, deg") * kDegToRad,
-                                  column(f, {"yaw", "ins_yaw"}, "yaw, deg") * kDegToRad);
-    const nav::NavTrack ins =
-        nav::track_from_positions(dt, radians_like(column(f, {"ins_lat"}, "INS latitude"), lat_deg),
-                                  radians_like(column(f, {"ins_lon"}, "INS longitude"), lon_deg),
-                                  column(f, {"ins_alt"}, "INS altitude, m"),
-                                  column(f, {"ins_roll"}, "INS roll, deg") * kDegToRad,
-                                  column(f, {"ins_pitch"}, "INS pitch, deg") * kDegToRad,
-                                  column(f, {"ins_yaw"}, "INS yaw, deg") * kDegToRad);
+    const nav::FlightTracks tracks = nav::flight_tracks(f);
+    const nav::NavTrack& truth = tracks.truth;
+    const nav::NavTrack& ins = tracks.ins;
     nav::AnomalyMap map = nav::read_anomaly_map(*map_path);
-    const double flight_alt = alt.mean();
-    if (flight_alt > map.alt_m + 1.0) map = nav::continued_to(map, flight_alt);
+    if (tracks.mean_alt_m > map.alt_m + 1.0) map = nav::continued_to(map, tracks.mean_alt_m);
     nav::ModelSigmas sig;
     sig.meas_var_nT2 = *meas_sigma * *meas_sigma;
     sig.fogm_nT = *fogm_sigma;
     sig.taus.fogm_s = *fogm_tau;
     sig.init_pos_m = *init_pos_sigma;
-    const nav::FilterSettings settings = nav::filter_model(dt, truth.lat_rad[0], sig);
+    const nav::FilterSettings settings = nav::filter_model(dt, ins.lat_rad[0], sig);
 
     std::vector<std::pair<std::string, Scores>> rows;
     rows.emplace_back(

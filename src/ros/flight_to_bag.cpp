@@ -134,6 +134,13 @@ class TypedTopics {
     }
     has_att_ = f.has("ins_roll") && f.has("ins_pitch") && f.has("ins_yaw");
     has_fix_ = f.has("lat") && f.has("lon");
+    has_ins_ = f.has("ins_lat") && f.has("ins_lon") && f.has("ins_alt");
+    if (has_ins_ && has_fix_) {  // the MIT schema's INS angles are radians; MagNav.jl's degrees
+      const Eigen::VectorXd il = f.column("ins_lat"), l = f.column("lat");
+      ins_scale_ = std::abs(il.mean() - l.mean()) < 1.0 ? 1.0 : kRadToDeg;
+    } else if (has_ins_) {
+      ins_scale_ = std::abs(Eigen::VectorXd(f.column("ins_lat")).mean()) > 1.6 ? 1.0 : kRadToDeg;
+    }
     has_ref_ = f.has("mag_1_c");
     for (const auto& s : scalars_)
       c_scalar_.push_back(
@@ -144,6 +151,7 @@ class TypedTopics {
           bag.connection<sensor_msgs::MagneticField>(std::string(BagTopics::kFluxPrefix) + b));
     c_imu_ = has_att_ ? bag.connection<sensor_msgs::Imu>(BagTopics::kImu) : 0;
     c_fix_ = has_fix_ ? bag.connection<sensor_msgs::NavSatFix>(BagTopics::kFix) : 0;
+    c_ins_ = has_ins_ ? bag.connection<sensor_msgs::NavSatFix>(BagTopics::kInsSolution) : 0;
     c_aux_ = aux_.empty() ? 0 : bag.connection<magcomp::AuxChannels>(BagTopics::kAux);
     for (const auto& s : scalars_) scalar_frames_.push_back(s.substr(0, 5));
     imu_.header.frame_id = "base_link";
@@ -168,6 +176,8 @@ class TypedTopics {
     acc_x_ = chunk.ptr("ins_acc_x"), acc_y_ = chunk.ptr("ins_acc_y");
     acc_z_ = chunk.ptr("ins_acc_z");
     lat_ = chunk.ptr("lat"), lon_ = chunk.ptr("lon"), alt_ = chunk.ptr("utm_z");
+    ins_lat_ = chunk.ptr("ins_lat"), ins_lon_ = chunk.ptr("ins_lon"),
+    ins_alt_ = chunk.ptr("ins_alt");
   }
 
   /// Writes row i of the bound block, stamped t, on every typed topic; returns the number of
@@ -201,13 +211,20 @@ class TypedTopics {
       fix_.position_covariance_type = sensor_msgs::NavSatFix::COVARIANCE_TYPE_UNKNOWN;
       bag_.write(c_fix_, t, fix_);
     }
+    if (has_ins_) {
+      fix_.header.stamp = t;
+      fix_.latitude = ins_lat_[i] * ins_scale_;
+      fix_.longitude = ins_lon_[i] * ins_scale_;
+      fix_.altitude = ins_alt_[i];
+      bag_.write(c_ins_, t, fix_);
+    }
     if (!aux_.empty()) {
       am_.header.stamp = t;
       for (size_t k = 0; k < aux_.size(); ++k) am_.values[k] = aux_cols_[k][i];
       bag_.write(c_aux_, t, am_);
     }
     return static_cast<long>(scalars_.size() + fluxes_.size()) + (has_ref_ ? 1 : 0) +
-           (has_att_ ? 1 : 0) + (has_fix_ ? 1 : 0) + (aux_.empty() ? 0 : 1);
+           (has_att_ ? 1 : 0) + (has_fix_ ? 1 : 0) + (has_ins_ ? 1 : 0) + (aux_.empty() ? 0 : 1);
   }
 
  private:
@@ -237,15 +254,17 @@ class TypedTopics {
 
   BagWriter& bag_;
   std::vector<std::string> scalars_, fluxes_, aux_, scalar_frames_;
-  bool has_att_ = false, has_fix_ = false, has_ref_ = false;
+  bool has_att_ = false, has_fix_ = false, has_ref_ = false, has_ins_ = false;
+  double ins_scale_ = 1.0;  // INS angles to degrees
   std::vector<const double*> scalar_cols_, aux_cols_;
   std::vector<std::array<const double*, 3>> flux_cols_;
   const double *ref_ = nullptr, *roll_ = nullptr, *pitch_ = nullptr, *yaw_ = nullptr;
   const double *roll_rate_ = nullptr, *pitch_rate_ = nullptr, *yaw_rate_ = nullptr;
   const double *acc_x_ = nullptr, *acc_y_ = nullptr, *acc_z_ = nullptr;
   const double *lat_ = nullptr, *lon_ = nullptr, *alt_ = nullptr;
+  const double *ins_lat_ = nullptr, *ins_lon_ = nullptr, *ins_alt_ = nullptr;
   std::vector<uint32_t> c_scalar_, c_flux_;
-  uint32_t c_ref_ = 0, c_imu_ = 0, c_fix_ = 0, c_aux_ = 0;
+  uint32_t c_ref_ = 0, c_imu_ = 0, c_fix_ = 0, c_ins_ = 0, c_aux_ = 0;
   sensor_msgs::Imu imu_;
   sensor_msgs::NavSatFix fix_;
   magcomp::ScalarMagnetometer sm_;

@@ -19,6 +19,9 @@ struct BagTopics {
   static constexpr const char* kFluxPrefix = "/magcomp/fluxgate/";  ///< + flux_x: MagneticField (T)
   static constexpr const char* kImu = "/magcomp/ins/imu";           ///< sensor_msgs/Imu (ENU, FLU)
   static constexpr const char* kFix = "/magcomp/ins/fix";           ///< sensor_msgs/NavSatFix
+  /// sensor_msgs/NavSatFix of the INS's own position (ins_lat, ins_lon, ins_alt): what a
+  /// navigator corrects; magcomp/ins/fix is the reference (GPS) position.
+  static constexpr const char* kInsSolution = "/magcomp/ins/solution";
   static constexpr const char* kAux = "/magcomp/aux";  ///< AuxChannels: cur_*, vol_*, diurnal
 };
 

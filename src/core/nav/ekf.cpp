@@ -57,31 +57,73 @@ NavPoint NavTrack::point(Eigen::Index t) const {
   return p;
 }
 
+MapMatchingEkf::MapMatchingEkf(const AnomalyMap& map, const FilterSettings& settings)
+    : map_(map), s_(settings) {
+  if (s_.p0.rows() != kStates || s_.p0.cols() != kStates || s_.qd.rows() != kStates ||
+      s_.qd.cols() != kStates)
+    throw Error("ekf: P0 and Qd must be 18 x 18");
+  if (!(s_.r_nT2 > 0)) throw Error("ekf: R must be > 0 nT^2");
+  reset();
+}
+
+void MapMatchingEkf::reset() {
+  x_ = Eigen::VectorXd::Zero(kStates);
+  p_ = s_.p0;
+  x_post_ = x_;
+  p_post_ = p_;
+}
+
+MapMatchingEkf::Step MapMatchingEkf::step(const NavPoint& point, double lat_ins, double lon_ins,
+                                          double anomaly_nT, double r_nT2, double dt_s) {
+  Step out;
+  const Eigen::MatrixXd phi = pinson_transition(point, s_.taus, true, dt_s);
+  const double lat = lat_ins + x_[0], lon = lon_ins + x_[1];
+  out.on_map = map_.covers(lat, lon);
+  const double r = std::isfinite(r_nT2) && r_nT2 > 0 ? r_nT2 : s_.r_nT2;
+  const double resid = anomaly_nT - (map_.value(lat, lon) + x_[kStates - 1]);
+  const Eigen::RowVectorXd h = measurement_row(map_, lat, lon);
+  const double var = (h * p_ * h.transpose())(0, 0) + r;
+  out.innovation_nT = resid;
+  out.innovation_var_nT2 = var;
+  out.gated = std::isfinite(resid) && resid * resid / var > s_.nis_gate;
+  if (std::isfinite(resid) && out.on_map && !out.gated) {  // else predict only
+    x_ += update_covariance(h, var, &p_) * resid;
+    out.updated = true;
+  }
+  x_post_ = x_;
+  p_post_ = p_;
+  x_ = phi * x_;
+  p_ = phi * p_ * phi.transpose() + s_.qd;
+  return out;
+}
+
+void MapMatchingEkf::propagate(const NavPoint& point, double dt_s) {
+  const Eigen::MatrixXd phi = pinson_transition(point, s_.taus, true, dt_s);
+  x_ = phi * x_;
+  p_ = phi * p_ * phi.transpose() +
+       s_.qd * (std::isfinite(s_.qd_step_s) ? dt_s / s_.qd_step_s : 1.0);
+}
+
 FilterResult run_ekf(const NavTrack& ins, const Eigen::VectorXd& anomaly_nT, const AnomalyMap& map,
-                     const FilterSettings& s) {
+                     const FilterSettings& s, const Eigen::VectorXd* r_nT2) {
   check(ins, s, "ekf");
   const Eigen::Index n = ins.size();
   if (anomaly_nT.size() != n) throw Error("ekf: one measurement per INS sample is needed");
+  if (r_nT2 && r_nT2->size() != n)
+    throw Error("ekf: one measurement variance per sample is needed");
   FilterResult out;
   out.x.resize(kStates, n);
   out.p.reserve(static_cast<size_t>(n));
   out.innovation_nT.resize(n);
   out.innovation_var_nT2.resize(n);
-  Eigen::VectorXd x = Eigen::VectorXd::Zero(kStates);
-  Eigen::MatrixXd p = s.p0;
+  MapMatchingEkf filter(map, s);
   for (Eigen::Index t = 0; t < n; ++t) {
-    const Eigen::MatrixXd phi = pinson_transition(ins.point(t), s.taus, true, ins.dt_s);
-    const double lat = ins.lat_rad[t] + x[0], lon = ins.lon_rad[t] + x[1];
-    const double resid = anomaly_nT[t] - (map.value(lat, lon) + x[kStates - 1]);
-    const Eigen::RowVectorXd h = measurement_row(map, lat, lon);
-    const double var = (h * p * h.transpose())(0, 0) + s.r_nT2;
-    if (std::isfinite(resid)) x += update_covariance(h, var, &p) * resid;  // NaN: predict only
-    out.x.col(t) = x;
-    out.p.push_back(p);
-    out.innovation_nT[t] = resid;
-    out.innovation_var_nT2[t] = var;
-    x = phi * x;
-    p = phi * p * phi.transpose() + s.qd;
+    const MapMatchingEkf::Step st = filter.step(ins.point(t), ins.lat_rad[t], ins.lon_rad[t],
+                                                anomaly_nT[t], r_nT2 ? (*r_nT2)[t] : NAN, ins.dt_s);
+    out.x.col(t) = filter.x_post();
+    out.p.push_back(filter.p_post());
+    out.innovation_nT[t] = st.updated ? st.innovation_nT : NAN;
+    out.innovation_var_nT2[t] = st.innovation_var_nT2;
   }
   return out;
 }

@@ -5,23 +5,13 @@
 
 #include "magcomp/core/error.h"
 #include "magcomp/core/math/constants.h"
+#include "magcomp/core/nav/streaming_track.h"
 
 namespace magcomp::nav {
 namespace {
 
 constexpr double kEarthRadius_m = 6378137.0;  // MagNav.jl's r_earth and e_earth
 constexpr double kEccentricity = 0.0818191908426;
-
-// Central difference per step (one-sided at the ends), divided by dt.
-Eigen::VectorXd rate(const Eigen::VectorXd& v, double dt) {
-  const Eigen::Index n = v.size();
-  Eigen::VectorXd d(n);
-  if (n < 2) return Eigen::VectorXd::Zero(n);
-  d[0] = (v[1] - v[0]) / dt;
-  d[n - 1] = (v[n - 1] - v[n - 2]) / dt;
-  for (Eigen::Index i = 1; i + 1 < n; ++i) d[i] = (v[i + 1] - v[i - 1]) / (2 * dt);
-  return d;
-}
 
 }  // namespace
 
@@ -47,26 +37,36 @@ NavTrack track_from_positions(double dt_s, const Eigen::VectorXd& lat, const Eig
   t.lat_rad = lat;
   t.lon_rad = lon;
   t.alt_m = alt;
-  Eigen::VectorXd north(n), east(n);
-  for (Eigen::Index i = 0; i < n; ++i) {
-    north[i] = dlat_to_north_m(lat[i] - lat[0], lat[i]);
-    east[i] = dlon_to_east_m(lon[i] - lon[0], lat[i]);
+  for (Eigen::VectorXd* v : {&t.vn_mps, &t.ve_mps, &t.vd_mps, &t.fn_mps2, &t.fe_mps2, &t.fd_mps2})
+    v->resize(n);
+  t.cnb.reserve(static_cast<size_t>(n));
+  // The streaming track, run over the whole flight: a node fed these samples gets these points.
+  StreamingTrack stream(dt_s);
+  Eigen::Index i = 0;
+  const auto take = [&](const std::vector<TrackPoint>& points) {
+    for (const TrackPoint& p : points) {
+      t.vn_mps[i] = p.point.vn_mps;
+      t.ve_mps[i] = p.point.ve_mps;
+      t.vd_mps[i] = p.point.vd_mps;
+      t.fn_mps2[i] = p.point.fn_mps2;
+      t.fe_mps2[i] = p.point.fe_mps2;
+      t.fd_mps2[i] = p.point.fd_mps2;
+      t.cnb.push_back(p.point.cnb);
+      ++i;
+    }
+  };
+  for (Eigen::Index k = 0; k < n; ++k) {
+    InsSample s;
+    s.t_s = static_cast<double>(k) * dt_s;
+    s.lat_rad = lat[k];
+    s.lon_rad = lon[k];
+    s.alt_m = alt[k];
+    s.roll_rad = roll[k];
+    s.pitch_rad = pitch[k];
+    s.yaw_rad = yaw[k];
+    take(stream.push(s));
   }
-  t.vn_mps = rate(north, dt_s);
-  t.ve_mps = rate(east, dt_s);
-  t.vd_mps = -rate(alt, dt_s);
-  t.fn_mps2 = rate(t.vn_mps, dt_s);
-  t.fe_mps2 = rate(t.ve_mps, dt_s);
-  t.fd_mps2 = rate(t.vd_mps, dt_s).array() - kStandardGravity_mps2;
-  for (Eigen::Index i = 0; i < n; ++i) {
-    const double cr = std::cos(roll[i]), sr = std::sin(roll[i]), cp = std::cos(pitch[i]),
-                 sp = std::sin(pitch[i]), cy = std::cos(yaw[i]), sy = std::sin(yaw[i]);
-    Eigen::Matrix3d c;
-    c << cp * cy, sr * sp * cy - cr * sy, cr * sp * cy + sr * sy,  //
-        cp * sy, sr * sp * sy + cr * cy, cr * sp * sy - sr * cy,   //
-        -sp, sr * cp, cr * cp;
-    t.cnb.push_back(c);
-  }
+  take(stream.flush());
   return t;
 }
 
@@ -90,6 +90,7 @@ FilterSettings filter_model(double dt_s, double lat1, const ModelSigmas& s) {
       Eigen::Vector3d::Constant(2 * s.gyro_rps * s.gyro_rps / s.taus.gyro_s),
       2 * s.fogm_nT * s.fogm_nT / s.taus.fogm_s;
   f.qd = (q * dt_s).asDiagonal();
+  f.qd_step_s = dt_s;
   return f;
 }
 

@@ -5,6 +5,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <cmath>
 #include <vector>
 
 #include "magcomp/core/nav/anomaly_map.h"
@@ -26,22 +27,62 @@ struct NavTrack {
 /// variance (nT^2), the error model's time constants.
 struct FilterSettings {
   Eigen::MatrixXd p0, qd;
+  double qd_step_s = NAN;  ///< the step qd is for, s (NaN: unknown; a gap then adds one qd)
   double r_nT2 = 1.0;
   ErrorModelTaus taus;
+  /// A measurement whose normalised innovation squared (innovation^2 / its variance) exceeds this
+  /// is not used (chi-square, 1 dof: 10.83 rejects 0.1 % of consistent ones); infinite: none.
+  double nis_gate = INFINITY;
 };
 
 /// The filter's output at each sample, after its measurement update: the error state (18) and
-/// its covariance; the innovation (nT) and its variance (nT^2).
+/// its covariance; the innovation (nT; NaN where the measurement was not used: missing, or off
+/// the map, or gated) and its variance (nT^2).
 struct FilterResult {
   Eigen::MatrixXd x;               ///< 18 x N
   std::vector<Eigen::MatrixXd> p;  ///< N of 18 x 18
   Eigen::VectorXd innovation_nT, innovation_var_nT2;
 };
 
+/// The filter one sample at a time (what run_ekf does over a track, and a node does online).
+class MapMatchingEkf {
+ public:
+  /// What one step did with its measurement.
+  struct Step {
+    double innovation_nT = NAN;       ///< measurement - predicted (map + catch-all), nT
+    double innovation_var_nT2 = NAN;  ///< its predicted variance, nT^2
+    bool updated = false;             ///< the measurement was used
+    bool gated = false;               ///< it was rejected by the NIS gate
+    bool on_map = true;               ///< the corrected position lies on a valid map cell
+  };
+  /// `map` must outlive the filter. Throws magcomp::Error on settings of the wrong size.
+  MapMatchingEkf(const AnomalyMap& map, const FilterSettings& settings);
+  /// The measurement update at INS sample `p` (position lat, lon in rad; anomaly in nT, NaN for
+  /// none; its noise variance r_nT2 > 0, NaN: the settings' R), then the propagation over dt_s
+  /// to the next sample. Off the map the measurement is not used.
+  Step step(const NavPoint& p, double lat_rad, double lon_rad, double anomaly_nT, double r_nT2,
+            double dt_s);
+  /// The error state (18) and covariance after the last step's update (before propagation).
+  const Eigen::VectorXd& x_post() const { return x_post_; }
+  const Eigen::MatrixXd& p_post() const { return p_post_; }
+  /// Propagation only, over dt_s (a gap in the INS samples).
+  void propagate(const NavPoint& p, double dt_s);
+  /// Back to the initial state and covariance.
+  void reset();
+
+ private:
+  const AnomalyMap& map_;
+  FilterSettings s_;
+  Eigen::VectorXd x_, x_post_;
+  Eigen::MatrixXd p_, p_post_;
+};
+
 /// Runs the filter over an INS track with one scalar anomaly measurement per sample (nT); a NaN
-/// measurement is skipped (the state is only propagated; its innovation is NaN).
+/// measurement is skipped (the state is only propagated; its innovation is NaN), and so is one
+/// whose corrected position is off the map.
+/// `r_nT2`, when given, is each sample's measurement variance (NaN: the settings' R).
 FilterResult run_ekf(const NavTrack& ins, const Eigen::VectorXd& anomaly_nT, const AnomalyMap& map,
-                     const FilterSettings& settings);
+                     const FilterSettings& settings, const Eigen::VectorXd* r_nT2 = nullptr);
 
 /// The Cramér-Rao lower bound about the true trajectory: the covariance after each update.
 std::vector<Eigen::MatrixXd> crlb(const NavTrack& truth, const AnomalyMap& map,

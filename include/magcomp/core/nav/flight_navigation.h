@@ -1,0 +1,33 @@
+// magcomp: a recorded flight as the navigation filter sees it: the true and the INS tracks from
+// the flight's fields, and the measured anomaly (a model's compensation less the main and the
+// diurnal field). What `magcomp navigate` runs, and what a navigator node must reproduce online.
+#pragma once
+
+#include <Eigen/Core>
+#include <string>
+
+#include "magcomp/core/io/flight_data.h"
+#include "magcomp/core/model/model.h"
+#include "magcomp/core/nav/ekf.h"
+
+namespace magcomp::nav {
+
+/// The true track (lat, lon deg; alt, utm_z or msl m; roll/pitch/yaw deg, else the INS's) and the
+/// INS track (ins_lat, ins_lon in rad or deg; ins_alt m; ins_roll/pitch/yaw deg), both at the
+/// flight's sample step. Throws magcomp::Error naming the file and the missing field.
+struct FlightTracks {
+  NavTrack truth, ins;
+  double mean_alt_m = 0.0;  ///< the true track's mean altitude, m
+};
+FlightTracks flight_tracks(const FlightData& flight);
+
+/// The measured anomaly, nT: the model's compensated field (its raw scalar when `uncompensated`)
+/// less the IGRF at the true position and, when the flight has it, the diurnal field.
+Eigen::VectorXd measured_anomaly_nT(const FlightData& flight, const Model& model,
+                                    bool uncompensated = false);
+
+/// An INS latitude or longitude column in radians: degrees are recognised against the true
+/// column in degrees (the MIT schema's INS angles are radians, MagNav.jl's files use degrees).
+Eigen::VectorXd radians_like(const Eigen::VectorXd& angle, const Eigen::VectorXd& reference_deg);
+
+}  // namespace magcomp::nav

@@ -1,0 +1,75 @@
+// magcomp: the map-matching navigator online: INS samples and anomaly measurements arrive one
+// by one (each on its own stream, the measurements late by the compensator's look-ahead); each
+// INS sample becomes a filter step once its measurement is in, or is known missing. ROS-free:
+// the navigator node is a thin shell around it. Fed a whole flight it gives run_ekf's numbers.
+#pragma once
+
+#include <Eigen/Core>
+#include <deque>
+#include <map>
+#include <vector>
+
+#include "magcomp/core/nav/ekf.h"
+#include "magcomp/core/nav/streaming_track.h"
+
+namespace magcomp::nav {
+
+/// The navigator's solution at one INS sample.
+struct NavigatorOutput {
+  double t_s = 0.0;                                               ///< data time, s
+  double ins_lat_rad = 0.0, ins_lon_rad = 0.0, ins_alt_m = 0.0;   ///< the INS's position
+  double lat_rad = 0.0, lon_rad = 0.0, alt_m = 0.0;               ///< the filter's position
+  Eigen::Vector3d velocity_ned_mps = Eigen::Vector3d::Zero();     ///< the filter's velocity
+  Eigen::Matrix3d position_cov_ned_m2 = Eigen::Matrix3d::Zero();  ///< north, east, down
+  double measurement_nT = NAN, measurement_var_nT2 = NAN;         ///< what the step was given
+  double map_nT = NAN, catch_all_nT = NAN;                        ///< at the filter's position
+  MapMatchingEkf::Step step;
+};
+
+/// What the navigator has seen (for diagnostics).
+struct NavigatorCounts {
+  long ins_in = 0, measurements_in = 0, steps = 0, updates = 0;
+  long missing_measurements = 0;    ///< steps without a measurement at their stamp
+  long off_map = 0, gated = 0;      ///< steps whose measurement was not used for these reasons
+  long gaps = 0;                    ///< INS gaps (> 1.5 steps): the track restarted
+  long out_of_order = 0;            ///< INS samples or measurements older than the last, dropped
+  long unmatched_measurements = 0;  ///< measurements no INS sample was stamped at
+};
+
+class StreamingNavigator {
+ public:
+  /// INS samples every dt_s (s); the filter's settings; `map` must outlive the navigator.
+  StreamingNavigator(const AnomalyMap& map, const FilterSettings& settings, double dt_s);
+  /// The next INS sample (data time increasing). Returns the steps it made possible.
+  std::vector<NavigatorOutput> push_ins(const InsSample& s);
+  /// The anomaly measured at data time t_s (nT) and its variance (nT^2; NaN: the settings' R).
+  /// Returns the steps it made possible.
+  std::vector<NavigatorOutput> push_measurement(double t_s, double anomaly_nT, double variance_nT2);
+  /// The INS stream ended: its last two samples wait for their measurements like the others.
+  std::vector<NavigatorOutput> end_of_ins();
+  /// Steps every INS sample still waiting, those without a measurement without one (the
+  /// measurement source stalled, or the stream is over).
+  std::vector<NavigatorOutput> flush();
+  /// INS samples held (in the track and waiting for their measurement).
+  size_t pending() const { return track_.pending() + waiting_.size(); }
+  const NavigatorCounts& counts() const { return counts_; }
+  /// Back to the start: a new flight (time jumped back).
+  void reset();
+
+ private:
+  std::vector<NavigatorOutput> drain(bool force);
+  NavigatorOutput run_step(const TrackPoint& p, double z_nT, double var_nT2);
+
+  const AnomalyMap& map_;
+  FilterSettings settings_;
+  double dt_s_;
+  MapMatchingEkf ekf_;
+  StreamingTrack track_;
+  std::deque<TrackPoint> waiting_;  // track points waiting for their measurement
+  std::map<double, std::pair<double, double>> measurements_;  // t -> (nT, nT^2)
+  double last_ins_t_ = NAN, last_meas_t_ = NAN, last_step_t_ = NAN;
+  TrackPoint last_point_;
+  NavigatorCounts counts_;
+};
+
+}  // namespace magcomp::nav

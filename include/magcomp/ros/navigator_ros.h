@@ -1,0 +1,87 @@
+// magcomp ROS layer: the map-matching navigator (one class; the node and the nodelet construct
+// it). A thin shell over the core's StreamingNavigator: messages in, its steps out as
+// nav_msgs/Odometry and PoseWithCovarianceStamped in the `map` frame (REP 105), a NavSatFix,
+// a plain-numeric magcomp/NavigationStatus, rviz paths and diagnostics. Parameters:
+// config/navigator.yaml.
+#pragma once
+
+#include <diagnostic_updater/diagnostic_updater.h>
+#include <magcomp/CompensatedField.h>
+#include <nav_msgs/Path.h>
+#include <ros/ros.h>
+#include <sensor_msgs/Imu.h>
+#include <sensor_msgs/NavSatFix.h>
+#include <std_msgs/Time.h>
+#include <tf2_ros/transform_broadcaster.h>
+
+#include <Eigen/Geometry>
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+
+#include "magcomp/core/geo/local_enu.h"
+#include "magcomp/core/nav/anomaly_map.h"
+#include "magcomp/core/nav/nav_model.h"
+#include "magcomp/core/nav/streaming_navigator.h"
+
+namespace magcomp::rosio {
+
+class NavigatorRos {
+ public:
+  /// Reads and validates the private parameters, loads the map (throws magcomp::Error naming
+  /// the parameter or the file).
+  NavigatorRos(ros::NodeHandle nh, ros::NodeHandle pnh);
+
+ private:
+  void on_anomaly(const magcomp::CompensatedField::ConstPtr& m);
+  void on_ins_fix(const sensor_msgs::NavSatFix::ConstPtr& m);
+  void on_imu(const sensor_msgs::Imu::ConstPtr& m);
+  void on_truth(const sensor_msgs::NavSatFix::ConstPtr& m);
+  void on_end(const std_msgs::Time::ConstPtr& m);
+  void on_timer();
+  /// An INS fix and attitude with the same stamp: one sample for the navigator.
+  void try_ins(double t_s);
+  /// A stamp earlier than the last by more than jump_back_s: a new flight (a looped bag).
+  bool jumped_back(double t_s);
+  void publish(const std::vector<nav::NavigatorOutput>& steps);
+  void diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat);
+
+  ros::NodeHandle nh_, pnh_;
+  // Parameters (SI units, validated at start-up).
+  std::string map_path_, map_frame_, base_frame_;
+  double dt_s_ = 0.1, max_wait_s_ = 2.0, jump_back_s_ = 1.0, map_sigma_nT_ = 0.0;
+  bool use_compensator_variance_ = false, publish_tf_ = false;
+  int path_stride_ = 10;
+  // The core.
+  nav::AnomalyMap map_;
+  nav::ModelSigmas sigmas_;
+  double nis_gate_ = INFINITY;
+  /// Made at the first INS sample: the filter's initial covariance is about its latitude.
+  std::unique_ptr<nav::StreamingNavigator> nav_;
+  std::unique_ptr<LocalEnu> enu_;
+  // INS halves waiting for their other half, by stamp (s): position (deg, deg, m), attitude.
+  std::map<double, Eigen::Vector3d> fixes_;
+  std::map<double, Eigen::Vector3d> attitudes_;        // roll, pitch, yaw (rad, NED/FRD)
+  std::map<double, Eigen::Quaterniond> orientations_;  // the Imu's (ENU/FLU)
+  std::map<double, Eigen::Vector2d> truth_;
+  std::map<double, Eigen::Vector2d>
+      early_;  // measurements before the first INS sample      // reference fixes (lat, lon deg)
+  double last_t_ = NAN;
+  double last_input_wall_s_ = 0.0;
+  // Counters and the latest state, for diagnostics.
+  long published_ = 0, jumps_back_ = 0, imu_without_fix_dropped_ = 0, nan_inputs_ = 0;
+  std::optional<nav::NavigatorOutput> last_;
+  double nis_sum_ = 0.0;
+  long nis_n_ = 0, consecutive_off_map_ = 0;
+  // Outputs.
+  ros::Subscriber sub_anomaly_, sub_fix_, sub_imu_, sub_truth_, sub_end_;
+  ros::Publisher pub_odom_, pub_pose_, pub_fix_, pub_status_, pub_path_filter_, pub_path_ins_,
+      pub_path_truth_;
+  nav_msgs::Path path_filter_, path_ins_, path_truth_;
+  std::unique_ptr<tf2_ros::TransformBroadcaster> tf_;
+  ros::WallTimer timer_, diag_timer_;
+  diagnostic_updater::Updater updater_;
+};
+
+}  // namespace magcomp::rosio

@@ -1,0 +1,61 @@
+// magcomp: tracks and measured anomaly of a recorded flight (flight_navigation.h).
+#include "magcomp/core/nav/flight_navigation.h"
+
+#include <cmath>
+#include <vector>
+
+#include "magcomp/core/error.h"
+#include "magcomp/core/geo/igrf.h"
+#include "magcomp/core/math/constants.h"
+#include "magcomp/core/nav/nav_model.h"
+#include "magcomp/neural/features.h"
+
+namespace magcomp::nav {
+namespace {
+
+// The first of `names` the flight has.
+Eigen::VectorXd column(const FlightData& f, const std::vector<std::string>& names,
+                       const std::string& what) {
+  for (const auto& n : names)
+    if (f.has(n)) return f.column(n);
+  std::string list;
+  for (const auto& n : names) list += (list.empty() ? "" : " or ") + n;
+  throw Error(f.source() + ": field " + list + " (" + what + ") not found");
+}
+
+}  // namespace
+
+Eigen::VectorXd radians_like(const Eigen::VectorXd& v, const Eigen::VectorXd& reference_deg) {
+  const bool degrees = std::abs(v.mean() - reference_deg.mean()) < 1.0;
+  return degrees ? Eigen::VectorXd(v * kDegToRad) : v;
+}
+
+FlightTracks flight_tracks(const FlightData& f) {
+  const double dt = f.dt_s();
+  const Eigen::VectorXd lat_deg = column(f, {"lat"}, "true latitude, deg");
+  const Eigen::VectorXd lon_deg = column(f, {"lon"}, "true longitude, deg");
+  const Eigen::VectorXd alt = column(f, {"alt", "utm_z", "msl"}, "true altitude, m");
+  FlightTracks t;
+  t.truth = track_from_positions(dt, lat_deg * kDegToRad, lon_deg * kDegToRad, alt,
+                                 column(f, {"roll", "ins_roll"}, "roll, deg") * kDegToRad,
+                                 column(f, {"pitch", "ins_pitch"}, "pitch, deg") * kDegToRad,
+                                 column(f, {"yaw", "ins_yaw"}, "yaw, deg") * kDegToRad);
+  t.ins = track_from_positions(dt, radians_like(column(f, {"ins_lat"}, "INS latitude"), lat_deg),
+                               radians_like(column(f, {"ins_lon"}, "INS longitude"), lon_deg),
+                               column(f, {"ins_alt"}, "INS altitude, m"),
+                               column(f, {"ins_roll"}, "INS roll, deg") * kDegToRad,
+                               column(f, {"ins_pitch"}, "INS pitch, deg") * kDegToRad,
+                               column(f, {"ins_yaw"}, "INS yaw, deg") * kDegToRad);
+  t.mean_alt_m = alt.mean();
+  return t;
+}
+
+Eigen::VectorXd measured_anomaly_nT(const FlightData& f, const Model& m, bool uncompensated) {
+  Eigen::VectorXd a =
+      uncompensated ? column(f, {m.scalar}, "the model's scalar") : compensate(m, f);
+  a -= igrf_total_nT(f, Igrf::installed());
+  if (f.has("diurnal")) a -= Eigen::VectorXd(f.column("diurnal"));
+  return a;
+}
+
+}  // namespace magcomp::nav

@@ -1,0 +1,126 @@
+// magcomp: the map-matching navigator online (streaming_navigator.h).
+#include "magcomp/core/nav/streaming_navigator.h"
+
+#include <cmath>
+
+#include "magcomp/core/nav/nav_model.h"
+
+namespace magcomp::nav {
+namespace {
+
+constexpr double kMatchFraction = 0.25;  // a measurement belongs to an INS stamp within dt/4
+constexpr double kGapSteps = 1.5;        // a step longer than this many dt is a gap
+
+}  // namespace
+
+StreamingNavigator::StreamingNavigator(const AnomalyMap& map, const FilterSettings& settings,
+                                       double dt_s)
+    : map_(map), settings_(settings), dt_s_(dt_s), ekf_(map, settings), track_(dt_s) {}
+
+void StreamingNavigator::reset() {
+  ekf_.reset();
+  track_.flush();
+  waiting_.clear();
+  measurements_.clear();
+  last_ins_t_ = last_meas_t_ = last_step_t_ = NAN;
+}
+
+std::vector<NavigatorOutput> StreamingNavigator::push_ins(const InsSample& s) {
+  if (std::isfinite(last_ins_t_) && !(s.t_s > last_ins_t_)) {
+    ++counts_.out_of_order;
+    return {};
+  }
+  ++counts_.ins_in;
+  if (std::isfinite(last_ins_t_) && s.t_s - last_ins_t_ > kGapSteps * dt_s_) {
+    ++counts_.gaps;  // the track's differences must not span the gap: end it there
+    for (const TrackPoint& p : track_.flush()) waiting_.push_back(p);
+  }
+  last_ins_t_ = s.t_s;
+  for (const TrackPoint& p : track_.push(s)) waiting_.push_back(p);
+  return drain(false);
+}
+
+std::vector<NavigatorOutput> StreamingNavigator::push_measurement(double t_s, double z_nT,
+                                                                  double var_nT2) {
+  if (std::isfinite(last_meas_t_) && !(t_s > last_meas_t_)) {
+    ++counts_.out_of_order;
+    return {};
+  }
+  ++counts_.measurements_in;
+  last_meas_t_ = t_s;
+  if (std::isfinite(last_step_t_) && t_s < last_step_t_ + kMatchFraction * dt_s_) {
+    ++counts_.unmatched_measurements;  // its INS sample has been stepped without it
+    return {};
+  }
+  measurements_[t_s] = {z_nT, var_nT2};
+  return drain(false);
+}
+
+std::vector<NavigatorOutput> StreamingNavigator::end_of_ins() {
+  for (const TrackPoint& p : track_.flush()) waiting_.push_back(p);
+  last_ins_t_ = NAN;
+  return drain(false);
+}
+
+std::vector<NavigatorOutput> StreamingNavigator::flush() { return drain(true); }
+
+std::vector<NavigatorOutput> StreamingNavigator::drain(bool force) {
+  std::vector<NavigatorOutput> out;
+  const double tol = kMatchFraction * dt_s_;
+  while (!waiting_.empty()) {
+    const TrackPoint p = waiting_.front();
+    // Measurements before this stamp belong to no INS sample.
+    auto it = measurements_.begin();
+    while (it != measurements_.end() && it->first < p.t_s - tol) {
+      ++counts_.unmatched_measurements;
+      it = measurements_.erase(it);
+    }
+    double z = NAN, var = NAN;
+    if (it != measurements_.end() && it->first <= p.t_s + tol) {
+      z = it->second.first;
+      var = it->second.second;
+      measurements_.erase(it);
+    } else if (!(std::isfinite(last_meas_t_) && last_meas_t_ > p.t_s + tol) && !force) {
+      break;  // its measurement may still come
+    } else {
+      ++counts_.missing_measurements;
+    }
+    waiting_.pop_front();
+    out.push_back(run_step(p, z, var));
+  }
+  return out;
+}
+
+NavigatorOutput StreamingNavigator::run_step(const TrackPoint& p, double z, double var) {
+  if (std::isfinite(last_step_t_) && p.t_s - last_step_t_ > kGapSteps * dt_s_) {
+    ekf_.propagate(last_point_.point, p.t_s - last_step_t_ - dt_s_);  // across the gap
+  }
+  NavigatorOutput o;
+  o.t_s = p.t_s;
+  o.ins_lat_rad = p.lat_rad;
+  o.ins_lon_rad = p.lon_rad;
+  o.ins_alt_m = p.alt_m;
+  o.measurement_nT = z;
+  o.measurement_var_nT2 = std::isfinite(var) && var > 0 ? var : settings_.r_nT2;
+  o.step = ekf_.step(p.point, p.lat_rad, p.lon_rad, z, var, dt_s_);
+  const Eigen::VectorXd& x = ekf_.x_post();
+  const Eigen::MatrixXd& cov = ekf_.p_post();
+  o.lat_rad = p.lat_rad + x[0];
+  o.lon_rad = p.lon_rad + x[1];
+  o.alt_m = p.alt_m + x[2];
+  o.velocity_ned_mps =
+      Eigen::Vector3d(p.point.vn_mps, p.point.ve_mps, p.point.vd_mps) + x.segment<3>(3);
+  const Eigen::Vector3d j(dlat_to_north_m(1.0, o.lat_rad), dlon_to_east_m(1.0, o.lat_rad), -1.0);
+  o.position_cov_ned_m2 = j.asDiagonal() * cov.topLeftCorner<3, 3>() * j.asDiagonal();
+  o.map_nT = map_.value(o.lat_rad, o.lon_rad);
+  o.catch_all_nT = x[x.size() - 1];
+  ++counts_.steps;
+  counts_.updates += o.step.updated;
+  counts_.off_map += std::isfinite(z) && !o.step.on_map;
+  counts_.gated += o.step.gated;
+  last_step_t_ = p.t_s;
+  last_point_ = p;
+  return o;
+}
+
+}  // namespace magcomp::nav
