@@ -21,8 +21,9 @@ namespace magcomp::rosio {
 namespace {
 
 const std::set<std::string> kKnownParams = {
-    "bag",   "topics",         "rate",       "start_delay_s",   "wait_for_subscribers",
-    "clock", "progress_topic", "max_lead_s", "stall_timeout_s", "queue_size", "end_topic"};
+    "bag",      "topics",         "rate",       "start_delay_s",   "wait_for_subscribers",
+    "clock",    "progress_topic", "max_lead_s", "stall_timeout_s", "queue_size",
+    "end_topic"};
 
 /// A publisher of M that hands subscribers in this process the instantiated message itself.
 template <typename M>

@@ -27,6 +27,7 @@
 #include "magcomp/core/math/constants.h"
 #include "magcomp/ros/bag_converter.h"
 #include "magcomp/ros/bag_writer.h"
+#include "magcomp/ros/ins_attitude.h"
 
 namespace magcomp::rosio {
 
@@ -235,9 +236,7 @@ class TypedTopics {
   // pitch negated; rates in rad/s, accelerations in m/s^2.
   void write_imu(Eigen::Index i, const ros::Time& t) {
     const Eigen::Quaterniond q =
-        Eigen::AngleAxisd(M_PI / 2 - yaw_[i] * kDegToRad, Eigen::Vector3d::UnitZ()) *
-        Eigen::AngleAxisd(-pitch_[i] * kDegToRad, Eigen::Vector3d::UnitY()) *
-        Eigen::AngleAxisd(roll_[i] * kDegToRad, Eigen::Vector3d::UnitX());
+        enu_orientation(roll_[i] * kDegToRad, pitch_[i] * kDegToRad, yaw_[i] * kDegToRad);
     imu_.header.stamp = t;
     imu_.orientation.w = q.w();
     imu_.orientation.x = q.x();

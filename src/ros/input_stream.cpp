@@ -12,10 +12,12 @@ constexpr double kMountRetryPeriod_s = 0.2;     // a missing mount is looked up 
 constexpr double kMountWarningPeriod_s = 10.0;  // and warned about every 10 s
 }  // namespace
 
-InputStream::InputStream(ros::NodeHandle nh, const Topics& topics,
-                         const AlignerSettings& settings, uint32_t queue, bool tcp_nodelay,
-                         std::string base_frame, Callbacks callbacks)
-    : topics_(topics), aligner_(settings), cb_(std::move(callbacks)),
+InputStream::InputStream(ros::NodeHandle nh, const Topics& topics, const AlignerSettings& settings,
+                         uint32_t queue, bool tcp_nodelay, std::string base_frame,
+                         Callbacks callbacks)
+    : topics_(topics),
+      aligner_(settings),
+      cb_(std::move(callbacks)),
       base_frame_(std::move(base_frame)) {
   const ros::TransportHints hints = ros::TransportHints().tcpNoDelay(tcp_nodelay);
   sub_scalar_ = nh.subscribe(topics_.scalar, queue, &InputStream::on_scalar, this, hints);
@@ -100,7 +102,8 @@ void InputStream::on_aux(const magcomp::AuxChannels::ConstPtr& m) {
 }
 
 void InputStream::on_fix(const sensor_msgs::NavSatFix::ConstPtr& m) {
-  if (aligner_.add_fix(rel(m->header.stamp), Eigen::Vector3d(m->latitude, m->longitude, m->altitude)) &&
+  if (aligner_.add_fix(rel(m->header.stamp),
+                       Eigen::Vector3d(m->latitude, m->longitude, m->altitude)) &&
       cb_.changed) {
     cb_.changed();
   }

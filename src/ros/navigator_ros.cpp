@@ -12,6 +12,7 @@
 #include "magcomp/core/error.h"
 #include "magcomp/core/math/constants.h"
 #include "magcomp/core/nav/nav_model.h"
+#include "magcomp/ros/ins_attitude.h"
 #include "magcomp/ros/params.h"
 
 namespace magcomp::rosio {
@@ -54,17 +55,6 @@ template <class M>
 void prune_before(M& m, double t) {
   while (!m.empty() && m.begin()->first < t) m.erase(m.begin());
   while (m.size() > kMaxHeld) m.erase(m.begin());
-}
-
-// The Imu's orientation (ENU, base_link x forward y left z up; REP 103) as roll, pitch, yaw of
-// the NED/FRD convention of the INS fields (rad, yaw clockwise from north).
-Eigen::Vector3d ned_attitude(const Eigen::Quaterniond& q_enu_flu) {
-  Eigen::Matrix3d swap;
-  swap << 0, 1, 0, 1, 0, 0, 0, 0, -1;  // ENU <-> NED
-  const Eigen::Matrix3d c =
-      swap * q_enu_flu.toRotationMatrix() * Eigen::Vector3d(1, -1, -1).asDiagonal();
-  return {std::atan2(c(2, 1), c(2, 2)), -std::asin(std::clamp(c(2, 0), -1.0, 1.0)),
-          std::atan2(c(1, 0), c(0, 0))};
 }
 
 double getd(const ros::NodeHandle& pnh, const std::string& key, double def) {
@@ -176,10 +166,10 @@ NavigatorRos::NavigatorRos(ros::NodeHandle nh, ros::NodeHandle pnh)
            map_path_.c_str(), static_cast<long>(ny), static_cast<long>(nx));
 }
 
-bool NavigatorRos::jumped_back(double t) {
-  if (std::isfinite(last_t_) && t < last_t_ - jump_back_s_) {
+bool NavigatorRos::jumped_back(double t, double* last) {
+  if (std::isfinite(*last) && t < *last - jump_back_s_) {
     ++jumps_back_;
-    ROS_WARN("magcomp navigator: time jumped back %.3f s: the filter restarts", last_t_ - t);
+    ROS_WARN("magcomp navigator: time jumped back %.3f s: the filter restarts", *last - t);
     nav_.reset();  // made again at the next INS sample
     fixes_.clear();
     attitudes_.clear();
@@ -187,17 +177,18 @@ bool NavigatorRos::jumped_back(double t) {
     truth_.clear();
     early_.clear();
     for (nav_msgs::Path* p : {&path_filter_, &path_ins_, &path_truth_}) p->poses.clear();
-    last_t_ = t;
+    last_anomaly_t_ = last_fix_t_ = last_imu_t_ = NAN;
+    *last = t;
     return true;
   }
-  last_t_ = std::isfinite(last_t_) ? std::max(last_t_, t) : t;
+  *last = std::isfinite(*last) ? std::max(*last, t) : t;
   return false;
 }
 
 void NavigatorRos::on_anomaly(const magcomp::CompensatedField::ConstPtr& m) {
   const double t = m->header.stamp.toSec();
   last_input_wall_s_ = ros::WallTime::now().toSec();
-  jumped_back(t);
+  jumped_back(t, &last_anomaly_t_);
   double var = NAN;
   if (use_compensator_variance_ && std::isfinite(m->variance_nT2))
     var = m->variance_nT2 + map_sigma_nT_ * map_sigma_nT_;
@@ -212,7 +203,7 @@ void NavigatorRos::on_anomaly(const magcomp::CompensatedField::ConstPtr& m) {
 void NavigatorRos::on_ins_fix(const sensor_msgs::NavSatFix::ConstPtr& m) {
   const double t = m->header.stamp.toSec();
   last_input_wall_s_ = ros::WallTime::now().toSec();
-  jumped_back(t);
+  jumped_back(t, &last_fix_t_);
   if (!std::isfinite(m->latitude) || !std::isfinite(m->longitude) || !std::isfinite(m->altitude)) {
     ++nan_inputs_;
     return;
@@ -224,7 +215,7 @@ void NavigatorRos::on_ins_fix(const sensor_msgs::NavSatFix::ConstPtr& m) {
 void NavigatorRos::on_imu(const sensor_msgs::Imu::ConstPtr& m) {
   const double t = m->header.stamp.toSec();
   last_input_wall_s_ = ros::WallTime::now().toSec();
-  jumped_back(t);
+  jumped_back(t, &last_imu_t_);
   const Eigen::Quaterniond q(m->orientation.w, m->orientation.x, m->orientation.y,
                              m->orientation.z);
   if (!q.coeffs().allFinite() || std::abs(q.norm() - 1.0) > 1e-3) {
@@ -446,6 +437,7 @@ void NavigatorRos::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) {
   stat.add("unmatched_measurements_dropped", c.unmatched_measurements);
   stat.add("off_map_measurements", c.off_map);
   stat.add("gated_measurements", c.gated);
+  stat.add("nan_measurements", c.nan_measurements);
   stat.add("ins_gaps", c.gaps);
   stat.add("out_of_order_dropped", c.out_of_order);
   stat.add("time_jumps_back", jumps_back_);

@@ -42,8 +42,9 @@ class NavigatorRos {
   void on_timer();
   /// An INS fix and attitude with the same stamp: one sample for the navigator.
   void try_ins(double t_s);
-  /// A stamp earlier than the last by more than jump_back_s: a new flight (a looped bag).
-  bool jumped_back(double t_s);
+  /// A stamp earlier than the last of its own stream (`last_s`) by more than jump_back_s: a new
+  /// flight (a looped bag); everything restarts.
+  bool jumped_back(double t_s, double* last_s);
   void publish(const std::vector<nav::NavigatorOutput>& steps);
   void diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat);
 
@@ -67,7 +68,7 @@ class NavigatorRos {
   std::map<double, Eigen::Vector2d> truth_;
   std::map<double, Eigen::Vector2d>
       early_;  // measurements before the first INS sample      // reference fixes (lat, lon deg)
-  double last_t_ = NAN;
+  double last_anomaly_t_ = NAN, last_fix_t_ = NAN, last_imu_t_ = NAN;
   double last_input_wall_s_ = 0.0;
   // Counters and the latest state, for diagnostics.
   long published_ = 0, jumps_back_ = 0, imu_without_fix_dropped_ = 0, nan_inputs_ = 0;

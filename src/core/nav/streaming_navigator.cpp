@@ -76,6 +76,7 @@ std::vector<NavigatorOutput> StreamingNavigator::drain(bool force) {
       it = measurements_.erase(it);
     }
     double z = NAN, var = NAN;
+    bool missing = false;
     if (it != measurements_.end() && it->first <= p.t_s + tol) {
       z = it->second.first;
       var = it->second.second;
@@ -84,14 +85,16 @@ std::vector<NavigatorOutput> StreamingNavigator::drain(bool force) {
       break;  // its measurement may still come
     } else {
       ++counts_.missing_measurements;
+      missing = true;
     }
     waiting_.pop_front();
-    out.push_back(run_step(p, z, var));
+    out.push_back(run_step(p, z, var, missing));
   }
   return out;
 }
 
-NavigatorOutput StreamingNavigator::run_step(const TrackPoint& p, double z, double var) {
+NavigatorOutput StreamingNavigator::run_step(const TrackPoint& p, double z, double var,
+                                             bool missing) {
   if (std::isfinite(last_step_t_) && p.t_s - last_step_t_ > kGapSteps * dt_s_) {
     ekf_.propagate(last_point_.point, p.t_s - last_step_t_ - dt_s_);  // across the gap
   }
@@ -118,6 +121,7 @@ NavigatorOutput StreamingNavigator::run_step(const TrackPoint& p, double z, doub
   counts_.updates += o.step.updated;
   counts_.off_map += std::isfinite(z) && !o.step.on_map;
   counts_.gated += o.step.gated;
+  counts_.nan_measurements += std::isnan(z) && !missing;
   last_step_t_ = p.t_s;
   last_point_ = p;
   return o;

@@ -29,10 +29,11 @@ struct NavigatorOutput {
 /// What the navigator has seen (for diagnostics).
 struct NavigatorCounts {
   long ins_in = 0, measurements_in = 0, steps = 0, updates = 0;
-  long missing_measurements = 0;    ///< steps without a measurement at their stamp
-  long off_map = 0, gated = 0;      ///< steps whose measurement was not used for these reasons
-  long gaps = 0;                    ///< INS gaps (> 1.5 steps): the track restarted
-  long out_of_order = 0;            ///< INS samples or measurements older than the last, dropped
+  long missing_measurements = 0;  ///< steps without a measurement at their stamp
+  long off_map = 0, gated = 0;    ///< steps whose measurement was not used for these reasons
+  long nan_measurements = 0;      ///< steps whose measurement was NaN (e.g. a compensator's start)
+  long gaps = 0;                  ///< INS gaps (> 1.5 steps): the track restarted
+  long out_of_order = 0;          ///< INS samples or measurements older than the last, dropped
   long unmatched_measurements = 0;  ///< measurements no INS sample was stamped at
 };
 
@@ -58,7 +59,7 @@ class StreamingNavigator {
 
  private:
   std::vector<NavigatorOutput> drain(bool force);
-  NavigatorOutput run_step(const TrackPoint& p, double z_nT, double var_nT2);
+  NavigatorOutput run_step(const TrackPoint& p, double z_nT, double var_nT2, bool missing);
 
   const AnomalyMap& map_;
   FilterSettings settings_;
