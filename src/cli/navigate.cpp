@@ -1,5 +1,6 @@
 // magcomp navigate: the compensated anomaly steers the map-matching EKF; the compensation scored
 // in metres (DRMS of the filter, of the INS alone and of the Cramér-Rao bound) beside nT.
+#include <sys/stat.h>
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
@@ -9,6 +10,8 @@
 #include "common.h"
 #include "magcomp/core/error.h"
 #include "magcomp/core/io/file_io.h"
+#include "magcomp/core/io/h5_array.h"
+#include "magcomp/core/io/paths.h"
 #include "magcomp/core/math/constants.h"
 #include "magcomp/core/model/model.h"
 #include "magcomp/core/nav/anomaly_map.h"
@@ -30,9 +33,16 @@ struct Scores {
   double innovation_mean_nT = NAN, innovation_std_nT = NAN, nis_mean = NAN;
 };
 
+// The per-sample series of one run, for the report.
+struct Series {
+  nav::FilterResult filter;
+  nav::PositionErrors errors, ins_errors;
+  Eigen::VectorXd anomaly_nT;
+};
+
 Scores navigate_once(const nav::NavTrack& ins, const nav::NavTrack& truth,
                      const Eigen::VectorXd& anomaly_nT, const nav::AnomalyMap& map,
-                     const nav::FilterSettings& settings) {
+                     const nav::FilterSettings& settings, Series* series = nullptr) {
   Scores s;
   const Eigen::Index n = ins.size();
   double sum = 0, sum2 = 0;
@@ -75,6 +85,12 @@ Scores navigate_once(const nav::NavTrack& ins, const nav::NavTrack& truth,
   s.innovation_std_nT =
       std::sqrt(std::max(0.0, innovation2 / updates - s.innovation_mean_nT * s.innovation_mean_nT));
   s.nis_mean = nis / static_cast<double>(updates);
+  if (series) {
+    series->errors = e;
+    series->ins_errors = nav::position_errors(ins, {}, truth.lat_rad, truth.lon_rad);
+    series->anomaly_nT = anomaly_nT;
+    series->filter = r;
+  }
   return s;
 }
 
@@ -99,6 +115,71 @@ Eigen::VectorXd anomaly_of(const FlightData& f, const std::string& model_path,
   return nav::measured_anomaly_nT(f, load_model_yaml(model_path), uncompensated);
 }
 
+H5Array array_of(const Eigen::VectorXd& v) {
+  H5Array a;
+  a.dims = {static_cast<size_t>(v.size())};
+  a.values.assign(v.data(), v.data() + v.size());
+  return a;
+}
+
+// DIR/tracks.h5 (truth, INS and filter tracks in degrees, errors and the filter's horizontal
+// covariance in metres, innovations; the map), DIR/navigation.json, then the page.
+void write_report(const std::string& dir, const nav::NavTrack& truth, const nav::NavTrack& ins,
+                  const Series& s, const nav::AnomalyMap& map, const nlohmann::json& j,
+                  const std::vector<std::string>& inputs) {
+  struct stat st {};
+  if (::mkdir(dir.c_str(), 0755) != 0 && !(::stat(dir.c_str(), &st) == 0 && S_ISDIR(st.st_mode)))
+    throw Error(dir + ": cannot create the report directory");
+  const Eigen::Index n = ins.size();
+  Eigen::VectorXd flat(n), flon(n), pnn(n), pee(n), pne(n), t(n);
+  for (Eigen::Index i = 0; i < n; ++i) {
+    t[i] = static_cast<double>(i) * ins.dt_s;
+    flat[i] = (ins.lat_rad[i] + s.filter.x(0, i)) * kRadToDeg;
+    flon[i] = (ins.lon_rad[i] + s.filter.x(1, i)) * kRadToDeg;
+    const double kn = nav::dlat_to_north_m(1.0, truth.lat_rad[i]);
+    const double ke = nav::dlon_to_east_m(1.0, truth.lat_rad[i]);
+    const Eigen::MatrixXd& p = s.filter.p[static_cast<size_t>(i)];
+    pnn[i] = kn * kn * p(0, 0);
+    pee[i] = ke * ke * p(1, 1);
+    pne[i] = kn * ke * p(0, 1);
+  }
+  H5Array grid;
+  grid.dims = {static_cast<size_t>(map.map_nT.rows()), static_cast<size_t>(map.map_nT.cols())};
+  for (Eigen::Index r = 0; r < map.map_nT.rows(); ++r)
+    for (Eigen::Index c = 0; c < map.map_nT.cols(); ++c) grid.values.push_back(map.map_nT(r, c));
+  write_h5_arrays(dir + "/tracks.h5",
+                  {{"t_s", array_of(t)},
+                   {"true_lat_deg", array_of(truth.lat_rad * kRadToDeg)},
+                   {"true_lon_deg", array_of(truth.lon_rad * kRadToDeg)},
+                   {"ins_lat_deg", array_of(ins.lat_rad * kRadToDeg)},
+                   {"ins_lon_deg", array_of(ins.lon_rad * kRadToDeg)},
+                   {"filter_lat_deg", array_of(flat)},
+                   {"filter_lon_deg", array_of(flon)},
+                   {"error_north_m", array_of(s.errors.north_m)},
+                   {"error_east_m", array_of(s.errors.east_m)},
+                   {"ins_error_north_m", array_of(s.ins_errors.north_m)},
+                   {"ins_error_east_m", array_of(s.ins_errors.east_m)},
+                   {"cov_north_m2", array_of(pnn)},
+                   {"cov_east_m2", array_of(pee)},
+                   {"cov_north_east_m2", array_of(pne)},
+                   {"measurement_nT", array_of(s.anomaly_nT)},
+                   {"innovation_nT", array_of(s.filter.innovation_nT)},
+                   {"innovation_var_nT2", array_of(s.filter.innovation_var_nT2)},
+                   {"map_lat_deg", array_of(map.lat_rad * kRadToDeg)},
+                   {"map_lon_deg", array_of(map.lon_rad * kRadToDeg)},
+                   {"map_nT", grid}},
+                  inputs);
+  write_file_atomic(dir + "/navigation.json", j.dump(2) + "\n", inputs);
+  const std::string script = share_dir() + "/scripts/magcomp_nav_report.py";
+  const std::string cmdline = "/usr/bin/python3 '" + script + "' '" + dir + "'";
+  if (std::system(cmdline.c_str()) != 0) {
+    std::cerr << "warning: " << script << " failed; the report's data is in " << dir
+              << "/tracks.h5 and navigation.json\n";
+  } else {
+    std::printf("report: %s/index.html\n", dir.c_str());
+  }
+}
+
 }  // namespace
 
 void add_navigate(CLI::App& app) {
@@ -110,10 +191,12 @@ void add_navigate(CLI::App& app) {
   auto baseline = std::make_shared<std::string>();
   auto anomaly_field = std::make_shared<std::string>();
   auto json_path = std::make_shared<std::string>();
+  auto report = std::make_shared<std::string>();
   auto meas_sigma = std::make_shared<double>(3.0);
   auto fogm_sigma = std::make_shared<double>(3.0);
   auto fogm_tau = std::make_shared<double>(600.0);
   auto init_pos_sigma = std::make_shared<double>(3.0);
+  auto map_offset = std::make_shared<std::string>("first");
   cmd->add_option("--data", *data,
                   "flight HDF5: truth lat, lon (deg), alt/msl (m), roll/pitch/yaw; INS ins_lat, "
                   "ins_lon (rad or deg), ins_alt, ins_roll/pitch/yaw (deg)")
@@ -125,10 +208,18 @@ void add_navigate(CLI::App& app) {
   cmd->add_option("--anomaly", *anomaly_field,
                   "a field of --data already holding the anomaly (nT), instead of --model");
   cmd->add_option("--json", *json_path, "write the figures as JSON here");
+  cmd->add_option("--report", *report,
+                  "write the tracks (truth, INS, filter with its 2-sigma ellipse) on the map, the "
+                  "errors and innovations as an HTML page into this directory");
   cmd->add_option("--meas-sigma", *meas_sigma, "measurement noise std, nT (default 3)");
   cmd->add_option("--fogm-sigma", *fogm_sigma, "FOGM catch-all std, nT (default 3)");
   cmd->add_option("--fogm-tau", *fogm_tau, "FOGM catch-all time constant, s (default 600)");
   cmd->add_option("--init-pos-sigma", *init_pos_sigma, "initial position std, m (default 3)");
+  cmd->add_option("--map-offset", *map_offset,
+                  "'first': remove the first measurement minus the map (at the INS position) from "
+                  "all measurements, the compensation's constant offset; 'none': MagNav.jl's "
+                  "filter (default first)")
+      ->check(CLI::IsMember({"first", "none"}));
   cmd->callback([=] {
     if (model_path->empty() == anomaly_field->empty())
       throw Error("navigate: give exactly one of --model and --anomaly");
@@ -146,12 +237,14 @@ void add_navigate(CLI::App& app) {
     sig.fogm_nT = *fogm_sigma;
     sig.taus.fogm_s = *fogm_tau;
     sig.init_pos_m = *init_pos_sigma;
-    const nav::FilterSettings settings = nav::filter_model(dt, ins.lat_rad[0], sig);
+    nav::FilterSettings settings = nav::filter_model(dt, ins.lat_rad[0], sig);
+    settings.offset_from_first = *map_offset == "first";
 
     std::vector<std::pair<std::string, Scores>> rows;
-    rows.emplace_back(
-        anomaly_field->empty() ? *model_path : *anomaly_field,
-        navigate_once(ins, truth, anomaly_of(f, *model_path, *anomaly_field), map, settings));
+    Series series;
+    rows.emplace_back(anomaly_field->empty() ? *model_path : *anomaly_field,
+                      navigate_once(ins, truth, anomaly_of(f, *model_path, *anomaly_field), map,
+                                    settings, report->empty() ? nullptr : &series));
     if (!baseline->empty())
       rows.emplace_back(*baseline,
                         navigate_once(ins, truth, anomaly_of(f, *baseline, ""), map, settings));
@@ -169,21 +262,20 @@ void add_navigate(CLI::App& app) {
                   s.meas_vs_map_nT, s.drms_filter_m, s.drms_ins_m, s.drms_crlb_m,
                   100 * s.nees_in_bounds, s.innovation_mean_nT, s.innovation_std_nT);
     }
-    if (!json_path->empty()) {
-      nlohmann::json j = to_json(rows.front().second);
-      j["data"] = *data;
-      j["map"] = *map_path;
-      j["measurement"] = rows.front().first;
-      for (size_t k = 1; k < rows.size(); ++k) {
-        const bool raw = rows[k].first == "uncompensated" && k + 1 == rows.size();
-        nlohmann::json& r = j[raw ? "uncompensated" : "baseline"];
-        r = to_json(rows[k].second);
-        if (!raw) r["model"] = *baseline;
-      }
-      std::vector<std::string> inputs = {*data, *map_path};
-      if (!model_path->empty()) inputs.push_back(*model_path);
-      write_file_atomic(*json_path, j.dump(2) + "\n", inputs);
+    nlohmann::json j = to_json(rows.front().second);
+    j["data"] = *data;
+    j["map"] = *map_path;
+    j["measurement"] = rows.front().first;
+    for (size_t k = 1; k < rows.size(); ++k) {
+      const bool raw = rows[k].first == "uncompensated" && k + 1 == rows.size();
+      nlohmann::json& r = j[raw ? "uncompensated" : "baseline"];
+      r = to_json(rows[k].second);
+      if (!raw) r["model"] = *baseline;
     }
+    std::vector<std::string> inputs = {*data, *map_path};
+    if (!model_path->empty()) inputs.push_back(*model_path);
+    if (!json_path->empty()) write_file_atomic(*json_path, j.dump(2) + "\n", inputs);
+    if (!report->empty()) write_report(*report, truth, ins, series, map, j, inputs);
   });
 }
 

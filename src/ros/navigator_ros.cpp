@@ -43,6 +43,7 @@ const std::set<std::string> kKnownParams = {"map_path",
                                             "jump_back_s",
                                             "publish_tf",
                                             "path_stride",
+                                            "map_offset_from_first",
                                             "queue_size"};
 
 constexpr double kTimerPeriod_s = 0.1;
@@ -124,6 +125,7 @@ NavigatorRos::NavigatorRos(ros::NodeHandle nh, ros::NodeHandle pnh)
   enu_ = std::make_unique<LocalEnu>(lat0, lon0, alt0);
 
   nis_gate_ = gate > 0 ? gate : INFINITY;
+  pnh_.param("map_offset_from_first", map_offset_from_first_, true);
 
   std::string anomaly_topic, fix_topic, imu_topic, truth_topic, end_topic;
   pnh_.param<std::string>("anomaly_topic", anomaly_topic, "magcomp/compensated");
@@ -264,6 +266,7 @@ void NavigatorRos::try_ins(double t) {
   if (!nav_) {
     nav::FilterSettings fs = nav::filter_model(dt_s_, s.lat_rad, sigmas_);
     fs.nis_gate = nis_gate_;
+    fs.offset_from_first = map_offset_from_first_;
     nav_ = std::make_unique<nav::StreamingNavigator>(map_, fs, dt_s_);
     publish(nav_->push_ins(s));
     for (const auto& [te, z] : early_) publish(nav_->push_measurement(te, z.x(), z.y()));

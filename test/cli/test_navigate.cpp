@@ -2,9 +2,11 @@
 // refusals of bad input in one line.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <fstream>
 #include <nlohmann/json.hpp>
 
+#include "magcomp/core/io/h5_array.h"
 #include "test_util.h"
 
 namespace magcomp {
@@ -79,7 +81,8 @@ TEST(CliNavigate, ASimulatedFlightNavigatesBetterWithTheBetterModel) {
             0)
       << out;
   ASSERT_EQ(test::run(cli + " navigate --data " + f + " --map " + dir + "/f.map.h5 --model " + dir +
-                          "/full.yaml --baseline " + dir + "/tl.yaml --json " + dir + "/nav.json",
+                          "/full.yaml --baseline " + dir + "/tl.yaml --json " + dir +
+                          "/nav.json --report " + dir + "/report",
                       &out),
             0)
       << out;
@@ -92,6 +95,19 @@ TEST(CliNavigate, ASimulatedFlightNavigatesBetterWithTheBetterModel) {
   EXPECT_LT(full, 0.2 * ins);  // the INS alone drifts far more
   EXPECT_LT(j["measurement_minus_map_std_nT"].get<double>(),
             j["baseline"]["measurement_minus_map_std_nT"].get<double>());
+  // The filter is consistent: within 1.5x its Cramer-Rao bound, NEES inside its 95 % bounds at
+  // least 90 % of the time.
+  EXPECT_LT(full, 1.5 * j["drms_crlb_m"].get<double>());
+  EXPECT_GE(j["nees_in_95_bounds"].get<double>(), 0.90);
+  // The report's tracks: every sample, the filter's error as the JSON gives it.
+  const std::string tracks = dir + "/report/tracks.h5";
+  const H5Array en = read_h5_array(tracks, "error_north_m");
+  const H5Array ee = read_h5_array(tracks, "error_east_m");
+  ASSERT_EQ(en.values.size(), read_h5_array(tracks, "filter_lat_deg").values.size());
+  double ss = 0;
+  for (size_t i = 0; i < en.values.size(); ++i)
+    ss += en.values[i] * en.values[i] + ee.values[i] * ee.values[i];
+  EXPECT_NEAR(std::sqrt(ss / static_cast<double>(en.values.size())), full, 1e-9 * full);
 }
 
 }  // namespace

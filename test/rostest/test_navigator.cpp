@@ -57,13 +57,15 @@ TEST(Navigator, ReplayedFlightEqualsOfflineNavigation) {
   Collector<magcomp::NavigationStatus> status(nh, "/magcomp/nav/status");
   rostest_util::DiagnosticsCollector diagnostics(nh, "navigator");
 
-  // Offline: what `magcomp navigate --model` runs (its default settings).
+  // Offline: what `magcomp navigate --model` runs (its default settings), on the map as stored
+  // (the node's map_altitude_m is not set; navigate continues the map to the flight's mean
+  // altitude when it lies above it).
   const FlightData f = read_flight_h5(h5);
   const nav::FlightTracks tracks = nav::flight_tracks(f);
   const Eigen::VectorXd z = nav::measured_anomaly_nT(f, load_model_yaml(model_path));
   const nav::AnomalyMap map = nav::read_anomaly_map(map_path);
-  const nav::FilterSettings s =
-      nav::filter_model(f.dt_s(), tracks.ins.lat_rad[0], nav::ModelSigmas{});
+  nav::FilterSettings s = nav::filter_model(f.dt_s(), tracks.ins.lat_rad[0], nav::ModelSigmas{});
+  s.offset_from_first = true;
   const nav::FilterResult cli = nav::run_ekf(tracks.ins, z, map, s);
   const size_t n = static_cast<size_t>(f.size());
   rostest_util::wait_until_settled([&] { return fixes.size(); }, n, 10.0, 240.0, 0.2);
@@ -100,8 +102,9 @@ TEST(Navigator, ReplayedFlightEqualsOfflineNavigation) {
   std::printf("  the file's step differs from 1 / rate_hz by %.3g s\n", f.dt_s() - dt);
   const nav::NavTrack ins =
       nav::track_from_positions(dt, lat, lon, f.column("ins_alt"), roll, pitch, yaw);
-  const nav::FilterResult offline =
-      nav::run_ekf(ins, z_online, map, nav::filter_model(dt, ins.lat_rad[0], nav::ModelSigmas{}));
+  nav::FilterSettings s_node = nav::filter_model(dt, ins.lat_rad[0], nav::ModelSigmas{});
+  s_node.offset_from_first = true;
+  const nav::FilterResult offline = nav::run_ekf(ins, z_online, map, s_node);
   const double drms_offline =
       nav::position_errors(ins, offline.x, tracks.truth.lat_rad, tracks.truth.lon_rad).drms_m;
   const double drms_cli =
@@ -136,7 +139,7 @@ TEST(Navigator, ReplayedFlightEqualsOfflineNavigation) {
   // The whole chain against magcomp navigate on the file: the last bits of the conversions and
   // of the online compensation, amplified where the bilinear map's gradient jumps at a cell
   // edge, stay far below the navigation error itself.
-  std::printf("  magcomp navigate's filter: DRMS %.3f m, at most %.3g m from the node\n", drms_cli,
+  std::printf("  the core on the file: DRMS %.3f m, at most %.3g m from the node\n", drms_cli,
               worst_cli_m);
   for (const char* k : {"steps", "updates", "missing_measurements", "off_map_measurements",
                         "unmatched_measurements_dropped", "ins_gaps", "out_of_order_dropped"})

@@ -58,6 +58,7 @@ class NavigatorRos {
   nav::AnomalyMap map_;
   nav::ModelSigmas sigmas_;
   double nis_gate_ = INFINITY;
+  bool map_offset_from_first_ = true;
   /// Made at the first INS sample: the filter's initial covariance is about its latitude.
   std::unique_ptr<nav::StreamingNavigator> nav_;
   std::unique_ptr<LocalEnu> enu_;

@@ -71,6 +71,7 @@ void MapMatchingEkf::reset() {
   p_ = s_.p0;
   x_post_ = x_;
   p_post_ = p_;
+  offset_nT_ = NAN;
 }
 
 MapMatchingEkf::Step MapMatchingEkf::step(const NavPoint& point, double lat_ins, double lon_ins,
@@ -80,7 +81,9 @@ MapMatchingEkf::Step MapMatchingEkf::step(const NavPoint& point, double lat_ins,
   const double lat = lat_ins + x_[0], lon = lon_ins + x_[1];
   out.on_map = map_.covers(lat, lon);
   const double r = std::isfinite(r_nT2) && r_nT2 > 0 ? r_nT2 : s_.r_nT2;
-  const double resid = anomaly_nT - (map_.value(lat, lon) + x_[kStates - 1]);
+  if (s_.offset_from_first && std::isnan(offset_nT_) && std::isfinite(anomaly_nT) && out.on_map)
+    offset_nT_ = anomaly_nT - map_.value(lat, lon);
+  const double resid = anomaly_nT - offset_nT() - (map_.value(lat, lon) + x_[kStates - 1]);
   const Eigen::RowVectorXd h = measurement_row(map_, lat, lon);
   const double var = (h * p_ * h.transpose())(0, 0) + r;
   out.innovation_nT = resid;

@@ -33,6 +33,10 @@ struct FilterSettings {
   /// A measurement whose normalised innovation squared (innovation^2 / its variance) exceeds this
   /// is not used (chi-square, 1 dof: 10.83 rejects 0.1 % of consistent ones); infinite: none.
   double nis_gate = INFINITY;
+  /// Remove a constant offset from every measurement: the first usable measurement minus the map
+  /// at the INS position (a band-pass fit cannot see the aircraft's constant field, hundreds of
+  /// nT, and a zero-mean catch-all would pull it into the position). false: none (MagNav.jl).
+  bool offset_from_first = false;
 };
 
 /// The filter's output at each sample, after its measurement update: the error state (18) and
@@ -67,6 +71,8 @@ class MapMatchingEkf {
   const Eigen::MatrixXd& p_post() const { return p_post_; }
   /// Propagation only, over dt_s (a gap in the INS samples).
   void propagate(const NavPoint& p, double dt_s);
+  /// The constant offset removed from the measurements, nT (0 until set, or without it).
+  double offset_nT() const { return std::isfinite(offset_nT_) ? offset_nT_ : 0.0; }
   /// Back to the initial state and covariance.
   void reset();
 
@@ -75,6 +81,7 @@ class MapMatchingEkf {
   FilterSettings s_;
   Eigen::VectorXd x_, x_post_;
   Eigen::MatrixXd p_, p_post_;
+  double offset_nT_ = NAN;  // the measurements' constant offset (offset_from_first)
 };
 
 /// Runs the filter over an INS track with one scalar anomaly measurement per sample (nT); a NaN
