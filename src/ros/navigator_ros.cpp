@@ -3,6 +3,7 @@
 
 #include <geometry_msgs/PoseWithCovarianceStamped.h>
 #include <magcomp/NavigationStatus.h>
+#include <nav_msgs/OccupancyGrid.h>
 #include <nav_msgs/Odometry.h>
 
 #include <algorithm>
@@ -113,13 +114,14 @@ NavigatorRos::NavigatorRos(ros::NodeHandle nh, ros::NodeHandle pnh)
   int queue = 1000;
   pnh_.param("queue_size", queue, 1000);
   if (queue < 1) reject_param("queue_size", "must be >= 1");
-  // The map frame: ENU about the origin (default: the map's centre, on the ellipsoid).
+  // The map frame: ENU about the origin (default: the map's centre at the map's altitude, so z
+  // is the height above the survey altitude and a top-down view holds the tracks).
   const Eigen::Index ny = map_.lat_rad.size(), nx = map_.lon_rad.size();
   const double lat0 =
       getd(pnh_, "origin_lat_deg", 0.5 * (map_.lat_rad[0] + map_.lat_rad[ny - 1]) * kRadToDeg);
   const double lon0 =
       getd(pnh_, "origin_lon_deg", 0.5 * (map_.lon_rad[0] + map_.lon_rad[nx - 1]) * kRadToDeg);
-  const double alt0 = getd(pnh_, "origin_alt_m", 0.0);
+  const double alt0 = getd(pnh_, "origin_alt_m", map_.alt_m);
   if (!(std::abs(lat0) <= 90) || !(std::abs(lon0) <= 360) || !std::isfinite(alt0))
     reject_param("origin_lat_deg", "the map frame's origin must be a valid latitude/longitude");
   enu_ = std::make_unique<LocalEnu>(lat0, lon0, alt0);
@@ -153,6 +155,8 @@ NavigatorRos::NavigatorRos(ros::NodeHandle nh, ros::NodeHandle pnh)
   pub_path_filter_ = nh_.advertise<nav_msgs::Path>("magcomp/nav/path/filter", 1, true);
   pub_path_ins_ = nh_.advertise<nav_msgs::Path>("magcomp/nav/path/ins", 1, true);
   pub_path_truth_ = nh_.advertise<nav_msgs::Path>("magcomp/nav/path/truth", 1, true);
+  pub_map_ = nh_.advertise<nav_msgs::OccupancyGrid>("magcomp/nav/map", 1, true);
+  publish_map();
   for (nav_msgs::Path* p : {&path_filter_, &path_ins_, &path_truth_})
     p->header.frame_id = map_frame_;
   if (publish_tf_) tf_ = std::make_unique<tf2_ros::TransformBroadcaster>();
@@ -179,6 +183,7 @@ bool NavigatorRos::jumped_back(double t, double* last) {
     truth_.clear();
     early_.clear();
     for (nav_msgs::Path* p : {&path_filter_, &path_ins_, &path_truth_}) p->poses.clear();
+    truth_seen_ = 0;
     last_anomaly_t_ = last_fix_t_ = last_imu_t_ = NAN;
     *last = t;
     return true;
@@ -232,7 +237,7 @@ void NavigatorRos::on_imu(const sensor_msgs::Imu::ConstPtr& m) {
 void NavigatorRos::on_truth(const sensor_msgs::NavSatFix::ConstPtr& m) {
   const double t = m->header.stamp.toSec();
   truth_[t] = {m->latitude, m->longitude};
-  if (truth_.size() % static_cast<size_t>(path_stride_) == 0) {
+  if (truth_seen_++ % path_stride_ == 0) {
     geometry_msgs::PoseStamped p;
     p.header.stamp = m->header.stamp;
     p.header.frame_id = map_frame_;
@@ -279,6 +284,35 @@ void NavigatorRos::try_ins(double t) {
 void NavigatorRos::on_end(const std_msgs::Time::ConstPtr&) {
   ROS_INFO("magcomp navigator: end of stream");
   if (nav_) publish(nav_->end_of_ins());
+}
+
+void NavigatorRos::publish_map() {
+  // The anomaly map for rviz: an OccupancyGrid in the map frame (its cells 0-100 spanning the
+  // map's range; the grid's lat/lon axes laid on east/north at its corner, to a few metres
+  // over a survey block).
+  nav_msgs::OccupancyGrid g;
+  g.header.frame_id = map_frame_;
+  g.header.stamp = ros::Time(0);
+  const Eigen::Index ny = map_.map_nT.rows(), nx = map_.map_nT.cols();
+  const Eigen::Vector2d step = map_.step_m();
+  g.info.resolution = static_cast<float>(0.5 * (step.x() + step.y()));
+  g.info.width = static_cast<uint32_t>(nx);
+  g.info.height = static_cast<uint32_t>(ny);
+  const Eigen::Vector3d corner =
+      enu_->forward(map_.lat_rad[0] * kRadToDeg, map_.lon_rad[0] * kRadToDeg, map_.alt_m);
+  g.info.origin.position.x = corner.x();
+  g.info.origin.position.y = corner.y();
+  g.info.origin.position.z = corner.z();
+  g.info.origin.orientation.w = 1.0;
+  const double lo = map_.map_nT.minCoeff(), hi = map_.map_nT.maxCoeff();
+  g.data.resize(static_cast<size_t>(nx * ny));
+  for (Eigen::Index r = 0; r < ny; ++r)
+    for (Eigen::Index c = 0; c < nx; ++c) {
+      const bool valid = map_.mask.size() == 0 || map_.mask(r, c) != 0;
+      g.data[static_cast<size_t>(r * nx + c)] = static_cast<int8_t>(
+          valid && hi > lo ? std::lround(100.0 * (map_.map_nT(r, c) - lo) / (hi - lo)) : -1);
+    }
+  pub_map_.publish(g);
 }
 
 void NavigatorRos::on_timer() {

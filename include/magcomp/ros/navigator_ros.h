@@ -40,6 +40,8 @@ class NavigatorRos {
   void on_truth(const sensor_msgs::NavSatFix::ConstPtr& m);
   void on_end(const std_msgs::Time::ConstPtr& m);
   void on_timer();
+  /// The anomaly map as a latched nav_msgs/OccupancyGrid (rviz's Map display).
+  void publish_map();
   /// An INS fix and attitude with the same stamp: one sample for the navigator.
   void try_ins(double t_s);
   /// A stamp earlier than the last of its own stream (`last_s`) by more than jump_back_s: a new
@@ -72,6 +74,7 @@ class NavigatorRos {
   double last_anomaly_t_ = NAN, last_fix_t_ = NAN, last_imu_t_ = NAN;
   double last_input_wall_s_ = 0.0;
   // Counters and the latest state, for diagnostics.
+  long truth_seen_ = 0;  // reference fixes received (every path_stride-th is a path point)
   long published_ = 0, jumps_back_ = 0, imu_without_fix_dropped_ = 0, nan_inputs_ = 0;
   std::optional<nav::NavigatorOutput> last_;
   double nis_sum_ = 0.0;
@@ -79,7 +82,7 @@ class NavigatorRos {
   // Outputs.
   ros::Subscriber sub_anomaly_, sub_fix_, sub_imu_, sub_truth_, sub_end_;
   ros::Publisher pub_odom_, pub_pose_, pub_fix_, pub_status_, pub_path_filter_, pub_path_ins_,
-      pub_path_truth_;
+      pub_path_truth_, pub_map_;
   nav_msgs::Path path_filter_, path_ins_, path_truth_;
   std::unique_ptr<tf2_ros::TransformBroadcaster> tf_;
   ros::WallTimer timer_, diag_timer_;
