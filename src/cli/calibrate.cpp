@@ -1,9 +1,12 @@
 // magcomp calibrate: fit a model's coefficients on calibration segments of one or more flights.
+#include <cmath>
 #include <iomanip>
 #include <iostream>
+#include <sstream>
 
 #include "common.h"
 #include "magcomp/core/error.h"
+#include "magcomp/core/evaluate/evaluation.h"
 #include "magcomp/core/io/file_io.h"
 #include "magcomp/core/model/model.h"
 #include "subcommands.h"
@@ -16,10 +19,15 @@ void add_calibrate(CLI::App& app) {
   auto model_path = std::make_shared<std::string>();
   auto out = std::make_shared<std::string>();
   auto terms = std::make_shared<std::vector<std::string>>();
+  auto holdout_truth = std::make_shared<std::string>("mag_1_c");
   cmd->add_option("--data", *data, "flight HDF5 file(s), comma-separated")->required();
   cmd->add_option("--model", *model_path, "model YAML (plain or fitted: refit)")->required();
   cmd->add_option("--term", *terms, "add a term, e.g. current:cur_strb (repeatable)");
   cmd->add_option("--out", *out, "fitted model YAML to write")->required();
+  cmd->add_option("--holdout-truth", *holdout_truth,
+                  "reference field for the model's error on the lines it is not fitted on (its "
+                  "variance enters each sample's uncertainty); empty: none (default mag_1_c, "
+                  "where the flights have it)");
   cmd->callback([=] {
     const std::vector<std::string> inputs = split_commas(*data);
     check_output_path(*out, inputs);  // before the work: never over a flight it reads
@@ -35,6 +43,17 @@ void add_calibrate(CLI::App& app) {
     std::vector<const FlightData*> ptrs;
     for (const auto& f : flights) ptrs.push_back(&f);
     fit_model(model, ptrs);
+    std::string holdout_note;
+    if (!holdout_truth->empty() && !model.neural) {
+      const auto [var, rows] = holdout_error_variance_nT2(model, ptrs, *holdout_truth);
+      model.report.holdout_error_variance_nT2 = var;
+      std::ostringstream note;
+      note << std::setprecision(4);
+      if (rows > 0)
+        note << "held-out error std " << std::sqrt(var) << " nT against " << *holdout_truth
+             << " on " << rows << " samples of lines not fitted (in each sample's variance)\n";
+      holdout_note = note.str();
+    }
     save_model_yaml(model, *out, inputs);
     const FitReport& r = model.report;
     std::cout << "calibrated " << model.scalar << " with " << model.vector << ": "
@@ -42,6 +61,7 @@ void add_calibrate(CLI::App& app) {
               << r.segments << " segment(s)\n"
               << std::setprecision(4) << "condition number " << r.condition_number
               << ", fit residual std " << r.residual_std_nT << " nT\n";
+    std::cout << holdout_note;
     for (const auto& e : r.estimates) std::cout << "estimated: " << e << "\n";
     for (const auto& w : r.warnings) std::cout << "warning: " << w << "\n";
     std::cout << "wrote " << *out << "\n";

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <nlohmann/json.hpp>
+#include <optional>
 
 #include "common.h"
 #include "magcomp/core/error.h"
@@ -42,7 +43,8 @@ struct Series {
 
 Scores navigate_once(const nav::NavTrack& ins, const nav::NavTrack& truth,
                      const Eigen::VectorXd& anomaly_nT, const nav::AnomalyMap& map,
-                     const nav::FilterSettings& settings, Series* series = nullptr) {
+                     const nav::FilterSettings& settings, Series* series = nullptr,
+                     const Eigen::VectorXd* r_nT2 = nullptr) {
   Scores s;
   const Eigen::Index n = ins.size();
   double sum = 0, sum2 = 0;
@@ -56,7 +58,7 @@ Scores navigate_once(const nav::NavTrack& ins, const nav::NavTrack& truth,
   }
   if (used == 0) throw Error("navigate: no finite anomaly sample to navigate on");
   s.meas_vs_map_nT = std::sqrt(std::max(0.0, sum2 / used - (sum / used) * (sum / used)));
-  const nav::FilterResult r = nav::run_ekf(ins, anomaly_nT, map, settings);
+  const nav::FilterResult r = nav::run_ekf(ins, anomaly_nT, map, settings, r_nT2);
   const nav::PositionErrors e = nav::position_errors(ins, r.x, truth.lat_rad, truth.lon_rad);
   s.drms_filter_m = e.drms_m;
   s.drms_ins_m = nav::position_errors(ins, {}, truth.lat_rad, truth.lon_rad).drms_m;
@@ -197,6 +199,8 @@ void add_navigate(CLI::App& app) {
   auto fogm_tau = std::make_shared<double>(600.0);
   auto init_pos_sigma = std::make_shared<double>(3.0);
   auto map_offset = std::make_shared<std::string>("first");
+  auto model_variance = std::make_shared<bool>(false);
+  auto map_sigma = std::make_shared<double>(0.0);
   cmd->add_option("--data", *data,
                   "flight HDF5: truth lat, lon (deg), alt/msl (m), roll/pitch/yaw; INS ins_lat, "
                   "ins_lon (rad or deg), ins_alt, ins_roll/pitch/yaw (deg)")
@@ -215,6 +219,11 @@ void add_navigate(CLI::App& app) {
   cmd->add_option("--fogm-sigma", *fogm_sigma, "FOGM catch-all std, nT (default 3)");
   cmd->add_option("--fogm-tau", *fogm_tau, "FOGM catch-all time constant, s (default 600)");
   cmd->add_option("--init-pos-sigma", *init_pos_sigma, "initial position std, m (default 3)");
+  cmd->add_flag("--model-variance", *model_variance,
+                "R per sample: the model's variance (its coefficients' uncertainty and its "
+                "held-out error, as the compensator publishes it) plus --map-sigma squared, "
+                "instead of --meas-sigma squared");
+  cmd->add_option("--map-sigma", *map_sigma, "the map's error std, nT, with --model-variance");
   cmd->add_option("--map-offset", *map_offset,
                   "'first': remove the first measurement minus the map (at the INS position) from "
                   "all measurements, the compensation's constant offset; 'none': MagNav.jl's "
@@ -240,14 +249,27 @@ void add_navigate(CLI::App& app) {
     nav::FilterSettings settings = nav::filter_model(dt, ins.lat_rad[0], sig);
     settings.offset_from_first = *map_offset == "first";
 
+    if (*model_variance && model_path->empty())
+      throw Error("navigate: --model-variance needs --model");
+    if (!(*map_sigma >= 0)) throw Error("navigate: --map-sigma must be >= 0 nT");
+    // R per sample from a model: its variance plus the map's.
+    auto r_of = [&](const std::string& path) -> std::optional<Eigen::VectorXd> {
+      if (!*model_variance) return std::nullopt;
+      Eigen::VectorXd v = compensation_variance_nT2(load_model_yaml(path), f);
+      return Eigen::VectorXd(v.array() + *map_sigma * *map_sigma);
+    };
     std::vector<std::pair<std::string, Scores>> rows;
     Series series;
-    rows.emplace_back(anomaly_field->empty() ? *model_path : *anomaly_field,
-                      navigate_once(ins, truth, anomaly_of(f, *model_path, *anomaly_field), map,
-                                    settings, report->empty() ? nullptr : &series));
-    if (!baseline->empty())
-      rows.emplace_back(*baseline,
-                        navigate_once(ins, truth, anomaly_of(f, *baseline, ""), map, settings));
+    const auto r_main = model_path->empty() ? std::nullopt : r_of(*model_path);
+    rows.emplace_back(
+        anomaly_field->empty() ? *model_path : *anomaly_field,
+        navigate_once(ins, truth, anomaly_of(f, *model_path, *anomaly_field), map, settings,
+                      report->empty() ? nullptr : &series, r_main ? &*r_main : nullptr));
+    if (!baseline->empty()) {
+      const auto r_base = r_of(*baseline);
+      rows.emplace_back(*baseline, navigate_once(ins, truth, anomaly_of(f, *baseline, ""), map,
+                                                 settings, nullptr, r_base ? &*r_base : nullptr));
+    }
     if (!model_path->empty())
       rows.emplace_back(
           "uncompensated",

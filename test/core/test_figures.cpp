@@ -3,6 +3,7 @@
 // ratio.
 #include <gtest/gtest.h>
 
+#include "magcomp/core/evaluate/evaluation.h"
 #include "magcomp/core/evaluate/figure_of_merit.h"
 #include "scenario_cache.h"
 
@@ -89,6 +90,47 @@ TEST(FigureOfMerit, TheUncompensatedFomMatchesTheTruthAndTheModelRemovesIt) {
     }
   }
   EXPECT_GT(ev.improvement_ratio, 10.0);
+}
+
+}  // namespace
+}  // namespace magcomp
+
+namespace magcomp {
+namespace {
+
+TEST(Uncertainty, TheHeldOutErrorEntersEachSamplesVariance) {
+  // two_effects with plain TL: the wire and the lag are missing, so the error on the lines the
+  // fit never saw is far above the fit's noise; it replaces the noise in every sample's variance,
+  // and the model file carries it.
+  const FlightData& f = test::scenario("two_effects").flight;
+  Model tl = test::calibrated_tl(f);
+  Model full = test::calibrated_tl(f, {"lag:0.3", "current:cur_strb"});
+  const auto [tl_var, tl_rows] = holdout_error_variance_nT2(tl, {&f}, "mag_1_c");
+  const auto [full_var, full_rows] = holdout_error_variance_nT2(full, {&f}, "mag_1_c");
+  std::printf(
+      "  held-out error std: TL %.3f nT, TL + wire + lag %.3f nT (%ld rows); fit noise "
+      "%.3f and %.3f nT\n",
+      std::sqrt(tl_var), std::sqrt(full_var), static_cast<long>(tl_rows),
+      std::sqrt(tl.report.noise_variance_nT2), std::sqrt(full.report.noise_variance_nT2));
+  ASSERT_GT(tl_rows, 10000);
+  EXPECT_GT(tl_var, 10 * full_var);  // the missing effects show
+  // Independent: the error's own line-demeaned variance on the rows not fitted.
+  const Evaluation ev = evaluate_model(full, f, "mag_1_c");
+  std::vector<bool> fitted(static_cast<size_t>(f.size()), false);
+  for (Eigen::Index i : f.select(full.fit.lines, full.fit.windows))
+    fitted[static_cast<size_t>(i)] = true;
+  Eigen::VectorXd held = ev.error_nT;
+  for (Eigen::Index i = 0; i < f.size(); ++i)
+    if (fitted[static_cast<size_t>(i)]) held[i] = NAN;
+  const double s = pooled_std(held, f.column("line"));
+  EXPECT_NEAR(full_var, s * s, 1e-9 * s * s);
+  const double before = compensation_variance_nT2(tl, f)[f.size() / 2];
+  tl.report.holdout_error_variance_nT2 = tl_var;
+  const double after = compensation_variance_nT2(tl, f)[f.size() / 2];
+  EXPECT_NEAR(after - before, tl_var - tl.report.noise_variance_nT2, 1e-6 * tl_var);
+  const std::string path = test::temp_dir("holdout") + "/tl.yaml";
+  save_model_yaml(tl, path);
+  EXPECT_DOUBLE_EQ(load_model_yaml(path).report.holdout_error_variance_nT2, tl_var);
 }
 
 }  // namespace

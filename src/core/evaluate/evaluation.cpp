@@ -190,16 +190,14 @@ double pooled_std(const Eigen::VectorXd& residual, const Eigen::VectorXd& groups
 
 namespace {
 
-// The model's compensated field and its error against `ref` (nT), with the counts of finite
-// errors within 1 and 2 sigma of their variance; the variance itself kept when asked.
+// The model's compensated field, its error against `ref` and its variance (nT, nT^2).
 struct Applied {
   Eigen::VectorXd compensated_nT, error_nT, variance_nT2;
-  long covered = 0, within_1sigma = 0, within_2sigma = 0;
 };
 
 Applied apply_and_compare(const Model& model, const FlightData& data,
                           const Eigen::Ref<const Eigen::VectorXd>& uncompensated,
-                          const FlightData::Column& ref, bool keep_variance) {
+                          const FlightData::Column& ref) {
   Applied out;
   const Eigen::Index n = data.size();
   if (model.neural && model.neural->trained()) {
@@ -209,31 +207,45 @@ Applied apply_and_compare(const Model& model, const FlightData& data,
   }
   out.compensated_nT.resize(n);
   out.error_nT.resize(n);
-  if (keep_variance) out.variance_nT2.resize(n);
-  std::mutex counts;
+  out.variance_nT2.resize(n);
   for_each_correction_block(
       model, data, true,
       [&](Eigen::Index first, const Eigen::VectorXd& correction, const Eigen::VectorXd* variance) {
-        long covered = 0, in1 = 0, in2 = 0;
         for (Eigen::Index k = 0; k < correction.size(); ++k) {
           const Eigen::Index i = first + k;
           const double c = uncompensated[i] - correction[k];
-          const double e = c - ref[i];
-          const double v = (*variance)[k];
           out.compensated_nT[i] = c;
-          out.error_nT[i] = e;
-          if (!std::isfinite(e) || !std::isfinite(v) || !(v > 0)) continue;
-          ++covered;
-          in1 += e * e <= v;
-          in2 += e * e <= 4 * v;
+          out.error_nT[i] = c - ref[i];
         }
-        if (keep_variance) out.variance_nT2.segment(first, variance->size()) = *variance;
-        std::lock_guard<std::mutex> lock(counts);
-        out.covered += covered;
-        out.within_1sigma += in1;
-        out.within_2sigma += in2;
+        out.variance_nT2.segment(first, variance->size()) = *variance;
       });
   return out;
+}
+
+// The share of finite errors, each line's mean removed (as std_nT: a band-pass fit cannot see
+// a constant offset), within 1 and 2 sigma of their variance; NaN without a variance.
+std::pair<double, double> coverage(const Eigen::VectorXd& error, const Eigen::VectorXd& variance,
+                                   const double* line) {
+  if (variance.size() != error.size()) return {NAN, NAN};
+  std::map<double, std::pair<double, double>> acc;  // sum, count per line
+  for (Eigen::Index i = 0; i < error.size(); ++i)
+    if (std::isfinite(error[i]) && std::isfinite(variance[i]) && variance[i] > 0) {
+      auto& a = acc[line ? line[i] : 0.0];
+      a.first += error[i];
+      a.second += 1;
+    }
+  long covered = 0, in1 = 0, in2 = 0;
+  for (Eigen::Index i = 0; i < error.size(); ++i) {
+    if (!(std::isfinite(error[i]) && std::isfinite(variance[i]) && variance[i] > 0)) continue;
+    const auto& a = acc[line ? line[i] : 0.0];
+    const double e = error[i] - a.first / a.second;
+    ++covered;
+    in1 += e * e <= variance[i];
+    in2 += e * e <= 4 * variance[i];
+  }
+  if (covered == 0) return {NAN, NAN};
+  return {static_cast<double>(in1) / static_cast<double>(covered),
+          static_cast<double>(in2) / static_cast<double>(covered)};
 }
 
 }  // namespace
@@ -258,7 +270,7 @@ Evaluation evaluate_model(const Model& model, const FlightData& data, const std:
       lag_s != 0.0 ? Eigen::Ref<const Eigen::VectorXd>(shifted)
                    : Eigen::Ref<const Eigen::VectorXd>(data.column(model.scalar));
   // The terms' correction, the compensated field, its error and its variance, block by block.
-  Applied applied = apply_and_compare(model, data, uncompensated, ref, keep_variance);
+  Applied applied = apply_and_compare(model, data, uncompensated, ref);
   const std::vector<FlightCondition> conditions = classified.get();
   data.drop_mapped_pages();  // the fluxgate, channels and rates are done with
   const double* line_column = data.has("line") ? data.column("line").data() : nullptr;
@@ -274,6 +286,7 @@ Evaluation evaluate_model(const Model& model, const FlightData& data, const std:
     fom = figure_of_merit(data, model.fit, applied.compensated_nT, uncompensated,
                           conditions.empty() ? nullptr : &conditions);
   });
+  const auto [c1, c2] = coverage(applied.error_nT, applied.variance_nT2, line_column);
   Evaluation ev = error_statistics(data, std::move(applied.error_nT), true, &conditions);
   side.get();
   ev.fom = std::move(fom);
@@ -286,11 +299,9 @@ Evaluation evaluate_model(const Model& model, const FlightData& data, const std:
       l.improvement_ratio = l.std_nT > 0 ? b.std_nT / l.std_nT : NAN;
     }
   }
-  ev.variance_nT2 = std::move(applied.variance_nT2);
-  if (applied.covered > 0) {
-    ev.coverage_1sigma = static_cast<double>(applied.within_1sigma) / applied.covered;
-    ev.coverage_2sigma = static_cast<double>(applied.within_2sigma) / applied.covered;
-  }
+  if (keep_variance) ev.variance_nT2 = std::move(applied.variance_nT2);
+  ev.coverage_1sigma = c1;
+  ev.coverage_2sigma = c2;
   if (ev.n == 0) {
     throw Error(data.source() + ": no sample has a finite compensated value and reference (" +
                 model.scalar + ", " + model.vector + "_x/_y/_z, the model's channels, " + truth +
@@ -298,6 +309,36 @@ Evaluation evaluate_model(const Model& model, const FlightData& data, const std:
   }
   ev.compensated_nT = std::move(applied.compensated_nT);
   return ev;
+}
+
+}  // namespace magcomp
+
+namespace magcomp {
+
+std::pair<double, Eigen::Index> holdout_error_variance_nT2(
+    const Model& model, const std::vector<const FlightData*>& flights, const std::string& truth,
+    Eigen::Index min_rows) {
+  double ss = 0.0;
+  Eigen::Index used = 0;
+  for (const FlightData* f : flights) {
+    if (!f->has(truth)) continue;
+    std::vector<bool> fitted(static_cast<size_t>(f->size()), false);
+    for (Eigen::Index i : f->select(model.fit.lines, model.fit.windows))
+      fitted[static_cast<size_t>(i)] = true;
+    const Eigen::VectorXd error = compensate(model, *f) - Eigen::VectorXd(f->column(truth));
+    Eigen::VectorXd held = Eigen::VectorXd::Constant(f->size(), NAN);
+    for (Eigen::Index i = 0; i < f->size(); ++i)
+      if (!fitted[static_cast<size_t>(i)]) held[i] = error[i];
+    const Eigen::Index n = (held.array().isFinite()).count();
+    if (n == 0) continue;
+    const Eigen::VectorXd line =
+        f->has("line") ? Eigen::VectorXd(f->column("line")) : Eigen::VectorXd();
+    const double s = pooled_std(held, line);
+    ss += s * s * static_cast<double>(n);
+    used += n;
+  }
+  if (used < min_rows) return {NAN, 0};
+  return {ss / static_cast<double>(used), used};
 }
 
 }  // namespace magcomp

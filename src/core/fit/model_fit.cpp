@@ -526,7 +526,7 @@ double row_variance_nT2(const Model& model, const Eigen::Ref<const Eigen::RowVec
   if (cov.rows() != row.size() || !std::isfinite(model.report.noise_variance_nT2)) {
     return std::numeric_limits<double>::quiet_NaN();
   }
-  return row_quadratic_form(cov, row, model.report.noise_variance_nT2, buffer);
+  return row_quadratic_form(cov, row, model.report.sample_noise_nT2(), buffer);
 }
 }  // namespace
 
@@ -540,7 +540,7 @@ void for_each_correction_block(const Model& model, const FlightData& data, bool 
                                                         const Eigen::VectorXd*)>& block) {
   if (!model.fitted()) throw Error("model: not calibrated (no coefficients)");
   const Eigen::MatrixXd& cov = model.report.coefficient_covariance;
-  const double noise_nT2 = model.report.noise_variance_nT2;
+  const double noise_nT2 = model.report.sample_noise_nT2();
   // Blocks on two threads (each sample's numbers do not depend on which thread computes them).
   static const int threads =
       static_cast<int>(std::clamp(std::thread::hardware_concurrency(), 1u, 2u));

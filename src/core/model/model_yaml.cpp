@@ -301,6 +301,13 @@ void parse_fit_report(const YAML::Node& r, const std::string& path, Model* m) {
     if (!(m->report.noise_variance_nT2 >= 0) || !std::isfinite(m->report.noise_variance_nT2))
       throw Error(path + ": key 'fit_report.noise_variance_nT2' must be finite and >= 0");
   }
+  if (r["holdout_error_variance_nT2"]) {
+    m->report.holdout_error_variance_nT2 =
+        get<double>(r["holdout_error_variance_nT2"], path, "fit_report.holdout_error_variance_nT2");
+    if (!(m->report.holdout_error_variance_nT2 >= 0) ||
+        !std::isfinite(m->report.holdout_error_variance_nT2))
+      throw Error(path + ": key 'fit_report.holdout_error_variance_nT2' must be finite and >= 0");
+  }
   if (r["residual_std_nT"])
     m->report.residual_std_nT =
         get<double>(r["residual_std_nT"], path, "fit_report.residual_std_nT");
@@ -406,6 +413,10 @@ void save_model_yaml(const Model& m, const std::string& path,
       out << YAML::Key << "estimates" << YAML::Value << YAML::Flow << m.report.estimates;
     if (std::isfinite(m.report.noise_variance_nT2)) {
       out << YAML::Key << "noise_variance_nT2" << YAML::Value << m.report.noise_variance_nT2;
+    }
+    if (std::isfinite(m.report.holdout_error_variance_nT2)) {
+      out << YAML::Key << "holdout_error_variance_nT2" << YAML::Value
+          << m.report.holdout_error_variance_nT2;
     }
     const Eigen::MatrixXd& cov = m.report.coefficient_covariance;
     if (cov.size() > 0) {  // row-major, P x P in column order

@@ -45,7 +45,8 @@ struct Evaluation {
   double uncompensated_std_nT = NAN;
   double improvement_ratio = NAN;
   /// Per-sample variance of the compensated field (model.h sample_variance_nT2), nT², and the
-  /// fraction of finite errors within 1 and 2 sigma of it (NaN without an uncertainty).
+  /// fraction of finite errors, each line's mean removed, within 1 and 2 sigma of it (NaN without
+  /// an uncertainty).
   Eigen::VectorXd variance_nT2;
   double coverage_1sigma = NAN, coverage_2sigma = NAN;
   /// The figure of merit on the model's calibration maneuvers.
@@ -65,6 +66,13 @@ Evaluation error_statistics(const FlightData& data, Eigen::VectorXd error_nT,
 /// is missing or all NaN.
 Evaluation evaluate_model(const Model& model, const FlightData& data, const std::string& truth,
                           bool keep_variance = true);
+
+/// The model's error variance on the rows of the flights its fit did not select (other lines or
+/// windows), against the field `truth`, each line's mean removed, nT²; with the count of rows
+/// used. NaN (and 0) when fewer than min_rows such rows have a finite error.
+std::pair<double, Eigen::Index> holdout_error_variance_nT2(
+    const Model& model, const std::vector<const FlightData*>& flights, const std::string& truth,
+    Eigen::Index min_rows = 600);
 
 /// Mean-removed RMS per group, pooled (the `std_nT` above) for any residual and grouping.
 double pooled_std(const Eigen::VectorXd& residual, const Eigen::VectorXd& groups);

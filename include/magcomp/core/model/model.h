@@ -52,6 +52,17 @@ struct FitReport {
   /// estimator's noise_variance (A'A + lambda I)^-1 A'A (A'A + lambda I)^-1 (zero for the columns
   /// the method cannot fit). Empty when unknown.
   Eigen::MatrixXd coefficient_covariance;
+  /// Variance of the model's error on the lines it was not fitted on, against a reference (line
+  /// means removed), nT²: the noise and what the model misses (an effect it lacks), as measured
+  /// where the fit could not adapt to it. NaN when unknown.
+  double holdout_error_variance_nT2 = NAN;
+  /// The variance every sample's uncertainty adds to its coefficients' part, nT²: the held-out
+  /// error where known (a band-pass fit's residual counts the anomaly in its band and misses what
+  /// the terms cannot express), else the fit's noise.
+  double sample_noise_nT2() const {
+    return std::isfinite(holdout_error_variance_nT2) ? holdout_error_variance_nT2
+                                                     : noise_variance_nT2;
+  }
 };
 
 /// A compensation model. Terms are held as specs; the model builds them on demand.
