@@ -1,0 +1,175 @@
+// magcomp simulator: random hidden effects (random_effects.h).
+#include "magcomp/core/sim/random_effects.h"
+
+#include <algorithm>
+#include <cmath>
+#include <random>
+#include <sstream>
+
+#include "magcomp/core/error.h"
+#include "magcomp/core/sim/simulator.h"
+
+namespace magcomp::sim {
+namespace {
+
+const std::vector<std::string> kCurrents = {
+    "cur_com_1",  "cur_ac_hi",  "cur_ac_lo", "cur_tank",  "cur_flap",   "cur_strb",  "cur_srvo_o",
+    "cur_srvo_m", "cur_srvo_i", "cur_heat",  "cur_acpwr", "cur_outpwr", "cur_bat_1", "cur_bat_2"};
+const std::vector<std::string> kVoltages = {"vol_acpwr", "vol_outpwr", "vol_bat_1",
+                                            "vol_bat_2", "vol_block",  "vol_back",
+                                            "vol_srvo",  "vol_cabt",   "vol_fan"};
+const std::vector<std::string> kInsChannels = {"nrml_acc", "pitch_rate", "roll_rate", "yaw_rate"};
+const std::vector<std::string> kKinds = {"wire",   "inductive", "drift",      "thermal", "relay",
+                                         "ripple", "product",   "hysteresis", "flex",    "lag"};
+constexpr const char* kSensor = "mag_5_uc";
+
+template <class T>
+const T& pick(const std::vector<T>& v, std::mt19937_64& rng) {
+  return v[std::uniform_int_distribution<size_t>(0, v.size() - 1)(rng)];
+}
+
+double uniform(double lo, double hi, std::mt19937_64& rng) {
+  return std::uniform_real_distribution<double>(lo, hi)(rng);
+}
+
+Eigen::Vector3d unit_vector(std::mt19937_64& rng) {
+  std::normal_distribution<double> n;
+  Eigen::Vector3d v(n(rng), n(rng), n(rng));
+  return v.norm() > 1e-6 ? Eigen::Vector3d(v.normalized()) : Eigen::Vector3d(0, 0, 1);
+}
+
+double quantile(Eigen::VectorXd v, double q) {
+  std::vector<double> x;
+  for (Eigen::Index i = 0; i < v.size(); ++i)
+    if (std::isfinite(v[i])) x.push_back(v[i]);
+  if (x.empty()) return 0.0;
+  const auto k = static_cast<size_t>(q * static_cast<double>(x.size() - 1));
+  std::nth_element(x.begin(), x.begin() + static_cast<std::ptrdiff_t>(k), x.end());
+  return x[k];
+}
+
+// One effect's kind and shape (unit gain); thresholds filled from the pilot flight later.
+HiddenEffect draw(std::mt19937_64& rng) {
+  HiddenEffect e;
+  e.type = pick(kKinds, rng);
+  e.sensors = {kSensor};
+  e.direction = unit_vector(rng);
+  e.gain = 1.0;
+  if (e.type == "wire") {
+    e.channel = pick(kCurrents, rng);
+    e.position_m = {uniform(-8, 2, rng), uniform(-2, 2, rng), uniform(-1, 1.5, rng)};
+    e.length_m = 1.0;
+  } else if (e.type == "inductive") {
+    e.channel = pick(kCurrents, rng);
+  } else if (e.type == "drift") {
+    e.channel =
+        std::uniform_int_distribution<int>(0, 1)(rng) ? pick(kVoltages, rng) : pick(kCurrents, rng);
+    e.time_constant_s = std::exp(uniform(std::log(30.0), std::log(900.0), rng));
+  } else if (e.type == "thermal") {
+    e.channel = pick(kCurrents, rng);
+    e.exponent = std::uniform_int_distribution<int>(0, 1)(rng) ? 2.0 : 1.0;
+    e.time_constant_s = std::exp(uniform(std::log(30.0), std::log(600.0), rng));
+  } else if (e.type == "relay" || e.type == "hysteresis") {
+    e.channel = pick(kCurrents, rng);
+  } else if (e.type == "ripple") {
+    e.channel = pick(kCurrents, rng);
+    e.frequency_hz = uniform(1.2, 4.0, rng);
+    e.phase_walk_rad = uniform(0.1, 0.5, rng);
+  } else if (e.type == "product") {
+    std::vector<std::string> all = kCurrents;
+    all.insert(all.end(), kInsChannels.begin(), kInsChannels.end());
+    e.channel = pick(all, rng);
+    all.insert(all.end(), kVoltages.begin(), kVoltages.end());
+    do e.channel2 = pick(all, rng);
+    while (e.channel2 == e.channel);
+  } else if (e.type == "flex") {
+    e.channel = pick(kInsChannels, rng);
+    e.time_constant_s = std::uniform_int_distribution<int>(0, 1)(rng) ? 0.0 : uniform(0.5, 5, rng);
+  } else if (e.type == "lag") {
+    e.lag_s = uniform(0.1, 0.5, rng);
+  }
+  return e;
+}
+
+double rms_of(const Simulation& s, size_t k, const std::string& type) {
+  const std::string col = std::string(kSensor) + ".hidden." + std::to_string(k) + "." + type;
+  if (!s.truth.has(col)) return 0.0;
+  const Eigen::VectorXd c = s.truth.column(col);
+  const double mean = c.mean();
+  return std::sqrt((c.array() - mean).square().mean());
+}
+
+}  // namespace
+
+std::vector<HiddenEffect> random_effects(const Scenario& base, unsigned seed, int count,
+                                         const Igrf& igrf, double rms_min, double rms_max) {
+  if (count < 1) throw Error("random effects: the count must be >= 1");
+  if (!(rms_min > 0 && rms_max >= rms_min)) throw Error("random effects: bad rms range");
+  std::mt19937_64 rng(seed * 2654435761ULL + 17);
+  std::vector<HiddenEffect> drawn;
+  for (int k = 0; k < count; ++k) {
+    HiddenEffect e = draw(rng);
+    // One lag at most (two would act as one), and no kind twice on one channel.
+    const auto taken = [&](const HiddenEffect& x) {
+      for (const auto& d : drawn)
+        if (d.type == x.type && (x.type == "lag" || d.channel == x.channel)) return true;
+      return false;
+    };
+    while (taken(e)) e = draw(rng);
+    drawn.push_back(e);
+  }
+  std::vector<double> target;
+  for (int k = 0; k < count; ++k)
+    target.push_back(std::exp(uniform(std::log(rms_min), std::log(rms_max), rng)));
+  // Pilot: the channels of this flight (the hidden effects do not change them) give the
+  // thresholds, then each unit effect's size.
+  Scenario pilot = base;
+  const size_t first = pilot.hidden.size();
+  bool thresholds = false;
+  for (const HiddenEffect& e : drawn) thresholds |= e.type == "relay" || e.type == "hysteresis";
+  if (thresholds) {
+    const Simulation channels = simulate(base, igrf);
+    for (HiddenEffect& e : drawn) {
+      if (e.type != "relay" && e.type != "hysteresis") continue;
+      const Eigen::VectorXd c = channels.flight.column(e.channel);
+      e.threshold = e.type == "relay"
+                        ? quantile(c, uniform(0.3, 0.7, rng))
+                        : uniform(0.1, 0.3, rng) * (quantile(c, 0.95) - quantile(c, 0.05));
+      if (e.type == "hysteresis" && !(e.threshold > 0)) e.threshold = 0.1;
+    }
+  }
+  for (const HiddenEffect& e : drawn) pilot.hidden.push_back(e);
+  const Simulation unit = simulate(pilot, igrf);
+  for (size_t k = 0; k < drawn.size(); ++k) {
+    HiddenEffect& e = drawn[k];
+    if (e.type == "lag") continue;
+    const double r = rms_of(unit, first + k, e.type);
+    const double scale = r > 1e-12 ? target[k] / r : 0.0;
+    if (e.type == "wire") {
+      e.length_m = std::clamp(e.length_m * scale, 1e-3, 100.0);
+    } else {
+      e.gain *= scale;
+    }
+  }
+  return drawn;
+}
+
+bool predictable(const HiddenEffect& e) { return e.type != "ripple"; }
+
+std::string describe(const HiddenEffect& e) {
+  std::ostringstream o;
+  o.precision(3);
+  o << e.type;
+  if (!e.channel.empty()) o << " " << e.channel;
+  if (!e.channel2.empty()) o << "*" << e.channel2;
+  if (e.type == "thermal") o << "^" << e.exponent;
+  if (e.type == "drift" || e.type == "thermal" || (e.type == "flex" && e.time_constant_s > 0))
+    o << " lp " << e.time_constant_s << " s";
+  if (e.type == "relay") o << " > " << e.threshold;
+  if (e.type == "hysteresis") o << " play " << e.threshold;
+  if (e.type == "ripple") o << " " << e.frequency_hz << " Hz";
+  if (e.type == "lag") o << " " << e.lag_s << " s";
+  return o.str();
+}
+
+}  // namespace magcomp::sim

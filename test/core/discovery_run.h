@@ -1,0 +1,81 @@
+// The random-effects check of the discovery loop (test Discovery.*, scripts/bench_discovery):
+// hidden effects drawn at random on one flight of an aircraft; `diagnose --apply`'s loop chooses
+// and fits its model on that flight; the model is scored on the aircraft's next flight (the same
+// effects, other noise, channels and anomaly) beside plain TL and the oracle (TL fitted with the
+// hidden effects removed from the scalar: the floor the true effects' terms would reach).
+#pragma once
+
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "magcomp/core/diagnose/diagnose_loop.h"
+#include "magcomp/core/evaluate/evaluation.h"
+#include "magcomp/core/geo/igrf.h"
+#include "magcomp/core/model/model.h"
+#include "magcomp/core/sim/random_effects.h"
+#include "magcomp/core/sim/scenario.h"
+#include "magcomp/core/sim/simulator.h"
+
+namespace magcomp::test {
+
+struct DiscoveryRun {
+  std::string effects;      ///< the drawn effects, described
+  bool predictable = true;  ///< every effect expressible or approximable (no ripple)
+  double tl_next_nT = NAN, loop_next_nT = NAN, oracle_next_nT = NAN;  ///< std on the next flight
+  std::vector<std::string> added;                                     ///< the terms the loop kept
+  std::string verdict;                                                ///< the loop's last verdict
+  double residual_nT = NAN, floor_nT = NAN;  ///< its held-out residual and noise floor
+  /// Within 1.5x the oracle (+0.05 nT) on the next flight.
+  bool near_oracle() const { return loop_next_nT <= 1.5 * oracle_next_nT + 0.05; }
+  /// Worse than the TL it started from on the next flight (by more than 5 pT).
+  bool worse_than_tl() const { return loop_next_nT > tl_next_nT + 0.005; }
+  /// "complete" said while the residual is above 1.5x the floor.
+  bool complete_above_floor() const {
+    return verdict.rfind("complete", 0) == 0 && residual_nT > 1.5 * floor_nT;
+  }
+};
+
+/// The scalar with the hidden effects removed (their contributions from the truth).
+inline FlightData without_hidden(const sim::Simulation& s, const std::string& scalar) {
+  FlightData clean = s.flight;
+  Eigen::VectorXd& x = clean.mutable_column(scalar);
+  for (const auto& name : s.truth.names())
+    if (name.rfind(scalar + ".hidden.", 0) == 0) x -= s.truth.column(name);
+  return clean;
+}
+
+/// Run `r` with `count` effects on `base` (aircraft seed 5000 + r, flights 1000 + 2r and the
+/// next), starting from `tl` (a TL template, fitted here).
+inline DiscoveryRun discovery_run(unsigned r, int count, sim::Scenario base, const Model& tl) {
+  const Igrf& igrf = Igrf::installed();
+  base.aircraft_seed = 5000 + r;
+  base.seed = 1000 + 2 * r;
+  const std::vector<sim::HiddenEffect> effects = sim::random_effects(base, r, count, igrf);
+  DiscoveryRun out;
+  for (const auto& e : effects) {
+    out.effects += (out.effects.empty() ? "" : " + ") + sim::describe(e);
+    out.predictable = out.predictable && sim::predictable(e);
+  }
+  sim::Scenario a = base, b = base;
+  a.hidden.insert(a.hidden.end(), effects.begin(), effects.end());
+  b.hidden = a.hidden;
+  b.seed = base.seed + 1;
+  const sim::Simulation fa = sim::simulate(a, igrf), fb = sim::simulate(b, igrf);
+  Model start = tl;
+  fit_model(start, {&fa.flight});
+  const LoopResult loop = diagnose_loop(start, fa.flight, "mag_1_c", 5, 0.05, {});
+  out.tl_next_nT = evaluate_model(start, fb.flight, "mag_1_c", false).std_nT;
+  out.loop_next_nT = evaluate_model(loop.model, fb.flight, "mag_1_c", false).std_nT;
+  for (size_t k = 1; k < loop.rounds.size(); ++k) out.added.push_back(loop.rounds[k].added);
+  out.verdict = loop.last.verdict;
+  out.residual_nT = loop.last.floor.residual_std_nT;
+  out.floor_nT = loop.last.floor.floor_nT;
+  const FlightData ca = without_hidden(fa, tl.scalar), cb = without_hidden(fb, tl.scalar);
+  Model oracle = tl;
+  fit_model(oracle, {&ca});
+  out.oracle_next_nT = evaluate_model(oracle, cb, "mag_1_c", false).std_nT;
+  return out;
+}
+
+}  // namespace magcomp::test
