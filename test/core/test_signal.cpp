@@ -118,6 +118,22 @@ TEST(Signal, PlayIsTheBacklashOperator) {
   EXPECT_THROW(parse_signal("x|play(-1)", "t"), Error);
 }
 
+TEST(Signal, SaturationAndStepAreStaticLaws) {
+  const Eigen::VectorXd t = times(5, 0.1);
+  Eigen::VectorXd x(5);
+  x << -4, -0.01, 0, 0.01, 4;
+  const Eigen::VectorXd sat = run("x|sat(2)", t, x);
+  for (Eigen::Index i = 0; i < 5; ++i) EXPECT_DOUBLE_EQ(sat[i], 2 * std::tanh(x[i] / 2));
+  EXPECT_NEAR(sat[3], 0.01, 1e-6);  // linear near 0
+  EXPECT_NEAR(sat[4], 2 * 0.9640275800758169, 1e-12);
+  Eigen::VectorXd on(5);
+  on << 0, 0, 0, 1, 1;
+  EXPECT_EQ(run("x|step(0)", t, x), on);  // on strictly above the threshold
+  EXPECT_TRUE(parse_signal("x|step(?)", "t").has_free());
+  EXPECT_TRUE(parse_signal("x|step(-3)", "t").transforms[0].param == -3);
+  EXPECT_THROW(parse_signal("x|sat(0)", "t"), Error);
+}
+
 TEST(Signal, NanPassesThroughAndTheStateWaits) {
   const Eigen::VectorXd t = times(6, 1.0);
   Eigen::VectorXd x(6);
@@ -141,9 +157,10 @@ TEST(Signal, AStreamEqualsTheBatchForEveryTransformExactly) {
     x[i] = std::sin(0.01 * static_cast<double>(i)) + 0.3 * std::cos(0.37 * static_cast<double>(i));
   }
   x[1234] = NAN;
-  for (const std::string s : {"x|d", "x|int", "x|abs", "x|lp(3)", "x|hp(40)", "x|delay(0.75)",
-                              "x|pow(2)", "x|pow(1.5)", "x|decay(0.8)", "x|pow(2)|lp(150)", "x|d|d",
-                              "x|int|hp(100)|delay(0.3)", "x|play(0.4)", "x|play(0.2)|lp(20)"}) {
+  for (const std::string s :
+       {"x|d", "x|int", "x|abs", "x|lp(3)", "x|hp(40)", "x|delay(0.75)", "x|pow(2)", "x|pow(1.5)",
+        "x|decay(0.8)", "x|pow(2)|lp(150)", "x|d|d", "x|int|hp(100)|delay(0.3)", "x|play(0.4)",
+        "x|play(0.2)|lp(20)", "x|sat(0.5)", "x|step(0.2)|lp(5)"}) {
     const SignalExpr e = parse_signal(s, s);
     const Eigen::VectorXd batch = apply_transforms(e.transforms, t, x).col(0);
     TransformChain chain(e.transforms);

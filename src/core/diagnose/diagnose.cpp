@@ -274,8 +274,9 @@ Scored Search::run(const Job& job) const {
     TransformKind kind = TransformKind::LowPass;
     for (const auto& tr : expr->signal().transforms)
       if (tr.free) kind = tr.kind;
-    std::vector<double> grid = parameter_grid(
-        kind, dt, span, kind == TransformKind::Play ? signal_scale(expr->signal(), data) : 0.0);
+    const SignalRange range =
+        in_signal_units(kind) ? signal_range(expr->signal(), data) : SignalRange{};
+    std::vector<double> grid = parameter_grid(kind, dt, span, range.hi - range.lo, range.lo);
     if (grid.empty()) return Scored{};
     if (kind == TransformKind::Delay) {  // delays up to 2 s at the grid's step: a periodic
       grid.erase(std::remove_if(grid.begin(), grid.end(), [](double v) { return v > 2.0 + 1e-9; }),
@@ -410,6 +411,8 @@ std::vector<Job> make_jobs(const Model& model, const std::vector<std::string>& s
       add("field:" + x + "|pow(2)|lp(?)", "heating (I²) response", x);
       add("field:" + x + "|int", "state (integral of a current)", x);
       add("field:" + x + "|play(?)", "hysteresis (magnetised by the current, with play)", x);
+      add("field:" + x + "|sat(?)", "a saturating core (the field levels off with the current)", x);
+      add("field:" + x + "|step(?)", "a switched load (on above a level of the current)", x);
     }
   }
   return jobs;

@@ -92,7 +92,7 @@ Eigen::VectorXd RidgeProfile::solve(const Eigen::MatrixXd& cand, double* rss) co
   return c;
 }
 
-double signal_scale(const SignalExpr& signal, const FlightData& data) {
+SignalRange signal_range(const SignalExpr& signal, const FlightData& data) {
   Eigen::VectorXd v = Eigen::VectorXd::Ones(data.size());
   bool any = false;
   for (const auto& name : signal.sources) {
@@ -100,22 +100,32 @@ double signal_scale(const SignalExpr& signal, const FlightData& data) {
     v.array() *= data.column(name).array();
     any = true;
   }
-  if (!any) return 0.0;
+  if (!any) return {};
   std::vector<double> x;
   for (Eigen::Index i = 0; i < v.size(); ++i)
     if (std::isfinite(v[i])) x.push_back(v[i]);
-  if (x.size() < 20) return 0.0;
+  if (x.size() < 20) return {};
   const auto at = [&](double q) {
     const auto k = static_cast<long>(q * static_cast<double>(x.size() - 1));
     std::nth_element(x.begin(), x.begin() + k, x.end());
     return x[static_cast<size_t>(k)];
   };
   const double lo = at(0.05), hi = at(0.95);
-  return hi > lo ? hi - lo : 0.0;
+  return hi > lo ? SignalRange{lo, hi} : SignalRange{};
+}
+
+double signal_scale(const SignalExpr& signal, const FlightData& data) {
+  const SignalRange r = signal_range(signal, data);
+  return r.hi - r.lo;
+}
+
+bool in_signal_units(TransformKind kind) {
+  return kind == TransformKind::Play || kind == TransformKind::Saturate ||
+         kind == TransformKind::Step;
 }
 
 std::vector<double> parameter_grid(TransformKind kind, double dt_s, double span_s,
-                                   double signal_scale) {
+                                   double signal_scale, double signal_lo) {
   std::vector<double> g;
   auto geometric = [&](double lo, double hi, double factor) {
     for (double v = lo; v <= hi * (1 + 1e-9); v *= factor) g.push_back(v);
@@ -140,6 +150,15 @@ std::vector<double> parameter_grid(TransformKind kind, double dt_s, double span_
       break;
     case TransformKind::Play:
       if (signal_scale > 0) geometric(0.02 * signal_scale, 0.5 * signal_scale, 1.4);
+      break;
+    case TransformKind::Saturate: {
+      const double m = std::max(std::abs(signal_lo), std::abs(signal_lo + signal_scale));
+      if (signal_scale > 0 && m > 0) geometric(0.1 * m, 3.0 * m, 1.4);
+      break;
+    }
+    case TransformKind::Step:
+      if (signal_scale > 0)
+        for (int k = 1; k <= 19; ++k) g.push_back(signal_lo + 0.05 * k * signal_scale);
       break;
     default:
       break;
@@ -314,12 +333,14 @@ std::vector<std::string> estimate_free_parameters(Model& model,
         return std::isfinite(rss) ? rss : std::numeric_limits<double>::infinity();
       };
       const auto* expr = dynamic_cast<const ExprTerm*>(make_term(model.terms[t]).get());
-      const double scale = refs[i].kind == TransformKind::Play && expr && !flights.empty()
-                               ? signal_scale(expr->signal(), *flights.front())
-                               : 0.0;
-      const std::vector<double> grid = parameter_grid(refs[i].kind, dt, span, scale);
+      const SignalRange range = in_signal_units(refs[i].kind) && expr && !flights.empty()
+                                    ? signal_range(expr->signal(), *flights.front())
+                                    : SignalRange{};
+      const std::vector<double> grid =
+          parameter_grid(refs[i].kind, dt, span, range.hi - range.lo, range.lo);
       if (grid.empty())
-        throw Error("fit: '" + model.terms[t] + "': no scale to scan its play(?) half-width over");
+        throw Error("fit: '" + model.terms[t] + "': no range of the signal to scan its " +
+                    Transform{refs[i].kind, 0.0, true}.str() + " over");
       value[i] = scan_parameter(refs[i].kind, grid, objective);
       if (sweep == sweeps - 1) {
         char buf[256];

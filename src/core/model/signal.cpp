@@ -31,6 +31,8 @@ const TransformName kTransforms[] = {
     {"pow", TransformKind::Power, true},
     {"decay", TransformKind::Decay, true},
     {"play", TransformKind::Play, true},
+    {"sat", TransformKind::Saturate, true},
+    {"step", TransformKind::Step, true},
     // Long forms, read as the short ones.
     {"deriv", TransformKind::Derivative, false},
     {"integral", TransformKind::Integral, false},
@@ -66,6 +68,10 @@ std::string check_param(TransformKind k, double v) {
       return v != 0 && std::abs(v) <= 10 ? "" : "exponent must be non-zero and in [-10, 10]";
     case TransformKind::Play:
       return v >= 0 && v <= 1e9 ? "" : "half-width must be in [0, 1e9]";
+    case TransformKind::Saturate:
+      return v > 0 && v <= 1e9 ? "" : "saturation level must be in (0, 1e9]";
+    case TransformKind::Step:
+      return std::abs(v) <= 1e9 ? "" : "threshold must be in [-1e9, 1e9]";
     default:
       return "";
   }
@@ -189,6 +195,10 @@ class PointwiseStage : public SignalStage {
     *t_out = t;
     if (kind_ == TransformKind::Abs) {
       *y = std::abs(x);
+    } else if (kind_ == TransformKind::Saturate) {
+      *y = p_ * std::tanh(x / p_);
+    } else if (kind_ == TransformKind::Step) {
+      *y = std::isfinite(x) ? (x > p_ ? 1.0 : 0.0) : kNaN;
     } else {
       *y = integer_ ? std::pow(x, std::round(p_)) : std::pow(std::abs(x), p_);
     }
@@ -256,6 +266,10 @@ std::string Transform::param_meaning() const {
       return "exponent";
     case TransformKind::Play:
       return "half-width (signal units)";
+    case TransformKind::Saturate:
+      return "saturation level (signal units)";
+    case TransformKind::Step:
+      return "threshold (signal units)";
     default:
       return "";
   }
@@ -382,6 +396,8 @@ TransformChain::TransformChain(const std::vector<Transform>& transforms) {
         break;
       case TransformKind::Abs:
       case TransformKind::Power:
+      case TransformKind::Saturate:
+      case TransformKind::Step:
         stages_.push_back(std::make_unique<PointwiseStage>(t.kind, t.param));
         break;
       case TransformKind::LowPass:

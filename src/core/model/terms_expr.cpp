@@ -187,10 +187,12 @@ std::vector<std::pair<std::string, double>> ExprTerm::parameters() const {
   std::vector<std::pair<std::string, double>> out;
   for (const auto& t : signal_.transforms) {
     if (!t.has_param() || t.free) continue;
-    const std::string unit = t.kind == TransformKind::Power   ? "exponent"
-                             : t.kind == TransformKind::Delay ? "delay_s"
-                             : t.kind == TransformKind::Play  ? "half_width"
-                                                              : "time_constant_s";
+    const std::string unit = t.kind == TransformKind::Power      ? "exponent"
+                             : t.kind == TransformKind::Delay    ? "delay_s"
+                             : t.kind == TransformKind::Play     ? "half_width"
+                             : t.kind == TransformKind::Saturate ? "level"
+                             : t.kind == TransformKind::Step     ? "threshold"
+                                                                 : "time_constant_s";
     std::string name = t.str();
     name = name.substr(0, name.find('('));
     out.emplace_back(name + "." + unit, t.param);
@@ -220,10 +222,12 @@ std::string ExprTerm::size_in_words(const Eigen::VectorXd& c) const {
   if (has_param) {
     for (const auto& t : signal_.transforms) {
       if (!t.has_param() || t.free) continue;
-      const char* what = t.kind == TransformKind::Power   ? "exponent %.3g"
-                         : t.kind == TransformKind::Delay ? "delay %.3g s"
-                         : t.kind == TransformKind::Play  ? "play half-width %.3g"
-                                                          : "time constant %.3g s";
+      const char* what = t.kind == TransformKind::Power      ? "exponent %.3g"
+                         : t.kind == TransformKind::Delay    ? "delay %.3g s"
+                         : t.kind == TransformKind::Play     ? "play half-width %.3g"
+                         : t.kind == TransformKind::Saturate ? "saturating at %.3g"
+                         : t.kind == TransformKind::Step     ? "switching above %.3g"
+                                                             : "time constant %.3g s";
       std::snprintf(buf, sizeof(buf), what, t.param);
       out += std::string(", ") + buf;
     }

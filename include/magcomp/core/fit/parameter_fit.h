@@ -54,12 +54,24 @@ class RidgeProfile {
 };
 
 /// The values a free parameter of this kind is scanned over, for a flight sampled every dt_s and
-/// lasting span_s (time constants on a geometric grid, delays on a uniform one).
+/// lasting span_s (time constants on a geometric grid, delays on a uniform one). The parameters
+/// in the signal's unit are scanned over its range (signal_lo, signal_lo + signal_scale): a
+/// play(?) half-width over 2 % to 50 % of the spread, a sat(?) level over 0.1 to 3 times the
+/// largest |value|, a step(?) threshold over the range's 5 % to 95 %.
 std::vector<double> parameter_grid(TransformKind kind, double dt_s, double span_s,
-                                   double signal_scale = 0.0);
+                                   double signal_scale = 0.0, double signal_lo = 0.0);
 
-/// The spread of a signal's sources on a flight (their product's 95th less 5th percentile): the
-/// scale a play(?) half-width is scanned over (2 % to 50 % of it). 0 when it cannot be formed.
+/// Whether a free parameter of this kind is in the signal's unit (needs signal_range()).
+bool in_signal_units(TransformKind kind);
+
+/// The range of a signal's sources on a flight (their product's 5th and 95th percentiles); both
+/// 0 when it cannot be formed.
+struct SignalRange {
+  double lo = 0.0, hi = 0.0;
+};
+SignalRange signal_range(const SignalExpr& signal, const FlightData& data);
+
+/// signal_range()'s spread (hi - lo); 0 when it cannot be formed.
 double signal_scale(const SignalExpr& signal, const FlightData& data);
 
 /// Minimises objective(value) over the grid, then by golden section between the best value's

@@ -32,6 +32,11 @@ enum class TransformKind {
   /// follows the input only once it has moved r past it, y = max(x - r, min(x + r, y_prev)),
   /// starting at the first input. Hysteresis; sums of them are the Prandtl-Ishlinskii model.
   Play,
+  /// sat(s): a saturating core, y = s tanh(x / s), in the signal's unit: linear for |x| << s,
+  /// levelling off at +-s (a static nonlinearity; stream = batch, nothing held).
+  Saturate,
+  /// step(x0): a switched load, y = 1 while x > x0, else 0 (a relay on the signal's level).
+  Step,
 };
 
 /// A transform and its parameter (time constant or delay in s, or an exponent).
