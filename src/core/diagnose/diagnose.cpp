@@ -308,7 +308,7 @@ Scored Search::run(const Job& job) const {
 Scored Search::lag_candidate(double* tau_out, const Eigen::MatrixXd& partner) const {
   // The raw scalar realigned by tau (absolute); only the target changes, so each trial is one
   // filter of y and one small solve. Coarse grid over the model's lag +-1 s, then golden-section
-  // refinement to 0.01 s. A model that has a lag gets it re-estimated. With partner columns
+  // refinement to 1 ms. A model that has a lag gets it re-estimated. With partner columns
   // (N x k) the lag is scanned and scored together with them: a lag moves the signature of every
   // effect, so it is judged with the term whose timing it explains.
   const FlightData::Column raw = data.column(model.scalar);
@@ -340,7 +340,9 @@ Scored Search::lag_candidate(double* tau_out, const Eigen::MatrixXd& partner) co
   };
   std::vector<double> grid;
   for (double tau = current - 1.0; tau <= current + 1.0 + 1e-9; tau += 0.05) grid.push_back(tau);
-  const double tau = std::round(scan_parameter(TransformKind::Delay, grid, cost) * 100) / 100;
+  // To the millisecond: at the field rates of a maneuver (tens of nT/s) 5 ms of lag error is
+  // a fraction of a nT on the next flight.
+  const double tau = std::round(scan_parameter(TransformKind::Delay, grid, cost) * 1000) / 1000;
   Scored s = lag_at(tau, partner);
   s.fits = static_cast<long>(grid.size()) + 26;
   *tau_out = tau;
