@@ -18,9 +18,12 @@ constexpr int kTopChannels = 6;  // channels in the combined model
 constexpr int kStride = 2;       // every kStride-th held-out sample is used to fit
 constexpr double kRidge = 1e-2;  // ridge per row, on standardised columns
 
-// The nine functions of one channel over the whole flight (N x 9), standardised.
-Eigen::MatrixXd channel_functions(const Eigen::Ref<const Eigen::VectorXd>& x,
-                                  const Eigen::Ref<const Eigen::VectorXd>& t) {
+// The nine functions of one channel over the whole flight (N x 9), standardised; kept in single
+// precision (a share estimate needs no more, and a 5 h flight's ~100 channels then hold ~0.65 GB
+// instead of 1.3 GB).
+using Functions = Eigen::MatrixXf;
+Functions channel_functions(const Eigen::Ref<const Eigen::VectorXd>& x,
+                            const Eigen::Ref<const Eigen::VectorXd>& t) {
   const Eigen::Index n = x.size();
   Eigen::VectorXd z = x;
   double mean = 0, ss = 0, cnt = 0;
@@ -53,7 +56,7 @@ Eigen::MatrixXd channel_functions(const Eigen::Ref<const Eigen::VectorXd>& x,
     const double s = std::sqrt((f.col(c).array() - m).square().mean());
     f.col(c) = s > 1e-12 ? Eigen::VectorXd((f.col(c).array() - m) / s) : Eigen::VectorXd::Zero(n);
   }
-  return f;
+  return f.cast<float>();
 }
 
 constexpr int kFolds = 4;
@@ -69,7 +72,7 @@ struct Problem {
 };
 
 // The design rows of some channels' functions (shifted circularly by `shift`) at `rows`.
-Eigen::MatrixXd design(const Problem& p, const std::vector<const Eigen::MatrixXd*>& functions,
+Eigen::MatrixXd design(const Problem& p, const std::vector<const Functions*>& functions,
                        const std::vector<Eigen::Index>& rows, Eigen::Index shift) {
   const Eigen::Index cols = static_cast<Eigen::Index>(functions.size()) * kFunctions * kProjections;
   Eigen::MatrixXd a(static_cast<Eigen::Index>(rows.size()), cols);
@@ -77,7 +80,7 @@ Eigen::MatrixXd design(const Problem& p, const std::vector<const Eigen::MatrixXd
     const Eigen::Index i = rows[r];
     const Eigen::Index j = (i + shift) % p.n;
     Eigen::Index c = 0;
-    for (const Eigen::MatrixXd* f : functions) {
+    for (const Functions* f : functions) {
       for (int k = 0; k < kFunctions; ++k) {
         const double v = (*f)(j, k);
         const auto ri = static_cast<Eigen::Index>(r);
@@ -100,7 +103,7 @@ Eigen::VectorXd values_at(const Eigen::VectorXd& x, const std::vector<Eigen::Ind
 // Cross-fitted share: each fold predicted by a ridge fit on the other folds. With
 // `prediction`, the prediction at every held-out row is written there; with `unit_sse` and
 // `unit_sst`, the sums per unit (for the bootstrap).
-double cross_fit(const Problem& p, const std::vector<const Eigen::MatrixXd*>& functions,
+double cross_fit(const Problem& p, const std::vector<const Functions*>& functions,
                  Eigen::Index shift, Eigen::VectorXd* prediction = nullptr,
                  std::vector<double>* unit_sse = nullptr, std::vector<double>* unit_sst = nullptr) {
   double sse = 0, sst = 0;
@@ -151,7 +154,7 @@ struct Ranked {
   std::vector<double> unit_sse, unit_sst;  // of the combined model, per unit
 };
 
-Ranked rank_and_combine(const Problem& p, const std::vector<Eigen::MatrixXd>& functions,
+Ranked rank_and_combine(const Problem& p, const std::vector<Functions>& functions,
                         Eigen::Index shift, Eigen::VectorXd* prediction) {
   Ranked r;
   for (size_t k = 0; k < functions.size(); ++k) {
@@ -159,7 +162,7 @@ Ranked rank_and_combine(const Problem& p, const std::vector<Eigen::MatrixXd>& fu
   }
   std::sort(r.by_share.begin(), r.by_share.end(),
             [](const auto& a, const auto& b) { return a.first > b.first; });
-  std::vector<const Eigen::MatrixXd*> top;
+  std::vector<const Functions*> top;
   for (const auto& [share, k] : r.by_share) {
     if (share > 0 && static_cast<int>(top.size()) < kTopChannels) top.push_back(&functions[k]);
   }
@@ -268,7 +271,7 @@ ExplainableShare explainable_share(
   int filled = 0;
   for (const auto& r : p.rows) filled += r.size() >= 20;
   if (filled < 2 || channels.empty()) return out;
-  std::vector<Eigen::MatrixXd> functions(channels.size());
+  std::vector<Functions> functions(channels.size());
   for (size_t k = 0; k < channels.size(); ++k) {
     functions[k] = channel_functions(channels[k].second, t_s);
   }
