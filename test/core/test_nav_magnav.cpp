@@ -12,6 +12,7 @@
 #include "magcomp/core/nav/ekf.h"
 #include "magcomp/core/nav/nav_model.h"
 #include "magcomp/core/nav/pinson.h"
+#include "nav_example.h"
 #include "test_util.h"
 
 namespace magcomp::nav {
@@ -191,11 +192,7 @@ TEST(NavMagNav, TheSimpleExampleNavigatesToAFewMetres) {
   // defaults), the compensated scalar against the map. MagNav.jl states about 7 m DRMS with a
   // cubic map interpolation; magcomp's map is bilinear.
   const std::string dir = test::reference_dir() + "/magnav_nav/";
-  auto col = [&](const std::string& name) {
-    const H5Array a = read_h5_array(dir + "simple_xyz.h5", name);
-    return Eigen::VectorXd(Eigen::Map<const Eigen::VectorXd>(
-        a.values.data(), static_cast<Eigen::Index>(a.values.size())));
-  };
+  const auto& col = test::simple_example_column;
   const Eigen::VectorXd tt = col("tt");
   const double dt = tt[1] - tt[0];
   const NavTrack ins = track_from_positions(

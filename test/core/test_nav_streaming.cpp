@@ -13,6 +13,7 @@
 #include "magcomp/core/nav/nav_model.h"
 #include "magcomp/core/nav/streaming_navigator.h"
 #include "magcomp/core/nav/streaming_track.h"
+#include "nav_example.h"
 #include "test_util.h"
 
 namespace magcomp::nav {
@@ -72,11 +73,7 @@ const Example& example() {
   static const Example e = [] {
     Example x;
     const std::string dir = test::reference_dir() + "/magnav_nav/";
-    auto col = [&](const std::string& name) {
-      const H5Array a = read_h5_array(dir + "simple_xyz.h5", name);
-      return Eigen::VectorXd(Eigen::Map<const Eigen::VectorXd>(
-          a.values.data(), static_cast<Eigen::Index>(a.values.size())));
-    };
+    const auto& col = test::simple_example_column;
     const Eigen::VectorXd tt = col("tt");
     x.dt = tt[1] - tt[0];
     x.lat = col("ins_lat") * kDegToRad;

@@ -6,50 +6,20 @@ Usage: nav_screenshot_test.py DATA_DIR OUT.png   (DATA_DIR holds nav_flight.bag,
 nav_flight.map.h5). Exit 0 when every check passes; prints one line per check.
 """
 import os
-import random
-import signal
-import subprocess
 import sys
-import time
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from screenshot_test import count, pixels  # noqa: E402
+from screenshot_test import capture, count, pixels  # noqa: E402
 
 
 def main():
     data_dir, out_png = sys.argv[1], sys.argv[2]
-    display = ":%d" % random.randint(200, 900)
-    port = str(random.randint(20000, 30000))
-    env = dict(os.environ, DISPLAY=display, ROS_MASTER_URI="http://localhost:" + port)
-    procs = []
     ok = True
-    try:
-        procs.append(subprocess.Popen(["/usr/bin/Xvfb", display, "-screen", "0", "1400x1000x24"],
-                                      stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
-        time.sleep(1.5)
-        log = open(out_png + ".log", "w")
-        procs.append(subprocess.Popen(
-            ["roslaunch", "-p", port, "magcomp", "navigate.launch",
-             "bag:=" + data_dir + "/nav_flight.bag", "model:=" + data_dir + "/nav_model.yaml",
-             "map:=" + data_dir + "/nav_flight.map.h5", "rviz:=true", "rate:=20"],
-            env=env, stdout=log, stderr=subprocess.STDOUT, start_new_session=True))
-        time.sleep(30)
-        status = subprocess.run(["timeout", "10", "/usr/bin/python3", "/usr/bin/rostopic", "echo",
-                                 "-n", "1", "/magcomp/nav/status"], env=env,
-                                capture_output=True, text=True).stdout
-        xwd = subprocess.run(["xwd", "-root", "-silent", "-display", display], check=True,
-                             capture_output=True).stdout
-        subprocess.run(["/usr/bin/convert", "xwd:-", out_png], input=xwd, check=True)
-    finally:
-        for p in reversed(procs):
-            try:
-                os.killpg(p.pid, signal.SIGINT) if p is not procs[0] else p.terminate()
-            except (ProcessLookupError, PermissionError):
-                p.terminate()
-        time.sleep(3)
-        for p in procs:
-            if p.poll() is None:
-                p.kill()
+    status = capture(["navigate.launch", "bag:=" + data_dir + "/nav_flight.bag",
+                      "model:=" + data_dir + "/nav_model.yaml",
+                      "map:=" + data_dir + "/nav_flight.map.h5", "rviz:=true", "rate:=20"],
+                     out_png, "1400x1000x24", 30,
+                     ["/usr/bin/python3", "/usr/bin/rostopic", "echo", "-n", "1", "/magcomp/nav/status"])
     used = "measurement_used: True" in status
     print("navigator status published, measurement used: %s" % ("yes" if used else "no"))
     ok &= used

@@ -52,26 +52,25 @@ def count(w, h, data, x0, x1, test):
     return n
 
 
-def main():
-    data_dir, out_png = sys.argv[1], sys.argv[2]
+def capture(launch, out_png, screen, wait_s, probe):
+    """Starts Xvfb (screen "WxHxD") and `roslaunch magcomp LAUNCH...` on a free display and
+    master, waits wait_s, runs `probe` (a command list, e.g. rostopic echo) against that master,
+    takes the screenshot to out_png and stops everything. Returns the probe's output."""
     display = ":%d" % random.randint(200, 900)
     port = str(random.randint(20000, 30000))
     env = dict(os.environ, DISPLAY=display, ROS_MASTER_URI="http://localhost:" + port)
     procs = []
-    ok = True
     try:
-        procs.append(subprocess.Popen(["/usr/bin/Xvfb", display, "-screen", "0", "2000x1000x24"],
+        procs.append(subprocess.Popen(["/usr/bin/Xvfb", display, "-screen", "0", screen],
                                       stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
         time.sleep(1.5)
         log = open(out_png + ".log", "w")
-        procs.append(subprocess.Popen(
-            ["roslaunch", "-p", port, "magcomp", "replay.launch",
-             "bag:=" + data_dir + "/flight.bag", "model:=" + data_dir + "/model.yaml",
-             "rviz:=true", "plot:=true", "rate:=10"],
-            env=env, stdout=log, stderr=subprocess.STDOUT, start_new_session=True))
-        time.sleep(30)
-        tf = subprocess.run(["timeout", "10", "rostopic", "echo", "-n", "3", "/tf"], env=env,
-                            capture_output=True, text=True).stdout
+        procs.append(subprocess.Popen(["roslaunch", "-p", port, "magcomp"] + launch, env=env,
+                                      stdout=log, stderr=subprocess.STDOUT,
+                                      start_new_session=True))
+        time.sleep(wait_s)
+        probed = subprocess.run(["timeout", "10"] + probe, env=env, capture_output=True,
+                                text=True).stdout
         xwd = subprocess.run(["xwd", "-root", "-silent", "-display", display], check=True,
                              capture_output=True).stdout
         subprocess.run(["/usr/bin/convert", "xwd:-", out_png], input=xwd, check=True)
@@ -85,6 +84,15 @@ def main():
         for p in procs:
             if p.poll() is None:
                 p.kill()
+    return probed
+
+
+def main():
+    data_dir, out_png = sys.argv[1], sys.argv[2]
+    ok = True
+    tf = capture(["replay.launch", "bag:=" + data_dir + "/flight.bag",
+                  "model:=" + data_dir + "/model.yaml", "rviz:=true", "plot:=true", "rate:=10"],
+                 out_png, "2000x1000x24", 30, ["rostopic", "echo", "-n", "3", "/tf"])
     w, h, data = pixels(out_png)
     frame = 'frame_id: "magcomp_track"' in tf and 'child_frame_id: "base_link"' in tf
     print("tf magcomp_track -> base_link: %s" % ("yes" if frame else "no"))
