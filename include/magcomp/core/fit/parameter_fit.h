@@ -57,7 +57,7 @@ class RidgeProfile {
 /// lasting span_s (time constants on a geometric grid, delays on a uniform one). The parameters
 /// in the signal's unit are scanned over its range (signal_lo, signal_lo + signal_scale): a
 /// play(?) half-width over 2 % to 50 % of the spread, a sat(?) level over 0.1 to 3 times the
-/// largest |value|, a step(?) threshold over the range's 5 % to 95 %.
+/// largest |value|, a step(?) threshold over the range's 5 % to 95 % (steps of 5 %).
 std::vector<double> parameter_grid(TransformKind kind, double dt_s, double span_s,
                                    double signal_scale = 0.0, double signal_lo = 0.0);
 
