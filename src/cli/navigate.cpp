@@ -199,6 +199,7 @@ void add_navigate(CLI::App& app) {
   auto fogm_tau = std::make_shared<double>(600.0);
   auto init_pos_sigma = std::make_shared<double>(3.0);
   auto map_offset = std::make_shared<std::string>("first");
+  auto map_interp = std::make_shared<std::string>("linear");
   auto model_variance = std::make_shared<bool>(false);
   auto map_sigma = std::make_shared<double>(0.0);
   cmd->add_option("--data", *data,
@@ -224,6 +225,10 @@ void add_navigate(CLI::App& app) {
                 "held-out error, as the compensator publishes it) plus --map-sigma squared, "
                 "instead of --meas-sigma squared");
   cmd->add_option("--map-sigma", *map_sigma, "the map's error std, nT, with --model-variance");
+  cmd->add_option("--map-interp", *map_interp,
+                  "the map's interpolation: linear (bilinear, MagNav.jl's test vectors') or cubic "
+                  "(cubic convolution); default linear")
+      ->check(CLI::IsMember({"linear", "cubic"}));
   cmd->add_option("--map-offset", *map_offset,
                   "'first': remove the first measurement minus the map (at the INS position) from "
                   "all measurements, the compensation's constant offset; 'none': MagNav.jl's "
@@ -240,6 +245,7 @@ void add_navigate(CLI::App& app) {
     const nav::NavTrack& truth = tracks.truth;
     const nav::NavTrack& ins = tracks.ins;
     nav::AnomalyMap map = nav::read_anomaly_map(*map_path);
+    if (*map_interp == "cubic") map.interpolation = nav::AnomalyMap::Interpolation::Cubic;
     if (tracks.mean_alt_m > map.alt_m + 1.0) map = nav::continued_to(map, tracks.mean_alt_m);
     nav::ModelSigmas sig;
     sig.meas_var_nT2 = *meas_sigma * *meas_sigma;

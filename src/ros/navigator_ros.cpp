@@ -20,6 +20,7 @@ namespace magcomp::rosio {
 namespace {
 
 const std::set<std::string> kKnownParams = {"map_path",
+                                            "map_interpolation",
                                             "map_altitude_m",
                                             "anomaly_topic",
                                             "ins_fix_topic",
@@ -74,6 +75,11 @@ NavigatorRos::NavigatorRos(ros::NodeHandle nh, ros::NodeHandle pnh)
   if (map_path_.empty())
     reject_param("map_path", "required (an anomaly map HDF5: map, xx, yy, alt, as MagNav.jl)");
   map_ = nav::read_anomaly_map(map_path_);  // throws naming the file and field
+  std::string interp = "linear";
+  pnh_.param<std::string>("map_interpolation", interp, "linear");
+  if (interp != "linear" && interp != "cubic")
+    reject_param("map_interpolation", "must be linear or cubic, got '" + interp + "'");
+  if (interp == "cubic") map_.interpolation = nav::AnomalyMap::Interpolation::Cubic;
   const double map_alt = getd(pnh_, "map_altitude_m", NAN);
   if (std::isfinite(map_alt)) {
     if (map_alt < map_.alt_m - 1.0)

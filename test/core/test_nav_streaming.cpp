@@ -198,6 +198,32 @@ TEST(NavStreaming, TheGateRejectsAnOutlier) {
   EXPECT_GT(std::abs(open.x(17, 30) - clean.x(17, 30)), 1.0);  // the outlier moved it
 }
 
+TEST(NavMap, CubicInterpolationIsExactOnQuadraticsAndPassesThroughTheGrid) {
+  // Keys' cubic convolution reproduces a quadratic surface inside the grid (bilinear does not),
+  // equals the grid at its nodes, and its gradient is the surface's.
+  AnomalyMap m;
+  const int n = 12;
+  m.lat_rad = Eigen::VectorXd::LinSpaced(n, 0.700, 0.711);
+  m.lon_rad = Eigen::VectorXd::LinSpaced(n, -1.300, -1.289);
+  auto f = [](double la, double lo) {
+    const double u = (la - 0.7) * 1e3, v = (lo + 1.3) * 1e3;
+    return 3 * u * u - 2 * u * v + 0.5 * v * v + 7 * u - 4 * v + 10;
+  };
+  m.map_nT.resize(n, n);
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < n; ++j) m.map_nT(i, j) = f(m.lat_rad[i], m.lon_rad[j]);
+  const double la = 0.70537, lo = -1.29413;
+  const double linear = m.value(la, lo);
+  m.interpolation = AnomalyMap::Interpolation::Cubic;
+  EXPECT_NEAR(m.value(la, lo), f(la, lo), 1e-9);
+  EXPECT_GT(std::abs(linear - f(la, lo)), 1e-3);  // the bilinear one is not exact
+  EXPECT_NEAR(m.value(m.lat_rad[4], m.lon_rad[7]), m.map_nT(4, 7), 1e-12);
+  const Eigen::Vector2d g = m.gradient(la, lo);
+  const double u = (la - 0.7) * 1e3, v = (lo + 1.3) * 1e3;
+  EXPECT_NEAR(g[0], 1e3 * (6 * u - 2 * v + 7), 1e-3 * std::abs(g[0]) + 1e-2);
+  EXPECT_NEAR(g[1], 1e3 * (-2 * u + v - 4), 1e-3 * std::abs(g[1]) + 1e-2);
+}
+
 TEST(NavStreaming, AConstantOffsetIsRemovedAtTheStart) {
   // The measurement 300 nT off the map (the aircraft's constant field a band-pass TL fit leaves):
   // with offset_from_first the filter gives the clean run's track to 5 cm (the offset is read at

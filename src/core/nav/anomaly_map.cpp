@@ -65,6 +65,14 @@ Eigen::VectorXd axis(const H5Array& a, const std::string& path, const std::strin
   return v;
 }
 
+// Keys' cubic convolution kernel (a = -0.5) at distance x (in cells).
+double keys(double x) {
+  x = std::abs(x);
+  if (x <= 1) return (1.5 * x - 2.5) * x * x + 1;
+  if (x < 2) return ((-0.5 * x + 2.5) * x - 4) * x + 2;
+  return 0.0;
+}
+
 }  // namespace
 
 double AnomalyMap::value(double lat, double lon) const {
@@ -72,6 +80,19 @@ double AnomalyMap::value(double lat, double lon) const {
   double t, s;
   locate(lat_rad, lat, &i, &t);
   locate(lon_rad, lon, &j, &s);
+  if (interpolation == Interpolation::Cubic) {  // 4 x 4 cells, the edge rows repeated
+    const Eigen::Index ny = map_nT.rows(), nx = map_nT.cols();
+    double sum = 0;
+    for (int a = -1; a <= 2; ++a) {
+      const Eigen::Index r = std::clamp<Eigen::Index>(i + a, 0, ny - 1);
+      const double wa = keys(t - a);
+      double row = 0;
+      for (int b = -1; b <= 2; ++b)
+        row += keys(s - b) * map_nT(r, std::clamp<Eigen::Index>(j + b, 0, nx - 1));
+      sum += wa * row;
+    }
+    return sum;
+  }
   return (1 - t) * ((1 - s) * map_nT(i, j) + s * map_nT(i, j + 1)) +
          t * ((1 - s) * map_nT(i + 1, j) + s * map_nT(i + 1, j + 1));
 }

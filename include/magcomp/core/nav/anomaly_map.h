@@ -15,8 +15,12 @@ struct AnomalyMap {
   Eigen::VectorXd lat_rad, lon_rad;
   double alt_m = 0.0;
   Eigen::MatrixXd mask;
+  /// How value() interpolates: bilinear (MagNav.jl's :linear, its test vectors') or cubic
+  /// convolution (Keys, a = -0.5: C1, exact on quadratics; MagNav.jl's examples use a cubic map).
+  enum class Interpolation { Linear, Cubic };
+  Interpolation interpolation = Interpolation::Linear;
 
-  /// Bilinear value at (lat, lon), rad (clamped to the grid's edge cells), nT.
+  /// Value at (lat, lon), rad (the edge cells extended beyond the grid), nT.
   double value(double lat_rad, double lon_rad) const;
   /// Gradient (dmap/dlat nT/rad, dmap/dlon nT/rad) by a central difference of 1e-8 rad (as
   /// MagNav.jl's map_grad: the float literal 1.0f-8).
