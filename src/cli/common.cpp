@@ -1,10 +1,15 @@
 // magcomp CLI: helpers.
 #include "common.h"
 
+#include <sys/stat.h>
+
+#include <cstdio>
+#include <cstdlib>
 #include <iostream>
 
 #include "magcomp/core/error.h"
 #include "magcomp/core/io/file_io.h"
+#include "magcomp/core/io/paths.h"
 
 namespace magcomp::cli {
 
@@ -30,6 +35,24 @@ int parse_and_run(CLI::App& app, int argc, char** argv) {
     }
     return 0;
   });
+}
+
+void make_report_dir(const std::string& dir) {
+  struct stat st {};
+  if (::mkdir(dir.c_str(), 0755) != 0 && !(::stat(dir.c_str(), &st) == 0 && S_ISDIR(st.st_mode)))
+    throw Error(dir + ": cannot create the report directory");
+}
+
+void run_report_page(const std::string& script_name, const std::string& dir,
+                     const std::string& data) {
+  const std::string script = share_dir() + "/scripts/" + script_name;
+  const std::string cmdline = "/usr/bin/python3 '" + script + "' '" + dir + "'";
+  if (std::system(cmdline.c_str()) != 0) {
+    std::cerr << "warning: " << script << " failed; the report's data is in " << dir << "/" << data
+              << "\n";
+  } else {
+    std::printf("report: %s/index.html\n", dir.c_str());
+  }
 }
 
 std::vector<std::string> split_commas(const std::string& s) {

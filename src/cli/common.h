@@ -26,6 +26,14 @@ int run_reporting_errors(const std::function<int()>& body);
 /// prints CLI11's message and exits with its status).
 int parse_and_run(CLI::App& app, int argc, char** argv);
 
+/// Creates a report directory (or takes an existing one). Throws magcomp::Error naming it.
+void make_report_dir(const std::string& dir);
+
+/// Turns a report directory's data into DIR/index.html with the installed page script
+/// (share/scripts/<script>, python3); a failing script is a warning naming `data` (what the
+/// directory holds), not an error.
+void run_report_page(const std::string& script, const std::string& dir, const std::string& data);
+
 /// Splits "a,b,c".
 std::vector<std::string> split_commas(const std::string& s);
 

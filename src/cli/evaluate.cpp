@@ -1,6 +1,5 @@
 // magcomp evaluate: a fitted model's error against a reference, per line, per flight condition,
 // per heading sector; --report writes an HTML page with plots.
-#include <sys/stat.h>
 
 #include <cmath>
 #include <cstdio>
@@ -14,7 +13,6 @@
 #include "magcomp/core/evaluate/evaluation.h"
 #include "magcomp/core/evaluate/flight_conditions.h"
 #include "magcomp/core/io/file_io.h"
-#include "magcomp/core/io/paths.h"
 #include "subcommands.h"
 
 namespace magcomp::cli {
@@ -168,21 +166,10 @@ void evaluate_one(const std::string& data, const Model& model, const Model* base
   }
   if (!json_path.empty()) write_file_atomic(json_path, j.dump(2) + "\n", inputs);
   if (report.empty()) return;
-  struct stat st {};
-  if (::mkdir(report.c_str(), 0755) != 0 &&
-      !(::stat(report.c_str(), &st) == 0 && S_ISDIR(st.st_mode))) {
-    throw Error(report + ": cannot create the report directory");
-  }
+  make_report_dir(report);
   write_series(report + "/series.h5", flight, model, ev, truth, base.get(), inputs);
   write_file_atomic(report + "/evaluation.json", j.dump(2) + "\n", inputs);
-  const std::string script = share_dir() + "/scripts/magcomp_report.py";
-  const std::string cmdline = "/usr/bin/python3 '" + script + "' '" + report + "'";
-  if (std::system(cmdline.c_str()) != 0) {
-    std::cerr << "warning: " << script << " failed; the report's data is in " << report
-              << "/series.h5 and evaluation.json\n";
-  } else {
-    std::printf("report: %s/index.html\n", report.c_str());
-  }
+  run_report_page("magcomp_report.py", report, "series.h5 and evaluation.json");
 }
 
 }  // namespace

@@ -1,6 +1,5 @@
 // magcomp navigate: the compensated anomaly steers the map-matching EKF; the compensation scored
 // in metres (DRMS of the filter, of the INS alone and of the Cramér-Rao bound) beside nT.
-#include <sys/stat.h>
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
@@ -12,7 +11,6 @@
 #include "magcomp/core/error.h"
 #include "magcomp/core/io/file_io.h"
 #include "magcomp/core/io/h5_array.h"
-#include "magcomp/core/io/paths.h"
 #include "magcomp/core/math/constants.h"
 #include "magcomp/core/model/model.h"
 #include "magcomp/core/nav/anomaly_map.h"
@@ -129,9 +127,7 @@ H5Array array_of(const Eigen::VectorXd& v) {
 void write_report(const std::string& dir, const nav::NavTrack& truth, const nav::NavTrack& ins,
                   const Series& s, const nav::AnomalyMap& map, const nlohmann::json& j,
                   const std::vector<std::string>& inputs) {
-  struct stat st {};
-  if (::mkdir(dir.c_str(), 0755) != 0 && !(::stat(dir.c_str(), &st) == 0 && S_ISDIR(st.st_mode)))
-    throw Error(dir + ": cannot create the report directory");
+  make_report_dir(dir);
   const Eigen::Index n = ins.size();
   Eigen::VectorXd flat(n), flon(n), pnn(n), pee(n), pne(n), t(n);
   for (Eigen::Index i = 0; i < n; ++i) {
@@ -172,14 +168,7 @@ void write_report(const std::string& dir, const nav::NavTrack& truth, const nav:
                    {"map_nT", grid}},
                   inputs);
   write_file_atomic(dir + "/navigation.json", j.dump(2) + "\n", inputs);
-  const std::string script = share_dir() + "/scripts/magcomp_nav_report.py";
-  const std::string cmdline = "/usr/bin/python3 '" + script + "' '" + dir + "'";
-  if (std::system(cmdline.c_str()) != 0) {
-    std::cerr << "warning: " << script << " failed; the report's data is in " << dir
-              << "/tracks.h5 and navigation.json\n";
-  } else {
-    std::printf("report: %s/index.html\n", dir.c_str());
-  }
+  run_report_page("magcomp_nav_report.py", dir, "tracks.h5 and navigation.json");
 }
 
 }  // namespace
