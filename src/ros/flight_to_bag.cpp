@@ -25,6 +25,7 @@
 #include "magcomp/core/io/file_io.h"
 #include "magcomp/core/io/time_base.h"
 #include "magcomp/core/math/constants.h"
+#include "magcomp/core/nav/flight_navigation.h"
 #include "magcomp/ros/bag_converter.h"
 #include "magcomp/ros/bag_writer.h"
 #include "magcomp/ros/ins_attitude.h"
@@ -137,8 +138,7 @@ class TypedTopics {
     has_fix_ = f.has("lat") && f.has("lon");
     has_ins_ = f.has("ins_lat") && f.has("ins_lon") && f.has("ins_alt");
     if (has_ins_ && has_fix_) {  // the MIT schema's INS angles are radians; MagNav.jl's degrees
-      const Eigen::VectorXd il = f.column("ins_lat"), l = f.column("lat");
-      ins_scale_ = std::abs(il.mean() - l.mean()) < 1.0 ? 1.0 : kRadToDeg;
+      ins_scale_ = nav::in_degrees(f.column("ins_lat"), f.column("lat")) ? 1.0 : kRadToDeg;
     } else if (has_ins_) {
       ins_scale_ = std::abs(Eigen::VectorXd(f.column("ins_lat")).mean()) > 1.6 ? 1.0 : kRadToDeg;
     }

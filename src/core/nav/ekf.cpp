@@ -28,7 +28,15 @@ Eigen::VectorXd update_covariance(const Eigen::RowVectorXd& h, double var, Eigen
   return k;
 }
 
+void check_settings(const FilterSettings& s, const char* who) {
+  if (s.p0.rows() != kStates || s.p0.cols() != kStates || s.qd.rows() != kStates ||
+      s.qd.cols() != kStates)
+    throw Error(std::string(who) + ": P0 and Qd must be 18 x 18");
+  if (!(s.r_nT2 > 0)) throw Error(std::string(who) + ": R must be > 0 nT^2");
+}
+
 void check(const NavTrack& track, const FilterSettings& s, const char* who) {
+  check_settings(s, who);
   const Eigen::Index n = track.size();
   for (const Eigen::VectorXd* v : {&track.lon_rad, &track.alt_m, &track.vn_mps, &track.ve_mps,
                                    &track.vd_mps, &track.fn_mps2, &track.fe_mps2, &track.fd_mps2})
@@ -36,10 +44,6 @@ void check(const NavTrack& track, const FilterSettings& s, const char* who) {
   if (static_cast<Eigen::Index>(track.cnb.size()) != n)
     throw Error(std::string(who) + ": the track has " + std::to_string(track.cnb.size()) +
                 " attitudes for " + std::to_string(n) + " samples");
-  if (s.p0.rows() != kStates || s.p0.cols() != kStates || s.qd.rows() != kStates ||
-      s.qd.cols() != kStates)
-    throw Error(std::string(who) + ": P0 and Qd must be 18 x 18");
-  if (!(s.r_nT2 > 0)) throw Error(std::string(who) + ": R must be > 0 nT^2");
 }
 
 }  // namespace
@@ -59,10 +63,7 @@ NavPoint NavTrack::point(Eigen::Index t) const {
 
 MapMatchingEkf::MapMatchingEkf(const AnomalyMap& map, const FilterSettings& settings)
     : map_(map), s_(settings) {
-  if (s_.p0.rows() != kStates || s_.p0.cols() != kStates || s_.qd.rows() != kStates ||
-      s_.qd.cols() != kStates)
-    throw Error("ekf: P0 and Qd must be 18 x 18");
-  if (!(s_.r_nT2 > 0)) throw Error("ekf: R must be > 0 nT^2");
+  check_settings(s_, "ekf");
   reset();
 }
 

@@ -25,9 +25,12 @@ Eigen::VectorXd column(const FlightData& f, const std::vector<std::string>& name
 
 }  // namespace
 
+bool in_degrees(const Eigen::VectorXd& v, const Eigen::VectorXd& reference_deg) {
+  return std::abs(v.mean() - reference_deg.mean()) < 1.0;
+}
+
 Eigen::VectorXd radians_like(const Eigen::VectorXd& v, const Eigen::VectorXd& reference_deg) {
-  const bool degrees = std::abs(v.mean() - reference_deg.mean()) < 1.0;
-  return degrees ? Eigen::VectorXd(v * kDegToRad) : v;
+  return in_degrees(v, reference_deg) ? Eigen::VectorXd(v * kDegToRad) : v;
 }
 
 FlightTracks flight_tracks(const FlightData& f) {

@@ -26,6 +26,10 @@ FlightTracks flight_tracks(const FlightData& flight);
 Eigen::VectorXd measured_anomaly_nT(const FlightData& flight, const Model& model,
                                     bool uncompensated = false);
 
+/// Whether an INS latitude or longitude column is in degrees, judged against the true column in
+/// degrees (within 1 of its mean).
+bool in_degrees(const Eigen::VectorXd& angle, const Eigen::VectorXd& reference_deg);
+
 /// An INS latitude or longitude column in radians: degrees are recognised against the true
 /// column in degrees (the MIT schema's INS angles are radians, MagNav.jl's files use degrees).
 Eigen::VectorXd radians_like(const Eigen::VectorXd& angle, const Eigen::VectorXd& reference_deg);
