@@ -16,12 +16,16 @@ void add_simulate(CLI::App& app) {
   auto scenario = std::make_shared<std::string>();
   auto out = std::make_shared<std::string>();
   auto seed = std::make_shared<long long>(-1);
+  auto aircraft_seed = std::make_shared<long long>(-1);
   auto random_seed = std::make_shared<long long>(-1);
   auto random_count = std::make_shared<int>(1);
   cmd->add_option("--scenario", *scenario, "scenario YAML (see config/scenarios/)")->required();
   cmd->add_option("--out", *out, "flight HDF5 to write (truth beside it: .truth.yaml, .truth.h5)")
       ->required();
   cmd->add_option("--seed", *seed, "override the scenario's seed");
+  cmd->add_option("--aircraft-seed", *aircraft_seed,
+                  "override the scenario's aircraft_seed (the aircraft's own sources; keep it and "
+                  "change --seed for the next flight of the same aircraft)");
   cmd->add_option("--random-effects", *random_seed,
                   "add hidden effects drawn at random from this seed (kinds, channels, shapes, "
                   "sizes 0.3-3 nT rms on mag_5_uc; listed in the truth YAML)");
@@ -32,6 +36,7 @@ void add_simulate(CLI::App& app) {
       check_output_path(p, {*scenario});
     sim::Scenario s = sim::load_scenario(*scenario);
     if (*seed >= 0) s.seed = static_cast<unsigned>(*seed);
+    if (*aircraft_seed >= 0) s.aircraft_seed = *aircraft_seed;
     if (*random_seed >= 0) {
       if (*random_count < 1) throw Error("--random-count: must be >= 1");
       for (const auto& e : sim::random_effects(s, static_cast<unsigned>(*random_seed),

@@ -322,21 +322,15 @@ Scored Search::lag_candidate(double* tau_out, const Eigen::MatrixXd& partner) co
       fs.lambda + 1e-12 * std::max(g.trace() / std::max<double>(g.cols(), 1), 1e-300);
   const auto ldlt = r.ldlt();
   const bool bandpass = fs.method == FitMethod::kBandpass;
-  const Eigen::MatrixXd partner0 =
-      partner.unaryExpr([](double v) { return std::isfinite(v) ? v : 0.0; });
-  auto errors = [&](double tau) {
-    const Eigen::VectorXd s = shift_samples(raw, -tau / dt);             // NaN past the ends
-    const Eigen::VectorXd s_held = shift_samples(raw, -tau / dt, true);  // filters need no NaN
+  // Estimated on the fit rows, as every free parameter is: the calibration maneuvers hold the
+  // field rates that reveal a lag; the held-out lines (straight and level) barely do.
+  auto cost = [&](double tau) {
+    const Eigen::VectorXd s_held = shift_samples(raw, -tau / dt, true);
     const Eigen::VectorXd yl =
         bandpass ? s_held : Eigen::VectorXd(s_held - data.column(fs.reference));
     const Eigen::VectorXd ylf = stack_runs(fs, dt, yl, runs).col(0);
     const Eigen::VectorXd c = ldlt.solve(base.transpose() * ylf);
-    Eigen::VectorXd e = s - truth - a0 * c.head(a0.cols());
-    if (partner.cols() > 0) e -= partner0 * c.tail(partner.cols());
-    return e;
-  };
-  auto cost = [&](double tau) {  // scored on the selection lines, as every candidate is ranked
-    return fold_std(errors(tau), held, fold, line, 0);
+    return (ylf - base * c).squaredNorm();
   };
   std::vector<double> grid;
   for (double tau = current - 1.0; tau <= current + 1.0 + 1e-9; tau += 0.05) grid.push_back(tau);
