@@ -11,6 +11,7 @@
 #include "magcomp/core/diagnose/diagnose.h"
 #include "magcomp/core/diagnose/diagnose_loop.h"
 #include "magcomp/core/error.h"
+#include "magcomp/core/fit/parameter_fit.h"
 #include "magcomp/core/model/terms_expr.h"
 #include "scenario_cache.h"
 
@@ -94,6 +95,48 @@ TEST(Diagnose, EveryShippedHiddenEffectIsRankedFirstAndAddingItRemovesTheExcess)
     // The best candidate of another channel explains far less: the ranking is not a coin toss.
     // (For the lag, the other timing errors are its near-equivalents: a first-order response
     // of the scalar, or a response to the field's rate.)
+    // The grammar search: each grown chain is a scored candidate plus one transform at its
+    // front or back, within the budget of three, and none rests on a time constant at the top
+    // of its scan.
+    int grown = 0;
+    const double slowest =
+        parameter_grid(TransformKind::LowPass, f.dt_s(), f.tt()[f.size() - 1] - f.tt()[0]).back();
+    std::set<std::string> terms;
+    for (const auto& c : dx.candidates) terms.insert(c.term);
+    for (const auto& c : dx.candidates) {
+      if (c.family != "chain (grammar search)") continue;
+      ++grown;
+      const auto e = parse_expr_term(c.term);
+      ASSERT_TRUE(e) << c.term;
+      const SignalExpr& sig = e->signal();
+      ASSERT_GE(sig.transforms.size(), 1u) << c.term;
+      EXPECT_LE(sig.transforms.size(), 3u) << c.term;
+      SignalExpr front = sig, back = sig;
+      front.transforms.erase(front.transforms.begin());
+      back.transforms.pop_back();
+      auto spec_of = [&](const SignalExpr& x) {
+        if (x.transforms.empty() && x.sources.size() == 1) {  // a plain channel's shorthand
+          const std::string plain = ExprTerm(e->projection(), x).spec();
+          for (const std::string p : {"current:", "rate:"}) {
+            if (terms.count(p + x.sources[0])) return p + x.sources[0];
+          }
+          return plain;
+        }
+        if (x.transforms.size() == 1 && x.transforms[0].kind == TransformKind::Derivative &&
+            x.sources.size() == 1 && terms.count("dcurrent:" + x.sources[0])) {
+          return "dcurrent:" + x.sources[0];
+        }
+        return ExprTerm(e->projection(), x).spec();
+      };
+      EXPECT_TRUE(terms.count(spec_of(front)) || terms.count(spec_of(back)))
+          << c.term << " grows no scored term";
+      for (const auto& t : sig.transforms) {
+        if (t.kind == TransformKind::LowPass) {
+          EXPECT_LT(t.param, 0.99 * slowest) << c.term;
+        }
+      }
+    }
+    EXPECT_GT(grown, 0) << name;
     const bool timing = top.family == "scalar lag";
     for (const auto& c : dx.candidates) {
       if (c.family == "scalar lag") continue;

@@ -533,6 +533,92 @@ std::vector<Job> product_jobs(const Model& model, const Search& search,
   return products;
 }
 
+// The grammar search: the best-scoring electrical channel terms so far grow by one transform each,
+// a dynamic one after the chain (lp(?), d, sat(?)) or a static law before it (pow(2), abs), within
+// a budget of kMaxChain transforms; the parameters estimated so far stay as numbers, so each child
+// has at most one '?'. kRefineParents parents per level, two levels: best-first.
+constexpr size_t kRefineParents = 4;
+constexpr size_t kMaxChain = 3;
+
+// True when a time constant of the term sits at the top of its scan: the flight cannot tell it
+// from a slower one, so it stands for a drift, not an estimated response. Neither grown from nor
+// kept as a grown chain.
+bool at_slow_edge(const std::string& spec, const Search& search) {
+  const auto e = parse_expr_term(spec);
+  if (!e) return false;
+  for (const auto& t : e->signal().transforms) {
+    if (t.kind != TransformKind::LowPass && t.kind != TransformKind::HighPass) continue;
+    const std::vector<double> g = parameter_grid(t.kind, search.dt, search.span);
+    if (!g.empty() && t.param >= 0.99 * g.back()) return true;
+  }
+  return false;
+}
+
+std::vector<Job> refined_jobs(const Model& model, const Search& search,
+                              const std::vector<Job>& jobs, const std::vector<Scored>& scored,
+                              std::set<std::string>* seen) {
+  std::vector<std::pair<double, size_t>> order;
+  for (size_t k = 0; k < jobs.size(); ++k) {
+    // Chains are the laws of electrical loads (heating, saturation, switching): grown from
+    // terms of currents and voltages only (and their products). An attitude or velocity grown
+    // into |x| through a slow low-pass becomes a proxy of when the aircraft turned.
+    if (!scored[k].ok || jobs[k].channel.empty() || jobs[k].channel == model.scalar ||
+        !is_electrical(jobs[k].channel.substr(0, jobs[k].channel.find('*'))))
+      continue;
+    // Grown from the terms that explain most on both folds (the smaller share), so a term
+    // that only fits the selection lines does not take the budget.
+    order.emplace_back(-std::min(share(scored[k].sel, search.base_std[0]),
+                                 share(scored[k].conf, search.base_std[1])),
+                       k);
+  }
+  std::sort(order.begin(), order.end());
+  std::set<std::string> shapes;  // a model term's shape is re-estimated, not grown
+  for (const auto& t : model.terms)
+    if (const auto e = parse_expr_term(t)) shapes.insert(e->shape());
+  std::vector<Job> out;
+  size_t parents = 0;
+  for (const auto& [sel, k] : order) {
+    if (parents >= kRefineParents) break;
+    const auto e = parse_expr_term(scored[k].spec);
+    if (!e || e->signal().has_free() || e->signal().transforms.size() >= kMaxChain ||
+        at_slow_edge(scored[k].spec, search))
+      continue;
+    ++parents;
+    const SignalExpr& sig = e->signal();
+    auto child = [&](const Transform& t, bool front) {
+      for (const auto& have : sig.transforms)
+        if (have.kind == t.kind) return;  // one of each kind in a chain
+      SignalExpr c = sig;
+      if (front) {
+        c.transforms.insert(c.transforms.begin(), t);
+      } else {
+        c.transforms.push_back(t);
+      }
+      const ExprTerm term(e->projection(), c);
+      const std::string spec = term.spec();
+      if (shapes.count(term.shape()) || !seen->insert(spec).second) return;
+      out.push_back({spec, "chain (grammar search)", jobs[k].channel});
+    };
+    child({TransformKind::LowPass, 0.0, true}, false);
+    child({TransformKind::Derivative, 0.0, false}, false);
+    bool level_units = true;  // sat(?) is scanned over the source's range: not after d or int
+    for (const auto& t : sig.transforms) {
+      if (t.kind == TransformKind::Derivative || t.kind == TransformKind::Integral ||
+          t.kind == TransformKind::Decay || t.kind == TransformKind::HighPass)
+        level_units = false;
+    }
+    if (level_units) child({TransformKind::Saturate, 0.0, true}, false);
+    // x² only where x varies by a good part of its level (elsewhere it is x rescaled, a way
+    // around the ridge, not a new shape: 5 V ± noise squared); |x| only where x takes both
+    // signs (elsewhere it is x itself).
+    const SignalRange range = signal_range(sig, search.data);
+    if (range.hi - range.lo >= 0.5 * std::max(std::abs(range.lo), std::abs(range.hi)))
+      child({TransformKind::Power, 2.0, false}, true);
+    if (range.lo < 0) child({TransformKind::Abs, 0.0, false}, true);
+  }
+  return out;
+}
+
 constexpr size_t kScreenedProducts = 12;  // pairs fitted in full after the screen
 
 // Every pair of channels screened cheaply for a product term field:x*y: on the selection rows,
@@ -910,6 +996,24 @@ Diagnosis diagnose(const Model& model_in, const FlightData& data, const std::str
     std::vector<Scored> more = run_jobs(search, products, options.threads);
     jobs.insert(jobs.end(), products.begin(), products.end());
     scored.insert(scored.end(), more.begin(), more.end());
+  }
+  {  // the grammar search, best-first: two levels
+    std::set<std::string> seen;
+    for (const auto& j : jobs) seen.insert(j.spec);
+    for (const auto& x : scored) seen.insert(x.spec);
+    std::vector<Job> frontier_jobs = jobs;
+    std::vector<Scored> frontier = scored;
+    for (int level = 0; level < 2; ++level) {
+      const std::vector<Job> grown = refined_jobs(model, search, frontier_jobs, frontier, &seen);
+      if (grown.empty()) break;
+      std::vector<Scored> more = run_jobs(search, grown, options.threads);
+      for (auto& x : more)
+        if (x.ok && at_slow_edge(x.spec, search)) x.ok = false;
+      jobs.insert(jobs.end(), grown.begin(), grown.end());
+      scored.insert(scored.end(), more.begin(), more.end());
+      frontier_jobs = grown;
+      frontier = std::move(more);
+    }
   }
   data.drop_mapped_pages();
   add_candidates(jobs, scored, search, &dx);
