@@ -577,7 +577,8 @@ std::vector<Job> refined_jobs(const Model& model, const Search& search,
     if (const auto e = parse_expr_term(t)) shapes.insert(e->shape());
   std::vector<Job> out;
   size_t parents = 0;
-  for (const auto& [sel, k] : order) {
+  for (const auto& entry : order) {
+    const size_t k = entry.second;  // a plain variable: lambdas may not capture a binding (C++17)
     if (parents >= kRefineParents) break;
     const auto e = parse_expr_term(scored[k].spec);
     if (!e || e->signal().has_free() || e->signal().transforms.size() >= kMaxChain ||
