@@ -436,20 +436,20 @@ std::vector<Scored> run_jobs(const Search& search, const std::vector<Job>& jobs,
   return out;
 }
 
+double share(double after, double before) {
+  return before > 0 ? 1.0 - (after / before) * (after / before) : 0.0;
+}
+
+}  // namespace
+
 // How much a term says: its sources and transforms (a shorthand or TL family counts 1).
-int complexity(const std::string& spec) {
+int term_complexity(const std::string& spec) {
   const auto e = parse_expr_term(spec);
   if (!e) return 1;
   int n = static_cast<int>(e->signal().sources.size() + e->signal().transforms.size());
   for (const auto& t : e->signal().transforms) n += t.has_param();
   return n;
 }
-
-double share(double after, double before) {
-  return before > 0 ? 1.0 - (after / before) * (after / before) : 0.0;
-}
-
-}  // namespace
 
 std::vector<std::string> source_fields(const Model& model, const FlightData& data,
                                        const std::string& truth, bool full_search,
@@ -822,7 +822,7 @@ void judge_and_rank(const Search& search, const DiagnoseOptions& options,
   for (size_t k = 1; k < candidates->size(); ++k) {
     const Candidate& c = (*candidates)[k];
     if (!c.accepted || c.ranking_share < best - 0.01) break;
-    if (complexity(c.term) < complexity((*candidates)[pick].term)) pick = k;
+    if (term_complexity(c.term) < term_complexity((*candidates)[pick].term)) pick = k;
   }
   std::rotate(candidates->begin(), candidates->begin() + static_cast<long>(pick),
               candidates->begin() + static_cast<long>(pick) + 1);

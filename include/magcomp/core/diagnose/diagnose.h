@@ -79,6 +79,10 @@ std::vector<std::string> source_fields(const Model& model, const FlightData& dat
                                        const std::string& truth, bool full_search,
                                        std::vector<std::string>* notes);
 
+/// How much a term says: its sources, transforms and their parameters (a shorthand or TL
+/// family counts 1). Between terms that explain as much, the simpler is preferred.
+int term_complexity(const std::string& spec);
+
 /// Ranks candidate terms for what the model misses. Fit rows: the model's own calibration
 /// (band-pass segments, or reference-fit lines) when this flight holds them; otherwise a
 /// reference fit against `truth` on every other line. The other lines are held out and split,
