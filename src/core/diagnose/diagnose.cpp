@@ -817,15 +817,9 @@ void judge_and_rank(const Search& search, const DiagnoseOptions& options,
                      return a.ranking_share > b.ranking_share;
                    });
   if (candidates->empty() || !candidates->front().accepted) return;
-  const double best = candidates->front().ranking_share;
-  size_t pick = 0;
-  for (size_t k = 1; k < candidates->size(); ++k) {
-    const Candidate& c = (*candidates)[k];
-    if (!c.accepted || c.ranking_share < best - 0.01) break;
-    if (term_complexity(c.term) < term_complexity((*candidates)[pick].term)) pick = k;
-  }
-  std::rotate(candidates->begin(), candidates->begin() + static_cast<long>(pick),
-              candidates->begin() + static_cast<long>(pick) + 1);
+  put_simplest_first(candidates, [](const Candidate& lead, const Candidate& c) {
+    return c.accepted && c.ranking_share >= lead.ranking_share - 0.01;
+  });
 }
 
 // What remains: the base residual on the held-out lines (each line's mean removed) against a
@@ -1002,18 +996,14 @@ Diagnosis diagnose(const Model& model_in, const FlightData& data, const std::str
     std::set<std::string> seen;
     for (const auto& j : jobs) seen.insert(j.spec);
     for (const auto& x : scored) seen.insert(x.spec);
-    std::vector<Job> frontier_jobs = jobs;
-    std::vector<Scored> frontier = scored;
-    for (int level = 0; level < 2; ++level) {
-      const std::vector<Job> grown = refined_jobs(model, search, frontier_jobs, frontier, &seen);
-      if (grown.empty()) break;
+    std::vector<Job> grown = refined_jobs(model, search, jobs, scored, &seen);
+    for (int level = 0; level < 2 && !grown.empty(); ++level) {
       std::vector<Scored> more = run_jobs(search, grown, options.threads);
       for (auto& x : more)
         if (x.ok && at_slow_edge(x.spec, search)) x.ok = false;
       jobs.insert(jobs.end(), grown.begin(), grown.end());
       scored.insert(scored.end(), more.begin(), more.end());
-      frontier_jobs = grown;
-      frontier = std::move(more);
+      grown = level == 0 ? refined_jobs(model, search, grown, more, &seen) : std::vector<Job>{};
     }
   }
   data.drop_mapped_pages();

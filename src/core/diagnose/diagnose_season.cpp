@@ -65,19 +65,10 @@ SeasonDiagnosis merge_diagnoses(const std::vector<Diagnosis>& flights) {
                    });
   // Among the terms accepted on as many flights and within one percentage point of the best,
   // the simplest first (current:cur_strb before field:cur_strb|sat(5.31)), as on one flight.
-  if (!out.candidates.empty()) {
-    const SeasonCandidate& lead = out.candidates.front();
-    size_t pick = 0;
-    for (size_t k = 1; k < out.candidates.size(); ++k) {
-      const SeasonCandidate& c = out.candidates[k];
-      if (c.accepted_on != lead.accepted_on ||
-          c.mean_ranking_share < lead.mean_ranking_share - 0.01)
-        break;
-      if (term_complexity(c.term) < term_complexity(out.candidates[pick].term)) pick = k;
-    }
-    std::rotate(out.candidates.begin(), out.candidates.begin() + static_cast<long>(pick),
-                out.candidates.begin() + static_cast<long>(pick) + 1);
-  }
+  put_simplest_first(&out.candidates, [](const SeasonCandidate& lead, const SeasonCandidate& c) {
+    return c.accepted_on == lead.accepted_on &&
+           c.mean_ranking_share >= lead.mean_ranking_share - 0.01;
+  });
   char buf[512];
   if (!out.candidates.empty()) {
     const SeasonCandidate& top = out.candidates.front();

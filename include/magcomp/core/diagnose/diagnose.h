@@ -4,6 +4,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <algorithm>
 #include <cmath>
 #include <string>
 #include <utility>
@@ -82,6 +83,20 @@ std::vector<std::string> source_fields(const Model& model, const FlightData& dat
 /// How much a term says: its sources, transforms and their parameters (a shorthand or TL
 /// family counts 1). Between terms that explain as much, the simpler is preferred.
 int term_complexity(const std::string& spec);
+
+/// Moves to the front the simplest of the ranked items (each with a `term`) that tie with the
+/// first: the leading run of items for which tied(first, item) holds.
+template <typename T, typename Tied>
+void put_simplest_first(std::vector<T>* ranked, Tied tied) {
+  if (ranked->empty()) return;
+  size_t pick = 0;
+  for (size_t k = 1; k < ranked->size(); ++k) {
+    if (!tied(ranked->front(), (*ranked)[k])) break;
+    if (term_complexity((*ranked)[k].term) < term_complexity((*ranked)[pick].term)) pick = k;
+  }
+  std::rotate(ranked->begin(), ranked->begin() + static_cast<long>(pick),
+              ranked->begin() + static_cast<long>(pick) + 1);
+}
 
 /// Ranks candidate terms for what the model misses. Fit rows: the model's own calibration
 /// (band-pass segments, or reference-fit lines) when this flight holds them; otherwise a
