@@ -9,9 +9,11 @@
 namespace magcomp {
 namespace {
 
-TEST(Streaming, WholeFlightEqualsBatchWithCurrentsAndLag) {
+// Streams the whole two_effects flight through a TL + current model with `lag` and compares
+// every output with the batch compensation.
+void expect_stream_equals_batch(const std::string& lag) {
   const FlightData& f = test::scenario("two_effects").flight;
-  const Model m = test::calibrated_tl(f, {"current:cur_strb", "lag:0.3"});
+  const Model m = test::calibrated_tl(f, {"current:cur_strb", lag});
   const Eigen::VectorXd batch = compensate(m, f);
   StreamingCompensator sc(m);
   ASSERT_EQ(sc.required_channels(), std::vector<std::string>{"cur_strb"});
@@ -25,7 +27,7 @@ TEST(Streaming, WholeFlightEqualsBatchWithCurrentsAndLag) {
       std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count() /
       static_cast<double>(f.size());
   std::printf("  lookahead %d samples, %.1f us per sample\n", sc.lookahead(), per_sample_us);
-  EXPECT_EQ(sc.lookahead(), 6);  // 0.3 s lag at 10 Hz: ceil(3) + 1 + 2
+  EXPECT_EQ(sc.lookahead(), 6);  // 0.27 or 0.3 s lag at 10 Hz: ceil(3) + 1 + 2
   for (const auto& o : sc.flush()) out.push_back(o);
   ASSERT_EQ(static_cast<Eigen::Index>(out.size()), f.size());
   double worst = 0;
@@ -40,6 +42,14 @@ TEST(Streaming, WholeFlightEqualsBatchWithCurrentsAndLag) {
   }
   EXPECT_LT(worst, 1e-6);
   std::printf("  worst |stream - batch| = %.2e nT\n", worst);
+}
+
+TEST(Streaming, WholeFlightEqualsBatchWithCurrentsAndLag) { expect_stream_equals_batch("lag:0.3"); }
+
+// A fractional lag gives the columns its round trip (lag_round_trip): the stream reads the rows
+// it needs around each sample and still equals the batch.
+TEST(Streaming, WholeFlightEqualsBatchWithAFractionalLag) {
+  expect_stream_equals_batch("lag:0.27");
 }
 
 TEST(Streaming, NanInputsGiveNanOutputsAndTheStreamGoesOn) {

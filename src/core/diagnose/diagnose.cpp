@@ -97,16 +97,21 @@ class Search {
   double fit_rss(const Eigen::MatrixXd& cols) const;
   // Builds, scans (free parameters) and scores one job.
   Scored run(const Job& job) const;
-  // The realigned-scalar lag scan, alone or with partner columns (N x k).
+  // The lag scan, alone or with partner columns (N x k, built without a lag: columns_of(spec,
+  // false)): each trial realigns the scalar by tau and gives every column tau's round trip.
   Scored lag_candidate(double* tau_out, const Eigen::MatrixXd& partner) const;
-  // The lag fixed at tau (s), with partner columns.
+  // The lag fixed at tau (s), with partner columns (built without a lag).
   Scored lag_at(double tau, const Eigen::MatrixXd& partner) const;
-  // The columns of a term on this flight.
-  Eigen::MatrixXd columns_of(const std::string& spec) const {
-    const auto t = make_term(spec);
-    Eigen::MatrixXd c(data.size(), t->columns());
-    t->build(inputs, c);
+  // The columns of a term on this flight, N x k; with `with_lag`, carrying the model's lag
+  // round trip as the base columns do (design_matrix).
+  Eigen::MatrixXd columns_of(const Term& t, bool with_lag = true) const {
+    Eigen::MatrixXd c(data.size(), t.columns());
+    t.build(inputs, c);
+    if (with_lag) lag_round_trip(c, model.scalar_lag_s() / dt);
     return c;
+  }
+  Eigen::MatrixXd columns_of(const std::string& spec, bool with_lag = true) const {
+    return columns_of(*make_term(spec), with_lag);
   }
 
   const Model& model;
@@ -131,6 +136,15 @@ class Search {
     const Eigen::MatrixXd z = cols.unaryExpr([](double v) { return std::isfinite(v) ? v : 0.0; });
     return stack_runs(fs, dt, z, runs);
   }
+  // stacked() of the columns given a lag's round trip of tau s (only the fit rows are built).
+  Eigen::MatrixXd stacked_at_lag(const Eigen::MatrixXd& cols, double tau) const;
+  // The base's fittable columns without the model's lag round trip, then `partner`: N x (p + k).
+  Eigen::MatrixXd lag_columns(const Eigen::MatrixXd& partner) const;
+  // The fit of lag_columns() `x` with a lag of tau s: the stacked fit rows' residual sum of
+  // squares, and the coefficients in `coef`.
+  double lag_fit(double tau, const Eigen::MatrixXd& x, Eigen::VectorXd* coef) const;
+  // lag_at() with lag_columns() `x` of which the last `partners` are the partner's.
+  Scored lag_scored(double tau, Eigen::MatrixXd x, Eigen::Index partners) const;
 };
 
 Search::Search(const Model& m, const FlightData& d, const std::string& truth_name, Diagnosis* dx)
@@ -263,11 +277,7 @@ Scored Search::score(const Eigen::MatrixXd& cols) const {
 
 Scored Search::run(const Job& job) const {
   auto term = make_term(job.spec);
-  auto columns = [&](const Term& t) {
-    Eigen::MatrixXd c(data.size(), t.columns());
-    t.build(inputs, c);
-    return c;
-  };
+  auto columns = [&](const Term& t) { return columns_of(t); };
   long fits = 0;
   const auto* expr = dynamic_cast<const ExprTerm*>(term.get());
   if (expr && expr->signal().has_free()) {
@@ -305,68 +315,103 @@ Scored Search::run(const Job& job) const {
   return s;
 }
 
-Scored Search::lag_candidate(double* tau_out, const Eigen::MatrixXd& partner) const {
-  // The raw scalar realigned by tau (absolute); only the target changes, so each trial is one
-  // filter of y and one small solve. Coarse grid over the model's lag +-1 s, then golden-section
-  // refinement to 1 ms. A model that has a lag gets it re-estimated. With partner columns
-  // (N x k) the lag is scanned and scored together with them: a lag moves the signature of every
-  // effect, so it is judged with the term whose timing it explains.
-  const FlightData::Column raw = data.column(model.scalar);
-  const double current = model.scalar_lag_s();
-  const Eigen::MatrixXd pf = stacked(partner);
-  Eigen::MatrixXd base(af0.rows(), af0.cols() + pf.cols());
-  base << af0, pf;
-  const Eigen::MatrixXd g = base.transpose() * base;
+Eigen::MatrixXd Search::stacked_at_lag(const Eigen::MatrixXd& cols, double tau) const {
+  const double lag_samples = tau / dt;
+  const Eigen::Index reach = lag_round_trip_reach(lag_samples), n = data.size();
+  // Each run with `reach` rows each side: its rows get the same numbers as on the whole flight,
+  // and the rest of the flight is never copied.
+  Eigen::Index rows = 0;
+  for (const auto& [first, last] : runs)
+    rows += std::min(n - 1, last + reach) - std::max<Eigen::Index>(0, first - reach) + 1;
+  Eigen::MatrixXd part(rows, cols.cols());
+  std::vector<std::pair<Eigen::Index, Eigen::Index>> local;
+  Eigen::Index r = 0;
+  for (const auto& [first, last] : runs) {
+    const Eigen::Index lo = std::max<Eigen::Index>(0, first - reach);
+    const Eigen::Index len = std::min(n - 1, last + reach) - lo + 1;
+    part.middleRows(r, len) = cols.middleRows(lo, len);
+    lag_round_trip(part.middleRows(r, len), lag_samples);
+    local.emplace_back(r + first - lo, r + last - lo);
+    r += len;
+  }
+  part = part.unaryExpr([](double v) { return std::isfinite(v) ? v : 0.0; });
+  return stack_runs(fs, dt, part, local);
+}
+
+Eigen::MatrixXd Search::lag_columns(const Eigen::MatrixXd& partner) const {
+  Model m = model;
+  m.terms.erase(std::remove_if(m.terms.begin(), m.terms.end(),
+                               [](const std::string& t) { return t.rfind("lag:", 0) == 0; }),
+                m.terms.end());
+  const auto terms = m.make_terms();
+  const std::vector<Eigen::Index> keep = fittable_columns(fs.method, terms);
+  const Eigen::Index p = static_cast<Eigen::Index>(keep.size());
+  Eigen::MatrixXd x(data.size(), p + partner.cols());
+  {
+    const Eigen::MatrixXd a_all = design_matrix(m, terms, data);
+    for (Eigen::Index k = 0; k < p; ++k) x.col(k) = a_all.col(keep[static_cast<size_t>(k)]);
+  }
+  x.rightCols(partner.cols()) = partner;
+  return x;
+}
+
+double Search::lag_fit(double tau, const Eigen::MatrixXd& x, Eigen::VectorXd* coef) const {
+  const Eigen::MatrixXd xf = stacked_at_lag(x, tau);
+  const Eigen::MatrixXd g = xf.transpose() * xf;
   Eigen::MatrixXd r = g;
   r.diagonal().array() +=
       fs.lambda + 1e-12 * std::max(g.trace() / std::max<double>(g.cols(), 1), 1e-300);
-  const auto ldlt = r.ldlt();
-  const bool bandpass = fs.method == FitMethod::kBandpass;
+  const FlightData::Column raw = data.column(model.scalar);
+  const Eigen::VectorXd s_held = shift_samples(raw, -tau / dt, true);  // filters need no NaN
+  const Eigen::VectorXd yl = fs.method == FitMethod::kBandpass
+                                 ? s_held
+                                 : Eigen::VectorXd(s_held - data.column(fs.reference));
+  const Eigen::VectorXd ylf = stack_runs(fs, dt, yl, runs).col(0);
+  *coef = r.ldlt().solve(xf.transpose() * ylf);
+  return (ylf - xf * *coef).squaredNorm();
+}
+
+Scored Search::lag_candidate(double* tau_out, const Eigen::MatrixXd& partner) const {
+  // Each trial realigns the raw scalar by tau (absolute) and gives the columns tau's round trip,
+  // as a model with lag:tau does. Coarse grid over the model's lag +-1 s, then golden-section
+  // refinement to 1 ms. A model that has a lag gets it re-estimated. With partner columns
+  // (N x k) the lag is scanned and scored together with them: a lag moves the signature of every
+  // effect, so it is judged with the term whose timing it explains.
+  const double current = model.scalar_lag_s();
+  Eigen::MatrixXd x = lag_columns(partner);
   // Estimated on the fit rows, as every free parameter is: the calibration maneuvers hold the
   // field rates that reveal a lag; the held-out lines (straight and level) barely do.
-  auto cost = [&](double tau) {
-    const Eigen::VectorXd s_held = shift_samples(raw, -tau / dt, true);
-    const Eigen::VectorXd yl =
-        bandpass ? s_held : Eigen::VectorXd(s_held - data.column(fs.reference));
-    const Eigen::VectorXd ylf = stack_runs(fs, dt, yl, runs).col(0);
-    const Eigen::VectorXd c = ldlt.solve(base.transpose() * ylf);
-    return (ylf - base * c).squaredNorm();
-  };
+  Eigen::VectorXd coef;
+  auto cost = [&](double tau) { return lag_fit(tau, x, &coef); };
   std::vector<double> grid;
   for (double tau = current - 1.0; tau <= current + 1.0 + 1e-9; tau += 0.05) grid.push_back(tau);
   // To the millisecond: at the field rates of a maneuver (tens of nT/s) 5 ms of lag error is
   // a fraction of a nT on the next flight.
   const double tau = std::round(scan_parameter(TransformKind::Delay, grid, cost) * 1000) / 1000;
-  Scored s = lag_at(tau, partner);
+  Scored s = lag_scored(tau, std::move(x), partner.cols());
   s.fits = static_cast<long>(grid.size()) + 26;
   *tau_out = tau;
   return s;
 }
 
 Scored Search::lag_at(double tau, const Eigen::MatrixXd& partner) const {
-  const FlightData::Column raw = data.column(model.scalar);
-  const double current = model.scalar_lag_s();
-  const Eigen::MatrixXd pf = stacked(partner);
-  Eigen::MatrixXd base(af0.rows(), af0.cols() + pf.cols());
-  base << af0, pf;
-  const Eigen::MatrixXd g = base.transpose() * base;
-  Eigen::MatrixXd r = g;
-  r.diagonal().array() +=
-      fs.lambda + 1e-12 * std::max(g.trace() / std::max<double>(g.cols(), 1), 1e-300);
-  const bool bandpass = fs.method == FitMethod::kBandpass;
-  const Eigen::VectorXd sh = shift_samples(raw, -tau / dt);            // NaN past the ends
-  const Eigen::VectorXd s_held = shift_samples(raw, -tau / dt, true);  // filters need no NaN
-  const Eigen::VectorXd yl =
-      bandpass ? s_held : Eigen::VectorXd(s_held - data.column(fs.reference));
-  const Eigen::VectorXd ylf = stack_runs(fs, dt, yl, runs).col(0);
-  const Eigen::VectorXd c = r.ldlt().solve(base.transpose() * ylf);
-  Eigen::VectorXd e = sh - truth - a0 * c.head(a0.cols());
-  if (partner.cols() > 0) {
-    e -= partner.unaryExpr([](double v) { return std::isfinite(v) ? v : 0.0; }) *
-         c.tail(partner.cols());
+  return lag_scored(tau, lag_columns(partner), partner.cols());
+}
+
+Scored Search::lag_scored(double tau, Eigen::MatrixXd x, Eigen::Index partners) const {
+  Eigen::VectorXd c;
+  lag_fit(tau, x, &c);
+  lag_round_trip(x, tau / dt);
+  const Eigen::Index p = x.cols() - partners;
+  // NaN past the ends; a partner without data gives no correction.
+  Eigen::VectorXd e =
+      shift_samples(data.column(model.scalar), -tau / dt) - truth - x.leftCols(p) * c.head(p);
+  if (partners > 0) {
+    e -= x.rightCols(partners).unaryExpr([](double v) { return std::isfinite(v) ? v : 0.0; }) *
+         c.tail(partners);
   }
   Scored s;
-  s.ok = std::abs(tau - current) >= 0.005;
+  s.ok = std::abs(tau - model.scalar_lag_s()) >= 0.005;
   s.spec = "lag";
   s.sel = fold_std(e, held, fold, line, 0);
   s.conf = fold_std(e, held, fold, line, 1);
@@ -762,7 +807,7 @@ void add_lag_candidate(const Model& model, const FlightData& data, const Search&
   if (best && !best->channel.empty() && best->channel != model.scalar) {
     const std::string partner = undelayed(best->term);
     double tau2 = 0;
-    const Scored pair = search.lag_candidate(&tau2, search.columns_of(partner));
+    const Scored pair = search.lag_candidate(&tau2, search.columns_of(partner, false));
     dx->candidates_tried += pair.fits;
     const double pair_share = share(pair.sel, search.base_std[0]);
     if (pair.ok && pair_share > best->explained_selection + 0.01) {

@@ -107,11 +107,16 @@ Eigen::MatrixXd design_matrix(const Model& model, const std::vector<std::unique_
   for (const auto& t : terms) cols += t->columns();
   Eigen::MatrixXd a(data.size(), cols);
   Eigen::Index c = 0;
+  double lag_s = 0.0;
   for (const auto& t : terms) {
     const Eigen::Index w = t->columns();
     t->build(in, a.middleCols(c, w));
     c += w;
+    lag_s += t->scalar_lag_s();
   }
+  // The realigned scalar of a lagging sensor carries the round trip of a fractional shift: so do
+  // the columns that model it.
+  if (lag_s != 0.0 && data.size() > 1) lag_round_trip(a, lag_s / data.dt_s());
   return a;
 }
 
@@ -211,7 +216,9 @@ Eigen::Index slice_margin(const Model& model, const std::vector<std::unique_ptr<
   const double lag_samples = std::abs(model.scalar_lag_s()) / dt_s;
   if (!std::isfinite(lag_samples) || lag_samples > 1e6) return -1;
   // +2: the cubic interpolation of a fractional shift reads two samples past the shifted one.
-  return reach + static_cast<Eigen::Index>(std::ceil(lag_samples)) + 2;
+  // The columns' lag round trip reads a few rows each side, each needing the terms' reach.
+  return reach + lag_round_trip_reach(lag_samples) +
+         static_cast<Eigen::Index>(std::ceil(lag_samples)) + 2;
 }
 
 void for_each_design_block(

@@ -9,6 +9,7 @@
 #include <map>
 
 #include "magcomp/core/error.h"
+#include "magcomp/core/math/timeseries.h"
 #include "magcomp/core/model/terms_expr.h"
 
 namespace magcomp {
@@ -323,12 +324,14 @@ std::vector<std::string> estimate_free_parameters(Model& model,
       }
       const Eigen::MatrixXd base_rows = rows.stack(per_flight);
       const RidgeProfile profile(base_rows, rows.y(), model.fit.lambda);
+      const double lag_s = base.scalar_lag_s();
       auto objective = [&](double v) {
         const auto term = make_term(spec_of(t, static_cast<long>(i), v));
         std::vector<Eigen::MatrixXd> cols;
         for (size_t f = 0; f < flights.size(); ++f) {
           Eigen::MatrixXd c(flights[f]->size(), term->columns());
           term->build(inputs[f], c);
+          lag_round_trip(c, lag_s / flights[f]->dt_s());  // as design_matrix() builds it
           cols.push_back(std::move(c));
         }
         double rss = 0;

@@ -8,6 +8,9 @@
 namespace magcomp {
 
 namespace {
+// True when a shift (samples) is a whole number of samples: no interpolation.
+bool whole_samples(double shift) { return std::abs(shift - std::round(shift)) < 1e-6; }
+
 // Cubic (Catmull-Rom) value between samples i and i + 1 at fraction f in [0, 1).
 double cubic_between(const Eigen::Ref<const Eigen::VectorXd>& x, Eigen::Index i, double f) {
   const Eigen::Index n = x.size();
@@ -28,7 +31,7 @@ Eigen::VectorXd shift_samples(const Eigen::Ref<const Eigen::VectorXd>& x, double
   const Eigen::Index n = x.size();
   Eigen::VectorXd y(n);
   const double whole = std::round(shift);
-  const bool exact = std::abs(shift - whole) < 1e-6;  // whole samples: no interpolation
+  const bool exact = whole_samples(shift);  // whole samples: no interpolation
   // y[i] = x(i + offset + f): the whole offset and the fraction are the same for every sample,
   // so a sample's value does not depend on its index (a slice of rows gives the same numbers).
   const double base = std::floor(exact ? -whole : -shift);
@@ -45,6 +48,17 @@ Eigen::VectorXd shift_samples(const Eigen::Ref<const Eigen::VectorXd>& x, double
     }
   }
   return y;
+}
+
+int lag_round_trip_reach(double lag_samples) {
+  return whole_samples(lag_samples) || !std::isfinite(lag_samples) ? 0 : 3;
+}
+
+void lag_round_trip(Eigen::Ref<Eigen::MatrixXd> a, double lag_samples) {
+  if (lag_round_trip_reach(lag_samples) == 0) return;
+  for (Eigen::Index c = 0; c < a.cols(); ++c) {
+    a.col(c) = shift_samples(shift_samples(a.col(c), lag_samples, true), -lag_samples, true);
+  }
 }
 
 Eigen::VectorXd central_rate(const Eigen::Ref<const Eigen::VectorXd>& x, double dt_s,

@@ -6,6 +6,7 @@
 #include <set>
 
 #include "magcomp/core/error.h"
+#include "magcomp/core/math/timeseries.h"
 #include "magcomp/core/model/terms_expr.h"
 
 namespace magcomp {
@@ -139,9 +140,11 @@ std::vector<StreamOutput> StreamingCompensator::push(const StreamSample& sample)
     const double dt = buffer_[1].t_s - buffer_[0].t_s;
     const double lag = std::abs(lag_s_);
     // Central differences need 1 neighbour; the cubic realignment by lag needs ceil(lag/dt) + 2;
-    // a streamed signal's derivatives one sample each.
-    half_ = std::max(2 + (dt > 0 ? static_cast<int>(std::ceil(lag / dt - 1e-9)) + 1 : 0),
-                     signal_lookahead_);
+    // a streamed signal's derivatives one sample each; the columns' lag round trip reads a few
+    // rows each side, each with its neighbours and its streamed signals.
+    const int round_trip = dt > 0 ? lag_round_trip_reach(lag_s_ / dt) : 0;
+    half_ = std::max({2 + (dt > 0 ? static_cast<int>(std::ceil(lag / dt - 1e-9)) + 1 : 0),
+                      signal_lookahead_ + round_trip, round_trip > 0 ? 2 + round_trip : 0});
   }
   std::vector<StreamOutput> out;
   if (half_ == 0) return out;

@@ -15,6 +15,17 @@ double cubic_at(const Eigen::Ref<const Eigen::VectorXd>& x, double u);
 Eigen::VectorXd shift_samples(const Eigen::Ref<const Eigen::VectorXd>& x, double shift_samples,
                               bool hold_ends = false);
 
+/// The columns of `a` (uniformly sampled) as a sensor that reads them `lag_samples` late, once
+/// realigned, sees them: each column delayed by the lag and advanced back by it, both by the
+/// cubic interpolation of shift_samples (ends held). A fractional shift of a sampled record cannot
+/// be undone, so a lagging scalar realigned by the lag carries this smoothing of everything it
+/// measured; a model whose columns carry it too fits the realigned scalar exactly. The identity
+/// for a whole number of samples.
+void lag_round_trip(Eigen::Ref<Eigen::MatrixXd> a, double lag_samples);
+/// Rows on each side of a row that lag_round_trip() reads: 0 for a whole number of samples, 3
+/// otherwise (the delay's and the advance's interpolation windows overlap but for those).
+int lag_round_trip_reach(double lag_samples);
+
 /// The rate of x (units per s), samples dt_s apart, by central differences (one-sided at the
 /// ends). With `wrap_angle`, x is an angle in rad and each difference is wrapped to (-pi, pi].
 Eigen::VectorXd central_rate(const Eigen::Ref<const Eigen::VectorXd>& x, double dt_s,

@@ -102,7 +102,9 @@ void save_model_yaml(const Model& model, const std::string& path,
                      const std::vector<std::string>& inputs = {});
 
 /// The N x P design matrix of the model's terms on a whole flight (rows may hold NaN where inputs
-/// are NaN). Throws magcomp::Error naming the file and the missing field.
+/// are NaN). With a fractional lag:<s> term the columns carry the lag's round trip
+/// (lag_round_trip, timeseries.h), as the realigned scalar does. Throws magcomp::Error naming the
+/// file and the missing field.
 Eigen::MatrixXd design_matrix(const Model& model, const FlightData& data);
 /// The same with the model's terms already built (per-sample callers build them once).
 Eigen::MatrixXd design_matrix(const Model& model, const std::vector<std::unique_ptr<Term>>& terms,
@@ -116,7 +118,8 @@ std::vector<Eigen::Index> fittable_columns(FitMethod method,
 
 /// Samples of margin that make rows of the design matrix and of the aligned scalar built on a
 /// slice of a flight (FlightData::rows) equal to the same rows built on the whole flight: the
-/// terms' row reach plus the lag's shift plus the interpolation's; -1 when a term depends on the
+/// terms' row reach plus the lag's shift plus the interpolation's (and the columns' lag round
+/// trip, timeseries.h); -1 when a term depends on the
 /// whole history (a causal filter), so only the whole flight gives its values.
 Eigen::Index slice_margin(const Model& model, const std::vector<std::unique_ptr<Term>>& terms,
                           double dt_s);

@@ -21,7 +21,9 @@ class SecondOrderTerm : public Term {
 
 /// A time lag between the scalar and the vector sensor: the scalar reads everything it measures
 /// (Earth field, aircraft field, wires) lag_s late. Not a regression column: the model realigns
-/// the scalar, s(t + lag_s), by cubic interpolation before fitting and compensating. `lag:0.3`.
+/// the scalar, s(t + lag_s), by cubic interpolation before fitting and compensating, and gives
+/// every column the same delay-and-realign round trip (lag_round_trip, timeseries.h), since a
+/// fractional realignment of a sampled record smooths what the sensor measured. `lag:0.3`.
 class LagTerm : public Term {
  public:
   explicit LagTerm(double lag_s) : lag_s_(lag_s) {}
