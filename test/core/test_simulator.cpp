@@ -7,6 +7,7 @@
 #include <yaml-cpp/yaml.h>
 #include "magcomp/core/diagnose/diagnose.h"
 #include "magcomp/core/error.h"
+#include "magcomp/core/math/timeseries.h"
 #include "magcomp/core/sim/anomaly_map.h"
 #include "magcomp/core/sim/electrical.h"
 
@@ -142,6 +143,29 @@ TEST(Simulator, HiddenEffectsLeaveClearlyMoreAndTheTruthAccountsForTheExcess) {
     EXPECT_GT(with_hidden, 5.0 * floor) << name;
     EXPECT_LT(without, 1.2 * floor) << name;
   }
+}
+
+// A lag of a fraction of a sample (0.25 s at 10 Hz) cannot be undone on the 10 Hz record, but a
+// model with lag:0.25 predicts what the realigned sensor reads (the columns' lag round trip) and
+// reaches the same error as the whole-sample lag of the shipped `lag` flight.
+TEST(Simulator, AFractionalLagIsCompensatedAsWellAsAWholeSampleOne) {
+  sim::Scenario s = sim::load_scenario(test::source_dir() + "/config/scenarios/lag.yaml");
+  ASSERT_EQ(s.hidden.size(), 1u);
+  s.hidden[0].lag_s = 0.25;
+  const sim::Simulation fractional = sim::simulate(s, Igrf::installed());
+  const double whole = test::tl_std(test::scenario("lag").flight, {"lag:0.3"});
+  const double frac = test::tl_std(fractional.flight, {"lag:0.25"});
+  // The scalar realigned by hand and TL fitted on it: the columns miss the round trip.
+  FlightData realigned = fractional.flight;
+  realigned.set("mag_5_uc", shift_samples(realigned.column("mag_5_uc"), -2.5));
+  const double by_hand = test::tl_std(realigned);
+  std::printf(
+      "  TL + lag: 0.3 s (3 samples) %.3f nT, 0.25 s (2.5 samples) %.3f nT; TL on the "
+      "scalar realigned by 0.25 s %.3f nT\n",
+      whole, frac, by_hand);
+  EXPECT_LT(frac, 1.05 * whole);
+  EXPECT_LT(whole, 0.3);
+  EXPECT_GT(by_hand, 1.1 * frac);
 }
 
 TEST(Simulator, MultiFlightSetSharesOneAircraftAndHeadingErrorIsAbsorbedByTl) {

@@ -56,6 +56,36 @@ TEST(Timeseries, AFractionalShiftOfAQuadraticIsTheQuadraticShifted) {
   }
 }
 
+// A pulse delayed by a fraction of a sample and realigned comes back smoothed (the round trip is
+// not the identity), and lag_round_trip() gives any column that same smoothing; a whole-sample
+// lag leaves the columns as they are.
+TEST(Timeseries, TheLagRoundTripIsTheSmoothingOfARealignedFractionalDelay) {
+  Eigen::VectorXd pulse = Eigen::VectorXd::Zero(40);
+  pulse.segment(18, 3).setConstant(5.0);
+  const double lag = 2.44;
+  const Eigen::VectorXd realigned = shift_samples(shift_samples(pulse, lag, true), -lag, true);
+  EXPECT_GT((realigned - pulse).cwiseAbs().maxCoeff(), 0.3);  // the record is not restored
+  Eigen::MatrixXd cols(40, 2);
+  cols << pulse, 2.0 * pulse;
+  EXPECT_EQ(lag_round_trip_reach(lag), 3);
+  lag_round_trip(cols, lag);
+  for (Eigen::Index i = 0; i < 40; ++i) {
+    EXPECT_EQ(cols(i, 0), realigned[i]) << i;
+    EXPECT_NEAR(cols(i, 1), 2.0 * realigned[i], 1e-12) << i;
+  }
+  // Nothing moves more than 3 rows away: the pulse (rows 18-20) reaches rows 15-23 only.
+  for (Eigen::Index i = 0; i < 40; ++i) {
+    if (i < 15 || i > 23) {
+      EXPECT_EQ(cols(i, 0), 0.0) << i;
+    }
+  }
+  EXPECT_EQ(lag_round_trip_reach(3.0), 0);
+  Eigen::MatrixXd whole(40, 1);
+  whole << pulse;
+  lag_round_trip(whole, 3.0);
+  EXPECT_EQ(whole.col(0), pulse);
+}
+
 TEST(Timeseries, CentralRateIsExactOnALineAndWrapsAnAngleAcrossPi) {
   Eigen::VectorXd x(6);
   x << 1.0, 3.0, 5.0, 7.0, 9.0, 11.0;  // 2 per sample, 0.5 s apart: 4 per s
