@@ -318,9 +318,11 @@ void add_diagnose(CLI::App& app) {
     for (const auto& lr : r.rounds) {
       for (const auto& [term, why] : lr.rejected)
         std::printf("       refused %s: %s\n", term.c_str(), why.c_str());
-      std::printf("%-6d %-36s %9.1f%% %11.3f nT %9.3f nT %9.2f nT", lr.round,
-                  lr.round == 0 ? "(the model as given)" : lr.added.c_str(), 100 * lr.explained,
-                  lr.heldout_std_nT, lr.all_std_nT, lr.fom_nT);
+      const std::string added = lr.round == 0  ? "(the model as given)"
+                                : lr.black_box ? "[black box] " + lr.added
+                                               : lr.added;
+      std::printf("%-6d %-36s %9.1f%% %11.3f nT %9.3f nT %9.2f nT", lr.round, added.c_str(),
+                  100 * lr.explained, lr.heldout_std_nT, lr.all_std_nT, lr.fom_nT);
       if (validation) std::printf(" %9.3f nT", lr.validation_std_nT);
       std::printf("\n");
     }
@@ -339,6 +341,7 @@ void add_diagnose(CLI::App& app) {
         j["rounds"].push_back(
             {{"round", lr.round},
              {"added", lr.added},
+             {"black_box", lr.black_box},
              {"explained_fraction", lr.explained},
              {"heldout_std_nT", lr.heldout_std_nT},
              {"all_std_nT", lr.all_std_nT},

@@ -260,6 +260,72 @@ TEST(Diagnose, ASwitchedLoadIsFoundAsAStepOfTheBusCurrent) {
   EXPECT_LT(r.rounds.back().heldout_std_nT, r.rounds.front().heldout_std_nT);
 }
 
+TEST(Diagnose, ALawNoFormulaWritesIsLearnedAsHingesOfItsChannelAndCarriesOver) {
+  // The bus current through a core with a dead band that saturates above it (3 tanh(max(I - 19,
+  // 0) / 3)): no closed form of the language writes it. The loop ends with a learned law of
+  // cur_acpwr (hinges at its quantiles), marked as a black box in its round and in the model,
+  // and the model carries over to the aircraft's next flight within 1.5x of what the truth gives.
+  sim::Scenario a =
+      sim::load_scenario(test::source_dir() + "/config/scenarios/saturation_bus.yaml");
+  a.aircraft_seed = 7;  // one aircraft, two flights
+  sim::Scenario b = a;
+  b.seed = a.seed + 1;
+  const sim::Simulation sa = sim::simulate(a, Igrf::installed());
+  const sim::Simulation sb = sim::simulate(b, Igrf::installed());
+  const Model start = load_model_yaml(test::source_dir() + "/config/models/tl_sim.yaml");
+  const LoopResult r = diagnose_loop(start, sa.flight, "mag_1_c", 5, 0.05, {});
+  bool learned = false;
+  for (const auto& lr : r.rounds) {
+    std::printf("  round %d %s%s held-out %.3f nT\n", lr.round, lr.black_box ? "[black box] " : "",
+                lr.added.c_str(), lr.heldout_std_nT);
+    if (lr.black_box) {
+      learned = true;
+      EXPECT_NE(lr.added.find("field:cur_acpwr|ramp("), std::string::npos) << lr.added;
+    }
+  }
+  std::printf("  stop: %s\n", r.stop_reason.c_str());
+  EXPECT_TRUE(learned);
+  EXPECT_GE(r.model.black_box_terms.size(), 3u);
+  for (const auto& t : r.model.black_box_terms) {
+    EXPECT_NE(std::find(r.model.terms.begin(), r.model.terms.end(), t), r.model.terms.end()) << t;
+  }
+  // Scored as scripts/bench_discovery scores: the std on the whole next flight, line means removed.
+  const auto std_next = [](const Model& m, const FlightData& f) {
+    return evaluate_model(m, f, "mag_1_c").std_nT;
+  };
+  Model tl_next = start;
+  fit_model(tl_next, {&sa.flight});
+  const double tl_err = std_next(tl_next, sb.flight);
+  // The truth: TL fitted on the first flight with the effect removed, scored on the next one.
+  const auto clean = [](const sim::Simulation& s) {
+    FlightData f = s.flight;
+    Eigen::VectorXd& scalar = f.mutable_column("mag_5_uc");
+    for (const auto& name : s.truth.names())
+      if (name.rfind("mag_5_uc.hidden.", 0) == 0) scalar -= s.truth.column(name);
+    return f;
+  };
+  const FlightData ca = clean(sa), cb = clean(sb);
+  Model oracle = start;
+  fit_model(oracle, {&ca});
+  const double truth = std_next(oracle, cb);
+  const double final_err = std_next(r.model, sb.flight);
+  // The same model without its learned law, refitted: what the closed forms alone carry over.
+  Model closed_forms = r.model;
+  for (const auto& t : r.model.black_box_terms)
+    closed_forms.terms.erase(std::find(closed_forms.terms.begin(), closed_forms.terms.end(), t));
+  closed_forms.black_box_terms.clear();
+  closed_forms.coefficients.resize(0);
+  fit_model(closed_forms, {&sa.flight});
+  const double closed_err = std_next(closed_forms, sb.flight);
+  std::printf(
+      "  saturation_bus, next flight: TL %.3f nT, the loop's model %.3f nT (%.3f without its "
+      "learned law), the truth %.3f\n",
+      tl_err, final_err, closed_err, truth);
+  EXPECT_LE(final_err, 1.5 * truth + 0.05);
+  EXPECT_LT(final_err, closed_err);
+  EXPECT_LT(final_err, tl_err);
+}
+
 TEST(Diagnose, BadInputsGiveClearMessagesAndConstantChannelsAreSkipped) {
   FlightData f = test::scenario("wire_strobe").flight;
   Model tl = test::calibrated_tl(f);

@@ -71,6 +71,30 @@ TEST(Model, YamlRoundTripKeepsEveryDigit) {
   EXPECT_EQ(r.fit.lines, m.fit.lines);
 }
 
+TEST(Model, ALearnedLawIsMarkedAsABlackBoxInTheFile) {
+  Model m = tl16();
+  const size_t before = m.terms.size();
+  // Hinges of one channel at other knots are other pieces of the law, not one term re-valued.
+  for (const char* t : {"field:cur_strb|ramp(0)|lp(20)", "field:cur_strb|ramp(0.5)|lp(20)"}) {
+    ASSERT_TRUE(m.add_term(t));
+    m.black_box_terms.push_back(t);
+  }
+  ASSERT_EQ(m.terms.size(), before + 2);
+  const std::string dir = test::temp_dir("model");
+  save_model_yaml(m, dir + "/learned.yaml");
+  const Model r = load_model_yaml(dir + "/learned.yaml");
+  EXPECT_EQ(r.terms, m.terms);
+  EXPECT_EQ(r.black_box_terms, m.black_box_terms);
+  std::ofstream(dir + "/bad.yaml")
+      << "scalar: a\nvector: b\nterms: [permanent]\nblack_box_terms: [current:cur_strb]\n";
+  try {
+    load_model_yaml(dir + "/bad.yaml");
+    ADD_FAILURE() << "a black-box term outside the model's terms was read";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("black_box_terms"), std::string::npos) << e.what();
+  }
+}
+
 TEST(Model, BadModelsNameTheKey) {
   const std::string dir = test::temp_dir("model");
   auto write = [&](const std::string& text) {

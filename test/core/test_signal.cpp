@@ -134,6 +134,23 @@ TEST(Signal, SaturationAndStepAreStaticLaws) {
   EXPECT_THROW(parse_signal("x|sat(0)", "t"), Error);
 }
 
+TEST(Signal, ARampIsAHingeAndHingesSumToAPiecewiseLinearLaw) {
+  const Eigen::VectorXd t = times(6, 0.1);
+  Eigen::VectorXd x(6);
+  x << -2, 0, 0.5, 1, 3, NAN;
+  const Eigen::VectorXd r = run("x|ramp(0.5)", t, x);
+  for (Eigen::Index i = 0; i < 5; ++i) EXPECT_DOUBLE_EQ(r[i], std::max(x[i] - 0.5, 0.0));
+  EXPECT_TRUE(std::isnan(r[5]));
+  // 2 ramp(0) - 3 ramp(1): slope 2 from 0 to 1, then -1: the law 0, 0, 1, 2, 0 at the samples.
+  const Eigen::VectorXd law = 2 * run("x|ramp(0)", t, x) - 3 * run("x|ramp(1)", t, x);
+  EXPECT_DOUBLE_EQ(law[0], 0.0);
+  EXPECT_DOUBLE_EQ(law[2], 1.0);
+  EXPECT_DOUBLE_EQ(law[3], 2.0);
+  EXPECT_DOUBLE_EQ(law[4], 0.0);
+  EXPECT_EQ(parse_signal("x|ramp(-1.5)|lp(3)", "t").str(), "x|ramp(-1.5)|lp(3)");
+  EXPECT_THROW(parse_signal("x|ramp(inf)", "t"), Error);
+}
+
 TEST(Signal, NanPassesThroughAndTheStateWaits) {
   const Eigen::VectorXd t = times(6, 1.0);
   Eigen::VectorXd x(6);
@@ -160,7 +177,7 @@ TEST(Signal, AStreamEqualsTheBatchForEveryTransformExactly) {
   for (const std::string s :
        {"x|d", "x|int", "x|abs", "x|lp(3)", "x|hp(40)", "x|delay(0.75)", "x|pow(2)", "x|pow(1.5)",
         "x|decay(0.8)", "x|pow(2)|lp(150)", "x|d|d", "x|int|hp(100)|delay(0.3)", "x|play(0.4)",
-        "x|play(0.2)|lp(20)", "x|sat(0.5)", "x|step(0.2)|lp(5)"}) {
+        "x|play(0.2)|lp(20)", "x|sat(0.5)", "x|step(0.2)|lp(5)", "x|ramp(0.1)|lp(30)"}) {
     const SignalExpr e = parse_signal(s, s);
     const Eigen::VectorXd batch = apply_transforms(e.transforms, t, x).col(0);
     TransformChain chain(e.transforms);

@@ -104,7 +104,8 @@ TEST(TermsExpr, TheStreamingCompensatorRunsEveryTransformAsTheBatchDoes) {
   for (const char* t :
        {"lag:0.2", "current:cur_strb", "field:cur_heat|pow(2)|lp(150)", "field:B|decay(0.8)",
         "scalar:vol_cabt|hp(300)", "field:cur_tank|int|hp(600)", "field:cur_flap|delay(0.7)",
-        "induced:cur_ac_hi|lp(20)", "field:nrml_acc*cur_com_1|abs", "scalar:mag_5_uc|d"}) {
+        "induced:cur_ac_hi|lp(20)", "field:nrml_acc*cur_com_1|abs", "scalar:mag_5_uc|d",
+        "field:cur_acpwr|ramp(16)|lp(40)", "field:cur_acpwr|ramp(20)|lp(40)"}) {
     m.add_term(t);
   }
   fit_model(m, {&f});

@@ -4,8 +4,11 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <set>
 
+#include "magcomp/core/error.h"
 #include "magcomp/core/evaluate/evaluation.h"
+#include "magcomp/core/model/terms_expr.h"
 
 namespace magcomp {
 namespace {
@@ -51,6 +54,79 @@ std::string refusal(const LoopRound& next, const LoopRound& now) {
   return "";
 }
 
+bool linear(TransformKind k) {
+  return k == TransformKind::Derivative || k == TransformKind::Integral ||
+         k == TransformKind::LowPass || k == TransformKind::HighPass || k == TransformKind::Delay ||
+         k == TransformKind::Decay;
+}
+
+// A learned law of `channel`: hinges ramp(k) at its 1, 20, 40, 60 and 80 % quantiles on the
+// model's calibration rows of this flight, each through the linear transforms of `shape` (the
+// best ranked term of that channel, projected as it is; its static laws and its play dropped:
+// the hinges stand for them). Their fitted sum is a piecewise-linear law of the channel, flat
+// below its 1 % quantile, of which a closed form (|I|, I², tanh, a step) is one guess. Empty
+// when the channel is not a current or a voltage, barely moves on the calibration rows, or holds
+// fewer than three distinct knots there (a two-level channel: a linear term says everything).
+std::vector<std::string> learned_law(const std::string& channel, const Candidate* shape,
+                                     const Model& model, const FlightData& data) {
+  std::unique_ptr<ExprTerm> e;
+  if (shape) {
+    try {
+      e = parse_expr_term(shape->term);
+    } catch (const Error&) {
+    }
+  }
+  if (!e || e->projection() == Projection::Induced) e = parse_expr_term("field:" + channel);
+  // Aircraft sources only (currents and voltages): a residual that follows the trajectory
+  // (velocities, heading, position) is leakage of the map or the reference, not a law to learn.
+  const bool electrical = channel.rfind("cur_", 0) == 0 || channel.rfind("vol_", 0) == 0;
+  if (!electrical || !data.has(channel)) return {};
+  // The knots where the fit sees the channel: its calibration rows (all rows for a fit without
+  // a selection), so that no piece of the law rests on samples the fit never had; and the
+  // calibration must see the channel move over at least a quarter of its 1-99 % range in flight.
+  std::vector<Eigen::Index> rows;
+  if (!model.fit.lines.empty() || !model.fit.windows.empty())
+    rows = data.select(model.fit.lines, model.fit.windows);
+  const auto x = data.column(channel);
+  std::vector<double> v, all;
+  for (Eigen::Index i = 0; i < x.size(); ++i)
+    if (std::isfinite(x[i])) all.push_back(x[i]);
+  for (Eigen::Index i : rows)
+    if (std::isfinite(x[i])) v.push_back(x[i]);
+  if (rows.empty()) v = all;
+  if (v.size() < 100) return {};
+  std::sort(v.begin(), v.end());
+  std::sort(all.begin(), all.end());
+  const auto quantile = [](const std::vector<double>& sorted, double q) {
+    return sorted[static_cast<size_t>(q * static_cast<double>(sorted.size() - 1))];
+  };
+  const double span = quantile(v, 0.99) - quantile(v, 0.01);
+  if (!(span > 0.25 * (quantile(all, 0.99) - quantile(all, 0.01)))) return {};
+  // Knots closer than 5 % of that range are one knot: a two-level channel with noise on each
+  // level gives no law between its levels.
+  std::vector<double> knots;
+  for (double q : {0.01, 0.2, 0.4, 0.6, 0.8}) {
+    const double k = quantile(v, q);
+    if (knots.empty() || k - knots.back() > 0.05 * span) knots.push_back(k);
+  }
+  if (knots.size() < 3) return {};
+  // The tail: the term's linear transforms (d, int, lp, hp, delay, decay), in order; a sum of
+  // hinges through linear transforms is the law through them.
+  std::vector<Transform> tail;
+  for (const Transform& t : e->signal().transforms)
+    if (linear(t.kind)) tail.push_back(t);
+  const char* projection = e->projection() == Projection::Field ? "field:" : "scalar:";
+  std::vector<std::string> law;
+  for (double k : knots) {
+    SignalExpr s;
+    s.sources = {channel};
+    s.transforms = {Transform{TransformKind::Ramp, std::stod(format_param(k)), false}};
+    s.transforms.insert(s.transforms.end(), tail.begin(), tail.end());
+    law.push_back(make_term(projection + s.str())->spec());
+  }
+  return law;
+}
+
 }  // namespace
 
 LoopResult diagnose_loop(const Model& start, const FlightData& data, const std::string& truth,
@@ -58,6 +134,7 @@ LoopResult diagnose_loop(const Model& start, const FlightData& data, const std::
                          const std::function<void(int, const Diagnosis&)>& on_round,
                          const FlightData* validation) {
   constexpr size_t kTriesPerRound = 3;
+  std::set<std::string> learned_channels;  // one learned law per channel
   LoopResult r;
   r.model = start;
   if (!r.model.fitted()) fit_model(r.model, {&data});
@@ -70,48 +147,97 @@ LoopResult diagnose_loop(const Model& start, const FlightData& data, const std::
       r.rounds.push_back(score(r.model, data, truth, held, validation));
     }
     if (on_round) on_round(round, dx);
-    const Candidate* top = dx.candidates.empty() ? nullptr : &dx.candidates.front();
-    if (!top || !top->accepted || top->explained_fraction < min_share) {
-      r.stop_reason = dx.verdict;
-      r.last = std::move(dx);
-      break;
+    // The candidates the loop may add, in rank order: accepted, and explaining at least
+    // min_share on both halves (a term ranked first on the selection lines may explain little
+    // on the confirmation lines, where the error may lie).
+    std::vector<const Candidate*> eligible;
+    for (const Candidate& c : dx.candidates) {
+      if (c.accepted && c.explained_fraction >= min_share) eligible.push_back(&c);
     }
     if (round > max_rounds) {
       r.stop_reason = "stopped after " + std::to_string(max_rounds) + " rounds; " + dx.verdict;
       r.last = std::move(dx);
       break;
     }
-    // The accepted candidates in rank order: the first that passes every check is kept.
+    // Fits `next` and keeps it if it passes every check; else records why in `rejected`.
     std::vector<std::pair<std::string, std::string>> rejected;
-    bool kept = false;
-    for (size_t k = 0; k < dx.candidates.size() && k < kTriesPerRound; ++k) {
-      const Candidate& c = dx.candidates[k];
-      if (!c.accepted || c.explained_fraction < min_share) break;
-      Model next = r.model;
-      next.add_term(c.term);
+    auto try_model = [&](Model next, const std::string& added, double explained, bool black_box) {
       next.coefficients.resize(0);
       fit_model(next, {&data});
       LoopRound lr = score(next, data, truth, held, validation);
-      const std::string why = refusal(lr, r.rounds.back());
+      std::string why = refusal(lr, r.rounds.back());
+      // A learned law has many columns: it must also explain the accepted share of the held-out
+      // variance, as every candidate must on each split.
+      const double share_left = std::pow(lr.heldout_std_nT / r.rounds.back().heldout_std_nT, 2.0);
+      if (why.empty() && black_box && 1.0 - share_left < options.accept_fraction) {
+        char buf[160];
+        std::snprintf(buf, sizeof(buf),
+                      "the held-out error would fall by less than %.0f%% of its variance "
+                      "(%.3f -> %.3f nT)",
+                      100 * options.accept_fraction, r.rounds.back().heldout_std_nT,
+                      lr.heldout_std_nT);
+        why = buf;
+      }
       if (!why.empty()) {
-        rejected.emplace_back(c.term, why);
-        continue;
+        rejected.emplace_back(added, why);
+        return false;
       }
       lr.round = round;
-      lr.added = c.term;
-      lr.explained = c.explained_fraction;
+      lr.added = added;
+      lr.explained = explained;
+      lr.black_box = black_box;
       lr.rejected = std::move(rejected);
+      rejected.clear();
       r.rounds.push_back(std::move(lr));
       r.model = std::move(next);
-      kept = true;
-      break;
+      return true;
+    };
+    // The accepted candidates in rank order: the first that passes every check is kept.
+    bool kept = false;
+    for (size_t k = 0; k < eligible.size() && k < kTriesPerRound && !kept; ++k) {
+      Model next = r.model;
+      next.add_term(eligible[k]->term);
+      kept = try_model(std::move(next), eligible[k]->term, eligible[k]->explained_fraction, false);
+    }
+    // When no term of the language passes while the residual stays predictable: a learned law
+    // of the channel that predicts most of it, if that is a current or a voltage (a residual
+    // that follows position or motion first is leakage, not a law), under the same checks.
+    const ExplainableShare& ex = dx.explainable;
+    if (!kept && !ex.within_noise && !ex.channels.empty() &&
+        ex.channels.front().second > ex.noise_floor &&
+        learned_channels.insert(ex.channels.front().first).second) {
+      const std::string& channel = ex.channels.front().first;
+      const double share = ex.channels.front().second;
+      const Candidate* shape = nullptr;  // the best ranked one-channel term of the channel
+      for (const Candidate& c : dx.candidates) {
+        const auto e = c.channel == channel ? parse_expr_term(c.term) : nullptr;
+        if (e && e->signal().sources.size() == 1) {
+          shape = &c;
+          break;
+        }
+      }
+      const std::vector<std::string> law = learned_law(channel, shape, r.model, data);
+      if (!law.empty()) {
+        Model next = r.model;
+        for (const auto& t : law) {
+          if (next.add_term(t)) next.black_box_terms.push_back(t);
+        }
+        std::string added;
+        for (const auto& t : law) added += (added.empty() ? "" : " + ") + t;
+        kept = try_model(std::move(next), added, share, true);
+      }
     }
     if (!kept) {
-      r.stop_reason = "no accepted term passes: ";
-      for (size_t k = 0; k < rejected.size(); ++k) {
-        r.stop_reason += (k ? "; " : "") + rejected[k].first + ": " + rejected[k].second;
+      if (rejected.empty()) {
+        r.stop_reason = dx.verdict;
+      } else {
+        r.stop_reason = eligible.empty() ? dx.verdict + "; " : "";
+        r.stop_reason += "no term passes: ";
+        for (size_t k = 0; k < rejected.size(); ++k) {
+          r.stop_reason += (k ? "; " : "") + rejected[k].first + ": " + rejected[k].second;
+        }
+        r.stop_reason += ": stopped";
       }
-      r.stop_reason += ": stopped";
       r.last = std::move(dx);
       break;
     }

@@ -122,7 +122,7 @@ double signal_scale(const SignalExpr& signal, const FlightData& data) {
 
 bool in_signal_units(TransformKind kind) {
   return kind == TransformKind::Play || kind == TransformKind::Saturate ||
-         kind == TransformKind::Step;
+         kind == TransformKind::Step || kind == TransformKind::Ramp;
 }
 
 std::vector<double> parameter_grid(TransformKind kind, double dt_s, double span_s,
@@ -158,6 +158,7 @@ std::vector<double> parameter_grid(TransformKind kind, double dt_s, double span_
       break;
     }
     case TransformKind::Step:
+    case TransformKind::Ramp:
       if (signal_scale > 0)
         for (int k = 1; k <= 19; ++k) g.push_back(signal_lo + 0.05 * k * signal_scale);
       break;

@@ -3,6 +3,7 @@
 
 #include <sys/stat.h>
 #include <unistd.h>
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -219,6 +220,23 @@ void parse_terms(const YAML::Node& node, const std::string& path, Model* m) {
   }
 }
 
+// The `black_box_terms` list: terms of the model (as `terms` writes them) that form a learned law.
+void parse_black_box(const YAML::Node& node, const std::string& path, Model* m) {
+  if (!node.IsSequence()) throw Error(path + ": key 'black_box_terms' must be a list");
+  for (const auto& t : node) {
+    const std::string spec = get<std::string>(t, path, "black_box_terms");
+    std::string canonical;
+    try {
+      canonical = make_term(spec)->spec();
+    } catch (const Error& e) {
+      throw Error(path + ": key 'black_box_terms': " + e.what());
+    }
+    if (std::find(m->terms.begin(), m->terms.end(), canonical) == m->terms.end())
+      throw Error(path + ": key 'black_box_terms': '" + spec + "' is not among the model's terms");
+    m->black_box_terms.push_back(canonical);
+  }
+}
+
 // The `fit` map: method, calibration selection, band, order, trim, ridge lambda, reference.
 FitSettings parse_fit_settings(const YAML::Node& f, const std::string& path) {
   FitSettings s;
@@ -347,8 +365,8 @@ static Model load_model_yaml_unchecked(const std::string& path_in) {
   }
   if (!root.IsMap()) throw Error(path + ": model file must be a YAML map");
   warn_unknown(root,
-               {"scalar", "vector", "terms", "fit", "bt_scale_nT", "coefficients", "fit_report",
-                "neural", "description"},
+               {"scalar", "vector", "terms", "black_box_terms", "fit", "bt_scale_nT",
+                "coefficients", "fit_report", "neural", "description"},
                path, "");
   Model m;
   if (!root["scalar"]) throw Error(path + ": key 'scalar' missing");
@@ -356,6 +374,7 @@ static Model load_model_yaml_unchecked(const std::string& path_in) {
   m.scalar = get<std::string>(root["scalar"], path, "scalar");
   m.vector = get<std::string>(root["vector"], path, "vector");
   if (root["terms"]) parse_terms(root["terms"], path, &m);
+  if (const YAML::Node b = root["black_box_terms"]) parse_black_box(b, path, &m);
   if (root["bt_scale_nT"]) {
     m.bt_scale_nT = get<double>(root["bt_scale_nT"], path, "bt_scale_nT");
     if (!(m.bt_scale_nT > 0) || !std::isfinite(m.bt_scale_nT))
@@ -378,6 +397,8 @@ void save_model_yaml(const Model& m, const std::string& path,
   out << YAML::Key << "scalar" << YAML::Value << m.scalar;
   out << YAML::Key << "vector" << YAML::Value << m.vector;
   out << YAML::Key << "terms" << YAML::Value << YAML::Flow << m.terms;
+  if (!m.black_box_terms.empty())
+    out << YAML::Key << "black_box_terms" << YAML::Value << YAML::Flow << m.black_box_terms;
   out << YAML::Key << "bt_scale_nT" << YAML::Value << m.bt_scale_nT;
   out << YAML::Key << "fit" << YAML::Value << YAML::BeginMap;
   out << YAML::Key << "method" << YAML::Value << fit_method_name(m.fit.method);

@@ -33,6 +33,7 @@ const TransformName kTransforms[] = {
     {"play", TransformKind::Play, true},
     {"sat", TransformKind::Saturate, true},
     {"step", TransformKind::Step, true},
+    {"ramp", TransformKind::Ramp, true},
     // Long forms, read as the short ones.
     {"deriv", TransformKind::Derivative, false},
     {"integral", TransformKind::Integral, false},
@@ -72,6 +73,8 @@ std::string check_param(TransformKind k, double v) {
       return v > 0 && v <= 1e9 ? "" : "saturation level must be in (0, 1e9]";
     case TransformKind::Step:
       return std::abs(v) <= 1e9 ? "" : "threshold must be in [-1e9, 1e9]";
+    case TransformKind::Ramp:
+      return std::abs(v) <= 1e9 ? "" : "knot must be in [-1e9, 1e9]";
     default:
       return "";
   }
@@ -199,6 +202,8 @@ class PointwiseStage : public SignalStage {
       *y = p_ * std::tanh(x / p_);
     } else if (kind_ == TransformKind::Step) {
       *y = std::isfinite(x) ? (x > p_ ? 1.0 : 0.0) : kNaN;
+    } else if (kind_ == TransformKind::Ramp) {
+      *y = std::isfinite(x) ? std::max(x - p_, 0.0) : kNaN;
     } else {
       *y = integer_ ? std::pow(x, std::round(p_)) : std::pow(std::abs(x), p_);
     }
@@ -270,6 +275,8 @@ std::string Transform::param_meaning() const {
       return "saturation level (signal units)";
     case TransformKind::Step:
       return "threshold (signal units)";
+    case TransformKind::Ramp:
+      return "knot (signal units)";
     default:
       return "";
   }
@@ -398,6 +405,7 @@ TransformChain::TransformChain(const std::vector<Transform>& transforms) {
       case TransformKind::Power:
       case TransformKind::Saturate:
       case TransformKind::Step:
+      case TransformKind::Ramp:
         stages_.push_back(std::make_unique<PointwiseStage>(t.kind, t.param));
         break;
       case TransformKind::LowPass:

@@ -43,7 +43,8 @@ std::string ExprTerm::spec() const {
 std::string ExprTerm::shape() const {
   SignalExpr s = signal_;
   for (auto& t : s.transforms) {
-    if (t.has_param()) t.free = true;
+    // A ramp's knot places a piece of a learned law: terms at other knots are other pieces.
+    if (t.has_param() && t.kind != TransformKind::Ramp) t.free = true;
   }
   return std::string(projection_name(projection_)) + ":" + s.str();
 }
@@ -192,6 +193,7 @@ std::vector<std::pair<std::string, double>> ExprTerm::parameters() const {
                              : t.kind == TransformKind::Play     ? "half_width"
                              : t.kind == TransformKind::Saturate ? "level"
                              : t.kind == TransformKind::Step     ? "threshold"
+                             : t.kind == TransformKind::Ramp     ? "knot"
                                                                  : "time_constant_s";
     std::string name = t.str();
     name = name.substr(0, name.find('('));
@@ -227,6 +229,7 @@ std::string ExprTerm::size_in_words(const Eigen::VectorXd& c) const {
                          : t.kind == TransformKind::Play     ? "play half-width %.3g"
                          : t.kind == TransformKind::Saturate ? "saturating at %.3g"
                          : t.kind == TransformKind::Step     ? "switching above %.3g"
+                         : t.kind == TransformKind::Ramp     ? "hinge at %.3g"
                                                              : "time constant %.3g s";
       std::snprintf(buf, sizeof(buf), what, t.param);
       out += std::string(", ") + buf;

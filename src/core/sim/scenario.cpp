@@ -251,7 +251,7 @@ HiddenEffect read_hidden_effect(const Reader& r, const YAML::Node& e, const std:
   r.check_keys(e,
                {"type", "channel", "position_m", "direction", "length_m", "gain", "lag_s",
                 "time_constant_s", "scale", "nonorthogonality_rad", "offset_nT", "sensors",
-                "exponent", "threshold", "frequency_hz", "phase_walk_rad", "channel2"},
+                "exponent", "threshold", "level", "frequency_hz", "phase_walk_rad", "channel2"},
                where);
   HiddenEffect x;
   r.get(e, "type", where, &x.type);
@@ -269,21 +269,22 @@ HiddenEffect read_hidden_effect(const Reader& r, const YAML::Node& e, const std:
   r.get(e, "sensors", where, &x.sensors);
   r.get(e, "exponent", where, &x.exponent);
   r.get(e, "threshold", where, &x.threshold);
+  r.get(e, "level", where, &x.level);
   r.get(e, "frequency_hz", where, &x.frequency_hz);
   r.get(e, "phase_walk_rad", where, &x.phase_walk_rad);
   static const std::set<std::string> kTypes = {
-      "wire", "inductive",  "lag",   "fluxgate", "heading", "drift",     "thermal",
-      "flex", "eddy_decay", "relay", "ripple",   "product", "hysteresis"};
+      "wire", "inductive",  "lag",   "fluxgate", "heading", "drift",      "thermal",
+      "flex", "eddy_decay", "relay", "ripple",   "product", "hysteresis", "saturation"};
   if (!kTypes.count(x.type)) {
     throw Error(path + ": key '" + where +
                 ".type' must be wire, inductive, lag, fluxgate, heading, drift, thermal, "
-                "eddy_decay, flex, relay, ripple, product or hysteresis");
+                "eddy_decay, flex, relay, ripple, product, hysteresis or saturation");
   }
   if (x.type == "flex" && x.channel.empty()) x.channel = "nrml_acc";
   if (x.type == "flex" && !e["time_constant_s"]) x.time_constant_s = 0.0;
   const bool needs_channel = x.type == "wire" || x.type == "inductive" || x.type == "drift" ||
                              x.type == "thermal" || x.type == "relay" || x.type == "ripple" ||
-                             x.type == "hysteresis";
+                             x.type == "hysteresis" || x.type == "saturation";
   if (needs_channel && !channels.count(x.channel)) {
     throw Error(path + ": key '" + where + ".channel': unknown channel '" + x.channel + "'");
   }
@@ -307,7 +308,7 @@ HiddenEffect read_hidden_effect(const Reader& r, const YAML::Node& e, const std:
                 x.channel + "'");
   }
   for (const char* k : {"gain", "lag_s", "time_constant_s", "length_m", "exponent", "threshold",
-                        "frequency_hz", "phase_walk_rad"}) {
+                        "level", "frequency_hz", "phase_walk_rad"}) {
     if (e[k] && !std::isfinite(e[k].as<double>())) {
       throw Error(path + ": key '" + where + "." + k + "' must be finite");
     }
@@ -322,6 +323,7 @@ HiddenEffect read_hidden_effect(const Reader& r, const YAML::Node& e, const std:
       throw Error(path + ": key '" + where + ".sensors': unknown sensor '" + sensor + "'");
     }
   }
+  if (x.type == "saturation") r.positive(x.level, where + ".level");
   if (x.type == "wire") r.range(x.length_m, 1e-3, 100, where + ".length_m");
   if (x.type == "lag") r.range(x.lag_s, 0, 60, where + ".lag_s");
   if (x.type == "ripple") {

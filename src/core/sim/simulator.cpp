@@ -371,6 +371,13 @@ Eigen::VectorXd Simulator::hidden_contribution(const HiddenEffect& e, const Sens
       state = std::max(x[i] - e.threshold, std::min(x[i] + e.threshold, state));
       return Eigen::Vector3d(e.gain * state * e.direction);
     });
+  } else if (e.type == "saturation") {
+    // A current through a core: nothing below the dead band's end, then a field that levels off.
+    const Eigen::VectorXd& x = channels_.at(e.channel);
+    body_field([&](Eigen::Index i) {
+      const double v = e.level * std::tanh(std::max(x[i] - e.threshold, 0.0) / e.level);
+      return Eigen::Vector3d(e.gain * v * e.direction);
+    });
   } else if (e.type == "product") {
     const Eigen::VectorXd& x = source(e.channel);
     const Eigen::VectorXd& y = source(e.channel2);
@@ -484,7 +491,7 @@ void Simulator::hidden_effect_truth(const HiddenEffect& e) {
   }
   if (e.type == "heading" || e.type == "drift" || e.type == "inductive" || e.type == "thermal" ||
       e.type == "flex" || e.type == "relay" || e.type == "eddy_decay" || e.type == "ripple" ||
-      e.type == "product" || e.type == "hysteresis") {
+      e.type == "product" || e.type == "hysteresis" || e.type == "saturation") {
     y << YAML::Key << "gain" << YAML::Value << e.gain;
   }
   if (e.type == "thermal" || e.type == "drift" || e.type == "eddy_decay" ||
@@ -520,6 +527,14 @@ void Simulator::hidden_effect_truth(const HiddenEffect& e) {
     y << YAML::Key << "expected_term" << YAML::Value
       << "(none: a ripple whose amplitude follows " + e.channel +
              " and whose phase no channel records)";
+  }
+  if (e.type == "saturation") {
+    y << YAML::Key << "dead_band_end" << YAML::Value << e.threshold;
+    y << YAML::Key << "level" << YAML::Value << e.level;
+    y << YAML::Key << "expected_term" << YAML::Value
+      << "(none in closed form: a dead band below " + format_param(e.threshold) + " of " +
+             e.channel + ", then a core saturating at " + format_param(e.level) +
+             "; a learned law of " + e.channel + ")";
   }
   if (e.type == "relay") {
     y << YAML::Key << "threshold" << YAML::Value << e.threshold;

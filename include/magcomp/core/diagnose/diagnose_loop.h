@@ -20,6 +20,9 @@ struct LoopRound {
   double all_std_nT = 0.0;         ///< the same on every line of the flight
   double fom_nT = NAN;             ///< figure of merit on the model's calibration maneuvers
   double validation_std_nT = NAN;  ///< error std on the validation flight (NaN: none given)
+  /// The round added a learned law (hinges of a channel, Model::black_box_terms), not a term of
+  /// the language; `added` lists its terms joined by " + ".
+  bool black_box = false;
   /// The terms tried in this round and refused, each with why (a term is kept only if it lowers
   /// the held-out error and, with a validation flight, the error there).
   std::vector<std::pair<std::string, std::string>> rejected;
@@ -37,8 +40,12 @@ struct LoopResult {
 /// against `truth` on the lines held out by the first diagnosis. An accepted candidate is kept
 /// only if the refitted model lowers the held-out error and, with a `validation` flight (another
 /// flight of the same aircraft: same sensors and truth field), the error there; otherwise the next
-/// accepted candidate is tried (up to three per round), and the loop stops when none passes. So the
-/// final model is never worse than the start on either. `on_round` (optional) is called after each
+/// accepted candidate is tried (up to three per round). When none passes (or none is accepted), a
+/// learned law of the channel of one of the two first ranked candidates that helped on the
+/// selection lines is tried under the same checks (hinges at the channel's quantiles through the
+/// candidate's dynamic tail, marked in Model::black_box_terms and LoopRound::black_box); the
+/// loop stops when that fails too. So the final model is never worse than the start on either.
+/// `on_round` (optional) is called after each
 /// diagnosis with the round number and the diagnosis.
 LoopResult diagnose_loop(const Model& model, const FlightData& data, const std::string& truth,
                          int max_rounds, double min_share, const DiagnoseOptions& options,

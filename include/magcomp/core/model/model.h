@@ -70,6 +70,10 @@ struct Model {
   std::string scalar = "mag_5_uc";  ///< field of the scalar magnetometer, nT
   std::string vector = "flux_c";    ///< vector magnetometer prefix: <vector>_x/_y/_z, nT
   std::vector<std::string> terms = {"permanent", "induced", "eddy"};
+  /// The terms (among `terms`) that make up a learned law: hinges of a channel whose sum is a
+  /// fitted shape, not a physical law (diagnose adds them when no term of the language passes).
+  /// Written as `black_box_terms` in the model file.
+  std::vector<std::string> black_box_terms;
   double bt_scale_nT = 50000.0;
   FitSettings fit;
   // Fitted state (empty until calibrated).

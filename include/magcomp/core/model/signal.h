@@ -3,7 +3,8 @@
 //   signal    := product ('|' transform)*
 //   product   := source ('*' source)*          a data field, B (the vector sensor, 3 components,
 //                                               nT) or Bt (its magnitude, nT)
-//   transform := d | int | abs | lp(P) | hp(P) | delay(P) | pow(P) | decay(P)
+//   transform := d | int | abs | lp(P) | hp(P) | delay(P) | pow(P) | decay(P) | play(P)
+//              | sat(P) | step(P) | ramp(P)
 //   P         := a number | ?                   ? = free: estimated by the fit
 //
 // Every transform runs as a causal recursion over the samples in time order (a derivative looks
@@ -37,6 +38,9 @@ enum class TransformKind {
   Saturate,
   /// step(x0): a switched load, y = 1 while x > x0, else 0 (a relay on the signal's level).
   Step,
+  /// ramp(x0): a hinge, y = max(x - x0, 0), in the signal's unit. A sum of hinges at several
+  /// knots is a piecewise-linear law of the signal that no formula names (diagnose's learned law).
+  Ramp,
 };
 
 /// A transform and its parameter (time constant or delay in s, or an exponent).

@@ -20,7 +20,7 @@ struct Segment {
 /// A hidden (or visible) physical effect the simulator adds to the scalar sensors.
 struct HiddenEffect {
   /// wire | inductive | lag | fluxgate | heading | drift | thermal | eddy_decay | flex | relay |
-  /// ripple | product | hysteresis
+  /// ripple | product | hysteresis | saturation
   std::string type;
   std::string channel;  ///< wire / inductive / drift: the current or other channel
   std::string
@@ -38,7 +38,12 @@ struct HiddenEffect {
   double time_constant_s = 300.0;
   double exponent = 2.0;   ///< thermal: heating ∝ |I|^exponent (2: Joule heating)
   double threshold = 0.0;  ///< relay: the channel value above which the device is on;
-                           ///< hysteresis: the play half-width (channel units)
+                           ///< hysteresis: the play half-width (channel units);
+                           ///< saturation: the dead band's end (channel units)
+  /// saturation: where the core saturates, in channel units above the dead band: b = gain ·
+  /// direction · level · tanh(max(x - threshold, 0) / level) (a law no closed form of the term
+  /// language writes)
+  double level = 1.0;
   /// ripple: a sine on the scalar of amplitude gain x channel at frequency_hz, whose phase walks
   /// at random by phase_walk_rad per sqrt(s) and is recorded by no channel
   double frequency_hz = 2.0;
