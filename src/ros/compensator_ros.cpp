@@ -323,6 +323,8 @@ void CompensatorRos::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat)
     for (const auto& t : comp_->model().terms) terms += (terms.empty() ? "" : " ") + t;
     stat.add("terms", terms);
     stat.add("lookahead_samples", comp_->lookahead());
+    // Terms of a learned law (hinges fitted by diagnose --apply): a shape, not a physical law.
+    stat.add("black_box_terms", comp_->model().black_box_terms.size());
     const auto& nn = comp_->model().neural;
     stat.add("neural_stage", nn && nn->trained()
                                  ? std::string(architecture_name(nn->architecture)) + " (" +

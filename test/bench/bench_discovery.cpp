@@ -2,7 +2,8 @@
 // discovery_run.h): each run draws 1-3 effects, lets the loop choose its model on one flight and
 // scores it on the aircraft's next flight beside TL and the oracle. Prints one line per run and
 // the summary: the share of predictable runs within 1.5x the oracle (+0.05 nT), the runs worse
-// than TL (must be 0), the "complete" verdicts above 1.5x the noise floor (must be 0).
+// than TL (must be 0), the "complete" verdicts above 1.5x the noise floor (must be 0). Each line
+// also gives the hidden effects' std within lines on the first flight (eff) and the next (next).
 // Usage: magcomp_bench_discovery SCENARIO.yaml TL_MODEL.yaml [runs] [first_seed]
 #include <chrono>
 #include <cstdio>
@@ -22,8 +23,8 @@ int main(int argc, char** argv) {
     const unsigned first = argc > 4 ? static_cast<unsigned>(std::atoi(argv[4])) : 1;
     int predictable = 0, near = 0, worse = 0, complete_above = 0;
     const auto t0 = std::chrono::steady_clock::now();
-    std::printf("%4s %8s %8s %8s %6s  %-8s %s\n", "run", "TL nT", "loop nT", "oracle", "near",
-                "verdict", "effects -> terms kept");
+    std::printf("%4s %8s %8s %8s %6s %7s %7s  %-8s %s\n", "run", "TL nT", "loop nT", "oracle",
+                "near", "eff nT", "next nT", "verdict", "effects -> terms kept");
     for (int k = 0; k < runs; ++k) {
       const unsigned r = first + static_cast<unsigned>(k);
       const int count = 1 + static_cast<int>(r % 10 < 6 ? 0 : (r % 10 < 9 ? 1 : 2));
@@ -34,10 +35,11 @@ int main(int argc, char** argv) {
       complete_above += d.complete_above_floor();
       std::string kept;
       for (const auto& t : d.added) kept += (kept.empty() ? "" : ", ") + t;
-      std::printf("%4u %8.3f %8.3f %8.3f %6s  %-8s %s -> %s%s%s\n", r, d.tl_next_nT, d.loop_next_nT,
-                  d.oracle_next_nT, d.predictable ? (d.near_oracle() ? "yes" : "NO") : "-",
-                  d.verdict.substr(0, d.verdict.find(':')).substr(0, 8).c_str(), d.effects.c_str(),
-                  kept.empty() ? "(none)" : kept.c_str(),
+      std::printf("%4u %8.3f %8.3f %8.3f %6s %7.3f %7.3f  %-8s %s -> %s%s%s\n", r, d.tl_next_nT,
+                  d.loop_next_nT, d.oracle_next_nT,
+                  d.predictable ? (d.near_oracle() ? "yes" : "NO") : "-", d.effect_nT,
+                  d.effect_next_nT, d.verdict.substr(0, d.verdict.find(':')).substr(0, 8).c_str(),
+                  d.effects.c_str(), kept.empty() ? "(none)" : kept.c_str(),
                   d.worse_than_tl() ? "  WORSE THAN TL" : "",
                   d.complete_above_floor() ? "  COMPLETE ABOVE FLOOR" : "");
       std::fflush(stdout);

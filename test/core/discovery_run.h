@@ -6,6 +6,7 @@
 #pragma once
 
 #include <cmath>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -26,6 +27,10 @@ struct DiscoveryRun {
   std::vector<std::string> added;                                     ///< the terms the loop kept
   std::string verdict;                                                ///< the loop's last verdict
   double residual_nT = NAN, floor_nT = NAN;  ///< its held-out residual and noise floor
+  /// The hidden effects' contribution to the scalar, std with each line's mean removed (as the
+  /// errors are scored), on the flight the loop learns from and on the next flight: an effect the
+  /// first flight barely shows cannot be learned there.
+  double effect_nT = NAN, effect_next_nT = NAN;
   /// Within 1.5x the oracle (+0.05 nT) on the next flight.
   bool near_oracle() const { return loop_next_nT <= 1.5 * oracle_next_nT + 0.05; }
   /// Worse than the TL it started from on the next flight (by more than 5 pT).
@@ -43,6 +48,26 @@ inline FlightData without_hidden(const sim::Simulation& s, const std::string& sc
   for (const auto& name : s.truth.names())
     if (name.rfind(scalar + ".hidden.", 0) == 0) x -= s.truth.column(name);
   return clean;
+}
+
+/// The hidden effects' contribution to `scalar`, std with each line's mean removed, nT.
+inline double hidden_std_within_lines(const sim::Simulation& s, const std::string& scalar) {
+  Eigen::VectorXd h = Eigen::VectorXd::Zero(s.flight.size());
+  for (const auto& name : s.truth.names())
+    if (name.rfind(scalar + ".hidden.", 0) == 0) h += s.truth.column(name);
+  const auto line = s.flight.column("line");
+  std::map<double, std::pair<double, double>> sums;  // line -> (sum, count)
+  for (Eigen::Index i = 0; i < h.size(); ++i) {
+    auto& [sum, n] = sums[line[i]];
+    sum += h[i];
+    n += 1;
+  }
+  double ss = 0;
+  for (Eigen::Index i = 0; i < h.size(); ++i) {
+    const auto& [sum, n] = sums[line[i]];
+    ss += std::pow(h[i] - sum / n, 2);
+  }
+  return std::sqrt(ss / static_cast<double>(h.size()));
 }
 
 /// Run `r` with `count` effects on `base` (aircraft seed 5000 + r, flights 1000 + 2r and the
@@ -71,6 +96,8 @@ inline DiscoveryRun discovery_run(unsigned r, int count, sim::Scenario base, con
   out.verdict = loop.last.verdict;
   out.residual_nT = loop.last.floor.residual_std_nT;
   out.floor_nT = loop.last.floor.floor_nT;
+  out.effect_nT = hidden_std_within_lines(fa, tl.scalar);
+  out.effect_next_nT = hidden_std_within_lines(fb, tl.scalar);
   const FlightData ca = without_hidden(fa, tl.scalar), cb = without_hidden(fb, tl.scalar);
   Model oracle = tl;
   fit_model(oracle, {&ca});
