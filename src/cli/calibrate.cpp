@@ -1,4 +1,5 @@
 // magcomp calibrate: fit a model's coefficients on calibration segments of one or more flights.
+#include <algorithm>
 #include <cmath>
 #include <iomanip>
 #include <iostream>
@@ -9,6 +10,7 @@
 #include "magcomp/core/evaluate/evaluation.h"
 #include "magcomp/core/io/file_io.h"
 #include "magcomp/core/model/model.h"
+#include "magcomp/core/model/terms_expr.h"
 #include "subcommands.h"
 
 namespace magcomp::cli {
@@ -19,10 +21,15 @@ void add_calibrate(CLI::App& app) {
   auto model_path = std::make_shared<std::string>();
   auto out = std::make_shared<std::string>();
   auto terms = std::make_shared<std::vector<std::string>>();
+  auto slow_terms = std::make_shared<std::vector<std::string>>();
   auto holdout_truth = std::make_shared<std::string>("mag_1_c");
   cmd->add_option("--data", *data, "flight HDF5 file(s), comma-separated")->required();
   cmd->add_option("--model", *model_path, "model YAML (plain or fitted: refit)")->required();
   cmd->add_option("--term", *terms, "add a term, e.g. current:cur_strb (repeatable)");
+  cmd->add_option("--slow-term", *slow_terms,
+                  "add a term too slow for the band-pass (a heater, a drift), fitted after it "
+                  "against fit.reference (default mag_1_c) on the calibration segments, "
+                  "unfiltered (repeatable; diagnose prints it for such a candidate)");
   cmd->add_option("--out", *out, "fitted model YAML to write")->required();
   cmd->add_option("--holdout-truth", *holdout_truth,
                   "reference field for the model's error on the lines it is not fitted on (its "
@@ -38,6 +45,21 @@ void add_calibrate(CLI::App& app) {
       } catch (const Error& e) {
         throw Error(std::string("--term: ") + e.what());
       }
+    }
+    for (const std::string& t : *slow_terms) {
+      std::string canonical;
+      try {
+        canonical = make_term(t)->spec();
+        model.add_term(canonical);
+      } catch (const Error& e) {
+        throw Error(std::string("--slow-term: ") + e.what());
+      }
+      if (const auto e = parse_expr_term(canonical); e && e->signal().has_free())
+        throw Error("--slow-term: '" + t + "' has a free parameter (?): give its value");
+      if (std::find(model.slow_terms.begin(), model.slow_terms.end(), canonical) ==
+          model.slow_terms.end())
+        model.slow_terms.push_back(canonical);
+      if (model.fit.reference.empty()) model.fit.reference = "mag_1_c";
     }
     const auto flights = read_flights(*data);
     std::vector<const FlightData*> ptrs;

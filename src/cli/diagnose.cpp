@@ -64,8 +64,9 @@ void print_diagnosis(const Model& model, const Diagnosis& dx, int top, const std
   std::printf("\nverdict: %s\n", dx.verdict.c_str());
   if (!dx.candidates.empty() && dx.candidates.front().accepted &&
       dx.candidates.front().explained_fraction >= 0.05) {
-    std::printf("to add it:\n  magcomp calibrate --data %s --model %s --term '%s' --out NEW.yaml\n",
-                data.c_str(), model_path.c_str(), dx.candidates.front().term.c_str());
+    std::printf("to add it:\n  magcomp calibrate --data %s --model %s --%s '%s' --out NEW.yaml\n",
+                data.c_str(), model_path.c_str(), dx.candidates.front().slow ? "slow-term" : "term",
+                dx.candidates.front().term.c_str());
   }
   std::printf("\nresidual vs channel (held-out, line means removed), strongest first:\n");
   std::printf("  %-14s %8s %9s %8s\n", "channel", "pearson", "spearman", "MI_bits");
@@ -101,6 +102,7 @@ nlohmann::json to_json(const Diagnosis& dx) {
                                {"explained_selection", c.explained_selection},
                                {"explained_confirmation", c.explained_confirmation},
                                {"accepted", c.accepted},
+                               {"slow", c.slow},
                                {"estimate", c.estimate},
                                {"parameters", p}});
   }

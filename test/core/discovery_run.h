@@ -25,7 +25,8 @@ struct DiscoveryRun {
   bool predictable = true;  ///< every effect expressible or approximable (no ripple)
   double tl_next_nT = NAN, loop_next_nT = NAN, oracle_next_nT = NAN;  ///< std on the next flight
   std::vector<std::string> added;                                     ///< the terms the loop kept
-  std::string verdict;                                                ///< the loop's last verdict
+  std::vector<std::string> slow_terms;       ///< those of its model fitted by the slow stage
+  std::string verdict;                       ///< the loop's last verdict
   double residual_nT = NAN, floor_nT = NAN;  ///< its held-out residual and noise floor
   /// The hidden effects' contribution to the scalar, std with each line's mean removed (as the
   /// errors are scored), on the flight the loop learns from and on the next flight: an effect the
@@ -93,6 +94,7 @@ inline DiscoveryRun discovery_run(unsigned r, int count, sim::Scenario base, con
   out.tl_next_nT = evaluate_model(start, fb.flight, "mag_1_c", false).std_nT;
   out.loop_next_nT = evaluate_model(loop.model, fb.flight, "mag_1_c", false).std_nT;
   for (size_t k = 1; k < loop.rounds.size(); ++k) out.added.push_back(loop.rounds[k].added);
+  out.slow_terms = loop.model.slow_terms;
   out.verdict = loop.last.verdict;
   out.residual_nT = loop.last.floor.residual_std_nT;
   out.floor_nT = loop.last.floor.floor_nT;

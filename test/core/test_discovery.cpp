@@ -30,6 +30,26 @@ TEST(Discovery, RandomEffectsCarryToTheNextFlight) {
   }
 }
 
+TEST(Discovery, ASlowHeaterIsSizedByTheSlowStageAndCarriesOver) {
+  // Run 15: the fuel pump's current heats a part (|I| through a 171 s lag). On the calibration
+  // maneuvers its band-pass content is noise: the loop adds it as a slow term (fitted against
+  // mag_1_c on the same segments, unfiltered) and the next flight falls to the oracle's reach.
+  const sim::Scenario base =
+      sim::load_scenario(test::source_dir() + "/config/scenarios/random_base.yaml");
+  const Model tl = load_model_yaml(test::source_dir() + "/config/models/tl_sim.yaml");
+  const test::DiscoveryRun d = test::discovery_run(15, 1, base, tl);
+  std::string kept, slow;
+  for (const auto& t : d.added) kept += " " + t;
+  for (const auto& t : d.slow_terms) slow += " " + t;
+  std::printf("  run 15: %s: next flight TL %.3f, loop %.3f, oracle %.3f nT; kept%s; slow%s\n",
+              d.effects.c_str(), d.tl_next_nT, d.loop_next_nT, d.oracle_next_nT, kept.c_str(),
+              slow.c_str());
+  ASSERT_FALSE(d.slow_terms.empty());
+  EXPECT_NE(d.slow_terms.front().find("cur_tank|"), std::string::npos) << slow;
+  EXPECT_TRUE(d.near_oracle());
+  EXPECT_FALSE(d.worse_than_tl());
+}
+
 TEST(Discovery, RandomEffectsAreSizedAndListed) {
   // Each drawn effect's rms on mag_5_uc lands in the drawn range (0.3-3 nT, the pilot's
   // linear scaling), and the same seed draws the same effects.

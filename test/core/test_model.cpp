@@ -7,6 +7,7 @@
 #include "magcomp/core/error.h"
 #include "magcomp/core/evaluate/evaluation.h"
 #include "magcomp/core/model/model.h"
+#include "scenario_cache.h"
 #include "synthetic_flight.h"
 #include "test_util.h"
 
@@ -92,6 +93,66 @@ TEST(Model, ALearnedLawIsMarkedAsABlackBoxInTheFile) {
     ADD_FAILURE() << "a black-box term outside the model's terms was read";
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("black_box_terms"), std::string::npos) << e.what();
+  }
+}
+
+TEST(Model, ASlowTermIsFittedAfterTheBandPassAgainstTheReference) {
+  // A heater: 2 nT per A of the fuel pump's current through a 150 s first-order lag (computed
+  // here by its exact discrete recursion), added to the scalar of a flight without hidden
+  // effects. Its band-pass content on the 8 min of calibration maneuvers is a fraction of a
+  // percent: the band-pass stage cannot size it, the slow stage (against mag_1_c, unfiltered,
+  // segment means and the TL columns' span removed) does.
+  FlightData d = test::scenario("random_base").flight;
+  const double gain_nT_per_A = 2.0, tau_s = 150.0;
+  const Eigen::VectorXd current = d.column("cur_tank");
+  const double a = 1.0 - std::exp(-d.dt_s() / tau_s);
+  Eigen::VectorXd heater(current.size());
+  heater[0] = current[0];
+  for (Eigen::Index i = 1; i < current.size(); ++i)
+    heater[i] = heater[i - 1] + a * (current[i] - heater[i - 1]);
+  d.mutable_column("mag_5_uc") += gain_nT_per_A * heater;
+  const std::string term = "scalar:cur_tank|lp(150)";
+  Model band = load_model_yaml(test::source_dir() + "/config/models/tl_sim.yaml");
+  band.add_term(term);
+  Model slow = band;
+  slow.slow_terms = {term};
+  slow.fit.reference = "mag_1_c";
+  fit_model(band, {&d});
+  fit_model(slow, {&d});
+  const Eigen::Index c = band.coefficients.size() - 1;
+  ASSERT_NE(slow.column_names[static_cast<size_t>(c)].find("cur_tank"), std::string::npos);
+  const double band_err = evaluate_model(band, d, "mag_1_c").std_nT;
+  const double slow_err = evaluate_model(slow, d, "mag_1_c").std_nT;
+  std::printf("  gain %.3f nT/A by the slow stage, %.3f by the band-pass; error %.3f vs %.3f nT\n",
+              slow.coefficients[c], band.coefficients[c], slow_err, band_err);
+  EXPECT_NEAR(slow.coefficients[c], gain_nT_per_A, 0.05 * gain_nT_per_A);
+  EXPECT_GT(std::abs(band.coefficients[c] - gain_nT_per_A), 0.2 * gain_nT_per_A);
+  EXPECT_LT(slow_err, 0.5 * band_err);
+  // The TL coefficients are those of TL alone: the slow stage leaves them as the band-pass
+  // stage fitted them.
+  Model tl = load_model_yaml(test::source_dir() + "/config/models/tl_sim.yaml");
+  fit_model(tl, {&d});
+  ASSERT_EQ(tl.coefficients.size(), c);
+  for (Eigen::Index j = 0; j < c; ++j)
+    EXPECT_NEAR(slow.coefficients[j], tl.coefficients[j], 1e-9 * std::abs(tl.coefficients[j])) << j;
+  // In the file: the list, and the errors that name it.
+  const std::string dir = test::temp_dir("model");
+  save_model_yaml(slow, dir + "/slow.yaml");
+  const Model r = load_model_yaml(dir + "/slow.yaml");
+  EXPECT_EQ(r.slow_terms, slow.slow_terms);
+  EXPECT_EQ(r.fit.reference, "mag_1_c");
+  for (const char* bad :
+       {"terms: [permanent]\nslow_terms: [current:cur_strb]\nfit: {reference: mag_1_c}\n",
+        "terms: [permanent, 'scalar:cur_strb|lp(20)']\nslow_terms: ['scalar:cur_strb|lp(20)']\n",
+        "terms: [permanent, 'scalar:cur_strb|lp(?)']\nslow_terms: ['scalar:cur_strb|lp(?)']\n"
+        "fit: {reference: mag_1_c}\n"}) {
+    std::ofstream(dir + "/bad.yaml") << "scalar: a\nvector: b\n" << bad;
+    try {
+      load_model_yaml(dir + "/bad.yaml");
+      ADD_FAILURE() << "read: " << bad;
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("slow_terms"), std::string::npos) << e.what();
+    }
   }
 }
 

@@ -15,6 +15,7 @@
 
 #include "magcomp/core/error.h"
 #include "magcomp/core/fit/parameter_fit.h"
+#include "magcomp/core/fit/slow_stage.h"
 #include "magcomp/core/math/timeseries.h"
 #include "magcomp/core/model/terms_expr.h"
 
@@ -60,7 +61,13 @@ struct Scored {
   Eigen::VectorXd coef;  // the candidate's coefficients
   long fits = 0;
   std::string note;
+  bool slow = false;  // fitted by the slow stage (Model::slow_terms), not the band-pass
 };
+
+// A column whose band-passed energy on the calibration segments is below this share of its
+// energy there (segment means removed) is one the band-pass barely sees: it is also fitted by
+// the slow stage, and the better of the two on the selection lines is kept.
+constexpr double kSlowBandFraction = 0.01;
 
 // Mean-removed RMS per line over the rows of one fold (-1: every held-out row).
 double fold_std(const Eigen::VectorXd& e, const std::vector<Eigen::Index>& held,
@@ -91,8 +98,17 @@ class Search {
   Search(const Model& model, const FlightData& data, const std::string& truth_name, Diagnosis* dx);
 
   // Scores a term's columns (N x k): fit on the fit rows with the base columns, errors on the
-  // held-out rows of each fold.
-  Scored score(const Eigen::MatrixXd& cols) const;
+  // held-out rows of each fold. With `slow_ok`, a column the band-pass barely sees
+  // (kSlowBandFraction) is also scored by the slow stage; the better on the selection lines is
+  // returned.
+  Scored score(const Eigen::MatrixXd& cols, bool slow_ok = false) const;
+  // Scores columns fitted by the slow stage: to the base error on the calibration rows,
+  // unfiltered, each segment's mean removed.
+  Scored score_slow(const Eigen::MatrixXd& cols) const;
+  // The slow stage's residual sum of squares with these columns (nT²).
+  double slow_rss(const Eigen::MatrixXd& cols) const;
+  // Whether the slow stage exists here: a band-pass fit on this flight's calibration segments.
+  bool has_slow_stage() const { return slow_stage != nullptr; }
   // The fit's residual sum of squares with these columns added.
   double fit_rss(const Eigen::MatrixXd& cols) const;
   // Builds, scans (free parameters) and scores one job.
@@ -127,8 +143,10 @@ class Search {
   Eigen::MatrixXd af0;
   Eigen::VectorXd yf;
   std::unique_ptr<RidgeProfile> profile;
-  Eigen::VectorXd e0;              // base error, N
-  double base_std[3] = {0, 0, 0};  // selection, confirmation, all held out
+  Eigen::VectorXd e0;                     // base error, N
+  Eigen::VectorXd slow0;                  // the base's slow-stage correction (Model::slow_terms), N
+  std::unique_ptr<SlowStage> slow_stage;  // a candidate's slow fit (band-pass models only)
+  double base_std[3] = {0, 0, 0};         // selection, confirmation, all held out
   double dt = 0.1, span = 1.0;
 
  private:
@@ -200,7 +218,7 @@ Search::Search(const Model& m, const FlightData& d, const std::string& truth_nam
   }
   if (runs.empty()) throw Error(data.source() + ": no usable fit samples for diagnose");
   // --- The base: the model's fittable columns, refitted.
-  const std::vector<Eigen::Index> keep = fittable_columns(fs.method, terms);
+  const std::vector<Eigen::Index> keep = fittable_columns(fs.method, terms, model.slow_terms);
   a0.resize(n, static_cast<Eigen::Index>(keep.size()));
   for (size_t k = 0; k < keep.size(); ++k)
     a0.col(static_cast<Eigen::Index>(k)) = a_all.col(keep[k]);
@@ -210,6 +228,27 @@ Search::Search(const Model& m, const FlightData& d, const std::string& truth_nam
   profile = std::make_unique<RidgeProfile>(af0, yf, fs.lambda);
   const Eigen::VectorXd c0 = profile->solve(Eigen::MatrixXd(yf.size(), 0), nullptr);
   e0 = scalar - truth - a0 * c0;
+  // --- The base's slow terms, fitted after the band-pass stage as fit_model does.
+  slow0 = Eigen::VectorXd::Zero(n);
+  if (fs.method == FitMethod::kBandpass) {
+    const std::vector<Eigen::Index> slow = slow_columns(fs.method, terms, model.slow_terms);
+    Eigen::MatrixXd sc(n, static_cast<Eigen::Index>(slow.size()));
+    for (size_t k = 0; k < slow.size(); ++k)
+      sc.col(static_cast<Eigen::Index>(k)) = a_all.col(slow[k]);
+    if (!slow.empty()) {
+      const Eigen::VectorXd cs = SlowStage(a0, e0, runs, fs.lambda).fit(sc);
+      slow0 = sc.unaryExpr([](double v) { return std::isfinite(v) ? v : 0.0; }) * cs;
+      e0 -= slow0;
+    }
+    // A candidate's slow fit: with the base's band-pass and slow columns' span removed.
+    if (slow.empty()) {
+      slow_stage = std::make_unique<SlowStage>(a0, e0, runs, fs.lambda);
+    } else {
+      Eigen::MatrixXd nuisance(n, a0.cols() + sc.cols());
+      nuisance << a0, sc;
+      slow_stage = std::make_unique<SlowStage>(nuisance, e0, runs, fs.lambda);
+    }
+  }
   // --- Held out: every other line, in units (a line, or each contiguous piece of a line flown in
   // pieces) dealt in time order into selection and confirmation.
   unit.assign(static_cast<size_t>(n), -1);
@@ -255,9 +294,36 @@ double Search::fit_rss(const Eigen::MatrixXd& cols) const {
   return std::isfinite(rss) ? rss : std::numeric_limits<double>::infinity();
 }
 
-Scored Search::score(const Eigen::MatrixXd& cols) const {
+double Search::slow_rss(const Eigen::MatrixXd& cols) const {
+  double rss = 0;
+  slow_stage->fit(cols, &rss);
+  return std::isfinite(rss) ? rss : std::numeric_limits<double>::infinity();
+}
+
+Scored Search::score_slow(const Eigen::MatrixXd& cols) const {
   Scored s;
-  const Eigen::VectorXd coef = profile->solve(stacked(cols), nullptr);
+  const Eigen::VectorXd coef = slow_stage->fit(cols);
+  Eigen::VectorXd e = Eigen::VectorXd::Constant(data.size(), NAN);
+  for (Eigen::Index i : held) {
+    double v = e0[i];
+    for (Eigen::Index j = 0; j < cols.cols(); ++j) {
+      if (std::isfinite(cols(i, j))) v -= cols(i, j) * coef[j];
+    }
+    e[i] = v;
+  }
+  s.sel = fold_std(e, held, fold, line, 0);
+  s.conf = fold_std(e, held, fold, line, 1);
+  s.held = fold_std(e, held, fold, line, -1);
+  s.coef = coef;
+  s.slow = true;
+  s.ok = std::isfinite(s.sel) && std::isfinite(s.conf) && coef.allFinite();
+  return s;
+}
+
+Scored Search::score(const Eigen::MatrixXd& cols, bool slow_ok) const {
+  Scored s;
+  const Eigen::MatrixXd band = stacked(cols);
+  const Eigen::VectorXd coef = profile->solve(band, nullptr);
   const Eigen::Index p = a0.cols(), k = cols.cols();
   Eigen::VectorXd e = Eigen::VectorXd::Constant(data.size(), NAN);
   for (Eigen::Index i : held) {
@@ -272,6 +338,22 @@ Scored Search::score(const Eigen::MatrixXd& cols) const {
   s.held = fold_std(e, held, fold, line, -1);
   s.coef = coef.tail(k);
   s.ok = std::isfinite(s.sel) && std::isfinite(s.conf);
+  if (slow_ok && has_slow_stage() && k > 0) {
+    // The columns' energy on the calibration rows, each segment's mean removed.
+    double raw = 0;
+    for (const auto& [first, last] : runs) {
+      const auto block = cols.middleRows(first, last - first + 1);
+      const Eigen::RowVectorXd mean =
+          block.unaryExpr([](double v) { return std::isfinite(v) ? v : 0.0; }).colwise().mean();
+      raw += (block.rowwise() - mean)
+                 .unaryExpr([](double v) { return std::isfinite(v) ? v : 0.0; })
+                 .squaredNorm();
+    }
+    if (band.squaredNorm() < kSlowBandFraction * raw) {
+      Scored slow = score_slow(cols);
+      if (slow.ok && (!s.ok || slow.sel < s.sel)) return slow;
+    }
+  }
   return s;
 }
 
@@ -280,6 +362,13 @@ Scored Search::run(const Job& job) const {
   auto columns = [&](const Term& t) { return columns_of(t); };
   long fits = 0;
   const auto* expr = dynamic_cast<const ExprTerm*>(term.get());
+  // The slow stage sizes what heats or drifts with a current or a voltage; a slow fit of
+  // position, attitude or the field itself against the reference is where map and trajectory
+  // leakage would hide.
+  bool slow_ok = expr && has_slow_stage() && !expr->signal().sources.empty();
+  if (expr) {
+    for (const auto& src : expr->signal().sources) slow_ok = slow_ok && is_electrical(src);
+  }
   if (expr && expr->signal().has_free()) {
     TransformKind kind = TransformKind::LowPass;
     for (const auto& tr : expr->signal().transforms)
@@ -296,10 +385,40 @@ Scored Search::run(const Job& job) const {
       for (size_t k = 0; k < grid.size(); k += (grid.size() + 11) / 12) thin.push_back(grid[k]);
       grid = thin;
     }
+    // A low-pass or a decay may be slower than the band-pass sees: on its grid the slow stage's
+    // fit is scored too, and refined where it explains more than the band-pass choice.
+    const bool scan_slow =
+        slow_ok && (kind == TransformKind::LowPass || kind == TransformKind::Decay);
+    std::vector<double> slow_f;
     double v = scan_parameter(kind, grid, [&](double x) {
       ++fits;
-      return fit_rss(columns(*make_term(expr->with_parameters({x}))));
+      const Eigen::MatrixXd c = columns(*make_term(expr->with_parameters({x})));
+      if (scan_slow && slow_f.size() < grid.size()) slow_f.push_back(slow_rss(c));
+      return fit_rss(c);
     });
+    if (scan_slow && slow_f.size() == grid.size()) {
+      const size_t k =
+          static_cast<size_t>(std::min_element(slow_f.begin(), slow_f.end()) - slow_f.begin());
+      if (slow_f[k] < 0.98 * slow_stage->base_rss()) {
+        const std::vector<double> near = {grid[k > 0 ? k - 1 : 0], grid[k],
+                                          grid[std::min(k + 1, grid.size() - 1)]};
+        const double vs = scan_parameter(kind, near, [&](double x) {
+          ++fits;
+          return slow_rss(columns(*make_term(expr->with_parameters({x}))));
+        });
+        auto slow_term = make_term(expr->with_parameters({vs}));
+        Scored ss = score_slow(columns(*slow_term));
+        ss.spec = slow_term->spec();
+        auto band_term = make_term(expr->with_parameters({v}));
+        const Eigen::MatrixXd band_cols = columns(*band_term);
+        Scored sb = score(band_cols, true);
+        sb.spec = band_term->spec();
+        if (!(band_cols.array().isFinite().any())) sb.ok = false;
+        Scored& best = ss.ok && (!sb.ok || ss.sel < sb.sel) ? ss : sb;
+        best.fits = fits + 2;
+        return best;
+      }
+    }
     if (kind == TransformKind::Delay && v < 0.5 * dt) {  // no delay: the plain form says it
       Scored none;
       none.fits = fits;
@@ -308,7 +427,7 @@ Scored Search::run(const Job& job) const {
     term = make_term(expr->with_parameters({v}));
   }
   const Eigen::MatrixXd cols = columns(*term);
-  Scored s = score(cols);
+  Scored s = score(cols, slow_ok);
   s.spec = term->spec();
   s.fits = fits + 1;
   if (!(cols.array().isFinite().any())) s.ok = false;
@@ -344,7 +463,7 @@ Eigen::MatrixXd Search::lag_columns(const Eigen::MatrixXd& partner) const {
                                [](const std::string& t) { return t.rfind("lag:", 0) == 0; }),
                 m.terms.end());
   const auto terms = m.make_terms();
-  const std::vector<Eigen::Index> keep = fittable_columns(fs.method, terms);
+  const std::vector<Eigen::Index> keep = fittable_columns(fs.method, terms, model.slow_terms);
   const Eigen::Index p = static_cast<Eigen::Index>(keep.size());
   Eigen::MatrixXd x(data.size(), p + partner.cols());
   {
@@ -404,8 +523,8 @@ Scored Search::lag_scored(double tau, Eigen::MatrixXd x, Eigen::Index partners) 
   lag_round_trip(x, tau / dt);
   const Eigen::Index p = x.cols() - partners;
   // NaN past the ends; a partner without data gives no correction.
-  Eigen::VectorXd e =
-      shift_samples(data.column(model.scalar), -tau / dt) - truth - x.leftCols(p) * c.head(p);
+  Eigen::VectorXd e = shift_samples(data.column(model.scalar), -tau / dt) - truth -
+                      x.leftCols(p) * c.head(p) - slow0;
   if (partners > 0) {
     e -= x.rightCols(partners).unaryExpr([](double v) { return std::isfinite(v) ? v : 0.0; }) *
          c.tail(partners);
@@ -768,11 +887,13 @@ void add_candidates(const std::vector<Job>& jobs, const std::vector<Scored>& sco
     c.std_after_nT = scored[k].held;
     c.explained_selection = share(scored[k].sel, search.base_std[0]);
     c.explained_confirmation = share(scored[k].conf, search.base_std[1]);
+    c.slow = scored[k].slow;
     if (const auto* e = dynamic_cast<const ExprTerm*>(term.get())) {
       c.estimate = e->size_in_words(scored[k].coef);
       c.parameters = e->parameters();
       c.parameters.emplace_back("gain_nT_per_unit", scored[k].coef.norm());
     }
+    if (c.slow) c.estimate += (c.estimate.empty() ? "" : ", ") + std::string("slow stage");
     dx->candidates.push_back(c);
   }
 }

@@ -127,6 +127,17 @@ std::vector<std::string> learned_law(const std::string& channel, const Candidate
   return law;
 }
 
+// Adds a candidate's term to `m`; a slow one (Candidate::slow) joins Model::slow_terms, fitted
+// against `truth` unless the model names its own reference.
+void add_candidate_term(const std::string& term, bool slow, const std::string& truth, Model* m) {
+  m->add_term(term);
+  auto& list = m->slow_terms;
+  list.erase(std::remove(list.begin(), list.end(), term), list.end());
+  if (!slow || m->fit.method != FitMethod::kBandpass) return;
+  list.push_back(term);
+  if (m->fit.reference.empty()) m->fit.reference = truth;
+}
+
 }  // namespace
 
 LoopResult diagnose_loop(const Model& start, const FlightData& data, const std::string& truth,
@@ -196,7 +207,7 @@ LoopResult diagnose_loop(const Model& start, const FlightData& data, const std::
     bool kept = false;
     for (size_t k = 0; k < eligible.size() && k < kTriesPerRound && !kept; ++k) {
       Model next = r.model;
-      next.add_term(eligible[k]->term);
+      add_candidate_term(eligible[k]->term, eligible[k]->slow, truth, &next);
       kept = try_model(std::move(next), eligible[k]->term, eligible[k]->explained_fraction, false);
     }
     // When no term of the language passes while the residual stays predictable: a learned law

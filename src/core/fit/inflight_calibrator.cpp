@@ -22,6 +22,9 @@ InflightCalibrator::InflightCalibrator(Model model, double forgetting)
     throw Error("calibrator: forgetting must be in (0, 1]");
   if (model_.fit.method != FitMethod::kBandpass)
     throw Error("calibrator: in-flight fits use fit.method bandpass");
+  if (!model_.slow_terms.empty())
+    throw Error("calibrator: slow term '" + model_.slow_terms.front() +
+                "' is fitted against a reference: calibrate it with magcomp calibrate");
   std::set<std::string> seen;
   terms_ = model_.make_terms();
   for (const auto& t : terms_) {

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <cstdio>
 #include <exception>
 #include <limits>
 #include <mutex>
@@ -11,6 +12,7 @@
 
 #include "magcomp/core/error.h"
 #include "magcomp/core/fit/parameter_fit.h"
+#include "magcomp/core/fit/slow_stage.h"
 #include "magcomp/core/math/butterworth.h"
 #include "magcomp/core/math/timeseries.h"
 #include "magcomp/core/model/model.h"
@@ -56,6 +58,9 @@ bool Model::add_term(const std::string& spec) {
     for (auto& t : terms) {
       const auto old = parse_expr_term(t);
       if (old && old->shape() == e->shape() && old->spec().find('(') != std::string::npos) {
+        for (auto* list : {&slow_terms, &black_box_terms}) {  // they name it by its spec
+          std::replace(list->begin(), list->end(), t, canonical);
+        }
         t = canonical;  // the same expression with new parameter values
         coefficients.resize(0);
         return true;
@@ -80,6 +85,44 @@ std::vector<Eigen::Index> fittable_columns(FitMethod method,
     for (Eigen::Index k = 0; k < t->columns(); ++k, ++c) {
       if (!bandpass || t->bandpass_observable()) out.push_back(c);
     }
+  }
+  return out;
+}
+
+namespace {
+// Per column of `terms`: whether its term is one of `slow_terms`.
+std::vector<bool> slow_mask(const std::vector<std::unique_ptr<Term>>& terms,
+                            const std::vector<std::string>& slow_terms) {
+  std::vector<bool> out;
+  for (const auto& t : terms) {
+    const bool slow =
+        std::find(slow_terms.begin(), slow_terms.end(), t->spec()) != slow_terms.end();
+    out.insert(out.end(), static_cast<size_t>(t->columns()), slow);
+  }
+  return out;
+}
+}  // namespace
+
+std::vector<Eigen::Index> fittable_columns(FitMethod method,
+                                           const std::vector<std::unique_ptr<Term>>& terms,
+                                           const std::vector<std::string>& slow_terms) {
+  std::vector<Eigen::Index> out = fittable_columns(method, terms);
+  if (method != FitMethod::kBandpass || slow_terms.empty()) return out;
+  const std::vector<bool> slow = slow_mask(terms, slow_terms);
+  out.erase(std::remove_if(out.begin(), out.end(),
+                           [&](Eigen::Index c) { return slow[static_cast<size_t>(c)]; }),
+            out.end());
+  return out;
+}
+
+std::vector<Eigen::Index> slow_columns(FitMethod method,
+                                       const std::vector<std::unique_ptr<Term>>& terms,
+                                       const std::vector<std::string>& slow_terms) {
+  std::vector<Eigen::Index> out;
+  if (method != FitMethod::kBandpass || slow_terms.empty()) return out;
+  const std::vector<bool> slow = slow_mask(terms, slow_terms);
+  for (size_t c = 0; c < slow.size(); ++c) {
+    if (slow[c]) out.push_back(static_cast<Eigen::Index>(c));
   }
   return out;
 }
@@ -312,7 +355,7 @@ namespace {
 // A model with no column the fit method can fit is refused, naming its terms.
 void require_fittable_column(const Model& model) {
   const auto terms = model.make_terms();
-  if (fittable_columns(model.fit.method, terms).empty()) {
+  if (fittable_columns(model.fit.method, terms, model.slow_terms).empty()) {
     std::string list;
     for (const auto& t : terms) list += (list.empty() ? "" : ", ") + t->spec();
     throw Error("fit: the model has no column to fit (terms: [" + list + "]" +
@@ -456,6 +499,79 @@ void add_column_warnings(const Model& model, const Eigen::MatrixXd& g,
   }
 }
 
+// The slow stage (Model::slow_terms): after the band-pass stage has set the other coefficients,
+// the slow columns are fitted to the scalar minus fit.reference minus that stage's correction on
+// the calibration segments of every flight, unfiltered, each segment's mean removed.
+void fit_slow_stage(Model& model, const std::vector<std::unique_ptr<Term>>& terms,
+                    const std::vector<const FlightData*>& flights,
+                    const std::vector<Eigen::Index>& slow, FitReport* report) {
+  const FitSettings& s = model.fit;
+  if (s.reference.empty()) {
+    throw Error("fit: slow_terms need fit.reference (the field they are fitted against)");
+  }
+  const Eigen::Index k = static_cast<Eigen::Index>(slow.size());
+  const std::vector<Eigen::Index> fast = fittable_columns(s.method, terms, model.slow_terms);
+  const Eigen::Index p = static_cast<Eigen::Index>(fast.size());
+  // The calibration rows of every flight, one after the other: fast columns, slow columns, and
+  // the target (the scalar minus the reference minus the band-pass correction).
+  std::vector<Eigen::MatrixXd> parts;
+  std::vector<Eigen::VectorXd> parts_r;
+  std::vector<std::pair<Eigen::Index, Eigen::Index>> runs;
+  Eigen::Index rows = 0;
+  for (const FlightData* flight : flights) {
+    const FlightData& data = *flight;
+    if (!data.has(s.reference)) {
+      throw Error(data.source() + ": field '" + s.reference +
+                  "' (fit.reference, for the slow terms) not found");
+    }
+    const Eigen::MatrixXd a = design_matrix(model, terms, data);
+    const Eigen::VectorXd y = aligned_scalar(model, data) - data.column(s.reference);
+    Eigen::VectorXd r = y;
+    for (Eigen::Index j : fast) {
+      if (model.coefficients[j] != 0.0) r -= a.col(j) * model.coefficients[j];
+    }
+    for (const auto& [first, last] : calibration_runs(s, data, a, y, nullptr)) {
+      const Eigen::Index len = last - first + 1;
+      Eigen::MatrixXd part(len, p + k);
+      for (Eigen::Index c = 0; c < p; ++c)
+        part.col(c) = a.col(fast[static_cast<size_t>(c)]).segment(first, len);
+      for (Eigen::Index c = 0; c < k; ++c)
+        part.col(p + c) = a.col(slow[static_cast<size_t>(c)]).segment(first, len);
+      parts.push_back(std::move(part));
+      parts_r.push_back(r.segment(first, len));
+      runs.emplace_back(rows, rows + len - 1);
+      rows += len;
+    }
+    data.drop_mapped_pages();
+  }
+  if (rows < 2 * (p + k)) {
+    throw Error("fit: only " + std::to_string(rows) + " calibration samples for " +
+                std::to_string(k) + " slow coefficients");
+  }
+  Eigen::MatrixXd all(rows, p + k);
+  Eigen::VectorXd r_all(rows);
+  for (size_t b = 0; b < parts.size(); ++b) {
+    all.middleRows(runs[b].first, parts[b].rows()) = parts[b];
+    r_all.segment(runs[b].first, parts_r[b].size()) = parts_r[b];
+  }
+  const SlowStage stage(all.leftCols(p), r_all, runs, s.lambda);
+  double rss = 0;
+  const Eigen::VectorXd c = stage.fit(all.rightCols(k), &rss);
+  if (!c.allFinite()) {
+    throw Error("fit: the slow terms' solution is not finite (fit.lambda " +
+                std::to_string(s.lambda) + "); nothing written");
+  }
+  for (Eigen::Index j = 0; j < k; ++j) model.coefficients[slow[static_cast<size_t>(j)]] = c[j];
+  char buf[256];
+  std::snprintf(buf, sizeof(buf),
+                "%lld slow column(s) fitted against %s on %lld calibration samples (segment means "
+                "and the band-pass columns' span removed): residual std %.3g nT",
+                static_cast<long long>(k), s.reference.c_str(),
+                static_cast<long long>(stage.rows()),
+                std::sqrt(rss / static_cast<double>(std::max<Eigen::Index>(stage.rows(), 1))));
+  report->estimates.push_back(buf);
+}
+
 }  // namespace
 
 void fit_model(Model& model, const std::vector<const FlightData*>& flights) {
@@ -467,7 +583,7 @@ void fit_model(Model& model, const std::vector<const FlightData*>& flights) {
   Eigen::Index columns = 0;
   for (const auto& t : terms) columns += t->columns();
   std::vector<bool> keep(static_cast<size_t>(columns), false);  // columns the method can fit
-  for (Eigen::Index c : fittable_columns(model.fit.method, terms))
+  for (Eigen::Index c : fittable_columns(model.fit.method, terms, model.slow_terms))
     keep[static_cast<size_t>(c)] = true;
   std::string sources;
   for (const FlightData* flight : flights) {
@@ -516,6 +632,8 @@ void fit_model(Model& model, const std::vector<const FlightData*>& flights) {
   report.coefficient_covariance =
       coefficient_covariance(g, s.lambda, report.noise_variance_nT2, keep);
   add_column_warnings(model, g, keep, &report);
+  const std::vector<Eigen::Index> slow = slow_columns(s.method, terms, model.slow_terms);
+  if (!slow.empty()) fit_slow_stage(model, terms, flights, slow, &report);
   model.report = report;
 }
 

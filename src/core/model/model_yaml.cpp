@@ -13,6 +13,7 @@
 #include "magcomp/core/error.h"
 #include "magcomp/core/io/file_io.h"
 #include "magcomp/core/model/model.h"
+#include "magcomp/core/model/terms_expr.h"
 
 namespace magcomp {
 namespace {
@@ -220,21 +221,25 @@ void parse_terms(const YAML::Node& node, const std::string& path, Model* m) {
   }
 }
 
-// The `black_box_terms` list: terms of the model (as `terms` writes them) that form a learned law.
-void parse_black_box(const YAML::Node& node, const std::string& path, Model* m) {
-  if (!node.IsSequence()) throw Error(path + ": key 'black_box_terms' must be a list");
+// A list of terms of the model (as `terms` writes them) under `key`: `black_box_terms` (those
+// that form a learned law) or `slow_terms` (those fitted after the band-pass stage).
+std::vector<std::string> parse_term_subset(const YAML::Node& node, const std::string& path,
+                                           const std::string& key, const Model& m) {
+  if (!node.IsSequence()) throw Error(path + ": key '" + key + "' must be a list");
+  std::vector<std::string> out;
   for (const auto& t : node) {
-    const std::string spec = get<std::string>(t, path, "black_box_terms");
+    const std::string spec = get<std::string>(t, path, key);
     std::string canonical;
     try {
       canonical = make_term(spec)->spec();
     } catch (const Error& e) {
-      throw Error(path + ": key 'black_box_terms': " + e.what());
+      throw Error(path + ": key '" + key + "': " + e.what());
     }
-    if (std::find(m->terms.begin(), m->terms.end(), canonical) == m->terms.end())
-      throw Error(path + ": key 'black_box_terms': '" + spec + "' is not among the model's terms");
-    m->black_box_terms.push_back(canonical);
+    if (std::find(m.terms.begin(), m.terms.end(), canonical) == m.terms.end())
+      throw Error(path + ": key '" + key + "': '" + spec + "' is not among the model's terms");
+    out.push_back(canonical);
   }
+  return out;
 }
 
 // The `fit` map: method, calibration selection, band, order, trim, ridge lambda, reference.
@@ -365,7 +370,7 @@ static Model load_model_yaml_unchecked(const std::string& path_in) {
   }
   if (!root.IsMap()) throw Error(path + ": model file must be a YAML map");
   warn_unknown(root,
-               {"scalar", "vector", "terms", "black_box_terms", "fit", "bt_scale_nT",
+               {"scalar", "vector", "terms", "black_box_terms", "slow_terms", "fit", "bt_scale_nT",
                 "coefficients", "fit_report", "neural", "description"},
                path, "");
   Model m;
@@ -374,13 +379,28 @@ static Model load_model_yaml_unchecked(const std::string& path_in) {
   m.scalar = get<std::string>(root["scalar"], path, "scalar");
   m.vector = get<std::string>(root["vector"], path, "vector");
   if (root["terms"]) parse_terms(root["terms"], path, &m);
-  if (const YAML::Node b = root["black_box_terms"]) parse_black_box(b, path, &m);
+  if (const YAML::Node b = root["black_box_terms"])
+    m.black_box_terms = parse_term_subset(b, path, "black_box_terms", m);
+  if (const YAML::Node b = root["slow_terms"]) {
+    m.slow_terms = parse_term_subset(b, path, "slow_terms", m);
+    for (const auto& t : m.slow_terms) {
+      const auto e = parse_expr_term(t);
+      if (e && e->signal().has_free())
+        throw Error(path + ": key 'slow_terms': '" + t +
+                    "' has a free parameter (?): give its value");
+    }
+  }
   if (root["bt_scale_nT"]) {
     m.bt_scale_nT = get<double>(root["bt_scale_nT"], path, "bt_scale_nT");
     if (!(m.bt_scale_nT > 0) || !std::isfinite(m.bt_scale_nT))
       throw Error(path + ": key 'bt_scale_nT' must be positive and finite");
   }
   if (const YAML::Node f = root["fit"]) m.fit = parse_fit_settings(f, path);
+  if (!m.slow_terms.empty() && m.fit.method == FitMethod::kBandpass && m.fit.reference.empty()) {
+    throw Error(path +
+                ": key 'slow_terms' needs fit.reference (the field the slow terms are "
+                "fitted against after the band-pass stage)");
+  }
   if (const YAML::Node c = root["coefficients"]) parse_coefficients(c, path, &m);
   if (const YAML::Node r = root["fit_report"]; r && r.IsMap() && m.fitted()) {
     parse_fit_report(r, path, &m);
@@ -399,6 +419,8 @@ void save_model_yaml(const Model& m, const std::string& path,
   out << YAML::Key << "terms" << YAML::Value << YAML::Flow << m.terms;
   if (!m.black_box_terms.empty())
     out << YAML::Key << "black_box_terms" << YAML::Value << YAML::Flow << m.black_box_terms;
+  if (!m.slow_terms.empty())
+    out << YAML::Key << "slow_terms" << YAML::Value << YAML::Flow << m.slow_terms;
   out << YAML::Key << "bt_scale_nT" << YAML::Value << m.bt_scale_nT;
   out << YAML::Key << "fit" << YAML::Value << YAML::BeginMap;
   out << YAML::Key << "method" << YAML::Value << fit_method_name(m.fit.method);

@@ -42,6 +42,10 @@ struct Candidate {
   /// Estimated parameters in physical units: {"lp.time_constant_s", 150}, {"lag_s", 0.3},
   /// {"gain_nT_per_unit", 19.2}, ...
   std::vector<std::pair<std::string, double>> parameters;
+  /// Too slow for the model's band-pass fit: scored, and to be added, as a slow term
+  /// (Model::slow_terms: fitted after the band-pass stage against the reference, unfiltered, on
+  /// the calibration segments).
+  bool slow = false;
 };
 
 /// Settings of a diagnosis (defaults: the full search).

@@ -74,6 +74,11 @@ struct Model {
   /// fitted shape, not a physical law (diagnose adds them when no term of the language passes).
   /// Written as `black_box_terms` in the model file.
   std::vector<std::string> black_box_terms;
+  /// The terms (among `terms`) too slow for a band-pass fit to see (a heater's hundreds of
+  /// seconds, a drift): with fit.method bandpass they are left out of the band-pass stage and
+  /// fitted after it against fit.reference on the same calibration segments, unfiltered, each
+  /// segment's mean removed (fit_slow_columns). Written as `slow_terms` in the model file.
+  std::vector<std::string> slow_terms;
   double bt_scale_nT = 50000.0;
   FitSettings fit;
   // Fitted state (empty until calibrated).
@@ -119,6 +124,16 @@ Eigen::MatrixXd design_matrix(const Model& model, const std::vector<std::unique_
 /// say, is filtered away).
 std::vector<Eigen::Index> fittable_columns(FitMethod method,
                                            const std::vector<std::unique_ptr<Term>>& terms);
+/// The same, without the columns of `slow_terms` when `method` is bandpass (the slow stage
+/// fits those).
+std::vector<Eigen::Index> fittable_columns(FitMethod method,
+                                           const std::vector<std::unique_ptr<Term>>& terms,
+                                           const std::vector<std::string>& slow_terms);
+/// Indices of the design-matrix columns of the model's slow terms (Model::slow_terms) that a fit
+/// by `method` fits after its band-pass stage: empty for a reference fit (it fits every column).
+std::vector<Eigen::Index> slow_columns(FitMethod method,
+                                       const std::vector<std::unique_ptr<Term>>& terms,
+                                       const std::vector<std::string>& slow_terms);
 
 /// Samples of margin that make rows of the design matrix and of the aligned scalar built on a
 /// slice of a flight (FlightData::rows) equal to the same rows built on the whole flight: the
