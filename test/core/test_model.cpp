@@ -135,6 +135,8 @@ TEST(Model, ASlowTermIsFittedAfterTheBandPassAgainstTheReference) {
   ASSERT_EQ(tl.coefficients.size(), c);
   for (Eigen::Index j = 0; j < c; ++j)
     EXPECT_NEAR(slow.coefficients[j], tl.coefficients[j], 1e-9 * std::abs(tl.coefficients[j])) << j;
+  for (const auto& w : slow.report.warnings)
+    EXPECT_EQ(w.find("cur_tank"), std::string::npos) << w;  // not "set to 0": it is fitted
   // In the file: the list, and the errors that name it.
   const std::string dir = test::temp_dir("model");
   save_model_yaml(slow, dir + "/slow.yaml");

@@ -472,14 +472,16 @@ Eigen::MatrixXd coefficient_covariance(const Eigen::MatrixXd& g, double lambda,
   return cov;
 }
 
-// Warnings for the columns a band-pass fit cannot see, the unexcited ones (no energy in the
-// filtered calibration data) and an ill-conditioned design.
+// Warnings for the columns a band-pass fit cannot see (not those the slow stage fits), the
+// unexcited ones (no energy in the filtered calibration data) and an ill-conditioned design.
 void add_column_warnings(const Model& model, const Eigen::MatrixXd& g,
-                         const std::vector<bool>& keep, FitReport* report) {
+                         const std::vector<bool>& keep, const std::vector<Eigen::Index>& slow,
+                         FitReport* report) {
   const Eigen::Index p = static_cast<Eigen::Index>(keep.size());
   const Eigen::VectorXd norms = g.diagonal().cwiseMax(0.0).cwiseSqrt();
   const double max_norm = norms.maxCoeff();
   for (Eigen::Index j = 0, c = 0; j < p; ++j) {
+    if (std::find(slow.begin(), slow.end(), j) != slow.end()) continue;
     if (!keep[static_cast<size_t>(j)]) {
       report->warnings.push_back("column '" + model.column_names[static_cast<size_t>(j)] +
                                  "' is not observable by a band-pass fit; set to 0");
@@ -631,8 +633,8 @@ void fit_model(Model& model, const std::vector<const FlightData*>& flights) {
   report.noise_variance_nT2 = residual.squaredNorm() / dof;
   report.coefficient_covariance =
       coefficient_covariance(g, s.lambda, report.noise_variance_nT2, keep);
-  add_column_warnings(model, g, keep, &report);
   const std::vector<Eigen::Index> slow = slow_columns(s.method, terms, model.slow_terms);
+  add_column_warnings(model, g, keep, slow, &report);
   if (!slow.empty()) fit_slow_stage(model, terms, flights, slow, &report);
   model.report = report;
 }
