@@ -235,15 +235,13 @@ Search::Search(const Model& m, const FlightData& d, const std::string& truth_nam
     Eigen::MatrixXd sc(n, static_cast<Eigen::Index>(slow.size()));
     for (size_t k = 0; k < slow.size(); ++k)
       sc.col(static_cast<Eigen::Index>(k)) = a_all.col(slow[k]);
-    if (!slow.empty()) {
-      const Eigen::VectorXd cs = SlowStage(a0, e0, runs, fs.lambda).fit(sc);
-      slow0 = sc.unaryExpr([](double v) { return std::isfinite(v) ? v : 0.0; }) * cs;
-      e0 -= slow0;
-    }
     // A candidate's slow fit: with the base's band-pass and slow columns' span removed.
     if (slow.empty()) {
       slow_stage = std::make_unique<SlowStage>(a0, e0, runs, fs.lambda);
     } else {
+      const Eigen::VectorXd cs = SlowStage(a0, e0, runs, fs.lambda).fit(sc);
+      slow0 = sc.unaryExpr([](double v) { return std::isfinite(v) ? v : 0.0; }) * cs;
+      e0 -= slow0;
       Eigen::MatrixXd nuisance(n, a0.cols() + sc.cols());
       nuisance << a0, sc;
       slow_stage = std::make_unique<SlowStage>(nuisance, e0, runs, fs.lambda);
