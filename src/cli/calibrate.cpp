@@ -1,5 +1,4 @@
 // magcomp calibrate: fit a model's coefficients on calibration segments of one or more flights.
-#include <algorithm>
 #include <cmath>
 #include <iomanip>
 #include <iostream>
@@ -10,7 +9,6 @@
 #include "magcomp/core/evaluate/evaluation.h"
 #include "magcomp/core/io/file_io.h"
 #include "magcomp/core/model/model.h"
-#include "magcomp/core/model/terms_expr.h"
 #include "subcommands.h"
 
 namespace magcomp::cli {
@@ -47,19 +45,11 @@ void add_calibrate(CLI::App& app) {
       }
     }
     for (const std::string& t : *slow_terms) {
-      std::string canonical;
       try {
-        canonical = make_term(t)->spec();
-        model.add_term(canonical);
+        model.add_slow_term(t, "mag_1_c");
       } catch (const Error& e) {
         throw Error(std::string("--slow-term: ") + e.what());
       }
-      if (const auto e = parse_expr_term(canonical); e && e->signal().has_free())
-        throw Error("--slow-term: '" + t + "' has a free parameter (?): give its value");
-      if (std::find(model.slow_terms.begin(), model.slow_terms.end(), canonical) ==
-          model.slow_terms.end())
-        model.slow_terms.push_back(canonical);
-      if (model.fit.reference.empty()) model.fit.reference = "mag_1_c";
     }
     const auto flights = read_flights(*data);
     std::vector<const FlightData*> ptrs;

@@ -25,9 +25,6 @@ namespace {
 const std::set<std::string> kBookkeeping = {"tt", "line", "flight", "year", "doy", "N", "dt"};
 
 bool is_current(const std::string& n) { return n.rfind("cur_", 0) == 0; }
-bool is_electrical(const std::string& n) {
-  return n.rfind("cur_", 0) == 0 || n.rfind("vol_", 0) == 0;
-}
 bool is_rate(const std::string& n) {
   return n.size() > 5 && n.compare(n.size() - 5, 5, "_rate") == 0;
 }
@@ -603,6 +600,10 @@ double share(double after, double before) {
 }
 
 }  // namespace
+
+bool is_electrical(const std::string& channel) {
+  return channel.rfind("cur_", 0) == 0 || channel.rfind("vol_", 0) == 0;
+}
 
 // How much a term says: its sources and transforms (a shorthand or TL family counts 1).
 int term_complexity(const std::string& spec) {

@@ -79,8 +79,7 @@ std::vector<std::string> learned_law(const std::string& channel, const Candidate
   if (!e || e->projection() == Projection::Induced) e = parse_expr_term("field:" + channel);
   // Aircraft sources only (currents and voltages): a residual that follows the trajectory
   // (velocities, heading, position) is leakage of the map or the reference, not a law to learn.
-  const bool electrical = channel.rfind("cur_", 0) == 0 || channel.rfind("vol_", 0) == 0;
-  if (!electrical || !data.has(channel)) return {};
+  if (!is_electrical(channel) || !data.has(channel)) return {};
   // The knots where the fit sees the channel: its calibration rows (all rows for a fit without
   // a selection), so that no piece of the law rests on samples the fit never had; and the
   // calibration must see the channel move over at least a quarter of its 1-99 % range in flight.
@@ -130,12 +129,13 @@ std::vector<std::string> learned_law(const std::string& channel, const Candidate
 // Adds a candidate's term to `m`; a slow one (Candidate::slow) joins Model::slow_terms, fitted
 // against `truth` unless the model names its own reference.
 void add_candidate_term(const std::string& term, bool slow, const std::string& truth, Model* m) {
+  if (slow && m->fit.method == FitMethod::kBandpass) {
+    m->add_slow_term(term, truth);
+    return;
+  }
   m->add_term(term);
-  auto& list = m->slow_terms;
+  auto& list = m->slow_terms;  // the same term fitted by the band-pass from now on
   list.erase(std::remove(list.begin(), list.end(), term), list.end());
-  if (!slow || m->fit.method != FitMethod::kBandpass) return;
-  list.push_back(term);
-  if (m->fit.reference.empty()) m->fit.reference = truth;
 }
 
 }  // namespace

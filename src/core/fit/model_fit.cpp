@@ -76,6 +76,20 @@ bool Model::add_term(const std::string& spec) {
   return true;
 }
 
+void require_slow_term(const std::string& spec) {
+  if (const auto e = parse_expr_term(spec); e && e->signal().has_free())
+    throw Error("'" + spec + "' has a free parameter (?): give its value");
+}
+
+void Model::add_slow_term(const std::string& spec, const std::string& reference) {
+  const std::string canonical = make_term(spec)->spec();
+  require_slow_term(canonical);
+  add_term(canonical);
+  if (std::find(slow_terms.begin(), slow_terms.end(), canonical) == slow_terms.end())
+    slow_terms.push_back(canonical);
+  if (fit.reference.empty()) fit.reference = reference;
+}
+
 std::vector<Eigen::Index> fittable_columns(FitMethod method,
                                            const std::vector<std::unique_ptr<Term>>& terms) {
   const bool bandpass = method == FitMethod::kBandpass;

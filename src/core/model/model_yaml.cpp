@@ -13,7 +13,6 @@
 #include "magcomp/core/error.h"
 #include "magcomp/core/io/file_io.h"
 #include "magcomp/core/model/model.h"
-#include "magcomp/core/model/terms_expr.h"
 
 namespace magcomp {
 namespace {
@@ -384,10 +383,11 @@ static Model load_model_yaml_unchecked(const std::string& path_in) {
   if (const YAML::Node b = root["slow_terms"]) {
     m.slow_terms = parse_term_subset(b, path, "slow_terms", m);
     for (const auto& t : m.slow_terms) {
-      const auto e = parse_expr_term(t);
-      if (e && e->signal().has_free())
-        throw Error(path + ": key 'slow_terms': '" + t +
-                    "' has a free parameter (?): give its value");
+      try {
+        require_slow_term(t);
+      } catch (const Error& e) {
+        throw Error(path + ": key 'slow_terms': " + e.what());
+      }
     }
   }
   if (root["bt_scale_nT"]) {

@@ -84,6 +84,10 @@ std::vector<std::string> source_fields(const Model& model, const FlightData& dat
                                        const std::string& truth, bool full_search,
                                        std::vector<std::string>* notes);
 
+/// Whether a channel is one of the aircraft's electrical sources (cur_*, vol_*): the channels a
+/// slow term or a learned law may follow (motion and position would be leakage).
+bool is_electrical(const std::string& channel);
+
 /// How much a term says: its sources, transforms and their parameters (a shorthand or TL
 /// family counts 1). Between terms that explain as much, the simpler is preferred.
 int term_complexity(const std::string& spec);

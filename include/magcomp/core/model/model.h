@@ -99,7 +99,15 @@ struct Model {
   /// lag replaces the model's lag; a language term replaces one of the same shape (the same
   /// expression with other parameter values, e.g. field:cur_heat|lp(80) replaces |lp(60)).
   bool add_term(const std::string& spec);
+  /// Adds a term (add_term) as a slow term (slow_terms), fitted against fit.reference, which
+  /// gets `reference` when the model names none. Throws magcomp::Error for a term with a free
+  /// parameter (require_slow_term).
+  void add_slow_term(const std::string& spec, const std::string& reference);
 };
+
+/// Throws magcomp::Error when `spec` cannot be a slow term: one with a free parameter (?), which
+/// the slow stage, fitting coefficients only, cannot estimate.
+void require_slow_term(const std::string& spec);
 
 /// Loads a model YAML (a plain or a fitted one), or a bundle directory holding model.yaml (and
 /// the neural stage's weights). Throws magcomp::Error naming file and key.
