@@ -3,6 +3,7 @@
 // structure that remains; bad input.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <fstream>
 #include <limits>
 #include <nlohmann/json.hpp>
@@ -460,6 +461,21 @@ TEST(Diagnose, HysteresisIsFoundAsAPlayOfTheCurrentWithItsWidth) {
   ASSERT_EQ(added.rfind("field:cur_acpwr|play(", 0), 0u) << added;
   EXPECT_NEAR(std::stod(added.substr(added.find('(') + 1)), 1.5, 0.15);
   EXPECT_LE(final_err, 1.5 * truth + 0.05);
+}
+
+TEST(Diagnose, AFreePlayWidthWrittenInTheModelIsEstimatedByTheFit) {
+  // The same part, its term written by the user as field:cur_acpwr|play(?): fit_model scans the
+  // half-width over the current's range and writes the estimate into the term (1.5 A simulated).
+  const sim::Simulation& s = test::scenario("hysteresis_bus");
+  Model m = test::reference_tl(s.flight);
+  ASSERT_TRUE(m.add_term("field:cur_acpwr|play(?)"));
+  m.coefficients.resize(0);
+  fit_model(m, {&s.flight});
+  const auto it = std::find_if(m.terms.begin(), m.terms.end(), [](const std::string& t) {
+    return t.rfind("field:cur_acpwr|play(", 0) == 0;
+  });
+  ASSERT_NE(it, m.terms.end());
+  EXPECT_NEAR(std::stod(it->substr(it->find('(') + 1)), 1.5, 0.15) << *it;
 }
 
 }  // namespace

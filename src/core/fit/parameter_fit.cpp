@@ -339,7 +339,8 @@ std::vector<std::string> estimate_free_parameters(Model& model,
         profile.solve(rows.stack(cols), &rss);
         return std::isfinite(rss) ? rss : std::numeric_limits<double>::infinity();
       };
-      const auto* expr = dynamic_cast<const ExprTerm*>(make_term(model.terms[t]).get());
+      const auto term_now = make_term(model.terms[t]);  // owns what `expr` points into
+      const auto* expr = dynamic_cast<const ExprTerm*>(term_now.get());
       const SignalRange range = in_signal_units(refs[i].kind) && expr && !flights.empty()
                                     ? signal_range(expr->signal(), *flights.front())
                                     : SignalRange{};
