@@ -1,7 +1,10 @@
 // magcomp benchmark: the discovery loop on hidden effects drawn at random (test/core/
 // discovery_run.h): each run draws 1-3 effects, lets the loop choose its model on one flight and
-// scores it on the aircraft's next flight beside TL and the oracle. Prints one line per run and
-// the summary: the share of predictable runs within 1.5x the oracle (+0.05 nT), the runs worse
+// scores it on the aircraft's next flight beside TL, the oracle (TL fitted on the flight without
+// the effects) and TL plus the effects' own terms ("true"). Prints one line per run and the
+// summary: the share of predictable runs within 1.5x TL plus the true terms (+0.05 nT; issue
+// 20's rule) and within 1.5x the oracle (+0.05 nT; stricter where the band-pass cannot separate
+// an exact term from TL), the runs worse
 // than TL (must be 0), the "complete" verdicts above 1.5x the noise floor (must be 0). Each line
 // also gives the hidden effects' std within lines on the first flight (eff) and the next (next).
 // Usage: magcomp_bench_discovery SCENARIO.yaml TL_MODEL.yaml [runs] [first_seed]
@@ -21,23 +24,26 @@ int main(int argc, char** argv) {
     const magcomp::Model tl = magcomp::load_model_yaml(argv[2]);
     const int runs = argc > 3 ? std::atoi(argv[3]) : 50;
     const unsigned first = argc > 4 ? static_cast<unsigned>(std::atoi(argv[4])) : 1;
-    int predictable = 0, near = 0, worse = 0, complete_above = 0;
+    int predictable = 0, near = 0, near_true = 0, worse = 0, complete_above = 0;
     const auto t0 = std::chrono::steady_clock::now();
-    std::printf("%4s %8s %8s %8s %6s %7s %7s  %-8s %s\n", "run", "TL nT", "loop nT", "oracle",
-                "near", "eff nT", "next nT", "verdict", "effects -> terms kept");
+    std::printf("%4s %8s %8s %8s %8s %6s %6s %7s %7s  %-8s %s\n", "run", "TL nT", "loop nT",
+                "oracle", "true", "near", "near_t", "eff nT", "next nT", "verdict",
+                "effects -> terms kept");
     for (int k = 0; k < runs; ++k) {
       const unsigned r = first + static_cast<unsigned>(k);
       const int count = 1 + static_cast<int>(r % 10 < 6 ? 0 : (r % 10 < 9 ? 1 : 2));
       const magcomp::test::DiscoveryRun d = magcomp::test::discovery_run(r, count, base, tl);
       predictable += d.predictable;
       near += d.predictable && d.near_oracle();
+      near_true += d.predictable && d.near_true_terms();
       worse += d.worse_than_tl();
       complete_above += d.complete_above_floor();
       std::string kept;
       for (const auto& t : d.added) kept += (kept.empty() ? "" : ", ") + t;
-      std::printf("%4u %8.3f %8.3f %8.3f %6s %7.3f %7.3f  %-8s %s -> %s%s%s\n", r, d.tl_next_nT,
-                  d.loop_next_nT, d.oracle_next_nT,
-                  d.predictable ? (d.near_oracle() ? "yes" : "NO") : "-", d.effect_nT,
+      std::printf("%4u %8.3f %8.3f %8.3f %8.3f %6s %6s %7.3f %7.3f  %-8s %s -> %s%s%s\n", r,
+                  d.tl_next_nT, d.loop_next_nT, d.oracle_next_nT, d.true_terms_next_nT,
+                  d.predictable ? (d.near_oracle() ? "yes" : "NO") : "-",
+                  d.predictable ? (d.near_true_terms() ? "yes" : "NO") : "-", d.effect_nT,
                   d.effect_next_nT, d.verdict.substr(0, d.verdict.find(':')).substr(0, 8).c_str(),
                   d.effects.c_str(), kept.empty() ? "(none)" : kept.c_str(),
                   d.worse_than_tl() ? "  WORSE THAN TL" : "",
@@ -47,10 +53,12 @@ int main(int argc, char** argv) {
     const double secs =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     std::printf(
-        "runs %d (predictable %d): within 1.5x the oracle on the next flight %d/%d (%.0f %%); "
-        "worse than TL %d; complete above 1.5x the floor %d; %.0f s\n",
-        runs, predictable, near, predictable, predictable ? 100.0 * near / predictable : 0.0, worse,
-        complete_above, secs);
+        "runs %d (predictable %d): on the next flight within 1.5x TL + the true terms %d/%d "
+        "(%.0f %%), within 1.5x the oracle %d/%d (%.0f %%); worse than TL %d; complete above "
+        "1.5x the floor %d; %.0f s\n",
+        runs, predictable, near_true, predictable,
+        predictable ? 100.0 * near_true / predictable : 0.0, near, predictable,
+        predictable ? 100.0 * near / predictable : 0.0, worse, complete_above, secs);
     return 0;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "error: %s\n", e.what());

@@ -5,7 +5,11 @@
 // the oracle within 1.5x + 0.05 nT.
 #include <gtest/gtest.h>
 
+#include <Eigen/QR>
+#include <cstdio>
+
 #include "discovery_run.h"
+#include "magcomp/core/model/term.h"
 #include "test_util.h"
 
 namespace magcomp {
@@ -48,6 +52,66 @@ TEST(Discovery, ASlowHeaterIsSizedByTheSlowStageAndCarriesOver) {
   EXPECT_NE(d.slow_terms.front().find("cur_tank|"), std::string::npos) << slow;
   EXPECT_TRUE(d.near_oracle());
   EXPECT_FALSE(d.worse_than_tl());
+}
+
+TEST(Discovery, EachEffectIsWrittenExactlyByItsExpectedTerm) {
+  // The floor the benchmark compares with (TL + the effects' own terms) rests on
+  // sim::expected_term: each effect the simulator adds to mag_5_uc must be a combination of that
+  // term's columns, built from the recorded channels and flux_c, plus a constant, to < 2 % of its
+  // std (the rest: the fluxgate's noise and its direction against the sensor's).
+  sim::Scenario s = sim::load_scenario(test::source_dir() + "/config/scenarios/random_base.yaml");
+  const auto effect = [](const std::string& type, const std::string& channel) {
+    sim::HiddenEffect e;
+    e.type = type;
+    e.channel = channel;
+    e.sensors = {"mag_5_uc"};
+    e.direction = Eigen::Vector3d(0.6, -0.48, 0.64);
+    e.gain = 1.0;
+    return e;
+  };
+  std::vector<sim::HiddenEffect> all;
+  all.push_back(effect("wire", "cur_flap"));
+  all.back().position_m = {-3.0, 0.5, 0.2};
+  all.push_back(effect("inductive", "cur_strb"));
+  all.back().gain = 0.05;
+  all.push_back(effect("thermal", "cur_tank"));  // |I|^1: the noise about 0 A folded
+  all.back().exponent = 1.0;
+  all.back().time_constant_s = 150.0;
+  all.push_back(effect("thermal", "cur_outpwr"));
+  all.back().time_constant_s = 60.0;
+  all.back().gain = 0.02;
+  all.push_back(effect("flex", "roll_rate"));
+  all.back().time_constant_s = 2.3;
+  all.push_back(effect("hysteresis", "cur_acpwr"));
+  all.back().threshold = 0.5;
+  all.push_back(effect("product", "cur_acpwr"));
+  all.back().channel2 = "roll_rate";
+  all.back().gain = 0.05;
+  all.push_back(effect("relay", "cur_flap"));
+  all.back().threshold = 4.0;
+  all.back().gain = 20.0;
+  all.push_back(effect("drift", "vol_acpwr"));
+  all.back().time_constant_s = 200.0;
+  s.hidden = all;
+  const sim::Simulation sim = sim::simulate(s, Igrf::installed());
+  const TermInputs in = make_term_inputs(sim.flight, "flux_c", 50000.0);
+  for (size_t k = 0; k < all.size(); ++k) {
+    const std::string term = sim::expected_term(all[k]);
+    const Eigen::VectorXd y =
+        sim.truth.column("mag_5_uc.hidden." + std::to_string(k) + "." + all[k].type);
+    const auto t = make_term(term);
+    Eigen::MatrixXd x(sim.flight.size(), t->columns() + 1);
+    t->build(in, x.leftCols(t->columns()));
+    x.col(t->columns()).setOnes();
+    const Eigen::VectorXd c = x.colPivHouseholderQr().solve(y);
+    const double sd = std::sqrt((y.array() - y.mean()).square().mean());
+    const double left = std::sqrt((y - x * c).array().square().mean());
+    std::printf("  %-34s effect %.3f nT, left %.4f nT\n", term.c_str(), sd, left);
+    EXPECT_GT(sd, 0.05) << term;
+    EXPECT_LT(left, 0.02 * sd) << term;
+  }
+  EXPECT_EQ(sim::expected_term(effect("ripple", "cur_tank")), "");
+  EXPECT_EQ(sim::expected_term(effect("saturation", "cur_tank")), "");
 }
 
 TEST(Discovery, RandomEffectsAreSizedAndListed) {

@@ -479,16 +479,8 @@ void Simulator::hidden_effect_truth(const HiddenEffect& e) {
     y << YAML::Key << "position_m" << YAML::Value << YAML::Flow
       << std::vector<double>{e.position_m.x(), e.position_m.y(), e.position_m.z()};
     y << YAML::Key << "length_m" << YAML::Value << e.length_m;
-    y << YAML::Key << "expected_term" << YAML::Value << "current:" + e.channel;
   }
-  if (e.type == "inductive")
-    y << YAML::Key << "expected_term" << YAML::Value << "dcurrent:" + e.channel;
-  if (e.type == "lag") {
-    y << YAML::Key << "lag_s" << YAML::Value << e.lag_s;
-    char lag_term[64];
-    std::snprintf(lag_term, sizeof(lag_term), "lag:%g", e.lag_s);
-    y << YAML::Key << "expected_term" << YAML::Value << lag_term;
-  }
+  if (e.type == "lag") y << YAML::Key << "lag_s" << YAML::Value << e.lag_s;
   if (e.type == "heading" || e.type == "drift" || e.type == "inductive" || e.type == "thermal" ||
       e.type == "flex" || e.type == "relay" || e.type == "eddy_decay" || e.type == "ripple" ||
       e.type == "product" || e.type == "hysteresis" || e.type == "saturation") {
@@ -498,49 +490,30 @@ void Simulator::hidden_effect_truth(const HiddenEffect& e) {
       (e.type == "flex" && e.time_constant_s > 0)) {
     y << YAML::Key << "time_constant_s" << YAML::Value << e.time_constant_s;
   }
-  const std::string lp = "|lp(" + format_param(e.time_constant_s) + ")";
-  if (e.type == "thermal") {
-    y << YAML::Key << "exponent" << YAML::Value << e.exponent;
-    y << YAML::Key << "expected_term" << YAML::Value
-      << "field:" + e.channel + "|pow(" + format_param(e.exponent) + ")" + lp;
-  }
-  if (e.type == "flex") {
-    y << YAML::Key << "expected_term" << YAML::Value
-      << "field:" + e.channel + (e.time_constant_s > 0 ? lp : "");
-  }
-  if (e.type == "eddy_decay") {
-    y << YAML::Key << "expected_term" << YAML::Value
-      << "field:B|decay(" + format_param(e.time_constant_s) + ")";
-  }
-  if (e.type == "hysteresis") {
-    y << YAML::Key << "half_width" << YAML::Value << e.threshold;
-    y << YAML::Key << "expected_term" << YAML::Value
-      << "field:" + e.channel + "|play(" + format_param(e.threshold) + ")";
-  }
-  if (e.type == "product") {
-    y << YAML::Key << "channel2" << YAML::Value << e.channel2;
-    y << YAML::Key << "expected_term" << YAML::Value << "field:" + e.channel + "*" + e.channel2;
-  }
+  if (e.type == "thermal") y << YAML::Key << "exponent" << YAML::Value << e.exponent;
+  if (e.type == "hysteresis") y << YAML::Key << "half_width" << YAML::Value << e.threshold;
+  if (e.type == "product") y << YAML::Key << "channel2" << YAML::Value << e.channel2;
   if (e.type == "ripple") {
     y << YAML::Key << "frequency_hz" << YAML::Value << e.frequency_hz;
     y << YAML::Key << "phase_walk_rad" << YAML::Value << e.phase_walk_rad;
-    y << YAML::Key << "expected_term" << YAML::Value
-      << "(none: a ripple whose amplitude follows " + e.channel +
-             " and whose phase no channel records)";
   }
   if (e.type == "saturation") {
     y << YAML::Key << "dead_band_end" << YAML::Value << e.threshold;
     y << YAML::Key << "level" << YAML::Value << e.level;
+  }
+  if (e.type == "relay") y << YAML::Key << "threshold" << YAML::Value << e.threshold;
+  const std::string term = expected_term(e);
+  if (!term.empty()) {
+    y << YAML::Key << "expected_term" << YAML::Value << term;
+  } else if (e.type == "ripple") {
+    y << YAML::Key << "expected_term" << YAML::Value
+      << "(none: a ripple whose amplitude follows " + e.channel +
+             " and whose phase no channel records)";
+  } else if (e.type == "saturation") {
     y << YAML::Key << "expected_term" << YAML::Value
       << "(none in closed form: a dead band below " + format_param(e.threshold) + " of " +
              e.channel + ", then a core saturating at " + format_param(e.level) +
              "; a learned law of " + e.channel + ")";
-  }
-  if (e.type == "relay") {
-    y << YAML::Key << "threshold" << YAML::Value << e.threshold;
-    y << YAML::Key << "expected_term" << YAML::Value
-      << "(none: a device switched on while " + e.channel + " > " + format_param(e.threshold) +
-             "; the term language has no threshold)";
   }
 }
 
@@ -687,6 +660,27 @@ void Simulator::drifting_ins() {
 }
 
 }  // namespace
+
+std::string expected_term(const HiddenEffect& e) {
+  const std::string lp = "|lp(" + format_param(e.time_constant_s) + ")";
+  if (e.type == "wire") return "current:" + e.channel;
+  if (e.type == "inductive") return "dcurrent:" + e.channel;
+  if (e.type == "lag") return "lag:" + format_param(e.lag_s);
+  // |x|^exponent: a square is the signed power; any other exponent takes the magnitude first.
+  if (e.type == "thermal")
+    return "field:" + e.channel +
+           (e.exponent == 2.0 ? std::string("|pow(2)")
+                              : "|abs|pow(" + format_param(e.exponent) + ")") +
+           lp;
+  if (e.type == "flex") return "field:" + e.channel + (e.time_constant_s > 0 ? lp : "");
+  if (e.type == "eddy_decay") return "field:B|decay(" + format_param(e.time_constant_s) + ")";
+  if (e.type == "hysteresis")
+    return "field:" + e.channel + "|play(" + format_param(e.threshold) + ")";
+  if (e.type == "product") return "field:" + e.channel + "*" + e.channel2;
+  if (e.type == "relay") return "field:" + e.channel + "|step(" + format_param(e.threshold) + ")";
+  if (e.type == "drift") return "scalar:" + e.channel + lp;  // its start value is a constant
+  return "";
+}
 
 Simulation simulate(const Scenario& s, const Igrf& igrf) { return Simulator(s, igrf).run(); }
 

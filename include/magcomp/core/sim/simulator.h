@@ -32,6 +32,12 @@ std::string map_path(const std::string& out_h5);
 /// plus the hidden effects. Deterministic in scenario.seed.
 Simulation simulate(const Scenario& scenario, const Igrf& igrf);
 
+/// The term of magcomp's language that writes hidden effect `e` on a scalar sensor exactly, its
+/// coefficients left to the fit ("current:cur_strb", "field:cur_heat|pow(2)|lp(240)", "lag:0.2");
+/// "" for an effect no term writes (a ripple of unrecorded phase, a saturating core, a heading
+/// error, a fluxgate fault). The truth file's `expected_term`.
+std::string expected_term(const HiddenEffect& e);
+
 /// Writes F.h5 and, beside it, F.truth.h5 and F.truth.yaml (each atomically).
 void write_simulation(const Simulation& sim, const std::string& out_h5,
                       const std::vector<std::string>& inputs = {});
