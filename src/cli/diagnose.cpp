@@ -191,7 +191,8 @@ void diagnose_several(const Model& model_in, const std::vector<std::string>& pat
                           {"scored_on", c.scored_on},
                           {"mean_explained", c.mean_explained},
                           {"mean_ranking_share", c.mean_ranking_share},
-                          {"explained", per}});
+                          {"explained", per},
+                          {"slow", c.slow}});
     if (static_cast<int>(k) >= top) continue;
     std::printf("%-4zu %-34s %5d/%-3zu %13.1f%% ", k + 1, c.term.c_str(), c.accepted_on,
                 paths.size(), 100 * c.mean_explained);
@@ -208,8 +209,10 @@ void diagnose_several(const Model& model_in, const std::vector<std::string>& pat
   if (season.verdict.rfind("add ", 0) == 0) {
     std::string all;
     for (const auto& p : paths) all += (all.empty() ? "" : ",") + p;
-    std::printf("to add it:\n  magcomp calibrate --data %s --model %s --term '%s' --out NEW.yaml\n",
-                all.c_str(), model_path.c_str(), season.candidates.front().term.c_str());
+    const SeasonCandidate& top_term = season.candidates.front();
+    std::printf("to add it:\n  magcomp calibrate --data %s --model %s %s '%s' --out NEW.yaml\n",
+                all.c_str(), model_path.c_str(), top_term.slow ? "--slow-term" : "--term",
+                top_term.term.c_str());
   }
   j["season"] = {{"candidates", candidates}, {"verdict", season.verdict}};
   j["verdict"] = season.verdict;

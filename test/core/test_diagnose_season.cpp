@@ -21,6 +21,11 @@ Candidate candidate(const std::string& term, double explained, bool accepted,
   return c;
 }
 
+Candidate slow(Candidate c) {
+  c.slow = true;
+  return c;
+}
+
 Diagnosis flight(std::vector<Candidate> candidates, const std::string& verdict) {
   Diagnosis d;
   d.candidates = std::move(candidates);
@@ -40,12 +45,13 @@ TEST(DiagnoseSeason, ShapesIgnoreParameterValues) {
 
 TEST(DiagnoseSeason, TheTermAcceptedOnMostFlightsWinsWithItsBestEstimate) {
   // Three flights: the heater's low-pass is accepted on all three (time constants 151, 148, 160
-  // s), the strobe wire on one only (though it explains more there), a lag scored on two.
+  // s; fitted by the slow stage on the second), the strobe wire on one only (though it explains
+  // more there), a lag scored on two.
   const std::vector<Diagnosis> flights = {
       flight({candidate("field:cur_heat|lp(151)", 0.40, true),
               candidate("current:cur_strb", 0.70, true), candidate("lag:0.3", 0.10, false)},
              "add field:cur_heat|lp(151): ..."),
-      flight({candidate("field:cur_heat|lp(148)", 0.55, true),
+      flight({slow(candidate("field:cur_heat|lp(148)", 0.55, true)),
               candidate("current:cur_strb", 0.01, false)},
              "add field:cur_heat|lp(148): ..."),
       flight({candidate("field:cur_heat|lp(160)", 0.25, true), candidate("lag:0.25", 0.30, false)},
@@ -54,11 +60,13 @@ TEST(DiagnoseSeason, TheTermAcceptedOnMostFlightsWinsWithItsBestEstimate) {
   ASSERT_EQ(s.candidates.size(), 3u);
   const SeasonCandidate& top = s.candidates[0];
   EXPECT_EQ(top.term, "field:cur_heat|lp(148)");  // where it explained most
+  EXPECT_TRUE(top.slow);                          // and was fitted by the slow stage there
   EXPECT_EQ(top.accepted_on, 3);
   EXPECT_EQ(top.scored_on, 3);
   EXPECT_NEAR(top.mean_explained, (0.40 + 0.55 + 0.25) / 3, 1e-15);
   EXPECT_EQ(s.candidates[1].term, "current:cur_strb");
   EXPECT_EQ(s.candidates[1].accepted_on, 1);
+  EXPECT_FALSE(s.candidates[1].slow);
   EXPECT_NEAR(s.candidates[1].mean_explained, (0.70 + 0.01) / 2, 1e-15);
   EXPECT_TRUE(std::isnan(s.candidates[1].explained[2]));  // not scored on the third flight
   EXPECT_EQ(s.candidates[2].shape, "lag");

@@ -32,6 +32,7 @@ SeasonDiagnosis merge_diagnoses(const std::vector<Diagnosis>& flights) {
       if (fresh) {
         SeasonCandidate s;
         s.term = c.term;
+        s.slow = c.slow;
         s.shape = shape;
         s.explained.assign(n, NAN);
         out.candidates.push_back(s);
@@ -48,6 +49,7 @@ SeasonDiagnosis merge_diagnoses(const std::vector<Diagnosis>& flights) {
       if (c.explained_fraction > best[it->second]) {
         best[it->second] = c.explained_fraction;
         s.term = c.term;
+        s.slow = c.slow;
       }
     }
   }

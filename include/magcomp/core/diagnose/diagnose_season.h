@@ -20,6 +20,9 @@ struct SeasonCandidate {
   /// with the channel term whose timing it explains).
   double mean_ranking_share = 0.0;
   std::vector<double> explained;  ///< per flight (Candidate::explained_fraction), NaN: not scored
+  /// `term` is fitted by the slow stage on the flight it comes from (Candidate::slow): add it
+  /// with --slow-term.
+  bool slow = false;
 };
 
 struct SeasonDiagnosis {
