@@ -86,6 +86,34 @@ TEST(Timeseries, TheLagRoundTripIsTheSmoothingOfARealignedFractionalDelay) {
   EXPECT_EQ(whole.col(0), pulse);
 }
 
+// The round trip of a slice with lag_round_trip_slice_margin() rows each side gives the slice's
+// own rows the numbers of the whole column's round trip, for lags of a fraction of a sample to
+// several samples, either sign; with only lag_round_trip_reach() rows, a lag of 3.79 samples
+// gives the last rows the slice's held end instead.
+TEST(Timeseries, ALagRoundTripOnASliceWithItsMarginEqualsTheWholeColumns) {
+  const Eigen::Index n = 200, first = 80, last = 119;
+  Eigen::VectorXd x(n);
+  for (Eigen::Index i = 0; i < n; ++i) x[i] = std::sin(0.37 * i) + 0.01 * i * i;
+  for (double lag : {0.3, 2.44, 3.79, -3.79, 7.5}) {
+    Eigen::MatrixXd whole = x;
+    lag_round_trip(whole, lag);
+    const Eigen::Index m = lag_round_trip_slice_margin(lag);
+    EXPECT_EQ(m, static_cast<Eigen::Index>(std::ceil(std::abs(lag))) + 3) << lag;
+    Eigen::MatrixXd part = x.segment(first - m, last - first + 1 + 2 * m);
+    lag_round_trip(part, lag);
+    for (Eigen::Index i = first; i <= last; ++i)
+      EXPECT_EQ(part(i - first + m, 0), whole(i, 0)) << "lag " << lag << " row " << i;
+  }
+  const double lag = 3.79;
+  Eigen::MatrixXd whole = x;
+  lag_round_trip(whole, lag);
+  const Eigen::Index r = lag_round_trip_reach(lag);
+  Eigen::MatrixXd part = x.segment(first - r, last - first + 1 + 2 * r);
+  lag_round_trip(part, lag);
+  EXPECT_GT(std::abs(part(last - first + r, 0) - whole(last, 0)), 0.1);
+  EXPECT_EQ(lag_round_trip_slice_margin(4.0), 0);
+}
+
 TEST(Timeseries, CentralRateIsExactOnALineAndWrapsAnAngleAcrossPi) {
   Eigen::VectorXd x(6);
   x << 1.0, 3.0, 5.0, 7.0, 9.0, 11.0;  // 2 per sample, 0.5 s apart: 4 per s

@@ -431,9 +431,11 @@ Scored Search::run(const Job& job) const {
 
 Eigen::MatrixXd Search::stacked_at_lag(const Eigen::MatrixXd& cols, double tau) const {
   const double lag_samples = tau / dt;
-  const Eigen::Index reach = lag_round_trip_reach(lag_samples), n = data.size();
-  // Each run with `reach` rows each side: its rows get the same numbers as on the whole flight,
-  // and the rest of the flight is never copied.
+  const Eigen::Index reach = lag_round_trip_slice_margin(lag_samples), n = data.size();
+  // Each run with `reach` rows each side: its rows get the same numbers as on the whole flight
+  // (with fewer, a fractional lag of more than a sample gives the last rows of each run the
+  // slice's held end, and the band-pass spreads that back over the run), and the rest of the
+  // flight is never copied.
   Eigen::Index rows = 0;
   for (const auto& [first, last] : runs)
     rows += std::min(n - 1, last + reach) - std::max<Eigen::Index>(0, first - reach) + 1;

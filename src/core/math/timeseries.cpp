@@ -54,6 +54,11 @@ int lag_round_trip_reach(double lag_samples) {
   return whole_samples(lag_samples) || !std::isfinite(lag_samples) ? 0 : 3;
 }
 
+int lag_round_trip_slice_margin(double lag_samples) {
+  if (lag_round_trip_reach(lag_samples) == 0) return 0;
+  return static_cast<int>(std::ceil(std::abs(lag_samples))) + 3;
+}
+
 void lag_round_trip(Eigen::Ref<Eigen::MatrixXd> a, double lag_samples) {
   if (lag_round_trip_reach(lag_samples) == 0) return;
   for (Eigen::Index c = 0; c < a.cols(); ++c) {

@@ -25,6 +25,11 @@ void lag_round_trip(Eigen::Ref<Eigen::MatrixXd> a, double lag_samples);
 /// Rows on each side of a row that lag_round_trip() reads: 0 for a whole number of samples, 3
 /// otherwise (the delay's and the advance's interpolation windows overlap but for those).
 int lag_round_trip_reach(double lag_samples);
+/// Rows a slice of a column needs beyond each row it keeps so that lag_round_trip() of the slice
+/// gives those rows the numbers of the whole column's: 0 for a whole number of samples,
+/// ceil(|lag_samples|) + 3 otherwise (the delayed intermediate is read that far past the row,
+/// and the slice's held ends must not reach it).
+int lag_round_trip_slice_margin(double lag_samples);
 
 /// The rate of x (units per s), samples dt_s apart, by central differences (one-sided at the
 /// ends). With `wrap_angle`, x is an angle in rad and each difference is wrapped to (-pi, pi].
