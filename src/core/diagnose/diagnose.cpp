@@ -787,16 +787,17 @@ std::vector<Job> refined_jobs(const Model& model, const Search& search,
 
 constexpr size_t kScreenedProducts = 12;  // pairs fitted in full after the screen
 
-// Every pair of channels screened cheaply for a product term field:x*y: on the selection rows,
+// Every pair of channels screened cheaply for a product term field:x*y: on the held-out rows,
 // the share of the base residual (each line's mean removed) that the product's three columns
-// B̂i·x·y explain by least squares (no refit of the base). The best `keep` pairs not already in
-// `taken` become jobs, scored like every other (fitted with the base, confirmed on the other
-// fold). Two threads split the first channel.
+// B̂i·x·y explain by least squares (no refit of the base). The screen only chooses which pairs
+// are fitted: the best `keep` pairs not already in `taken` become jobs, scored like every other
+// (fitted with the base, then accepted only if they lower the error on each fold by itself). It
+// reads both folds because a product of a current that one kind of flying switches on can lie
+// mostly in one of them. The earth-frame velocities are passed over (is_earth_frame_velocity).
+// Two threads split the first channel.
 std::vector<Job> screened_products(const Search& search, const std::vector<std::string>& sources,
                                    const std::vector<Job>& taken, size_t keep, int threads) {
-  std::vector<Eigen::Index> rows;
-  for (Eigen::Index i : search.held)
-    if (search.fold[static_cast<size_t>(i)] == 0) rows.push_back(i);
+  const std::vector<Eigen::Index>& rows = search.held;
   const auto m = static_cast<Eigen::Index>(rows.size());
   if (m < 100 || sources.size() < 2) return {};
   // The residual, each line's mean removed; the direction products B̂iB̂j and e·B̂i per row.
@@ -823,7 +824,8 @@ std::vector<Job> screened_products(const Search& search, const std::vector<std::
     const FlightData::Column v = search.data.column(sources[c]);
     auto col = x.col(static_cast<Eigen::Index>(c));
     for (Eigen::Index r = 0; r < m; ++r) col[r] = v[rows[static_cast<size_t>(r)]];
-    if (!col.allFinite()) col.setZero();  // a channel with gaps: not screened
+    // A channel with gaps, or an earth-frame velocity: not screened.
+    if (!col.allFinite() || is_earth_frame_velocity(sources[c])) col.setZero();
     const double sd = std::sqrt((col.array() - col.mean()).square().mean());
     if (sd > 0) col /= sd;
   }

@@ -75,6 +75,12 @@ bool is_position_channel(const std::string& name) {
   return kPosition.count(name) > 0;
 }
 
+bool is_earth_frame_velocity(const std::string& name) {
+  static const std::set<std::string> kVelocity = {"ins_vn", "ins_ve", "ins_vw", "ins_vu", "ins_vd",
+                                                  "vn",     "ve",     "vw",     "vu",     "vd"};
+  return kVelocity.count(name) > 0;
+}
+
 ResidualFloor residual_floor(
     const Eigen::VectorXd& residual, const std::vector<int>& unit, double sample_rate_hz,
     const std::vector<std::pair<std::string, Eigen::Map<const Eigen::VectorXd>>>& channels,

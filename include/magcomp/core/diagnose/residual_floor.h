@@ -39,5 +39,9 @@ ResidualFloor residual_floor(
 /// aircraft field. A residual that follows them is map or trajectory leakage (the reference fit,
 /// IGRF or diurnal), never a term.
 bool is_position_channel(const std::string& name);
+/// The earth-frame velocities (ins_vn, ins_vw, ins_vu, vn, ve, ...), m/s: the trajectory's heading
+/// and climb. A term of one alone can stand for a slow heading-dependent error, but a product of
+/// one with another channel is no aircraft source: the product screen passes them over.
+bool is_earth_frame_velocity(const std::string& name);
 
 }  // namespace magcomp
