@@ -60,38 +60,32 @@ TEST(Discovery, EachEffectIsWrittenExactlyByItsExpectedTerm) {
   // term's columns, built from the recorded channels and flux_c, plus a constant, to < 2 % of its
   // std (the rest: the fluxgate's noise and its direction against the sensor's).
   sim::Scenario s = sim::load_scenario(test::source_dir() + "/config/scenarios/random_base.yaml");
-  const auto effect = [](const std::string& type, const std::string& channel) {
+  // type, channel, gain, time constant (s), threshold (play half-width, relay level).
+  const auto effect = [](const std::string& type, const std::string& channel, double gain = 1.0,
+                         double time_constant_s = 300.0, double threshold = 0.0) {
     sim::HiddenEffect e;
     e.type = type;
     e.channel = channel;
     e.sensors = {"mag_5_uc"};
     e.direction = Eigen::Vector3d(0.6, -0.48, 0.64);
-    e.gain = 1.0;
+    e.gain = gain;
+    e.time_constant_s = time_constant_s;
+    e.threshold = threshold;
     return e;
   };
-  std::vector<sim::HiddenEffect> all;
-  all.push_back(effect("wire", "cur_flap"));
-  all.back().position_m = {-3.0, 0.5, 0.2};
-  all.push_back(effect("inductive", "cur_strb"));
-  all.back().gain = 0.05;
-  all.push_back(effect("thermal", "cur_tank"));  // |I|^1: the noise about 0 A folded
-  all.back().exponent = 1.0;
-  all.back().time_constant_s = 150.0;
-  all.push_back(effect("thermal", "cur_outpwr"));
-  all.back().time_constant_s = 60.0;
-  all.back().gain = 0.02;
-  all.push_back(effect("flex", "roll_rate"));
-  all.back().time_constant_s = 2.3;
-  all.push_back(effect("hysteresis", "cur_acpwr"));
-  all.back().threshold = 0.5;
-  all.push_back(effect("product", "cur_acpwr"));
-  all.back().channel2 = "roll_rate";
-  all.back().gain = 0.05;
-  all.push_back(effect("relay", "cur_flap"));
-  all.back().threshold = 4.0;
-  all.back().gain = 20.0;
-  all.push_back(effect("drift", "vol_acpwr"));
-  all.back().time_constant_s = 200.0;
+  std::vector<sim::HiddenEffect> all = {
+      effect("wire", "cur_flap"),
+      effect("inductive", "cur_strb", 0.05),
+      effect("thermal", "cur_tank", 1.0, 150.0),  // |I|^1 (below): the noise about 0 A folded
+      effect("thermal", "cur_outpwr", 0.02, 60.0),
+      effect("flex", "roll_rate", 1.0, 2.3),
+      effect("hysteresis", "cur_acpwr", 1.0, 300.0, 0.5),
+      effect("product", "cur_acpwr", 0.05),
+      effect("relay", "cur_flap", 20.0, 300.0, 4.0),
+      effect("drift", "vol_acpwr", 1.0, 200.0)};
+  all[0].position_m = {-3.0, 0.5, 0.2};
+  all[2].exponent = 1.0;
+  all[6].channel2 = "roll_rate";
   s.hidden = all;
   const sim::Simulation sim = sim::simulate(s, Igrf::installed());
   const TermInputs in = make_term_inputs(sim.flight, "flux_c", 50000.0);
