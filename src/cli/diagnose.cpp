@@ -39,7 +39,9 @@ void print_diagnosis(const Model& model, const Diagnosis& dx, int top, const std
     std::printf("%-4zu %-34s %9.3f %8.1f%% %8.1f%% %7.1f%%  %-40s %s%s\n", k + 1, c.term.c_str(),
                 c.std_after_nT, 100 * c.explained_fraction, 100 * c.explained_selection,
                 100 * c.explained_confirmation, c.estimate.c_str(), c.effect.c_str(),
-                c.accepted ? "" : "  [rejected: not confirmed]");
+                c.accepted
+                    ? (c.chosen_on_confirmation ? "  [chosen on the confirmation lines]" : "")
+                    : "  [rejected: not confirmed]");
   }
   const ExplainableShare& x = dx.explainable;
   if (x.computed) {
@@ -103,6 +105,7 @@ nlohmann::json to_json(const Diagnosis& dx) {
                                {"explained_confirmation", c.explained_confirmation},
                                {"accepted", c.accepted},
                                {"slow", c.slow},
+                               {"chosen_on_confirmation", c.chosen_on_confirmation},
                                {"estimate", c.estimate},
                                {"parameters", p}});
   }

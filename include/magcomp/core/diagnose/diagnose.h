@@ -35,8 +35,14 @@ struct Candidate {
   double ranking_share = NAN;
   /// True when it improves the selection lines (where it was ranked) and also the confirmation
   /// lines (used neither to fit nor to choose it) by at least DiagnoseOptions::accept_fraction
-  /// of the variance and DiagnoseOptions::resolution_nT of the std.
+  /// of the variance and DiagnoseOptions::resolution_nT of the std; or, for the one candidate
+  /// chosen_on_confirmation, the confirmation lines by both, the selection lines by
+  /// accept_fraction, and the held-out error by resolution_nT more than the selection lines'
+  /// first.
   bool accepted = false;
+  /// Ranked first on the confirmation lines and confirmed on the selection lines (an effect that
+  /// barely shows on the selection lines); false for a term chosen on the selection lines.
+  bool chosen_on_confirmation = false;
   /// fitted size in physical units, e.g. "19.2 nT/A, lp.time_constant_s 150"
   std::string estimate;
   /// Estimated parameters in physical units: {"lp.time_constant_s", 150}, {"lag_s", 0.3},
