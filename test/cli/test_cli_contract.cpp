@@ -98,6 +98,9 @@ TEST(Cli, DiagnoseWritesTheContractJsonAndTheLoop) {
   EXPECT_LT(top["std_after_nT"].get<double>(), 0.5);
   EXPECT_GT(top["explained_fraction"].get<double>(), 0.9);
   EXPECT_TRUE(top["accepted"].get<bool>());
+  EXPECT_FALSE(top["slow"].get<bool>());
+  // The pickup shows on every line: the selection lines choose it.
+  EXPECT_FALSE(top["chosen_on_confirmation"].get<bool>());
   EXPECT_TRUE(top["parameters"].is_object());
   EXPECT_GT(top["parameters"]["gain_nT_per_unit"].get<double>(), 0.0);
   EXPECT_TRUE(j["explainable_share"]["share"].is_number());
