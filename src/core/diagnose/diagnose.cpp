@@ -968,28 +968,27 @@ void add_lag_candidate(const Model& model, const FlightData& data, const Search&
 // (nrml_acc before nrml_acc*vol_res_p).
 void judge_and_rank(const Search& search, const DiagnoseOptions& options,
                     std::vector<Candidate>* candidates) {
+  // The std a term removes on split `fold` (0 selection, 1 confirmation), nT.
+  auto gain_nT = [&search](int fold, double share) {
+    return search.base_std[fold] * (1 - std::sqrt(std::max(0.0, 1 - share)));
+  };
   for (auto& c : *candidates) {
     if (!std::isfinite(c.ranking_share)) c.ranking_share = c.explained_selection;
     c.explained_fraction = std::min(c.explained_selection, c.explained_confirmation);
-    // The std it removes on each split, nT.
-    const double gain_sel =
-        search.base_std[0] * (1 - std::sqrt(std::max(0.0, 1 - c.explained_selection)));
-    const double gain_conf =
-        search.base_std[1] * (1 - std::sqrt(std::max(0.0, 1 - c.explained_confirmation)));
     c.accepted = c.explained_selection >= options.accept_fraction &&
                  c.explained_confirmation >= options.accept_fraction &&
-                 gain_sel >= options.resolution_nT && gain_conf >= options.resolution_nT;
+                 gain_nT(0, c.explained_selection) >= options.resolution_nT &&
+                 gain_nT(1, c.explained_confirmation) >= options.resolution_nT;
   }
   std::stable_sort(candidates->begin(), candidates->end(),
                    [](const Candidate& a, const Candidate& b) {
                      if (a.accepted != b.accepted) return a.accepted;
                      return a.ranking_share > b.ranking_share;
                    });
-  if (!candidates->empty() && candidates->front().accepted) {
-    put_simplest_first(candidates, [](const Candidate& lead, const Candidate& c) {
-      return c.accepted && c.ranking_share >= lead.ranking_share - 0.01;
-    });
-  }
+  if (candidates->empty() || !candidates->front().accepted) return;
+  put_simplest_first(candidates, [](const Candidate& lead, const Candidate& c) {
+    return c.accepted && c.ranking_share >= lead.ranking_share - 0.01;
+  });
   // The confirmation lines choose too. An effect that lives in a few lines (a current switched
   // on in some of them) may barely show on the selection lines, where a look-alike ranks first.
   // The best candidate on the confirmation lines -- lowering their error by the resolution, the
@@ -997,42 +996,30 @@ void judge_and_rank(const Search& search, const DiagnoseOptions& options,
   // the resolution -- takes the place of the selection lines' choice when it leaves a held-out
   // error lower by the resolution: either way a term is chosen on one half and confirmed on the
   // other, and a term replaces one, never adds one where the selection lines accept none.
-  const double base_all = search.base_std[2];
-  const Candidate* lead =
-      !candidates->empty() && candidates->front().accepted ? &candidates->front() : nullptr;
-  auto chosen_on_confirmation = [&](const Candidate& c) {
-    const double gain_conf =
-        base_all > 0
-            ? search.base_std[1] * (1 - std::sqrt(std::max(0.0, 1 - c.explained_confirmation)))
-            : 0.0;
-    return c.explained_selection >= options.accept_fraction &&
-           c.explained_confirmation >= options.accept_fraction &&
-           gain_conf >= options.resolution_nT && base_all - c.std_after_nT >= options.resolution_nT;
-  };
+  const Candidate& lead = candidates->front();
+  // A lag ranked with the channel term whose timing it explains is worth that pair, which its
+  // own held-out error does not show: it keeps its place.
+  if (lead.ranking_share > lead.explained_selection) return;
   size_t pick = candidates->size();
   for (size_t k = 0; k < candidates->size(); ++k) {
     const Candidate& c = (*candidates)[k];
-    if (!chosen_on_confirmation(c)) continue;
-    // Best on the confirmation lines; within one percentage point, the simplest.
-    if (pick == candidates->size()) {
-      pick = k;
+    if (c.explained_selection < options.accept_fraction ||
+        c.explained_confirmation < options.accept_fraction ||
+        gain_nT(1, c.explained_confirmation) < options.resolution_nT ||
+        search.base_std[2] - c.std_after_nT < options.resolution_nT)
       continue;
-    }
-    const Candidate& p = (*candidates)[pick];
-    if (c.explained_confirmation > p.explained_confirmation + 0.01 ||
-        (c.explained_confirmation >= p.explained_confirmation - 0.01 &&
-         term_complexity(c.term) < term_complexity(p.term)))
+    // Best on the confirmation lines; within one percentage point, the simplest.
+    const Candidate* p = pick < candidates->size() ? &(*candidates)[pick] : nullptr;
+    if (!p || c.explained_confirmation > p->explained_confirmation + 0.01 ||
+        (c.explained_confirmation >= p->explained_confirmation - 0.01 &&
+         term_complexity(c.term) < term_complexity(p->term)))
       pick = k;
   }
-  // A lag ranked with the channel term whose timing it explains is worth that pair, which its
-  // own held-out error does not show: it keeps its place.
-  if (pick == candidates->size() || !lead || lead->ranking_share > lead->explained_selection)
+  if (pick == 0 || pick == candidates->size() ||
+      !((*candidates)[pick].std_after_nT <= lead.std_after_nT - options.resolution_nT))
     return;
-  Candidate& second = (*candidates)[pick];
-  if (&second == lead || !(second.std_after_nT <= lead->std_after_nT - options.resolution_nT))
-    return;
-  second.accepted = true;
-  second.chosen_on_confirmation = true;
+  (*candidates)[pick].accepted = true;
+  (*candidates)[pick].chosen_on_confirmation = true;
   std::rotate(candidates->begin(), candidates->begin() + static_cast<long>(pick),
               candidates->begin() + static_cast<long>(pick) + 1);
 }
