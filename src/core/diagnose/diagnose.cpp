@@ -972,13 +972,17 @@ void judge_and_rank(const Search& search, const DiagnoseOptions& options,
   auto gain_nT = [&search](int fold, double share) {
     return search.base_std[fold] * (1 - std::sqrt(std::max(0.0, 1 - share)));
   };
+  // Both splits by accept_fraction of the variance, and `fold` by the resolution.
+  auto passes = [&](const Candidate& c, int fold) {
+    return c.explained_selection >= options.accept_fraction &&
+           c.explained_confirmation >= options.accept_fraction &&
+           gain_nT(fold, fold == 0 ? c.explained_selection : c.explained_confirmation) >=
+               options.resolution_nT;
+  };
   for (auto& c : *candidates) {
     if (!std::isfinite(c.ranking_share)) c.ranking_share = c.explained_selection;
     c.explained_fraction = std::min(c.explained_selection, c.explained_confirmation);
-    c.accepted = c.explained_selection >= options.accept_fraction &&
-                 c.explained_confirmation >= options.accept_fraction &&
-                 gain_nT(0, c.explained_selection) >= options.resolution_nT &&
-                 gain_nT(1, c.explained_confirmation) >= options.resolution_nT;
+    c.accepted = passes(c, 0) && passes(c, 1);
   }
   std::stable_sort(candidates->begin(), candidates->end(),
                    [](const Candidate& a, const Candidate& b) {
@@ -1003,11 +1007,7 @@ void judge_and_rank(const Search& search, const DiagnoseOptions& options,
   size_t pick = candidates->size();
   for (size_t k = 0; k < candidates->size(); ++k) {
     const Candidate& c = (*candidates)[k];
-    if (c.explained_selection < options.accept_fraction ||
-        c.explained_confirmation < options.accept_fraction ||
-        gain_nT(1, c.explained_confirmation) < options.resolution_nT ||
-        search.base_std[2] - c.std_after_nT < options.resolution_nT)
-      continue;
+    if (!passes(c, 1) || search.base_std[2] - c.std_after_nT < options.resolution_nT) continue;
     // Best on the confirmation lines; within one percentage point, the simplest.
     const Candidate* p = pick < candidates->size() ? &(*candidates)[pick] : nullptr;
     if (!p || c.explained_confirmation > p->explained_confirmation + 0.01 ||
