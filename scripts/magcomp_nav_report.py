@@ -63,9 +63,12 @@ def main(folder):
                                  d["cov_north_east_m2"][i])
         ax.add_patch(Ellipse((fe[i], fn[i]), 2 * a / 1000, 2 * b / 1000, angle=ang, fill=False,
                              color="tab:green", lw=0.8))
-    pad = 0.1 * max(np.ptp(te), np.ptp(tn), 1.0)
-    ax.set_xlim(min(te.min(), ie.min(), fe.min()) - pad, max(te.max(), ie.max(), fe.max()) + pad)
-    ax.set_ylim(min(tn.min(), in_.min(), fn.min()) - pad, max(tn.max(), in_.max(), fn.max()) + pad)
+    # NaN marks a sample without a true position (refused): the limits skip it.
+    pad = 0.1 * max(np.nanmax(te) - np.nanmin(te), np.nanmax(tn) - np.nanmin(tn), 1.0)
+    east = np.concatenate([te, ie, fe])
+    north = np.concatenate([tn, in_, fn])
+    ax.set_xlim(np.nanmin(east) - pad, np.nanmax(east) + pad)
+    ax.set_ylim(np.nanmin(north) - pad, np.nanmax(north) + pad)
     ax.set_xlabel("east, km")
     ax.set_ylabel("north, km")
     ax.set_title("tracks on the map (filter with its 2-sigma ellipse, to scale)")
@@ -106,8 +109,8 @@ def main(folder):
     for k in ["drms_filter_m", "drms_ins_m", "drms_crlb_m", "nees_in_95_bounds",
               "innovation_mean_nT", "innovation_std_nT", "nis_mean",
               "measurement_minus_map_std_nT"]:
-        if k in summary:
-            rows.append((k, "%.4g" % summary[k]))
+        if k in summary:  # a figure with nothing to compute it from is null: n/a
+            rows.append((k, "n/a" if summary[k] is None else "%.4g" % summary[k]))
     table = "".join("<tr><td>%s</td><td>%s</td></tr>" % (html.escape(str(a)), html.escape(str(b)))
                     for a, b in rows)
     page = ("<html><head><meta charset='utf-8'><title>magcomp navigation</title></head><body>"

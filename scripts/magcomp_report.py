@@ -68,10 +68,11 @@ def main(folder):
     fig, ax = plt.subplots(1, 3, figsize=(14, 4))
     names = ["%.2f" % r["line"] for r in ev["per_line"]]
     x = np.arange(len(names))
-    ax[0].bar(x, [r["std_nT"] for r in ev["per_line"]], color="C3", label="this model")
+    # null: a line of one sample has no spread (no bar)
+    std = lambda rows: [np.nan if r["std_nT"] is None else r["std_nT"] for r in rows]
+    ax[0].bar(x, std(ev["per_line"]), color="C3", label="this model")
     if "baseline" in ev:
-        ax[0].bar(x, [r["std_nT"] for r in ev["baseline"]["per_line"]], color="0.7", alpha=0.5,
-                  label="baseline")
+        ax[0].bar(x, std(ev["baseline"]["per_line"]), color="0.7", alpha=0.5, label="baseline")
         ax[0].legend(fontsize=8)
     ax[0].set_xticks(x, names, rotation=60, fontsize=7)
     ax[0].set_ylabel("error std, nT")
@@ -147,8 +148,9 @@ def main(folder):
         save(fig, "channels.png", "The error against the auxiliary channels most associated with it "
              "(black: binned mean). A step with a current means a current-carrying source.")
 
-    rows = "".join("<tr><td>%.2f</td><td>%d</td><td>%.3f</td><td>%.3f</td></tr>" % (
-        r["line"], r["n"], r["rmse_nT"], r["std_nT"]) for r in ev["per_line"])
+    rows = "".join("<tr><td>%.2f</td><td>%d</td><td>%.3f</td><td>%s</td></tr>" % (
+        r["line"], r["n"], r["rmse_nT"], "n/a" if r["std_nT"] is None else "%.3f" % r["std_nT"])
+        for r in ev["per_line"])
     groups = "".join("<tr><td>%s</td><td>%d</td><td>%.3f</td></tr>" % (g["name"], g["n"], g["std_nT"])
                      for g in ev.get("per_condition", []) + ev.get("per_heading", []))
     base_line = ""

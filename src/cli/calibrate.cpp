@@ -8,6 +8,7 @@
 #include "magcomp/core/error.h"
 #include "magcomp/core/evaluate/evaluation.h"
 #include "magcomp/core/io/file_io.h"
+#include "magcomp/core/io/output_guard.h"
 #include "magcomp/core/model/model.h"
 #include "subcommands.h"
 
@@ -34,8 +35,9 @@ void add_calibrate(CLI::App& app) {
                   "variance enters each sample's uncertainty); empty: none (default mag_1_c, "
                   "where the flights have it)");
   cmd->callback([=] {
-    const std::vector<std::string> inputs = split_commas(*data);
-    check_output_path(*out, inputs);  // before the work: never over a flight it reads
+    const std::vector<std::string> inputs = flight_paths("--data", *data);
+    OutputGuard guard = guard_for(inputs, {{"--model", *model_path}});
+    guard.add_output("--out", *out);  // before the work: never over a file it reads
     Model model = load_model_yaml(*model_path);
     for (const std::string& t : *terms) {
       try {
@@ -51,7 +53,7 @@ void add_calibrate(CLI::App& app) {
         throw Error(std::string("--slow-term: ") + e.what());
       }
     }
-    const auto flights = read_flights(*data);
+    const auto flights = read_flights(inputs);
     std::vector<const FlightData*> ptrs;
     for (const auto& f : flights) ptrs.push_back(&f);
     fit_model(model, ptrs);
@@ -61,18 +63,26 @@ void add_calibrate(CLI::App& app) {
       model.report.holdout_error_variance_nT2 = var;
       std::ostringstream note;
       note << std::setprecision(4);
-      if (rows > 0)
+      if (rows > 0 && std::isfinite(var))
         note << "held-out error std " << std::sqrt(var) << " nT against " << *holdout_truth
              << " on " << rows << " samples of lines not fitted (in each sample's variance)\n";
       holdout_note = note.str();
     }
-    save_model_yaml(model, *out, inputs);
+    if (!std::isfinite(model.report.holdout_error_variance_nT2))
+      model.report.holdout_error_variance_nT2 = NAN;  // not written
+    guard.check_inputs_unchanged();
+    save_model_yaml(model, *out, guard.input_paths());
     const FitReport& r = model.report;
     std::cout << "calibrated " << model.scalar << " with " << model.vector << ": "
               << model.coefficients.size() << " coefficients, " << r.samples << " samples in "
               << r.segments << " segment(s)\n"
-              << std::setprecision(4) << "condition number " << r.condition_number
-              << ", fit residual std " << r.residual_std_nT << " nT\n";
+              << std::setprecision(4) << "condition number ";
+    if (std::isfinite(r.condition_number)) {
+      std::cout << r.condition_number;
+    } else {
+      std::cout << "infinite (singular columns)";
+    }
+    std::cout << ", fit residual std " << r.residual_std_nT << " nT\n";
     std::cout << holdout_note;
     for (const auto& e : r.estimates) std::cout << "estimated: " << e << "\n";
     for (const auto& w : r.warnings) std::cout << "warning: " << w << "\n";

@@ -3,6 +3,7 @@
 
 #include <sys/stat.h>
 
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <iostream>
@@ -47,12 +48,22 @@ void run_report_page(const std::string& script_name, const std::string& dir,
                      const std::string& data) {
   const std::string script = share_dir() + "/scripts/" + script_name;
   const std::string cmdline = "/usr/bin/python3 '" + script + "' '" + dir + "'";
-  if (std::system(cmdline.c_str()) != 0) {
-    std::cerr << "warning: " << script << " failed; the report's data is in " << dir << "/" << data
-              << "\n";
-  } else {
-    std::printf("report: %s/index.html\n", dir.c_str());
-  }
+  std::fflush(nullptr);
+  if (std::system(cmdline.c_str()) != 0)
+    throw Error("--report " + dir + ": the page script " + script +
+                " failed; the report's data is in " + dir + "/" + data);
+  std::printf("report: %s/index.html\n", dir.c_str());
+}
+
+std::string figure(double v, const char* format) {
+  if (!std::isfinite(v)) return "n/a";
+  char buf[64];
+  std::snprintf(buf, sizeof buf, format, v);
+  return buf;
+}
+
+nlohmann::json json_figure(double v) {
+  return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json();
 }
 
 std::vector<std::string> split_commas(const std::string& s) {
@@ -75,11 +86,24 @@ FlightData read_flight(const std::string& path) {
   return f;
 }
 
-std::vector<FlightData> read_flights(const std::string& comma_list) {
+std::vector<std::string> flight_paths(const std::string& option, const std::string& comma_list) {
+  std::vector<std::string> paths = split_commas(comma_list);
+  if (paths.empty()) throw Error(option + ": no file given ('" + comma_list + "')");
+  return paths;
+}
+
+std::vector<FlightData> read_flights(const std::vector<std::string>& paths) {
   std::vector<FlightData> flights;
-  for (const std::string& path : split_commas(comma_list)) flights.push_back(read_flight(path));
-  if (flights.empty()) throw Error("--data: no file given");
+  for (const std::string& path : paths) flights.push_back(read_flight(path));
   return flights;
+}
+
+OutputGuard guard_for(const std::vector<std::string>& flights,
+                      const std::vector<OutputGuard::File>& others) {
+  std::vector<OutputGuard::File> inputs;
+  for (const std::string& f : flights) inputs.push_back({"--data", f});
+  inputs.insert(inputs.end(), others.begin(), others.end());
+  return OutputGuard(inputs);
 }
 
 }  // namespace magcomp::cli

@@ -4,10 +4,12 @@
 #include <CLI/CLI.hpp>
 #include <functional>
 #include <memory>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
 #include "magcomp/core/io/flight_data.h"
+#include "magcomp/core/io/output_guard.h"
 
 namespace magcomp::cli {
 
@@ -15,8 +17,16 @@ namespace magcomp::cli {
 /// on stderr (nothing is dropped without a word).
 FlightData read_flight(const std::string& path);
 
-/// Reads the comma-separated list of HDF5 flight files of a --data option (read_flight each).
-std::vector<FlightData> read_flights(const std::string& comma_list);
+/// The paths of a comma-separated option ("--data a.h5,b.h5"). Throws magcomp::Error "OPTION: no
+/// file given" when it names none (",", "").
+std::vector<std::string> flight_paths(const std::string& option, const std::string& comma_list);
+
+/// Reads HDF5 flight files (read_flight each).
+std::vector<FlightData> read_flights(const std::vector<std::string>& paths);
+
+/// The output guard of a command that reads `flights` (each under --data) and `others`.
+OutputGuard guard_for(const std::vector<std::string>& flights,
+                      const std::vector<OutputGuard::File>& others);
 
 /// Runs a program's body and turns an escaping exception into the one-line `error: ...` message
 /// and exit status every magcomp program uses (2: bad input, magcomp::Error; 3: anything else).
@@ -30,9 +40,15 @@ int parse_and_run(CLI::App& app, int argc, char** argv);
 void make_report_dir(const std::string& dir);
 
 /// Turns a report directory's data into DIR/index.html with the installed page script
-/// (share/scripts/<script>, python3); a failing script is a warning naming `data` (what the
-/// directory holds), not an error.
+/// (share/scripts/<script>, python3); a failing script is an error (magcomp::Error) naming the
+/// directory and `data` (what it holds).
 void run_report_page(const std::string& script, const std::string& dir, const std::string& data);
+
+/// A figure for a table: printf(format, v), or "n/a" when v is not finite (nothing gave it).
+std::string figure(double v, const char* format);
+
+/// A figure for a JSON file: the number, or null when it is not finite.
+nlohmann::json json_figure(double v);
 
 /// Splits "a,b,c".
 std::vector<std::string> split_commas(const std::string& s);

@@ -1,10 +1,12 @@
 // magcomp convert: MIT-schema HDF5 flight <-> rosbag, lossless both ways.
+#include <sys/stat.h>
+
 #include <chrono>
-#include <fstream>
 #include <iostream>
 
 #include "magcomp/core/error.h"
 #include "magcomp/core/io/file_io.h"
+#include "magcomp/core/io/output_guard.h"
 #include "magcomp/ros/bag_converter.h"
 #include "subcommands.h"
 
@@ -26,8 +28,9 @@ void setup_convert(CLI::App* cmd) {
       return s.size() >= e.size() && s.compare(s.size() - e.size(), e.size(), e) == 0;
     };
     const auto t0 = std::chrono::steady_clock::now();
+    OutputGuard guard({{"IN", *in}});
+    guard.add_output("OUT", *out);
     if (ends(*in, ".h5") && ends(*out, ".bag")) {
-      check_output_path(*out, {*in});
       const FlightData f = read_flight_h5(*in);
       std::vector<std::string> left_out;
       for (const auto& note : f.read_notes()) {
@@ -43,9 +46,9 @@ void setup_convert(CLI::App* cmd) {
       std::cout << "wrote " << *out << ": " << r.samples << " samples x " << r.fields << " fields, "
                 << r.messages << " messages";
     } else if (ends(*in, ".bag") && ends(*out, ".h5")) {
-      if (!*force && std::ifstream(*out).good())
+      struct stat st {};
+      if (!*force && ::stat(out->c_str(), &st) == 0)
         throw Error(*out + ": exists; pass --force to overwrite");
-      check_output_path(*out, {*in});
       const rosio::ConvertReport r = rosio::bag_to_h5(*in, *out);
       std::cout << "wrote " << *out << ": " << r.samples << " samples x " << r.fields << " fields";
     } else {

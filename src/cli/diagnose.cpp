@@ -12,6 +12,7 @@
 #include "magcomp/core/diagnose/diagnose_season.h"
 #include "magcomp/core/error.h"
 #include "magcomp/core/io/file_io.h"
+#include "magcomp/core/io/output_guard.h"
 #include "subcommands.h"
 
 namespace magcomp::cli {
@@ -148,7 +149,8 @@ nlohmann::json to_json(const Diagnosis& dx) {
 // time), then the candidates ranked across them.
 void diagnose_several(const Model& model_in, const std::vector<std::string>& paths,
                       const std::string& model_path, const std::string& truth,
-                      const std::string& json_path, int top, const DiagnoseOptions& options) {
+                      const std::string& json_path, int top, const DiagnoseOptions& options,
+                      const OutputGuard& guard) {
   Model model = model_in;
   if (!model.fitted()) {  // fitted on every flight's calibration segments
     std::vector<FlightData> flights;
@@ -180,6 +182,7 @@ void diagnose_several(const Model& model_in, const std::vector<std::string>& pat
     j["flights"].push_back(f);
   }
   const SeasonDiagnosis season = merge_diagnoses(per_flight);
+  guard.check_inputs_unchanged();
   std::printf("\n%-4s %-34s %9s %14s  %s\n", "rank", "term (--term)", "accepted", "mean_explained",
               "per flight");
   nlohmann::json candidates = nlohmann::json::array();
@@ -219,11 +222,7 @@ void diagnose_several(const Model& model_in, const std::vector<std::string>& pat
   }
   j["season"] = {{"candidates", candidates}, {"verdict", season.verdict}};
   j["verdict"] = season.verdict;
-  if (!json_path.empty()) {
-    std::vector<std::string> inputs = paths;
-    inputs.push_back(model_path);
-    write_file_atomic(json_path, j.dump(2) + "\n", inputs);
-  }
+  if (!json_path.empty()) write_file_atomic(json_path, j.dump(2) + "\n", guard.input_paths());
 }
 
 }  // namespace
@@ -267,37 +266,44 @@ void add_diagnose(CLI::App& app) {
     if (*rounds < 1 || *rounds > 50) throw Error("--rounds: must be in 1..50");
     if (*top < 0) throw Error("--top: must be >= 0");
     if (!validate->empty() && !*apply) throw Error("--validate: only with --apply");
+    if (!out->empty() && !*apply) throw Error("--out: only with --apply (the final model)");
+    const std::vector<std::string> paths = flight_paths("--data", *data);
+    OutputGuard guard = guard_for(paths, {{"--model", *model_path}, {"--validate", *validate}});
+    guard.add_output("--out", *out);
+    guard.add_output("--json", *json_path);
+    const std::vector<std::string> inputs = guard.input_paths();
     const Model model = load_model_yaml(*model_path);
     DiagnoseOptions options;
     options.full_search = !*quick;
-    const std::vector<std::string> paths = split_commas(*data);
     if (paths.size() > 1) {
       if (*apply) {
         throw Error("--apply takes one flight (--data holds " + std::to_string(paths.size()) +
                     "): diagnose the flights together, then add the season's term with "
                     "calibrate --data <all> --term");
       }
-      diagnose_several(model, paths, *model_path, *truth, *json_path, *top, options);
+      diagnose_several(model, paths, *model_path, *truth, *json_path, *top, options, guard);
       return;
     }
-    const FlightData flight = read_flight(*data);
+    const FlightData flight = read_flight(paths[0]);
     if (!*apply) {
       if (!model.fitted()) {
         Model fitted = model;
         fit_model(fitted, {&flight});
         const Diagnosis dx = diagnose(fitted, flight, *truth, options);
+        guard.check_inputs_unchanged();
         print_diagnosis(fitted, dx, *top, *data, *model_path);
-        if (!json_path->empty()) write_file_atomic(*json_path, to_json(dx).dump(2) + "\n", {*data});
+        if (!json_path->empty()) write_file_atomic(*json_path, to_json(dx).dump(2) + "\n", inputs);
         return;
       }
       const Diagnosis dx = diagnose(model, flight, *truth, options);
+      guard.check_inputs_unchanged();
       print_diagnosis(model, dx, *top, *data, *model_path);
       if (!json_path->empty()) {
         nlohmann::json j = to_json(dx);
         j["data"] = *data;
         j["model"] = *model_path;
         j["truth"] = *truth;
-        write_file_atomic(*json_path, j.dump(2) + "\n", {*data, *model_path});
+        write_file_atomic(*json_path, j.dump(2) + "\n", inputs);
       }
       return;
     }
@@ -321,6 +327,7 @@ void add_diagnose(CLI::App& app) {
           std::fflush(stdout);
         },
         validation.get());
+    guard.check_inputs_unchanged();
     std::printf("\n%-6s %-36s %10s %14s %12s %12s%s\n", "round", "added term", "explained",
                 "held-out std", "all-lines", "FOM", validation ? "   validation" : "");
     for (const auto& lr : r.rounds) {
@@ -329,13 +336,14 @@ void add_diagnose(CLI::App& app) {
       const std::string added = lr.round == 0  ? "(the model as given)"
                                 : lr.black_box ? "[black box] " + lr.added
                                                : lr.added;
-      std::printf("%-6d %-36s %9.1f%% %11.3f nT %9.3f nT %9.2f nT", lr.round, added.c_str(),
-                  100 * lr.explained, lr.heldout_std_nT, lr.all_std_nT, lr.fom_nT);
-      if (validation) std::printf(" %9.3f nT", lr.validation_std_nT);
+      std::printf("%-6d %-36s %9.1f%% %11.3f nT %9.3f nT %9s nT", lr.round, added.c_str(),
+                  100 * lr.explained, lr.heldout_std_nT, lr.all_std_nT,
+                  figure(lr.fom_nT, "%.2f").c_str());
+      if (validation) std::printf(" %9s nT", figure(lr.validation_std_nT, "%.3f").c_str());
       std::printf("\n");
     }
     std::printf("stop: %s\n", r.stop_reason.c_str());
-    save_model_yaml(r.model, *out);
+    save_model_yaml(r.model, *out, inputs);
     std::printf("wrote %s (terms:", out->c_str());
     for (const auto& t : r.model.terms) std::printf(" %s", t.c_str());
     std::printf(")\n");
@@ -366,7 +374,7 @@ void add_diagnose(CLI::App& app) {
       if (validation) j["validation"] = *validate;
       j["stop"] = r.stop_reason;
       j["last_diagnosis"] = to_json(r.last);
-      write_file_atomic(*json_path, j.dump(2) + "\n", {*data, *model_path});
+      write_file_atomic(*json_path, j.dump(2) + "\n", inputs);
     }
   });
 }

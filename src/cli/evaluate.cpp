@@ -13,6 +13,7 @@
 #include "magcomp/core/evaluate/evaluation.h"
 #include "magcomp/core/evaluate/flight_conditions.h"
 #include "magcomp/core/io/file_io.h"
+#include "magcomp/core/io/output_guard.h"
 #include "subcommands.h"
 
 namespace magcomp::cli {
@@ -24,7 +25,7 @@ nlohmann::json to_json(const Evaluation& ev) {
   j["nan_samples"] = ev.nan_samples;
   j["rmse_nT"] = ev.rmse_nT;
   j["std_nT"] = ev.std_nT;
-  auto num = [](double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(); };
+  const auto num = json_figure;
   j["uncompensated_std_nT"] = num(ev.uncompensated_std_nT);
   j["improvement_ratio"] = num(ev.improvement_ratio);
   j["coverage_1sigma"] = num(ev.coverage_1sigma);
@@ -34,13 +35,13 @@ nlohmann::json to_json(const Evaluation& ev) {
     j["per_line"].push_back({{"line", l.line},
                              {"n", l.n},
                              {"rmse_nT", l.rmse_nT},
-                             {"std_nT", l.std_nT},
+                             {"std_nT", num(l.std_nT)},
                              {"uncompensated_std_nT", num(l.uncompensated_std_nT)},
                              {"improvement_ratio", num(l.improvement_ratio)}});
   }
   nlohmann::json fom;
-  fom["fom_nT"] = ev.fom.fom_nT;
-  fom["uncompensated_fom_nT"] = ev.fom.uncompensated_fom_nT;
+  fom["fom_nT"] = num(ev.fom.fom_nT);
+  fom["uncompensated_fom_nT"] = num(ev.fom.uncompensated_fom_nT);
   fom["maneuvers"] = ev.fom.signatures.size();
   fom["where"] = ev.fom.where;
   fom["signatures"] = nlohmann::json::array();
@@ -109,9 +110,11 @@ void print_evaluation(const Evaluation& ev, const Evaluation* base) {
               "IR", base ? "   baseline_std_nT" : "");
   for (size_t k = 0; k < ev.per_line.size(); ++k) {
     const auto& l = ev.per_line[k];
-    std::printf("%-10.2f %8ld %12.3f %10.3f %16.3f %9.1f", l.line, static_cast<long>(l.n),
-                l.rmse_nT, l.std_nT, l.uncompensated_std_nT, l.improvement_ratio);
-    if (base && k < base->per_line.size()) std::printf(" %17.3f", base->per_line[k].std_nT);
+    std::printf("%-10.2f %8ld %12.3f %10s %16s %9s", l.line, static_cast<long>(l.n), l.rmse_nT,
+                figure(l.std_nT, "%.3f").c_str(), figure(l.uncompensated_std_nT, "%.3f").c_str(),
+                figure(l.improvement_ratio, "%.1f").c_str());
+    if (base && k < base->per_line.size())
+      std::printf(" %17s", figure(base->per_line[k].std_nT, "%.3f").c_str());
     std::printf("\n");
   }
   print_groups("condition", ev.per_condition);
@@ -129,15 +132,16 @@ void print_evaluation(const Evaluation& ev, const Evaluation* base) {
       std::printf("  %-6s %-7s %12.1f %12.3f %14.3f\n", s.axis.c_str(), s.heading.c_str(),
                   s.start_tt_s, s.peak_to_peak_nT, s.uncompensated_peak_to_peak_nT);
     }
-    std::printf("  FOM %.3f nT (uncompensated %.3f nT)\n", ev.fom.fom_nT,
-                ev.fom.uncompensated_fom_nT);
+    std::printf("  FOM %s nT (uncompensated %s nT)\n", figure(ev.fom.fom_nT, "%.3f").c_str(),
+                figure(ev.fom.uncompensated_fom_nT, "%.3f").c_str());
   }
   if (std::isfinite(ev.coverage_1sigma)) {
     std::printf("\nuncertainty: %.1f%% of the errors within 1 sigma, %.1f%% within 2 sigma\n",
                 100 * ev.coverage_1sigma, 100 * ev.coverage_2sigma);
   }
-  std::printf("\n%-10s %8ld %12.3f %10.3f %16.3f %9.1f", "all", static_cast<long>(ev.n), ev.rmse_nT,
-              ev.std_nT, ev.uncompensated_std_nT, ev.improvement_ratio);
+  std::printf("\n%-10s %8ld %12.3f %10.3f %16s %9s", "all", static_cast<long>(ev.n), ev.rmse_nT,
+              ev.std_nT, figure(ev.uncompensated_std_nT, "%.3f").c_str(),
+              figure(ev.improvement_ratio, "%.1f").c_str());
   if (base) std::printf(" %17.3f", base->std_nT);
   std::printf("\n");
 }
@@ -146,7 +150,8 @@ void print_evaluation(const Evaluation& ev, const Evaluation* base) {
 void evaluate_one(const std::string& data, const Model& model, const Model* baseline_model,
                   const std::string& model_path, const std::string& baseline_path,
                   const std::string& truth, const std::string& json_path, const std::string& report,
-                  const std::vector<std::string>& inputs) {
+                  const OutputGuard& guard) {
+  const std::vector<std::string> inputs = guard.input_paths();
   const FlightData flight = read_flight(data);
   // The per-sample variance is kept only for the report's series (the table shows its coverage).
   const bool series = !report.empty();
@@ -154,6 +159,7 @@ void evaluate_one(const std::string& data, const Model& model, const Model* base
   std::unique_ptr<Evaluation> base;
   if (baseline_model)
     base = std::make_unique<Evaluation>(evaluate_model(*baseline_model, flight, truth, series));
+  guard.check_inputs_unchanged();
   print_evaluation(ev, base.get());
   nlohmann::json j = to_json(ev);
   j["data"] = data;
@@ -190,11 +196,14 @@ void add_evaluate(CLI::App& app) {
   cmd->add_option("--baseline", *baseline_path,
                   "a second fitted model to compare with (before/after)");
   cmd->callback([=] {
-    const std::vector<std::string> paths = split_commas(*data);
-    std::vector<std::string> inputs = paths;
-    inputs.push_back(*model_path);
-    if (!baseline_path->empty()) inputs.push_back(*baseline_path);
-    if (!json_path->empty()) check_output_path(*json_path, inputs);
+    const std::vector<std::string> paths = flight_paths("--data", *data);
+    OutputGuard guard =
+        guard_for(paths, {{"--model", *model_path}, {"--baseline", *baseline_path}});
+    guard.add_output("--json", *json_path);
+    guard.add_output_dir("--report", *report,
+                         {"series.h5", "evaluation.json", "index.html", "timeseries.png",
+                          "groups.png", "map.png", "spectrum.png", "channels.png"});
+    const std::vector<std::string> inputs = guard.input_paths();
     if (paths.size() > 1 && !report->empty()) {
       throw Error("--report takes one flight (--data holds " + std::to_string(paths.size()) + ")");
     }
@@ -208,7 +217,7 @@ void add_evaluate(CLI::App& app) {
     }
     if (paths.size() == 1) {
       evaluate_one(paths[0], model, baseline_model.get(), *model_path, *baseline_path, *truth,
-                   *json_path, *report, inputs);
+                   *json_path, *report, guard);
       return;
     }
     // Several flights: one at a time (memory is one flight's columns), then pooled.
@@ -239,14 +248,16 @@ void add_evaluate(CLI::App& app) {
     }
     const double rmse = std::sqrt(sum_sq / n), std_nT = std::sqrt(sum_var / n);
     const double unc = n_unc > 0 ? std::sqrt(sum_unc / n_unc) : NAN;
-    std::printf("%-10s %8ld %12.3f %10.3f %16.3f %9.1f   (%zu flights)\n", "all",
-                static_cast<long>(n), rmse, std_nT, unc, unc / std_nT, paths.size());
-    auto num = [](double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(); };
+    guard.check_inputs_unchanged();
+    std::printf("%-10s %8ld %12.3f %10.3f %16s %9s   (%zu flights)\n", "all", static_cast<long>(n),
+                rmse, std_nT, figure(unc, "%.3f").c_str(),
+                figure(std_nT > 0 ? unc / std_nT : NAN, "%.1f").c_str(), paths.size());
+    const auto num = json_figure;
     j["n"] = static_cast<long>(n);
     j["rmse_nT"] = rmse;
     j["std_nT"] = std_nT;
     j["uncompensated_std_nT"] = num(unc);
-    j["improvement_ratio"] = num(unc / std_nT);
+    j["improvement_ratio"] = num(std_nT > 0 ? unc / std_nT : NAN);
     j["data"] = paths;
     j["model"] = *model_path;
     j["truth"] = *truth;

@@ -34,7 +34,8 @@ void add_info(CLI::App& app) {
         lo = std::min(lo, v[i]);
         hi = std::max(hi, v[i]);
       }
-      std::printf("%-20s %10ld %16.6g %16.6g\n", name.c_str(), nan, lo, hi);
+      std::printf("%-20s %10ld %16s %16s\n", name.c_str(), nan, figure(lo, "%.6g").c_str(),
+                  figure(hi, "%.6g").c_str());
     }
   });
 }

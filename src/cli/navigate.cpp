@@ -11,98 +11,53 @@
 #include "magcomp/core/error.h"
 #include "magcomp/core/io/file_io.h"
 #include "magcomp/core/io/h5_array.h"
+#include "magcomp/core/io/output_guard.h"
 #include "magcomp/core/math/constants.h"
 #include "magcomp/core/model/model.h"
 #include "magcomp/core/nav/anomaly_map.h"
 #include "magcomp/core/nav/ekf.h"
 #include "magcomp/core/nav/flight_navigation.h"
+#include "magcomp/core/nav/flight_run.h"
 #include "magcomp/core/nav/nav_model.h"
 #include "subcommands.h"
 
 namespace magcomp::cli {
 namespace {
 
-// 95 % bounds of a chi-square with 2 degrees of freedom (one sample): the horizontal NEES.
-constexpr double kNees2Low = 0.0506356, kNees2High = 7.37776;
-
-struct Scores {
-  double meas_vs_map_nT = NAN;  // std of the measurement minus the map at the true position
-  double drms_filter_m = NAN, drms_ins_m = NAN, drms_crlb_m = NAN;
-  double nees_in_bounds = NAN;  // share of samples whose horizontal NEES is in its 95 % bounds
-  double innovation_mean_nT = NAN, innovation_std_nT = NAN, nis_mean = NAN;
+// One measurement series navigated: the run, its scores, its name.
+struct Navigated {
+  std::string name;
+  nav::FlightRun run;
+  nav::NavigationScores scores;
 };
 
-// The per-sample series of one run, for the report.
-struct Series {
-  nav::FilterResult filter;
-  nav::PositionErrors errors, ins_errors;
-  Eigen::VectorXd anomaly_nT;
-};
-
-Scores navigate_once(const nav::NavTrack& ins, const nav::NavTrack& truth,
-                     const Eigen::VectorXd& anomaly_nT, const nav::AnomalyMap& map,
-                     const nav::FilterSettings& settings, Series* series = nullptr,
-                     const Eigen::VectorXd* r_nT2 = nullptr) {
-  Scores s;
-  const Eigen::Index n = ins.size();
-  double sum = 0, sum2 = 0;
-  long used = 0;
-  for (Eigen::Index i = 0; i < n; ++i) {
-    const double d = anomaly_nT[i] - map.value(truth.lat_rad[i], truth.lon_rad[i]);
-    if (!std::isfinite(d)) continue;
-    sum += d;
-    sum2 += d * d;
-    ++used;
-  }
-  if (used == 0) throw Error("navigate: no finite anomaly sample to navigate on");
-  s.meas_vs_map_nT = std::sqrt(std::max(0.0, sum2 / used - (sum / used) * (sum / used)));
-  const nav::FilterResult r = nav::run_ekf(ins, anomaly_nT, map, settings, r_nT2);
-  const nav::PositionErrors e = nav::position_errors(ins, r.x, truth.lat_rad, truth.lon_rad);
-  s.drms_filter_m = e.drms_m;
-  s.drms_ins_m = nav::position_errors(ins, {}, truth.lat_rad, truth.lon_rad).drms_m;
-  s.drms_crlb_m = nav::covariance_drms_m(nav::crlb(truth, map, settings), truth.lat_rad);
-  long inside = 0, updates = 0;
-  double nis = 0, innovation = 0, innovation2 = 0;
-  for (Eigen::Index i = 0; i < n; ++i) {
-    // Horizontal position covariance in m^2 (latitude and longitude errors to north and east).
-    const double lat = truth.lat_rad[i];
-    const double kn = nav::dlat_to_north_m(1.0, lat), ke = nav::dlon_to_east_m(1.0, lat);
-    const Eigen::MatrixXd& p = r.p[static_cast<size_t>(i)];
-    Eigen::Matrix2d c;
-    c << kn * kn * p(0, 0), kn * ke * p(0, 1), kn * ke * p(1, 0), ke * ke * p(1, 1);
-    const Eigen::Vector2d err(e.north_m[i], e.east_m[i]);
-    const double nees = err.dot(c.ldlt().solve(err));
-    inside += nees >= kNees2Low && nees <= kNees2High;
-    const double v = r.innovation_nT[i];
-    if (!std::isfinite(v)) continue;
-    nis += v * v / r.innovation_var_nT2[i];
-    innovation += v;
-    innovation2 += v * v;
-    ++updates;
-  }
-  s.nees_in_bounds = static_cast<double>(inside) / static_cast<double>(n);
-  s.innovation_mean_nT = innovation / static_cast<double>(updates);
-  s.innovation_std_nT =
-      std::sqrt(std::max(0.0, innovation2 / updates - s.innovation_mean_nT * s.innovation_mean_nT));
-  s.nis_mean = nis / static_cast<double>(updates);
-  if (series) {
-    series->errors = e;
-    series->ins_errors = nav::position_errors(ins, {}, truth.lat_rad, truth.lon_rad);
-    series->anomaly_nT = anomaly_nT;
-    series->filter = r;
-  }
-  return s;
-}
-
-nlohmann::json to_json(const Scores& s) {
-  return {{"measurement_minus_map_std_nT", s.meas_vs_map_nT},
-          {"drms_filter_m", s.drms_filter_m},
-          {"drms_ins_m", s.drms_ins_m},
-          {"drms_crlb_m", s.drms_crlb_m},
-          {"nees_in_95_bounds", s.nees_in_bounds},
-          {"innovation_mean_nT", s.innovation_mean_nT},
-          {"innovation_std_nT", s.innovation_std_nT},
-          {"nis_mean", s.nis_mean}};
+nlohmann::json to_json(const nav::NavigationScores& s) {
+  const nav::NavigatorCounts& c = s.counts;
+  return {{"measurement_minus_map_std_nT", json_figure(s.measurement_minus_map_std_nT)},
+          {"drms_filter_m", json_figure(s.drms_filter_m)},
+          {"drms_ins_m", json_figure(s.drms_ins_m)},
+          {"drms_crlb_m", json_figure(s.drms_crlb_m)},
+          {"nees_in_95_bounds", json_figure(s.nees_in_bounds)},
+          {"innovation_mean_nT", json_figure(s.innovation_mean_nT)},
+          {"innovation_std_nT", json_figure(s.innovation_std_nT)},
+          {"nis_mean", json_figure(s.nis_mean)},
+          {"samples",
+           {{"rows", s.rows},
+            {"steps", c.steps},
+            {"scored", s.scored},
+            {"measurements_used", s.updates},
+            {"map_compared", s.map_compared}}},
+          {"faults",
+           {{"ins_refused", c.invalid_ins},
+            {"truth_refused", s.invalid_truth},
+            {"ins_gaps", c.gaps},
+            {"out_of_order_or_duplicate", c.out_of_order},
+            {"off_map", c.off_map},
+            {"nan_measurements", c.nan_measurements},
+            {"measurements_refused", c.invalid_measurements},
+            {"gated", c.gated},
+            {"missing_measurements", c.missing_measurements},
+            {"filter_restarts", c.filter_restarts}}}};
 }
 
 // The measured anomaly: a field as it is, or the model's (flight_navigation.h).
@@ -115,6 +70,29 @@ Eigen::VectorXd anomaly_of(const FlightData& f, const std::string& model_path,
   return nav::measured_anomaly_nT(f, load_model_yaml(model_path), uncompensated);
 }
 
+// Why no measurement was used, in one line: where the track lies against the map.
+std::string no_measurement_reason(const Navigated& n, const nav::FlightSamples& samples,
+                                  const nav::AnomalyMap& map, const std::string& map_path) {
+  const nav::NavigatorCounts& c = n.run.counts;
+  double lat_lo = INFINITY, lat_hi = -INFINITY, lon_lo = INFINITY, lon_hi = -INFINITY;
+  for (const nav::InsSample& s : samples.ins) {
+    if (!nav::invalid_ins_reason(s).empty()) continue;
+    lat_lo = std::min(lat_lo, s.lat_rad), lat_hi = std::max(lat_hi, s.lat_rad);
+    lon_lo = std::min(lon_lo, s.lon_rad), lon_hi = std::max(lon_hi, s.lon_rad);
+  }
+  char buf[512];
+  std::snprintf(buf, sizeof buf,
+                "navigate: no measurement of %s was used in %ld steps (%ld off the map, %ld NaN, "
+                "%ld refused, %ld gated, %ld INS samples refused): the INS track spans lat "
+                "%.4f..%.4f, lon %.4f..%.4f deg; the map %s lat %.4f..%.4f, lon %.4f..%.4f deg",
+                n.name.c_str(), c.steps, c.off_map, c.nan_measurements, c.invalid_measurements,
+                c.gated, c.invalid_ins, lat_lo * kRadToDeg, lat_hi * kRadToDeg, lon_lo * kRadToDeg,
+                lon_hi * kRadToDeg, map_path.c_str(), map.lat_rad[0] * kRadToDeg,
+                map.lat_rad[map.lat_rad.size() - 1] * kRadToDeg, map.lon_rad[0] * kRadToDeg,
+                map.lon_rad[map.lon_rad.size() - 1] * kRadToDeg);
+  return buf;
+}
+
 H5Array array_of(const Eigen::VectorXd& v) {
   H5Array a;
   a.dims = {static_cast<size_t>(v.size())};
@@ -122,47 +100,62 @@ H5Array array_of(const Eigen::VectorXd& v) {
   return a;
 }
 
-// DIR/tracks.h5 (truth, INS and filter tracks in degrees, errors and the filter's horizontal
-// covariance in metres, innovations; the map), DIR/navigation.json, then the page.
-void write_report(const std::string& dir, const nav::NavTrack& truth, const nav::NavTrack& ins,
-                  const Series& s, const nav::AnomalyMap& map, const nlohmann::json& j,
-                  const std::vector<std::string>& inputs) {
+// DIR/tracks.h5 (truth, INS and filter tracks in degrees at each step, errors and the filter's
+// horizontal covariance in metres, innovations; the map), DIR/navigation.json, then the page.
+void write_report(const std::string& dir, const nav::FlightSamples& samples, const Navigated& n,
+                  const Eigen::VectorXd& anomaly_nT, const nav::AnomalyMap& map,
+                  const nlohmann::json& j, const std::vector<std::string>& inputs) {
   make_report_dir(dir);
-  const Eigen::Index n = ins.size();
-  Eigen::VectorXd flat(n), flon(n), pnn(n), pee(n), pne(n), t(n);
-  for (Eigen::Index i = 0; i < n; ++i) {
-    t[i] = static_cast<double>(i) * ins.dt_s;
-    flat[i] = (ins.lat_rad[i] + s.filter.x(0, i)) * kRadToDeg;
-    flon[i] = (ins.lon_rad[i] + s.filter.x(1, i)) * kRadToDeg;
-    const double kn = nav::dlat_to_north_m(1.0, truth.lat_rad[i]);
-    const double ke = nav::dlon_to_east_m(1.0, truth.lat_rad[i]);
-    const Eigen::MatrixXd& p = s.filter.p[static_cast<size_t>(i)];
-    pnn[i] = kn * kn * p(0, 0);
-    pee[i] = ke * ke * p(1, 1);
-    pne[i] = kn * ke * p(0, 1);
+  const auto m = static_cast<Eigen::Index>(n.run.steps.size());
+  Eigen::VectorXd t(m), tlat(m), tlon(m), ilat(m), ilon(m), flat(m), flon(m), en(m), ee(m), ien(m),
+      iee(m), pnn(m), pee(m), pne(m), z(m), v(m), vv(m);
+  const double t0 = m > 0 ? n.run.steps[0].t_s : 0.0;
+  for (Eigen::Index i = 0; i < m; ++i) {
+    const nav::NavigatorOutput& o = n.run.steps[static_cast<size_t>(i)];
+    const nav::InsSample& tr =
+        samples.truth[static_cast<size_t>(n.run.rows[static_cast<size_t>(i)])];
+    const bool truth_ok = nav::invalid_ins_reason(tr).empty();
+    t[i] = o.t_s - t0;
+    tlat[i] = truth_ok ? tr.lat_rad * kRadToDeg : NAN;
+    tlon[i] = truth_ok ? tr.lon_rad * kRadToDeg : NAN;
+    ilat[i] = o.ins_lat_rad * kRadToDeg;
+    ilon[i] = o.ins_lon_rad * kRadToDeg;
+    flat[i] = o.lat_rad * kRadToDeg;
+    flon[i] = o.lon_rad * kRadToDeg;
+    en[i] = truth_ok ? nav::dlat_to_north_m(o.lat_rad - tr.lat_rad, tr.lat_rad) : NAN;
+    ee[i] = truth_ok ? nav::dlon_to_east_m(o.lon_rad - tr.lon_rad, tr.lat_rad) : NAN;
+    ien[i] = truth_ok ? nav::dlat_to_north_m(o.ins_lat_rad - tr.lat_rad, tr.lat_rad) : NAN;
+    iee[i] = truth_ok ? nav::dlon_to_east_m(o.ins_lon_rad - tr.lon_rad, tr.lat_rad) : NAN;
+    pnn[i] = o.position_cov_ned_m2(0, 0);
+    pee[i] = o.position_cov_ned_m2(1, 1);
+    pne[i] = o.position_cov_ned_m2(0, 1);
+    z[i] = anomaly_nT[n.run.rows[static_cast<size_t>(i)]];
+    v[i] = o.step.updated ? o.step.innovation_nT : NAN;
+    vv[i] = o.step.innovation_var_nT2;
   }
   H5Array grid;
   grid.dims = {static_cast<size_t>(map.map_nT.rows()), static_cast<size_t>(map.map_nT.cols())};
   for (Eigen::Index r = 0; r < map.map_nT.rows(); ++r)
-    for (Eigen::Index c = 0; c < map.map_nT.cols(); ++c) grid.values.push_back(map.map_nT(r, c));
+    for (Eigen::Index c = 0; c < map.map_nT.cols(); ++c)
+      grid.values.push_back(map.mask.size() == 0 || map.mask(r, c) != 0 ? map.map_nT(r, c) : NAN);
   write_h5_arrays(dir + "/tracks.h5",
                   {{"t_s", array_of(t)},
-                   {"true_lat_deg", array_of(truth.lat_rad * kRadToDeg)},
-                   {"true_lon_deg", array_of(truth.lon_rad * kRadToDeg)},
-                   {"ins_lat_deg", array_of(ins.lat_rad * kRadToDeg)},
-                   {"ins_lon_deg", array_of(ins.lon_rad * kRadToDeg)},
+                   {"true_lat_deg", array_of(tlat)},
+                   {"true_lon_deg", array_of(tlon)},
+                   {"ins_lat_deg", array_of(ilat)},
+                   {"ins_lon_deg", array_of(ilon)},
                    {"filter_lat_deg", array_of(flat)},
                    {"filter_lon_deg", array_of(flon)},
-                   {"error_north_m", array_of(s.errors.north_m)},
-                   {"error_east_m", array_of(s.errors.east_m)},
-                   {"ins_error_north_m", array_of(s.ins_errors.north_m)},
-                   {"ins_error_east_m", array_of(s.ins_errors.east_m)},
+                   {"error_north_m", array_of(en)},
+                   {"error_east_m", array_of(ee)},
+                   {"ins_error_north_m", array_of(ien)},
+                   {"ins_error_east_m", array_of(iee)},
                    {"cov_north_m2", array_of(pnn)},
                    {"cov_east_m2", array_of(pee)},
                    {"cov_north_east_m2", array_of(pne)},
-                   {"measurement_nT", array_of(s.anomaly_nT)},
-                   {"innovation_nT", array_of(s.filter.innovation_nT)},
-                   {"innovation_var_nT2", array_of(s.filter.innovation_var_nT2)},
+                   {"measurement_nT", array_of(z)},
+                   {"innovation_nT", array_of(v)},
+                   {"innovation_var_nT2", array_of(vv)},
                    {"map_lat_deg", array_of(map.lat_rad * kRadToDeg)},
                    {"map_lon_deg", array_of(map.lon_rad * kRadToDeg)},
                    {"map_nT", grid}},
@@ -226,73 +219,124 @@ void add_navigate(CLI::App& app) {
   cmd->callback([=] {
     if (model_path->empty() == anomaly_field->empty())
       throw Error("navigate: give exactly one of --model and --anomaly");
-    if (!(*meas_sigma > 0 && *fogm_sigma > 0 && *fogm_tau > 0 && *init_pos_sigma > 0))
-      throw Error("navigate: --meas-sigma, --fogm-sigma, --fogm-tau, --init-pos-sigma must be > 0");
+    nav::require_setting(*meas_sigma, 0, nav::kMaxSigma_nT, "--meas-sigma", "nT");
+    nav::require_setting(*fogm_sigma, 0, nav::kMaxSigma_nT, "--fogm-sigma", "nT");
+    nav::require_setting(*fogm_tau, 0, nav::kMaxTimeConstant_s, "--fogm-tau", "s");
+    nav::require_setting(*init_pos_sigma, 0, nav::kMaxPositionSigma_m, "--init-pos-sigma", "m");
+    nav::require_setting(*map_sigma, 0, nav::kMaxSigma_nT, "--map-sigma", "nT", true);
+    if (*model_variance && model_path->empty())
+      throw Error("navigate: --model-variance needs --model");
+    OutputGuard guard({{"--data", *data},
+                       {"--map", *map_path},
+                       {"--model", *model_path},
+                       {"--baseline", *baseline}});
+    guard.add_output("--json", *json_path);
+    guard.add_output_dir("--report", *report,
+                         {"tracks.h5", "navigation.json", "index.html", "tracks.png", "errors.png",
+                          "innovations.png"});
     const FlightData f = read_flight(*data);
-    const double dt = f.dt_s();
-    const nav::FlightTracks tracks = nav::flight_tracks(f);
-    const nav::NavTrack& truth = tracks.truth;
-    const nav::NavTrack& ins = tracks.ins;
+    const nav::FlightSamples samples = nav::flight_samples(f);
     nav::AnomalyMap map = nav::read_anomaly_map(*map_path);
     if (*map_interp == "cubic") map.interpolation = nav::AnomalyMap::Interpolation::Cubic;
-    if (tracks.mean_alt_m > map.alt_m + 1.0) map = nav::continued_to(map, tracks.mean_alt_m);
+    if (std::isfinite(samples.mean_alt_m) && samples.mean_alt_m > map.alt_m + 1.0)
+      map = nav::continued_to(map, samples.mean_alt_m);
     nav::ModelSigmas sig;
     sig.meas_var_nT2 = *meas_sigma * *meas_sigma;
     sig.fogm_nT = *fogm_sigma;
     sig.taus.fogm_s = *fogm_tau;
     sig.init_pos_m = *init_pos_sigma;
-    nav::FilterSettings settings = nav::filter_model(dt, ins.lat_rad[0], sig);
+    double lat1 = NAN;  // the first valid INS latitude: the filter's initial covariance is there
+    for (const nav::InsSample& s : samples.ins)
+      if (nav::invalid_ins_reason(s).empty()) {
+        lat1 = s.lat_rad;
+        break;
+      }
+    if (!std::isfinite(lat1))
+      throw Error(*data +
+                  ": no INS sample is usable (every one has a position or attitude that "
+                  "is not finite, or lies at a pole or outside [-12, 100] km)");
+    nav::FilterSettings settings = nav::filter_model(samples.dt_s, lat1, sig);
     settings.offset_from_first = *map_offset == "first";
+    const nav::FlightRun bound = nav::crlb_run(samples.truth, map, settings, samples.dt_s);
 
-    if (*model_variance && model_path->empty())
-      throw Error("navigate: --model-variance needs --model");
-    if (!(*map_sigma >= 0)) throw Error("navigate: --map-sigma must be >= 0 nT");
     // R per sample from a model: its variance plus the map's.
     auto r_of = [&](const std::string& path) -> std::optional<Eigen::VectorXd> {
       if (!*model_variance) return std::nullopt;
       Eigen::VectorXd v = compensation_variance_nT2(load_model_yaml(path), f);
       return Eigen::VectorXd(v.array() + *map_sigma * *map_sigma);
     };
-    std::vector<std::pair<std::string, Scores>> rows;
-    Series series;
-    const auto r_main = model_path->empty() ? std::nullopt : r_of(*model_path);
-    rows.emplace_back(
-        anomaly_field->empty() ? *model_path : *anomaly_field,
-        navigate_once(ins, truth, anomaly_of(f, *model_path, *anomaly_field), map, settings,
-                      report->empty() ? nullptr : &series, r_main ? &*r_main : nullptr));
-    if (!baseline->empty()) {
-      const auto r_base = r_of(*baseline);
-      rows.emplace_back(*baseline, navigate_once(ins, truth, anomaly_of(f, *baseline, ""), map,
-                                                 settings, nullptr, r_base ? &*r_base : nullptr));
-    }
+    std::vector<Navigated> rows;
+    Eigen::VectorXd main_anomaly;
+    auto navigate = [&](const std::string& name, const Eigen::VectorXd& z,
+                        const std::optional<Eigen::VectorXd>& r) {
+      Navigated n;
+      n.name = name;
+      n.run = nav::run_flight(samples.ins, z, r ? &*r : nullptr, map, settings, samples.dt_s);
+      n.scores = nav::score_run(n.run, bound, samples, z, map);
+      if (n.scores.updates == 0) throw Error(no_measurement_reason(n, samples, map, *map_path));
+      if (n.scores.scored == 0)
+        throw Error(*data +
+                    ": no true position is usable to score the navigation (lat, lon, "
+                    "alt and the attitude not finite, at a pole or out of range in " +
+                    std::to_string(n.scores.invalid_truth) + " of " +
+                    std::to_string(n.scores.rows) + " rows)");
+      rows.push_back(std::move(n));
+    };
+    main_anomaly = anomaly_of(f, *model_path, *anomaly_field);
+    navigate(anomaly_field->empty() ? *model_path : *anomaly_field, main_anomaly,
+             model_path->empty() ? std::nullopt : r_of(*model_path));
+    if (!baseline->empty()) navigate(*baseline, anomaly_of(f, *baseline, ""), r_of(*baseline));
     if (!model_path->empty())
-      rows.emplace_back(
-          "uncompensated",
-          navigate_once(ins, truth, anomaly_of(f, *model_path, "", true), map, settings));
+      navigate("uncompensated", anomaly_of(f, *model_path, "", true), std::nullopt);
+    guard.check_inputs_unchanged();
+
+    const Navigated& first = rows.front();
     std::printf("%s: %ld samples at %.3g s, map %ldx%ld cells at %.0f m\n", data->c_str(),
-                static_cast<long>(f.size()), dt, static_cast<long>(map.map_nT.rows()),
+                static_cast<long>(f.size()), samples.dt_s, static_cast<long>(map.map_nT.rows()),
                 static_cast<long>(map.map_nT.cols()), map.alt_m);
-    std::printf("%-32s %12s %11s %9s %10s %12s %16s\n", "measurement", "meas-map nT", "filter m",
-                "INS m", "CRLB m", "NEES in 95%", "innovation nT");
-    for (const auto& [name, s] : rows) {
-      std::printf("%-32s %12.3f %11.1f %9.1f %10.1f %11.0f%% %7.2f +- %-6.2f\n", name.c_str(),
-                  s.meas_vs_map_nT, s.drms_filter_m, s.drms_ins_m, s.drms_crlb_m,
-                  100 * s.nees_in_bounds, s.innovation_mean_nT, s.innovation_std_nT);
+    std::printf("%-32s %12s %11s %9s %10s %12s %16s %10s\n", "measurement", "meas-map nT",
+                "filter m", "INS m", "CRLB m", "NEES in 95%", "innovation nT", "used");
+    for (const Navigated& n : rows) {
+      const nav::NavigationScores& s = n.scores;
+      const std::string innov =
+          figure(s.innovation_mean_nT, "%.2f") + " +- " + figure(s.innovation_std_nT, "%.2f");
+      std::printf("%-32s %12s %11s %9s %10s %12s %16s %10ld\n", n.name.c_str(),
+                  figure(s.measurement_minus_map_std_nT, "%.3f").c_str(),
+                  figure(s.drms_filter_m, "%.1f").c_str(), figure(s.drms_ins_m, "%.1f").c_str(),
+                  figure(s.drms_crlb_m, "%.1f").c_str(),
+                  figure(100 * s.nees_in_bounds, "%.0f%%").c_str(), innov.c_str(), s.updates);
     }
-    nlohmann::json j = to_json(rows.front().second);
+    // What the figures come from, and every fault met on the way.
+    const nav::NavigationScores& s0 = first.scores;
+    const nav::NavigatorCounts& c = s0.counts;
+    std::printf(
+        "samples: %ld rows, %ld filter steps, %ld scored against the truth, %ld "
+        "measurements used\n",
+        s0.rows, c.steps, s0.scored, s0.updates);
+    const long faults = c.invalid_ins + s0.invalid_truth + c.gaps + c.out_of_order + c.off_map +
+                        c.nan_measurements + c.invalid_measurements + c.gated +
+                        c.missing_measurements + c.filter_restarts;
+    if (faults > 0)
+      std::printf(
+          "warning: inputs the filter could not use: %ld INS samples refused, %ld true "
+          "positions refused, %ld INS gaps, %ld duplicate or out-of-order stamps, %ld "
+          "measurements off the map, %ld NaN, %ld refused (beyond 1e6 nT), %ld gated, %ld "
+          "missing, %ld filter restarts\n",
+          c.invalid_ins, s0.invalid_truth, c.gaps, c.out_of_order, c.off_map, c.nan_measurements,
+          c.invalid_measurements, c.gated, c.missing_measurements, c.filter_restarts);
+    nlohmann::json j = to_json(first.scores);
     j["data"] = *data;
     j["map"] = *map_path;
-    j["measurement"] = rows.front().first;
+    j["measurement"] = first.name;
     for (size_t k = 1; k < rows.size(); ++k) {
-      const bool raw = rows[k].first == "uncompensated" && k + 1 == rows.size();
+      const bool raw = rows[k].name == "uncompensated" && k + 1 == rows.size();
       nlohmann::json& r = j[raw ? "uncompensated" : "baseline"];
-      r = to_json(rows[k].second);
+      r = to_json(rows[k].scores);
       if (!raw) r["model"] = *baseline;
     }
-    std::vector<std::string> inputs = {*data, *map_path};
-    if (!model_path->empty()) inputs.push_back(*model_path);
-    if (!json_path->empty()) write_file_atomic(*json_path, j.dump(2) + "\n", inputs);
-    if (!report->empty()) write_report(*report, truth, ins, series, map, j, inputs);
+    if (!json_path->empty()) write_file_atomic(*json_path, j.dump(2) + "\n", guard.input_paths());
+    if (!report->empty())
+      write_report(*report, samples, first, main_anomaly, map, j, guard.input_paths());
   });
 }
 

@@ -4,6 +4,7 @@
 
 #include "magcomp/core/error.h"
 #include "magcomp/core/io/file_io.h"
+#include "magcomp/core/io/output_guard.h"
 #include "magcomp/core/sim/random_effects.h"
 #include "magcomp/core/sim/simulator.h"
 #include "subcommands.h"
@@ -32,8 +33,10 @@ void add_simulate(CLI::App& app) {
   cmd->add_option("--random-count", *random_count, "how many random effects (default 1)");
   cmd->callback([=] {
     const auto t0 = std::chrono::steady_clock::now();
-    for (const std::string& p : {*out, sim::truth_path(*out, "h5"), sim::truth_path(*out, "yaml")})
-      check_output_path(p, {*scenario});
+    OutputGuard guard({{"--scenario", *scenario}});
+    guard.add_output("--out", *out);
+    guard.add_output("--out (truth)", sim::truth_path(*out, "h5"));
+    guard.add_output("--out (truth)", sim::truth_path(*out, "yaml"));
     sim::Scenario s = sim::load_scenario(*scenario);
     if (*seed >= 0) s.seed = static_cast<unsigned>(*seed);
     if (*aircraft_seed >= 0) s.aircraft_seed = *aircraft_seed;

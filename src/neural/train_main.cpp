@@ -49,6 +49,15 @@ int run(int argc, char** argv) {
   app.add_flag("--quiet", quiet, "no progress bar");
   CLI11_PARSE(app, argc, argv);
 
+  // Every file read and written, checked before the work (outputs never over an input).
+  std::vector<OutputGuard::File> inputs = {{"--model", model_path}};
+  for (const auto& p : data) inputs.push_back({"--data", p});
+  for (const auto& p : validation) inputs.push_back({"--validation", p});
+  OutputGuard guard(inputs);
+  const bool to_yaml = out.size() > 5 && out.substr(out.size() - 5) == ".yaml";
+  guard.add_output("--out", to_yaml ? out : out + "/model.yaml");
+  guard.add_output("--out (weights)",
+                   to_yaml ? out.substr(0, out.size() - 5) + ".pt" : out + "/weights.pt");
   Model model = load_model_yaml(model_path);
   if (!model.neural) throw Error(model_path + ": key 'neural' missing: nothing to train");
   NeuralSpec& spec = *model.neural;

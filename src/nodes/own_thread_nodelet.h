@@ -3,8 +3,10 @@
 
 #include <nodelet/nodelet.h>
 #include <ros/callback_queue.h>
+#include <ros/console.h>
 
 #include <atomic>
+#include <exception>
 #include <memory>
 #include <thread>
 
@@ -31,7 +33,15 @@ class OwnThreadNodelet : public nodelet::Nodelet {
     pnh.setCallbackQueue(&queue_);
     impl_ = std::make_unique<Impl>(nh, pnh);
     thread_ = std::thread([this] {
-      while (running_ && ros::ok()) queue_.callAvailable(ros::WallDuration(0.1));
+      while (running_ && ros::ok()) {
+        // The last net under the class's own guards: nothing a callback throws ends this
+        // thread, and so nothing takes the manager down.
+        try {
+          queue_.callAvailable(ros::WallDuration(0.1));
+        } catch (const std::exception& e) {
+          ROS_ERROR_THROTTLE(5.0, "magcomp nodelet: %s (message dropped)", e.what());
+        }
+      }
     });
   }
   ros::CallbackQueue queue_;

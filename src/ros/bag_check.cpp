@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "magcomp/core/error.h"
+#include "magcomp/core/io/file_io.h"
 
 namespace magcomp::rosio {
 namespace {
@@ -252,6 +253,7 @@ class Checker {
 }  // namespace
 
 bool check_bag_structure(const std::string& path, BagVisitor* visitor) {
+  require_regular_file(path, "bag");  // before open(): a pipe would block it
   const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
   if (fd < 0) throw Error(path + ": file not found or not readable");
   struct stat st {};

@@ -1,8 +1,9 @@
 // magcomp ROS layer: what the two conversion directions share (internal to src/ros).
 #pragma once
 
+#include <sys/stat.h>
+
 #include <Eigen/Core>
-#include <fstream>
 #include <string>
 
 namespace magcomp::rosio::detail {
@@ -11,6 +12,10 @@ namespace magcomp::rosio::detail {
 // time, so a long flight is never held whole.
 constexpr Eigen::Index kChunkRows = 1 << 16;
 
-inline bool exists(const std::string& path) { return std::ifstream(path).good(); }
+/// Whether a path exists (stat: never opens it, so a pipe cannot block the caller).
+inline bool exists(const std::string& path) {
+  struct stat st {};
+  return ::stat(path.c_str(), &st) == 0;
+}
 
 }  // namespace magcomp::rosio::detail

@@ -13,6 +13,7 @@
 #include "magcomp/core/error.h"
 #include "magcomp/core/math/constants.h"
 #include "magcomp/core/nav/nav_model.h"
+#include "magcomp/ros/callback_guard.h"
 #include "magcomp/ros/ins_attitude.h"
 #include "magcomp/ros/params.h"
 
@@ -91,21 +92,25 @@ NavigatorRos::NavigatorRos(ros::NodeHandle nh, ros::NodeHandle pnh)
   require_positive(rate, "rate_hz");
   dt_s_ = 1.0 / rate;
   nav::ModelSigmas& sig = sigmas_;
-  const double meas_sigma = getd(pnh_, "measurement_sigma_nT", 3.0);
-  require_positive(meas_sigma, "measurement_sigma_nT");
+  // The filter's settings within the ranges that keep it finite (nav_model.h).
+  const auto setting = [&](const std::string& key, double def, double hi, const char* unit,
+                           bool zero_ok = false) {
+    const double v = getd(pnh_, key, def);
+    try {
+      nav::require_setting(v, 0, hi, "~" + key, unit, zero_ok);
+    } catch (const Error& e) {
+      reject_param(key, e.what());
+    }
+    return v;
+  };
+  const double meas_sigma = setting("measurement_sigma_nT", 3.0, nav::kMaxSigma_nT, "nT");
   sig.meas_var_nT2 = meas_sigma * meas_sigma;
   pnh_.param("use_compensator_variance", use_compensator_variance_, false);
-  map_sigma_nT_ = getd(pnh_, "map_sigma_nT", 0.0);
-  if (!(map_sigma_nT_ >= 0) || !std::isfinite(map_sigma_nT_))
-    reject_param("map_sigma_nT", "must be >= 0 and finite");
-  sig.fogm_nT = getd(pnh_, "fogm_sigma_nT", 3.0);
-  require_positive(sig.fogm_nT, "fogm_sigma_nT");
-  sig.taus.fogm_s = getd(pnh_, "fogm_tau_s", 600.0);
-  require_positive(sig.taus.fogm_s, "fogm_tau_s");
-  sig.init_pos_m = getd(pnh_, "init_pos_sigma_m", 3.0);
-  require_positive(sig.init_pos_m, "init_pos_sigma_m");
-  sig.init_vel_mps = getd(pnh_, "init_vel_sigma_mps", 0.01);
-  require_positive(sig.init_vel_mps, "init_vel_sigma_mps");
+  map_sigma_nT_ = setting("map_sigma_nT", 0.0, nav::kMaxSigma_nT, "nT", true);
+  sig.fogm_nT = setting("fogm_sigma_nT", 3.0, nav::kMaxSigma_nT, "nT");
+  sig.taus.fogm_s = setting("fogm_tau_s", 600.0, nav::kMaxTimeConstant_s, "s");
+  sig.init_pos_m = setting("init_pos_sigma_m", 3.0, nav::kMaxPositionSigma_m, "m");
+  sig.init_vel_mps = setting("init_vel_sigma_mps", 0.01, nav::kMaxVelocitySigma_mps, "m/s");
   const double gate = getd(pnh_, "nis_gate", 0.0);
   if (!(gate >= 0)) reject_param("nis_gate", "must be >= 0 (0: no gate)");
   max_wait_s_ = getd(pnh_, "max_wait_s", 2.0);
@@ -198,7 +203,33 @@ bool NavigatorRos::jumped_back(double t, double* last) {
   return false;
 }
 
+// Every callback runs guarded (callback_guard.h) and refuses a stamp ROS time cannot carry back
+// out (counted): the node survives any message.
+bool NavigatorRos::refuse_stamp(const ros::Time& stamp) {
+  if (usable_stamp(stamp)) return false;
+  ++bad_stamps_;
+  return true;
+}
+
 void NavigatorRos::on_anomaly(const magcomp::CompensatedField::ConstPtr& m) {
+  guarded("magcomp navigator", &callback_errors_, [&] { take_anomaly(*m); });
+}
+
+void NavigatorRos::on_ins_fix(const sensor_msgs::NavSatFix::ConstPtr& m) {
+  guarded("magcomp navigator", &callback_errors_, [&] { take_ins_fix(*m); });
+}
+
+void NavigatorRos::on_imu(const sensor_msgs::Imu::ConstPtr& m) {
+  guarded("magcomp navigator", &callback_errors_, [&] { take_imu(*m); });
+}
+
+void NavigatorRos::on_truth(const sensor_msgs::NavSatFix::ConstPtr& m) {
+  guarded("magcomp navigator", &callback_errors_, [&] { take_truth(*m); });
+}
+
+void NavigatorRos::take_anomaly(const magcomp::CompensatedField& msg) {
+  const magcomp::CompensatedField* m = &msg;
+  if (refuse_stamp(m->header.stamp)) return;
   const double t = m->header.stamp.toSec();
   last_input_wall_s_ = ros::WallTime::now().toSec();
   jumped_back(t, &last_anomaly_t_);
@@ -213,10 +244,16 @@ void NavigatorRos::on_anomaly(const magcomp::CompensatedField::ConstPtr& m) {
   }
 }
 
-void NavigatorRos::on_ins_fix(const sensor_msgs::NavSatFix::ConstPtr& m) {
+void NavigatorRos::take_ins_fix(const sensor_msgs::NavSatFix& msg) {
+  const sensor_msgs::NavSatFix* m = &msg;
+  if (refuse_stamp(m->header.stamp)) return;
   const double t = m->header.stamp.toSec();
   last_input_wall_s_ = ros::WallTime::now().toSec();
   jumped_back(t, &last_fix_t_);
+  if (m->status.status < sensor_msgs::NavSatStatus::STATUS_FIX) {
+    ++ins_no_fix_;  // the INS says it has no position: not a sample
+    return;
+  }
   if (!std::isfinite(m->latitude) || !std::isfinite(m->longitude) || !std::isfinite(m->altitude)) {
     ++nan_inputs_;
     return;
@@ -225,7 +262,9 @@ void NavigatorRos::on_ins_fix(const sensor_msgs::NavSatFix::ConstPtr& m) {
   try_ins(t);
 }
 
-void NavigatorRos::on_imu(const sensor_msgs::Imu::ConstPtr& m) {
+void NavigatorRos::take_imu(const sensor_msgs::Imu& msg) {
+  const sensor_msgs::Imu* m = &msg;
+  if (refuse_stamp(m->header.stamp)) return;
   const double t = m->header.stamp.toSec();
   last_input_wall_s_ = ros::WallTime::now().toSec();
   jumped_back(t, &last_imu_t_);
@@ -240,8 +279,15 @@ void NavigatorRos::on_imu(const sensor_msgs::Imu::ConstPtr& m) {
   try_ins(t);
 }
 
-void NavigatorRos::on_truth(const sensor_msgs::NavSatFix::ConstPtr& m) {
+void NavigatorRos::take_truth(const sensor_msgs::NavSatFix& msg) {
+  const sensor_msgs::NavSatFix* m = &msg;
+  if (refuse_stamp(m->header.stamp)) return;
   const double t = m->header.stamp.toSec();
+  if (!(std::abs(m->latitude) <= 90 && std::abs(m->longitude) <= 720 &&
+        std::isfinite(m->altitude))) {
+    ++nan_inputs_;  // a reference fix the errors cannot be measured against
+    return;
+  }
   truth_[t] = {m->latitude, m->longitude};
   if (truth_seen_++ % path_stride_ == 0) {
     geometry_msgs::PoseStamped p;
@@ -268,6 +314,12 @@ void NavigatorRos::try_ins(double t) {
   s.roll_rad = a->second.x();
   s.pitch_rad = a->second.y();
   s.yaw_rad = a->second.z();
+  if (!nav::invalid_ins_reason(s).empty()) {  // a pole, an altitude off the Earth: refused
+    ++ins_refused_;
+    fixes_.erase(t);
+    attitudes_.erase(t);
+    return;
+  }
   // Halves older than this sample never found their pair.
   for (auto it = attitudes_.begin(); it != attitudes_.end() && it->first < t;)
     it = attitudes_.erase(it), ++imu_without_fix_dropped_;
@@ -288,8 +340,10 @@ void NavigatorRos::try_ins(double t) {
 }
 
 void NavigatorRos::on_end(const std_msgs::Time::ConstPtr&) {
-  ROS_INFO("magcomp navigator: end of stream");
-  if (nav_) publish(nav_->end_of_ins());
+  guarded("magcomp navigator", &callback_errors_, [&] {
+    ROS_INFO("magcomp navigator: end of stream");
+    if (nav_) publish(nav_->end_of_ins());
+  });
 }
 
 void NavigatorRos::publish_map() {
@@ -322,10 +376,12 @@ void NavigatorRos::publish_map() {
 }
 
 void NavigatorRos::on_timer() {
-  // A measurement source silent for max_wait_s (wall): the INS samples waiting go without one.
-  if (nav_ && nav_->pending() > 0 &&
-      ros::WallTime::now().toSec() - last_input_wall_s_ > max_wait_s_)
-    publish(nav_->flush());
+  guarded("magcomp navigator", &callback_errors_, [&] {
+    // A measurement source silent for max_wait_s (wall): the INS samples waiting go without one.
+    if (nav_ && nav_->pending() > 0 &&
+        ros::WallTime::now().toSec() - last_input_wall_s_ > max_wait_s_)
+      publish(nav_->flush());
+  });
 }
 
 void NavigatorRos::publish(const std::vector<nav::NavigatorOutput>& steps) {
@@ -464,7 +520,13 @@ void NavigatorRos::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) {
   if (consecutive_off_map_ >= kOffMapWarnSteps) {
     stat.summary(diagnostic_msgs::DiagnosticStatus::WARN,
                  "off the map: navigating on the INS alone");
-  } else if (c.gaps + c.out_of_order + jumps_back_ + nan_inputs_ + c.missing_measurements > 0) {
+  } else if (callback_errors_ > 0) {
+    stat.summary(diagnostic_msgs::DiagnosticStatus::ERROR,
+                 "messages dropped on an internal error (see callback_errors)");
+  } else if (c.gaps + c.out_of_order + jumps_back_ + nan_inputs_ + c.missing_measurements +
+                 c.invalid_ins + c.invalid_measurements + c.filter_restarts + bad_stamps_ +
+                 ins_no_fix_ + ins_refused_ >
+             0) {
     stat.summary(diagnostic_msgs::DiagnosticStatus::WARN,
                  "running; input faults seen (see counts)");
   } else {
@@ -486,8 +548,14 @@ void NavigatorRos::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) {
   stat.add("time_jumps_back", jumps_back_);
   stat.add("nan_inputs", nan_inputs_);
   stat.add("imu_without_fix_dropped", imu_without_fix_dropped_);
+  stat.add("ins_no_fix_dropped", ins_no_fix_);
+  stat.add("ins_refused", ins_refused_ + c.invalid_ins);
+  stat.add("measurements_refused", c.invalid_measurements);
+  stat.add("filter_restarts", c.filter_restarts);
+  stat.add("stamps_out_of_range", bad_stamps_);
+  stat.add("callback_errors", callback_errors_);
   stat.add("pending", nav_ ? static_cast<long>(nav_->pending()) : 0L);
-  stat.add("nis_mean", nis_n_ ? nis_sum_ / static_cast<double>(nis_n_) : NAN);
+  if (nis_n_ > 0) stat.add("nis_mean", nis_sum_ / static_cast<double>(nis_n_));
   stat.add("on_map", last_ ? last_->step.on_map : false);
   if (last_) {
     stat.add("last_innovation_nT", last_->step.innovation_nT);

@@ -8,85 +8,18 @@
 #include <limits>
 #include <sstream>
 
-#include "magcomp/core/sim/simulator.h"
-#include "scenario_cache.h"
+#include "hostile_util.h"
 
 namespace magcomp {
 namespace {
 
-std::string slurp(const std::string& path) {
-  std::ifstream f(path, std::ios::binary);
-  std::stringstream s;
-  s << f.rdbuf();
-  return s.str();
-}
-
-bool exists(const std::string& path) {
-  struct stat st {};
-  return ::stat(path.c_str(), &st) == 0;
-}
-
-// Runs the CLI; expects exit 2 and exactly one output line, `error: ...` holding every `needle`.
-void expect_refusal(const std::string& args, const std::vector<std::string>& needles) {
-  std::string out;
-  const int rc = test::run(test::cli() + " " + args, &out);
-  EXPECT_EQ(rc, 2) << args << "\n" << out;
-  std::string last;
-  int errors = 0;
-  std::istringstream lines(out);
-  for (std::string line; std::getline(lines, line);) {
-    if (line.rfind("error: ", 0) == 0) {
-      ++errors;
-      last = line;
-    }
-  }
-  EXPECT_EQ(errors, 1) << args << "\n" << out;
-  for (const auto& n : needles) EXPECT_NE(last.find(n), std::string::npos) << args << "\n" << out;
-}
-
-struct Files {
-  std::string dir, flight, model, fitted;
-};
-
-// A short simulated flight, a TL model for it and that model fitted.
-const Files& files() {
-  static Files f = [] {
-    Files x;
-    x.dir = test::temp_dir("hostile");
-    x.flight = x.dir + "/f.h5";
-    sim::write_simulation(test::scenario("rostest_short"), x.flight);
-    x.model = test::source_dir() + "/config/models/tl_sim.yaml";
-    x.fitted = x.dir + "/fitted.yaml";
-    std::string out;
-    if (test::run(test::cli() + " calibrate --data " + x.flight + " --model " + x.model +
-                      " --out " + x.fitted,
-                  &out) != 0)
-      throw std::runtime_error(out);
-    return x;
-  }();
-  return f;
-}
-
-std::string write(const std::string& name, const std::string& text) {
-  const std::string p = files().dir + "/" + name;
-  std::ofstream(p) << text;
-  return p;
-}
-
-std::string model_with(const std::string& terms, const std::string& fit) {
-  return write("m_" + std::to_string(std::hash<std::string>()(terms + fit)) + ".yaml",
-               "scalar: mag_5_uc\nvector: flux_c\nterms: " + terms + "\nfit: " + fit + "\n");
-}
-
-// A copy of the flight with one field replaced.
-std::string flight_with(const std::string& name, const std::string& field,
-                        const Eigen::VectorXd& values) {
-  FlightData f = read_flight_h5(files().flight);
-  f.set(field, values);
-  const std::string p = files().dir + "/" + name;
-  write_flight_h5(f, p);
-  return p;
-}
+using test::exists;
+using test::expect_refusal;
+using test::files;
+using test::flight_with;
+using test::model_with;
+using test::slurp;
+using test::write;
 
 TEST(HostileInput, AModelWithNoFittableColumnIsRefusedNotACrash) {
   const std::string bp = "{method: bandpass, lines: [1001.02, 1001.04]}";
@@ -103,10 +36,11 @@ TEST(HostileInput, AModelWithNoFittableColumnIsRefusedNotACrash) {
 
 TEST(HostileInput, SettingsThatGiveNanAreRefusedAndNothingIsWritten) {
   const std::string out = files().dir + "/nan.yaml";
-  expect_refusal("calibrate --data " + files().flight + " --model " +
-                     model_with("[permanent]", "{method: bandpass, lines: [1001.02], lambda: .inf}") +
-                     " --out " + out,
-                 {"fit.lambda"});
+  expect_refusal(
+      "calibrate --data " + files().flight + " --model " +
+          model_with("[permanent]", "{method: bandpass, lines: [1001.02], lambda: .inf}") +
+          " --out " + out,
+      {"fit.lambda"});
   expect_refusal("calibrate --data " + files().flight + " --model " +
                      model_with("[permanent]",
                                 "{method: bandpass, lines: [1001.02], band_hz: [1e-300, 0.9]}") +
@@ -132,13 +66,16 @@ TEST(HostileInput, SettingsThatGiveNanAreRefusedAndNothingIsWritten) {
 TEST(HostileInput, NothingToScoreIsAnErrorNotAScoreOfZero) {
   const Eigen::Index n = read_flight_h5(files().flight).size();
   const double nan = std::numeric_limits<double>::quiet_NaN();
-  const std::string all_nan = flight_with("all_nan.h5", "mag_5_uc", Eigen::VectorXd::Constant(n, nan));
+  const std::string all_nan =
+      flight_with("all_nan.h5", "mag_5_uc", Eigen::VectorXd::Constant(n, nan));
   expect_refusal("evaluate --data " + all_nan + " --model " + files().fitted,
                  {"all_nan.h5", "nothing to score"});
   const std::string all_inf =
       flight_with("all_inf.h5", "mag_5_uc",
                   Eigen::VectorXd::Constant(n, std::numeric_limits<double>::infinity()));
-  expect_refusal("evaluate --data " + all_inf + " --model " + files().fitted, {"nothing to score"});
+  // Infinity is no magnetometer's reading: refused by field and sample before any figure.
+  expect_refusal("evaluate --data " + all_inf + " --model " + files().fitted,
+                 {"all_inf.h5", "field 'mag_5_uc' holds inf nT at sample 0"});
   FlightData zero = read_flight_h5(files().flight);
   for (const char* c : {"flux_c_x", "flux_c_y", "flux_c_z"}) zero.set(c, Eigen::VectorXd::Zero(n));
   write_flight_h5(zero, files().dir + "/zero_flux.h5");
@@ -157,8 +94,8 @@ TEST(HostileInput, DeclaredSizesAreCheckedBeforeAnyAllocation) {
     const hid_t space = H5Screate_simple(1, &dims, &maxdims);
     const hid_t plist = H5Pcreate(H5P_DATASET_CREATE);
     H5Pset_chunk(plist, 1, &chunk);
-    const hid_t ds = H5Dcreate2(file, "mag_9_uc", H5T_IEEE_F64LE, space, H5P_DEFAULT, plist,
-                                H5P_DEFAULT);
+    const hid_t ds =
+        H5Dcreate2(file, "mag_9_uc", H5T_IEEE_F64LE, space, H5P_DEFAULT, plist, H5P_DEFAULT);
     ASSERT_GE(ds, 0);
     H5Dclose(ds);
     H5Pclose(plist);
@@ -210,14 +147,15 @@ TEST(HostileInput, NothingIsLeftOutWithoutAWord) {
   EXPECT_NE(out.find("'extra_group' is a group"), std::string::npos) << out;
   EXPECT_NE(out.find("--allow-skip"), std::string::npos) << out;
   EXPECT_FALSE(exists(files().dir + "/extras.bag"));
-  EXPECT_EQ(test::run(test::cli() + " convert --allow-skip " + p + " " + files().dir +
-                          "/extras.bag",
-                      &out),
-            0)
+  EXPECT_EQ(
+      test::run(test::cli() + " convert --allow-skip " + p + " " + files().dir + "/extras.bag",
+                &out),
+      0)
       << out;
   EXPECT_NE(out.find("warning: "), std::string::npos);
   // Other commands read on and say what they left out.
-  EXPECT_EQ(test::run(test::cli() + " evaluate --data " + p + " --model " + files().fitted, &out), 0);
+  EXPECT_EQ(test::run(test::cli() + " evaluate --data " + p + " --model " + files().fitted, &out),
+            0);
   EXPECT_NE(out.find("warning: " + p + ": field 'pilot' is a string dataset"), std::string::npos)
       << out;
 }
@@ -266,8 +204,9 @@ TEST(HostileInput, AScenarioWithNonFiniteOrHugeNumbersIsRefused) {
   const std::string out = files().dir + "/never.h5";
   expect_refusal("simulate --scenario " + with("lat_deg: 45.3", "lat_deg: .nan") + " --out " + out,
                  {"origin.lat_deg", "finite"});
-  expect_refusal("simulate --scenario " + with("speed_mps: 60", "speed_mps: .inf") + " --out " + out,
-                 {"aircraft.speed_mps", "finite"});
+  expect_refusal(
+      "simulate --scenario " + with("speed_mps: 60", "speed_mps: .inf") + " --out " + out,
+      {"aircraft.speed_mps", "finite"});
   expect_refusal(
       "simulate --scenario " + with("duration_s: 60", "duration_s: 1e12") + " --out " + out,
       {"duration_s"});
@@ -278,14 +217,14 @@ TEST(HostileInput, ATimeBaseWithNanOrInfIsRefusedByName) {
   Eigen::VectorXd tt = read_flight_h5(files().flight).tt();
   tt[17] = std::numeric_limits<double>::quiet_NaN();
   tt[40] = std::numeric_limits<double>::quiet_NaN();
-  expect_refusal("evaluate --data " + flight_with("tt_nan.h5", "tt", tt) + " --model " +
-                     files().fitted,
-                 {"tt_nan.h5", "'tt' has 2 non-finite value(s) (NaN at sample 17)"});
+  expect_refusal(
+      "evaluate --data " + flight_with("tt_nan.h5", "tt", tt) + " --model " + files().fitted,
+      {"tt_nan.h5", "'tt' has 2 non-finite value(s) (NaN at sample 17)"});
   tt = read_flight_h5(files().flight).tt();
   tt[4366 % tt.size()] = std::numeric_limits<double>::infinity();
-  expect_refusal("evaluate --data " + flight_with("tt_inf.h5", "tt", tt) + " --model " +
-                     files().fitted,
-                 {"'tt' has 1 non-finite value(s) (Inf at sample"});
+  expect_refusal(
+      "evaluate --data " + flight_with("tt_inf.h5", "tt", tt) + " --model " + files().fitted,
+      {"'tt' has 1 non-finite value(s) (Inf at sample"});
 }
 
 TEST(HostileInput, OutputsNeverReplaceAnInputOrADevice) {
@@ -302,18 +241,18 @@ TEST(HostileInput, OutputsNeverReplaceAnInputOrADevice) {
   expect_refusal("simulate --scenario " + test::source_dir() +
                      "/config/scenarios/rostest_short.yaml --out /dev/full",
                  {"/dev/full", "not a regular file"});
-  expect_refusal("evaluate --data " + files().flight + " --model " + files().fitted +
-                     " --json /dev/full",
-                 {"/dev/full", "not a regular file"});
+  expect_refusal(
+      "evaluate --data " + files().flight + " --model " + files().fitted + " --json /dev/full",
+      {"/dev/full", "not a regular file"});
   expect_refusal("diagnose --data " + files().flight + " --model " + files().fitted +
                      " --json /dev/full --channels-only",
                  {"/dev/full"});
   // The same file under another name (a hard link) is still the input.
   const std::string link = files().dir + "/link.h5";
   ASSERT_EQ(::link(files().flight.c_str(), link.c_str()), 0);
-  expect_refusal("calibrate --data " + files().flight + " --model " + files().model + " --out " +
-                     link,
-                 {"link.h5", "is an input of this command"});
+  expect_refusal(
+      "calibrate --data " + files().flight + " --model " + files().model + " --out " + link,
+      {"link.h5", "is an input of this command"});
   EXPECT_EQ(slurp(files().flight), before);
 }
 
@@ -333,12 +272,12 @@ TEST(HostileInput, ACorruptBagIsOneLineNotAnAbort) {
   expect_refusal("convert " + files().dir + "/random_tail.bag " + files().dir + "/o1.h5",
                  {"random_tail.bag", "not a readable rosbag"});
   // Truncated in the middle, and a connection header whose field length runs past its end.
-  std::ofstream(files().dir + "/truncated.bag", std::ios::binary) << good.substr(0, good.size() / 2);
+  std::ofstream(files().dir + "/truncated.bag", std::ios::binary)
+      << good.substr(0, good.size() / 2);
   expect_refusal("convert " + files().dir + "/truncated.bag " + files().dir + "/o2.h5",
                  {"truncated.bag", "not a readable rosbag"});
   std::ofstream(files().dir + "/empty.bag", std::ios::binary) << "";
-  expect_refusal("convert " + files().dir + "/empty.bag " + files().dir + "/o3.h5",
-                 {"empty.bag"});
+  expect_refusal("convert " + files().dir + "/empty.bag " + files().dir + "/o3.h5", {"empty.bag"});
   for (const char* o : {"/o1.h5", "/o2.h5", "/o3.h5"}) EXPECT_FALSE(exists(files().dir + o));
 }
 

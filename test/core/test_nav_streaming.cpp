@@ -10,6 +10,7 @@
 #include "magcomp/core/math/constants.h"
 #include "magcomp/core/nav/anomaly_map.h"
 #include "magcomp/core/nav/ekf.h"
+#include "magcomp/core/nav/flight_run.h"
 #include "magcomp/core/nav/nav_model.h"
 #include "magcomp/core/nav/streaming_navigator.h"
 #include "magcomp/core/nav/streaming_track.h"
@@ -272,3 +273,64 @@ TEST(LocalEnu, EllipsoidPointsAndRoundTrips) {
 
 }  // namespace
 }  // namespace magcomp
+
+namespace magcomp::nav {
+namespace {
+
+TEST(NavStreaming, HostileSamplesAreRefusedAndNoOutputIsEverNan) {
+  // The node's inputs at their worst: the INS at a pole, 1e300 m up, NaN attitude; a measurement
+  // of 1e300 nT and one of inf; an hour's gap. Each is refused and counted; every output finite.
+  const Example& e = example();
+  StreamingNavigator nav(e.map, e.settings, e.dt);
+  std::vector<NavigatorOutput> out;
+  auto take = [&](std::vector<NavigatorOutput> v) { out.insert(out.end(), v.begin(), v.end()); };
+  for (Eigen::Index i = 0; i < e.ins.size(); ++i) {
+    InsSample s = sample(e, i);
+    if (i == 20) s.lat_rad = 90 * kDegToRad;
+    if (i == 21) s.lat_rad = -89.9 * kDegToRad;
+    if (i == 22) s.alt_m = 1e300;
+    if (i == 23) s.yaw_rad = NAN;
+    if (i >= 70) s.t_s += 7200;  // two hours without the INS
+    take(nav.push_ins(s));
+    const double z = i == 30 ? 1e300 : i == 31 ? INFINITY : e.anomaly[i];
+    take(nav.push_measurement(s.t_s, z, NAN));
+  }
+  take(nav.end_of_ins());
+  take(nav.flush());
+  const NavigatorCounts& c = nav.counts();
+  EXPECT_EQ(c.invalid_ins, 4);
+  EXPECT_EQ(c.invalid_measurements, 2);
+  EXPECT_EQ(c.nan_measurements, 0);  // the refused ones are not counted twice
+  EXPECT_EQ(c.filter_restarts, 1);   // the two-hour gap
+  EXPECT_EQ(static_cast<Eigen::Index>(out.size()), e.ins.size() - 4);
+  for (const NavigatorOutput& o : out) {
+    ASSERT_TRUE(std::isfinite(o.lat_rad) && std::isfinite(o.lon_rad) && std::isfinite(o.alt_m));
+    ASSERT_TRUE(o.position_cov_ned_m2.allFinite() && o.velocity_ned_mps.allFinite());
+  }
+  EXPECT_EQ(invalid_ins_reason(sample(e, 0)), "");
+  InsSample pole = sample(e, 0);
+  pole.lat_rad = 89.6 * kDegToRad;
+  EXPECT_EQ(invalid_ins_reason(pole), "latitude within 0.5 deg of a pole");
+}
+
+TEST(NavStreaming, TheBoundAlongTheTruthIsTheCrlb) {
+  // crlb_run (the filter on the true track measuring the map itself) gives crlb()'s covariance
+  // (MagNav.jl's vectors) wherever the map covers the track.
+  const Example& e = example();
+  std::vector<InsSample> truth;
+  for (Eigen::Index i = 0; i < e.ins.size(); ++i) truth.push_back(sample(e, i));
+  const FlightRun run = crlb_run(truth, e.map, e.settings, e.dt);
+  const std::vector<Eigen::MatrixXd> p = crlb(e.ins, e.map, e.settings);
+  ASSERT_EQ(run.steps.size(), p.size());
+  for (size_t i = 0; i < p.size(); ++i) {
+    const double kn = dlat_to_north_m(1.0, e.lat[static_cast<Eigen::Index>(i)]);
+    ASSERT_NEAR(run.steps[i].position_cov_ned_m2(0, 0), kn * kn * p[i](0, 0),
+                1e-9 * kn * kn * p[i](0, 0))
+        << i;
+    ASSERT_EQ(run.rows[i], static_cast<Eigen::Index>(i));
+  }
+  EXPECT_EQ(run.counts.updates, e.ins.size());
+}
+
+}  // namespace
+}  // namespace magcomp::nav

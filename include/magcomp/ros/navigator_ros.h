@@ -39,6 +39,13 @@ class NavigatorRos {
   void on_imu(const sensor_msgs::Imu::ConstPtr& m);
   void on_truth(const sensor_msgs::NavSatFix::ConstPtr& m);
   void on_end(const std_msgs::Time::ConstPtr& m);
+  // The callbacks' bodies (run guarded).
+  void take_anomaly(const magcomp::CompensatedField& m);
+  void take_ins_fix(const sensor_msgs::NavSatFix& m);
+  void take_imu(const sensor_msgs::Imu& m);
+  void take_truth(const sensor_msgs::NavSatFix& m);
+  /// A stamp ROS time cannot carry back out (seconds at 2^32 - 1): counted, true.
+  bool refuse_stamp(const ros::Time& stamp);
   void on_timer();
   /// The anomaly map as a latched nav_msgs/OccupancyGrid (rviz's Map display).
   void publish_map();
@@ -76,6 +83,7 @@ class NavigatorRos {
   // Counters and the latest state, for diagnostics.
   long truth_seen_ = 0;  // reference fixes received (every path_stride-th is a path point)
   long published_ = 0, jumps_back_ = 0, imu_without_fix_dropped_ = 0, nan_inputs_ = 0;
+  long ins_no_fix_ = 0, ins_refused_ = 0, bad_stamps_ = 0, callback_errors_ = 0;
   std::optional<nav::NavigatorOutput> last_;
   double nis_sum_ = 0.0;
   long nis_n_ = 0, consecutive_off_map_ = 0;

@@ -14,9 +14,11 @@
 #include <sstream>
 
 #include "magcomp/core/error.h"
+#include "magcomp/core/evaluate/evaluation.h"
 #include "magcomp/core/fit/parameter_fit.h"
 #include "magcomp/core/fit/slow_stage.h"
 #include "magcomp/core/math/timeseries.h"
+#include "magcomp/core/model/field_range.h"
 #include "magcomp/core/model/terms_expr.h"
 
 namespace magcomp {
@@ -66,12 +68,16 @@ struct Scored {
 // the slow stage, and the better of the two on the selection lines is kept.
 constexpr double kSlowBandFraction = 0.01;
 
-// Mean-removed RMS per line over the rows of one fold (-1: every held-out row).
+// Mean-removed RMS per line over the rows of one fold (-1: every held-out row); NaN when fewer
+// than 90 % of the fold's rows have a finite error (a score must stand on the baseline's rows:
+// a lag loses a few at the ends, a NaN coefficient loses them all).
 double fold_std(const Eigen::VectorXd& e, const std::vector<Eigen::Index>& held,
                 const std::vector<int>& fold, const Eigen::VectorXd& line, int which) {
   std::map<double, std::pair<double, double>> acc;
+  double rows = 0;
   for (Eigen::Index i : held) {
     if (which >= 0 && fold[static_cast<size_t>(i)] != which) continue;
+    rows += 1;
     if (!std::isfinite(e[i])) continue;
     auto& a = acc[line[i]];
     a.first += e[i];
@@ -86,7 +92,7 @@ double fold_std(const Eigen::VectorXd& e, const std::vector<Eigen::Index>& held,
     ss += d * d;
     n += 1;
   }
-  return n > 1 ? std::sqrt(ss / n) : 0.0;
+  return n > 1 && n >= 0.9 * rows ? std::sqrt(ss / n) : NAN;
 }
 
 // Everything a candidate is scored against: read-only once built, shared by the workers.
@@ -164,6 +170,7 @@ class Search {
 
 Search::Search(const Model& m, const FlightData& d, const std::string& truth_name, Diagnosis* dx)
     : model(m), data(d) {
+  require_model_fields_in_range(model, data, {truth_name});
   truth = data.column(truth_name);
   const auto terms = model.make_terms();
   const Eigen::MatrixXd a_all = design_matrix(model, terms, data);  // names a missing field
@@ -277,6 +284,15 @@ Search::Search(const Model& m, const FlightData& d, const std::string& truth_nam
   dx->heldout_samples = static_cast<Eigen::Index>(held.size());
   for (int f = 0; f < 2; ++f) base_std[f] = fold_std(e0, held, fold, line, f);
   base_std[2] = fold_std(e0, held, fold, line, -1);
+  for (double s : base_std)
+    if (!(s > 0 && s <= kMaxField_nT)) {
+      char buf[64];
+      std::snprintf(buf, sizeof buf, "%.3g", s);
+      throw Error(data.source() + ": the held-out error of " + model.scalar + " against " +
+                  truth_name + " has a std of " + buf +
+                  " nT on a split (it must be above 0 and within 1e6 nT, the range of any "
+                  "magnetic field): nothing to diagnose");
+    }
   dx->baseline_selection_std_nT = base_std[0];
   dx->baseline_confirmation_std_nT = base_std[1];
   dx->baseline_std_nT = base_std[2];
@@ -311,7 +327,7 @@ Scored Search::score_slow(const Eigen::MatrixXd& cols) const {
   s.held = fold_std(e, held, fold, line, -1);
   s.coef = coef;
   s.slow = true;
-  s.ok = std::isfinite(s.sel) && std::isfinite(s.conf) && coef.allFinite();
+  s.ok = std::isfinite(s.sel) && std::isfinite(s.conf) && std::isfinite(s.held) && coef.allFinite();
   return s;
 }
 
@@ -332,7 +348,7 @@ Scored Search::score(const Eigen::MatrixXd& cols, bool slow_ok) const {
   s.conf = fold_std(e, held, fold, line, 1);
   s.held = fold_std(e, held, fold, line, -1);
   s.coef = coef.tail(k);
-  s.ok = std::isfinite(s.sel) && std::isfinite(s.conf);
+  s.ok = std::isfinite(s.sel) && std::isfinite(s.conf) && std::isfinite(s.held) && coef.allFinite();
   if (slow_ok && has_slow_stage() && k > 0) {
     // The columns' energy on the calibration rows, each segment's mean removed.
     double raw = 0;
@@ -527,11 +543,12 @@ Scored Search::lag_scored(double tau, Eigen::MatrixXd x, Eigen::Index partners) 
          c.tail(partners);
   }
   Scored s;
-  s.ok = std::abs(tau - model.scalar_lag_s()) >= 0.005;
   s.spec = "lag";
   s.sel = fold_std(e, held, fold, line, 0);
   s.conf = fold_std(e, held, fold, line, 1);
   s.held = fold_std(e, held, fold, line, -1);
+  s.ok = std::abs(tau - model.scalar_lag_s()) >= 0.005 && std::isfinite(s.sel) &&
+         std::isfinite(s.conf) && std::isfinite(s.held) && c.allFinite();
   s.fits = 1;
   return s;
 }

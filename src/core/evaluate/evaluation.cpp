@@ -2,6 +2,7 @@
 #include "magcomp/core/evaluate/evaluation.h"
 
 #include <cmath>
+#include <cstdio>
 #include <future>
 #include <limits>
 #include <map>
@@ -10,6 +11,7 @@
 #include "magcomp/core/error.h"
 #include "magcomp/core/evaluate/flight_conditions.h"
 #include "magcomp/core/model/apply.h"
+#include "magcomp/core/model/field_range.h"
 #include "magcomp/neural/network.h"
 
 namespace magcomp {
@@ -70,7 +72,7 @@ void line_table(const std::map<double, LineSums>& groups, Evaluation* ev) {
     const double mean = a.sum / static_cast<double>(a.n);
     const double ss_dev = std::max(0.0, a.sum_sq - a.n * mean * mean);
     s.rmse_nT = std::sqrt(a.sum_sq / static_cast<double>(a.n));
-    s.std_nT = a.n > 1 ? std::sqrt(ss_dev / static_cast<double>(a.n - 1)) : 0.0;
+    s.std_nT = a.n > 1 ? std::sqrt(ss_dev / static_cast<double>(a.n - 1)) : NAN;  // no spread
     ev->per_line.push_back(s);
     ev->n += a.n;
     total_sq += a.sum_sq;
@@ -169,6 +171,24 @@ Evaluation error_statistics(const FlightData& data, Eigen::VectorXd error, bool 
   return ev;
 }
 
+void require_scorable(const Evaluation& ev, const std::string& source, const std::string& what) {
+  const auto lines = static_cast<Eigen::Index>(ev.per_line.size());
+  const Eigen::Index dof = ev.n - lines;
+  if (dof < kMinDegreesOfFreedom)
+    throw Error(source + ": " + what + " has " + std::to_string(ev.n) + " finite sample(s) in " +
+                std::to_string(lines) +
+                " line(s): " + std::to_string(std::max<Eigen::Index>(dof, 0)) +
+                " degree(s) of freedom once each line's mean is removed, " +
+                std::to_string(kMinDegreesOfFreedom) + " needed: nothing to score");
+  if (!(ev.rmse_nT <= kMaxField_nT) || !(ev.std_nT <= kMaxField_nT)) {
+    char buf[64];
+    std::snprintf(buf, sizeof buf, "%.3g", ev.rmse_nT);
+    throw Error(source + ": " + what + " has an rms of " + buf +
+                " nT, beyond any magnetic field (1e6 nT): the data hold values no magnetometer "
+                "gives; nothing to score");
+  }
+}
+
 double pooled_std(const Eigen::VectorXd& residual, const Eigen::VectorXd& groups) {
   std::map<double, std::pair<double, double>> acc;  // sum, count
   for (Eigen::Index i = 0; i < residual.size(); ++i) {
@@ -223,7 +243,8 @@ Applied apply_and_compare(const Model& model, const FlightData& data,
 }
 
 // The share of finite errors, each line's mean removed (as std_nT: a band-pass fit cannot see
-// a constant offset), within 1 and 2 sigma of their variance; NaN without a variance.
+// a constant offset), within 1 and 2 sigma of their variance, over the lines of two samples or
+// more; NaN without a variance or with fewer than kMinDegreesOfFreedom such samples.
 std::pair<double, double> coverage(const Eigen::VectorXd& error, const Eigen::VectorXd& variance,
                                    const double* line) {
   if (variance.size() != error.size()) return {NAN, NAN};
@@ -238,12 +259,13 @@ std::pair<double, double> coverage(const Eigen::VectorXd& error, const Eigen::Ve
   for (Eigen::Index i = 0; i < error.size(); ++i) {
     if (!(std::isfinite(error[i]) && std::isfinite(variance[i]) && variance[i] > 0)) continue;
     const auto& a = acc[line ? line[i] : 0.0];
+    if (a.second < 2) continue;  // a line of one sample has no spread to cover
     const double e = error[i] - a.first / a.second;
     ++covered;
     in1 += e * e <= variance[i];
     in2 += e * e <= 4 * variance[i];
   }
-  if (covered == 0) return {NAN, NAN};
+  if (covered < kMinDegreesOfFreedom) return {NAN, NAN};
   return {static_cast<double>(in1) / static_cast<double>(covered),
           static_cast<double>(in2) / static_cast<double>(covered)};
 }
@@ -253,6 +275,7 @@ std::pair<double, double> coverage(const Eigen::VectorXd& error, const Eigen::Ve
 Evaluation evaluate_model(const Model& model, const FlightData& data, const std::string& truth,
                           bool keep_variance) {
   if (!data.has(truth)) throw Error(data.source() + ": reference field '" + truth + "' not found");
+  require_model_fields_in_range(model, data, {truth});
   const FlightData::Column ref = data.column(truth);
   if (!ref.array().isFinite().any()) {
     throw Error(data.source() + ": reference field '" + truth + "' holds no finite sample");
@@ -307,6 +330,7 @@ Evaluation evaluate_model(const Model& model, const FlightData& data, const std:
                 model.scalar + ", " + model.vector + "_x/_y/_z, the model's channels, " + truth +
                 "): nothing to score");
   }
+  require_scorable(ev, data.source(), "the error of " + model.scalar + " against " + truth);
   ev.compensated_nT = std::move(applied.compensated_nT);
   return ev;
 }

@@ -15,6 +15,7 @@
 #include "magcomp/core/fit/slow_stage.h"
 #include "magcomp/core/math/butterworth.h"
 #include "magcomp/core/math/timeseries.h"
+#include "magcomp/core/model/field_range.h"
 #include "magcomp/core/model/model.h"
 #include "magcomp/core/model/quadratic_form.h"
 #include "magcomp/core/model/terms_expr.h"
@@ -406,11 +407,15 @@ CalibrationBlocks calibration_blocks(const Model& model,
                                      FitReport* report) {
   const FitSettings& s = model.fit;
   CalibrationBlocks blocks;
+  // The magnetic fields of the rows the fit reads hold what a magnetometer gives.
+  const std::vector<std::string> reference =
+      s.reference.empty() ? std::vector<std::string>{} : std::vector<std::string>{s.reference};
   for (const FlightData* flight : flights) {
     const FlightData& data = *flight;
     const Eigen::Index margin =
         data.size() > 1 ? slice_margin(model, terms, data.dt_s()) : Eigen::Index(-1);
     if (margin < 0 || (s.lines.empty() && s.windows.empty())) {
+      require_model_fields_in_range(model, data, reference);
       const Eigen::MatrixXd a = design_matrix(model, terms, data);
       const Eigen::VectorXd y = fit_target(model, data);
       add_runs(s, data.dt_s(), a, y, calibration_runs(s, data, a, y, &report->warnings), &blocks,
@@ -424,6 +429,7 @@ CalibrationBlocks calibration_blocks(const Model& model,
       const Eigen::Index lo = std::max<Eigen::Index>(0, first - margin);
       const Eigen::Index hi = std::min(data.size(), last + 1 + margin);
       const FlightData part = data.rows(lo, hi - lo);
+      require_model_fields_in_range(model, part, reference, lo);
       const Eigen::MatrixXd a = design_matrix(model, terms, part);
       const Eigen::VectorXd y = fit_target(model, part);
       std::vector<Eigen::Index> rows(static_cast<size_t>(last - first + 1));
@@ -645,6 +651,15 @@ void fit_model(Model& model, const std::vector<const FlightData*>& flights) {
   report.estimates = estimates;
   const double dof = static_cast<double>(std::max<Eigen::Index>(rows - fitted_cols, 1));
   report.noise_variance_nT2 = residual.squaredNorm() / dof;
+  if (!std::isfinite(report.residual_std_nT) || !std::isfinite(report.noise_variance_nT2)) {
+    char buf[160];
+    std::snprintf(buf, sizeof buf, "(largest |value|: target %.3g nT, columns %.3g)",
+                  y.cwiseAbs().maxCoeff(), a.cwiseAbs().maxCoeff());
+    throw Error("fit: the residual of " + model.scalar +
+                " is too large to square: its values or the columns' are beyond any magnetic "
+                "field " +
+                buf + " in " + sources + "; nothing written");
+  }
   report.coefficient_covariance =
       coefficient_covariance(g, s.lambda, report.noise_variance_nT2, keep);
   const std::vector<Eigen::Index> slow = slow_columns(s.method, terms, model.slow_terms);

@@ -7,12 +7,36 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <climits>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 
 #include "magcomp/core/error.h"
 
 namespace magcomp {
+
+void require_regular_file(const std::string& path, const std::string& what) {
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0) return;  // the reader says "not found" in its own words
+  if (S_ISREG(st.st_mode)) return;
+  const char* kind = S_ISFIFO(st.st_mode)                         ? "a pipe (FIFO)"
+                     : S_ISDIR(st.st_mode)                        ? "a directory"
+                     : S_ISCHR(st.st_mode) || S_ISBLK(st.st_mode) ? "a device"
+                     : S_ISSOCK(st.st_mode)                       ? "a socket"
+                                                                  : "not a regular file";
+  throw Error(path + ": " + what + " is " + kind + ", not a regular file; refusing to read it");
+}
+
+std::string canonical_target(const std::string& path) {
+  char buf[PATH_MAX];
+  if (::realpath(path.c_str(), buf)) return buf;
+  const auto slash = path.find_last_of('/');
+  const std::string dir = slash == std::string::npos ? "." : path.substr(0, slash + 1);
+  const std::string name = slash == std::string::npos ? path : path.substr(slash + 1);
+  if (!::realpath(dir.c_str(), buf)) return path;
+  return std::string(buf) + "/" + name;
+}
 
 void check_output_path(const std::string& path, const std::vector<std::string>& inputs) {
   if (path.empty()) throw Error("output path is empty");
@@ -23,12 +47,13 @@ void check_output_path(const std::string& path, const std::vector<std::string>& 
                 ": exists and is not a regular file (a device, directory or pipe); "
                 "refusing to replace it");
   }
+  const std::string target = canonical_target(path);
   for (const std::string& in : inputs) {
     if (in.empty()) continue;
     struct stat st {};
     const bool same_file = exists && ::stat(in.c_str(), &st) == 0 && st.st_dev == out.st_dev &&
                            st.st_ino == out.st_ino;
-    if (same_file || in == path) {
+    if (same_file || in == path || canonical_target(in) == target) {
       throw Error(path + ": is an input of this command (" + in + "); refusing to overwrite it");
     }
   }

@@ -19,6 +19,7 @@
 #include "magcomp/core/error.h"
 #include "magcomp/core/io/file_io.h"
 #include "magcomp/core/io/flight_data.h"
+#include "magcomp/core/io/h5_probe.h"
 
 namespace magcomp {
 namespace {
@@ -119,57 +120,6 @@ void read_values(hid_t file, const std::string& path, Dataset& d, hsize_t count,
       H5Dread(ds.id, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, d.values.data()) < 0) {
     throw Error(path + ": field '" + d.name + "' cannot be read as float64 (corrupt data)");
   }
-}
-
-// The HDF5 library trusts sizes and addresses in a file's structure (B-trees, local heaps,
-// object headers); on some corrupt files it crashes instead of returning an error. The structure
-// is therefore walked first in a child process: if the child dies, the file is refused, and the
-// parent never calls the library on it. Returns "" when the walk completed.
-std::string probe_structure(const std::string& path) {
-  // MAGCOMP_HDF5_PROBE=0 turns the probe off: the fuzz target does, to feed libFuzzer fast and
-  // see the library's own crashes (scripts/fuzz replays them through the probe).
-  if (const char* env = std::getenv("MAGCOMP_HDF5_PROBE"); env && std::string(env) == "0")
-    return "";
-  std::fflush(nullptr);
-  const pid_t pid = ::fork();
-  if (pid < 0) return "";  // no child: read without the probe
-  if (pid == 0) {
-    H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
-    const hid_t file = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
-    if (file >= 0) {
-      std::vector<std::string> names;
-      H5Literate(file, H5_INDEX_NAME, H5_ITER_NATIVE, nullptr, collect_name, &names);
-      for (const std::string& name : names) {
-        H5O_info_t info;
-        if (H5Oget_info_by_name2(file, name.c_str(), &info, H5O_INFO_BASIC, H5P_DEFAULT) < 0 ||
-            info.type != H5O_TYPE_DATASET)
-          continue;
-        const hid_t ds = H5Dopen2(file, name.c_str(), H5P_DEFAULT);
-        if (ds < 0) continue;
-        const hid_t type = H5Dget_type(ds);
-        if (type >= 0) {
-          (void)H5Tget_class(type);
-          H5Tclose(type);
-        }
-        const hid_t space = H5Dget_space(ds);
-        if (space >= 0) {
-          hsize_t dims[8];
-          if (H5Sget_simple_extent_ndims(space) <= 8)
-            H5Sget_simple_extent_dims(space, dims, nullptr);
-          H5Sclose(space);
-        }
-        (void)H5Dget_storage_size(ds);
-        H5Dclose(ds);
-      }
-      H5Fclose(file);
-    }
-    ::_exit(0);
-  }
-  int status = 0;
-  while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
-  }
-  if (WIFSIGNALED(status)) return "signal " + std::to_string(WTERMSIG(status));
-  return "";
 }
 
 // libhdf5 (Debian's serial build) is not thread-safe: every call from a column loader holds this.
@@ -393,13 +343,14 @@ void declare_lazy_columns(const std::vector<Dataset>& series, const std::string&
 FlightData read_flight_h5(const std::string& path) {
   H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
   hsize_t file_bytes = 0;
+  require_regular_file(path, "flight file");
   {
     std::ifstream probe(path, std::ios::binary | std::ios::ate);
     if (!probe.good()) throw Error(path + ": file not found or not readable");
     file_bytes = static_cast<hsize_t>(std::max<std::streamoff>(probe.tellg(), 0));
   }
   if (H5Fis_hdf5(path.c_str()) <= 0) throw Error(path + ": not an HDF5 file");
-  const std::string crash = probe_structure(path);
+  const std::string crash = probe_h5_structure(path);
   if (!crash.empty()) {
     throw Error(path + ": corrupt HDF5 file: the HDF5 library fails on its structure (" + crash +
                 " in a probe process)");

@@ -3,10 +3,14 @@
 
 #include <hdf5.h>
 
+#include <sys/stat.h>
+
 #include <cstdio>
+#include <mutex>
 
 #include "magcomp/core/error.h"
 #include "magcomp/core/io/file_io.h"
+#include "magcomp/core/io/h5_probe.h"
 
 namespace magcomp {
 namespace {
@@ -19,6 +23,41 @@ struct Handle {
     if (id >= 0) close(id);
   }
 };
+
+// Files whose structure the probe walked without a crash, by identity, size and modification
+// time: a map or a reference file read dataset by dataset is probed once.
+struct ProbedFile {
+  dev_t dev;
+  ino_t ino;
+  off_t size;
+  long long mtime_ns;
+  bool operator==(const ProbedFile& o) const {
+    return dev == o.dev && ino == o.ino && size == o.size && mtime_ns == o.mtime_ns;
+  }
+};
+ProbedFile identity(const struct stat& st) {
+  return {st.st_dev, st.st_ino, st.st_size,
+          static_cast<long long>(st.st_mtim.tv_sec) * 1000000000LL + st.st_mtim.tv_nsec};
+}
+std::mutex& probed_mutex() {
+  static std::mutex m;
+  return m;
+}
+std::vector<ProbedFile>& probed() {
+  static std::vector<ProbedFile> v;
+  return v;
+}
+bool probed_clean(const std::string&, const struct stat& st) {
+  std::lock_guard<std::mutex> lock(probed_mutex());
+  for (const ProbedFile& p : probed())
+    if (p == identity(st)) return true;
+  return false;
+}
+void remember_clean(const std::string&, const struct stat& st) {
+  std::lock_guard<std::mutex> lock(probed_mutex());
+  if (probed().size() > 64) probed().erase(probed().begin());
+  probed().push_back(identity(st));
+}
 
 }  // namespace
 
@@ -52,6 +91,7 @@ void write_h5_arrays(const std::string& path,
 }
 
 bool h5_has(const std::string& path, const std::string& name) {
+  require_regular_file(path, "HDF5 file");
   H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);  // errors are ours to report, in one line
   {
     const hid_t file = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
@@ -66,7 +106,19 @@ bool h5_has(const std::string& path, const std::string& name) {
 
 H5Array read_h5_array(const std::string& path, const std::string& name) {
   H5Array out;
+  require_regular_file(path, "HDF5 file");
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0) throw Error(path + ": file not found or not readable");
+  const auto file_bytes = static_cast<hsize_t>(st.st_size);
   H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);  // errors are ours to report, in one line
+  if (H5Fis_hdf5(path.c_str()) <= 0) throw Error(path + ": not an HDF5 file");
+  if (!probed_clean(path, st)) {
+    const std::string crash = probe_h5_structure(path);
+    if (!crash.empty())
+      throw Error(path + ": corrupt HDF5 file: the HDF5 library fails on its structure (" + crash +
+                  " in a probe process)");
+    remember_clean(path, st);
+  }
   {
     Handle file{H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose};
     if (file.id < 0) throw Error(path + ": cannot open as HDF5");
@@ -80,10 +132,23 @@ H5Array read_h5_array(const std::string& path, const std::string& name) {
     size_t n = 1;
     for (hsize_t d : dims) {
       out.dims.push_back(static_cast<size_t>(d));
+      if (d > 0 && n > (size_t{1} << 31) / d)
+        throw Error(path + ": dataset '" + name + "' is too large");
       n *= static_cast<size_t>(d);
     }
     if (n > (size_t{1} << 31)) throw Error(path + ": dataset '" + name + "' is too large");
-    out.values.resize(n);
+    // The declared size against the bytes the file stores for it, before any allocation: 1000x
+    // is beyond any compression of float samples.
+    const hsize_t stored = H5Dget_storage_size(ds.id);
+    if (n > 0 && (stored == 0 || n > stored * 1000 || n > file_bytes * 1000))
+      throw Error(path + ": dataset '" + name + "' declares " + std::to_string(n) +
+                  " values but the file stores " + std::to_string(stored) + " bytes of it");
+    try {
+      out.values.resize(n);
+    } catch (const std::bad_alloc&) {
+      throw Error(path + ": dataset '" + name + "': not enough memory for " + std::to_string(n) +
+                  " values");
+    }
     if (n > 0 &&
         H5Dread(ds.id, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, out.values.data()) < 0)
       throw Error(path + ": dataset '" + name + "' cannot be read as numbers");

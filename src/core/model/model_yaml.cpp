@@ -360,6 +360,7 @@ void parse_fit_report(const YAML::Node& r, const std::string& path, Model* m) {
 static Model load_model_yaml_unchecked(const std::string& path_in) {
   const std::string path = is_directory(path_in) ? path_in + "/model.yaml" : path_in;
   YAML::Node root;
+  require_regular_file(path, "model file");
   try {
     root = YAML::LoadFile(path);
   } catch (const YAML::BadFile&) {

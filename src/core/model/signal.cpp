@@ -20,26 +20,41 @@ struct TransformName {
   const char* name;
   TransformKind kind;
   bool param;
+  const char* param_name;  // what the parameter is, for the list of known transforms
 };
 const TransformName kTransforms[] = {
-    {"d", TransformKind::Derivative, false},
-    {"int", TransformKind::Integral, false},
-    {"abs", TransformKind::Abs, false},
-    {"lp", TransformKind::LowPass, true},
-    {"hp", TransformKind::HighPass, true},
-    {"delay", TransformKind::Delay, true},
-    {"pow", TransformKind::Power, true},
-    {"decay", TransformKind::Decay, true},
-    {"play", TransformKind::Play, true},
-    {"sat", TransformKind::Saturate, true},
-    {"step", TransformKind::Step, true},
-    {"ramp", TransformKind::Ramp, true},
+    {"d", TransformKind::Derivative, false, ""},
+    {"int", TransformKind::Integral, false, ""},
+    {"abs", TransformKind::Abs, false, ""},
+    {"lp", TransformKind::LowPass, true, "tau_s"},
+    {"hp", TransformKind::HighPass, true, "tau_s"},
+    {"delay", TransformKind::Delay, true, "s"},
+    {"pow", TransformKind::Power, true, "p"},
+    {"decay", TransformKind::Decay, true, "tau_s"},
+    {"play", TransformKind::Play, true, "r"},
+    {"sat", TransformKind::Saturate, true, "s"},
+    {"step", TransformKind::Step, true, "x0"},
+    {"ramp", TransformKind::Ramp, true, "x0"},
     // Long forms, read as the short ones.
-    {"deriv", TransformKind::Derivative, false},
-    {"integral", TransformKind::Integral, false},
-    {"lowpass", TransformKind::LowPass, true},
-    {"highpass", TransformKind::HighPass, true},
+    {"deriv", TransformKind::Derivative, false, ""},
+    {"integral", TransformKind::Integral, false, ""},
+    {"lowpass", TransformKind::LowPass, true, "tau_s"},
+    {"highpass", TransformKind::HighPass, true, "tau_s"},
 };
+
+// "d, int, abs, lp(tau_s), ...": every transform by its short name, from the table above.
+std::string known_transforms() {
+  std::string list;
+  for (size_t k = 0; k < sizeof kTransforms / sizeof kTransforms[0]; ++k) {
+    const TransformName& t = kTransforms[k];
+    bool short_form = true;
+    for (size_t j = 0; j < k; ++j) short_form &= kTransforms[j].kind != t.kind;
+    if (!short_form) continue;
+    list += (list.empty() ? "" : ", ") + std::string(t.name) +
+            (t.param ? "(" + std::string(t.param_name) + ")" : "");
+  }
+  return list;
+}
 
 const char* name_of(TransformKind k) {
   for (const auto& t : kTransforms)
@@ -358,8 +373,7 @@ SignalExpr parse_signal(const std::string& text_in, const std::string& context) 
     for (const auto& t : kTransforms)
       if (name == t.name) tn = &t;
     if (!tn) {
-      return fail("unknown transform '" + name +
-                  "' (known: d, int, abs, lp(tau_s), hp(tau_s), delay(s), pow(p), decay(tau_s))");
+      return fail("unknown transform '" + name + "' (known: " + known_transforms() + ")");
     }
     Transform tr;
     tr.kind = tn->kind;

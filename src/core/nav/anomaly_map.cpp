@@ -4,10 +4,12 @@
 #include <algorithm>
 #include <cmath>
 #include <complex>
+#include <cstdio>
 #include <unsupported/Eigen/FFT>
 #include <vector>
 
 #include "magcomp/core/error.h"
+#include "magcomp/core/io/file_io.h"
 #include "magcomp/core/io/h5_array.h"
 #include "magcomp/core/math/constants.h"
 
@@ -17,6 +19,7 @@ namespace {
 constexpr double kWgs84A_m = 6378137.0;        // MagNav.jl's r_earth
 constexpr double kWgs84E = 0.0818191908426;    // first eccentricity
 constexpr double kGradientStep_rad = 1.0e-8f;  // MagNav.jl's map_grad step (a Float32 literal)
+constexpr double kMaxMapAltitude_m = 1e5;      // a map's altitude, within 100 km of the ellipsoid
 
 // Fractional index of x on a uniform axis from a[0] to a[n-1]: the cell and the weight in it.
 void locate(const Eigen::VectorXd& a, double x, Eigen::Index* cell, double* t) {
@@ -55,13 +58,30 @@ double fftfreq(Eigen::Index i, Eigen::Index n, double fs) {
   return static_cast<double>(k) * fs / static_cast<double>(n);
 }
 
+// A map axis: at least 2 finite values, increasing, uniform (each value within 5 % of a step of
+// the line through the first and the last: a float32 axis passes, a stretched one does not).
 Eigen::VectorXd axis(const H5Array& a, const std::string& path, const std::string& name) {
   if (a.dims.size() != 1 || a.values.size() < 2)
     throw Error(path + ": field '" + name + "' must be a vector of at least 2 values");
   Eigen::VectorXd v = Eigen::Map<const Eigen::VectorXd>(a.values.data(),
                                                         static_cast<Eigen::Index>(a.values.size()));
+  for (Eigen::Index i = 0; i < v.size(); ++i)
+    if (!std::isfinite(v[i]))
+      throw Error(path + ": field '" + name + "' holds a non-finite value at index " +
+                  std::to_string(i));
   for (Eigen::Index i = 1; i < v.size(); ++i)
     if (!(v[i] > v[i - 1])) throw Error(path + ": field '" + name + "' must increase");
+  const Eigen::Index n = v.size();
+  const double step = (v[n - 1] - v[0]) / static_cast<double>(n - 1);
+  for (Eigen::Index i = 1; i + 1 < n; ++i) {
+    const double off = std::abs(v[i] - (v[0] + step * static_cast<double>(i))) / step;
+    if (off > 0.05) {
+      char buf[64];
+      std::snprintf(buf, sizeof buf, "%.3g", off);
+      throw Error(path + ": field '" + name + "' is not uniform: value " + std::to_string(i) +
+                  " lies " + buf + " steps off the regular grid (a map is a regular grid)");
+    }
+  }
   return v;
 }
 
@@ -71,6 +91,34 @@ double keys(double x) {
   if (x <= 1) return (1.5 * x - 2.5) * x * x + 1;
   if (x < 2) return ((-0.5 * x + 2.5) * x - 4) * x + 2;
   return 0.0;
+}
+
+// Cells that are not finite are masked; so is the whole map refused when no cell is left, or when a
+// cell holds more than any magnetic anomaly. Masked cells take the valid cells' mean, so the
+// interpolation and the FFT continuation stay finite; covers() keeps measurements off them.
+void mask_invalid_cells(AnomalyMap* m, const std::string& path) {
+  double sum = 0;
+  long valid = 0;
+  for (Eigen::Index i = 0; i < m->map_nT.rows(); ++i)
+    for (Eigen::Index j = 0; j < m->map_nT.cols(); ++j) {
+      const double v = m->map_nT(i, j);
+      if (!std::isfinite(v)) m->mask(i, j) = 0.0;
+      if (m->mask(i, j) == 0.0) continue;
+      if (std::abs(v) > kMaxField_nT) {
+        char buf[96];
+        std::snprintf(buf, sizeof buf, "cell (%ld, %ld) holds %.6g nT", static_cast<long>(i),
+                      static_cast<long>(j), v);
+        throw Error(path + ": field 'map' " + buf +
+                    ", beyond any magnetic field (|value| <= 1e6 nT)");
+      }
+      sum += v;
+      ++valid;
+    }
+  if (valid == 0) throw Error(path + ": field 'map' has no valid cell (all masked or not finite)");
+  const double mean = sum / static_cast<double>(valid);
+  for (Eigen::Index i = 0; i < m->map_nT.rows(); ++i)
+    for (Eigen::Index j = 0; j < m->map_nT.cols(); ++j)
+      if (m->mask(i, j) == 0.0) m->map_nT(i, j) = mean;
 }
 
 }  // namespace
@@ -108,11 +156,21 @@ bool AnomalyMap::covers(double lat, double lon) const {
         lon <= lon_rad[lon_rad.size() - 1]))
     return false;
   if (mask.size() == 0) return true;
+  // Every cell the interpolation reads must be valid: the cell's 4 corners (bilinear) or the
+  // 4 x 4 about it (cubic, the edge rows repeated).
   Eigen::Index i, j;
   double t, s;
   locate(lat_rad, lat, &i, &t);
   locate(lon_rad, lon, &j, &s);
-  return mask(i + (t > 0.5), j + (s > 0.5)) != 0;
+  const int lo = interpolation == Interpolation::Cubic ? -1 : 0;
+  const int hi = interpolation == Interpolation::Cubic ? 2 : 1;
+  const Eigen::Index ny = mask.rows(), nx = mask.cols();
+  for (int a = lo; a <= hi; ++a)
+    for (int b = lo; b <= hi; ++b)
+      if (mask(std::clamp<Eigen::Index>(i + a, 0, ny - 1),
+               std::clamp<Eigen::Index>(j + b, 0, nx - 1)) == 0)
+        return false;
+  return true;
 }
 
 Eigen::Vector2d AnomalyMap::step_m() const {
@@ -164,6 +222,7 @@ AnomalyMap continued_to(const AnomalyMap& map, double alt_m) {
 }
 
 AnomalyMap read_anomaly_map(const std::string& path) {
+  require_regular_file(path, "map file");
   AnomalyMap m;
   const H5Array grid = read_h5_array(path, "map");
   if (grid.dims.size() != 2) throw Error(path + ": field 'map' must be a 2-D grid");
@@ -181,6 +240,16 @@ AnomalyMap read_anomaly_map(const std::string& path) {
     m.lat_rad *= kDegToRad;
     m.lon_rad *= kDegToRad;
   }
+  if (m.lat_rad.cwiseAbs().maxCoeff() > kPi / 2)
+    throw Error(path + ": field 'yy' holds " +
+                std::to_string(m.lat_rad.cwiseAbs().maxCoeff() / kDegToRad) +
+                ", not a latitude in degrees or radians (a map on projected axes, metres, is not "
+                "read: give its axes in degrees)");
+  if (m.lon_rad.cwiseAbs().maxCoeff() > 2 * kPi)
+    throw Error(path + ": field 'xx' holds " +
+                std::to_string(m.lon_rad.cwiseAbs().maxCoeff() / kDegToRad) +
+                ", not a longitude in degrees or radians (a map on projected axes, metres, is not "
+                "read: give its axes in degrees)");
   auto element = [&](const H5Array& a, size_t i, size_t j) {
     return julia ? a.at(j, i) : a.at(i, j);
   };
@@ -189,17 +258,23 @@ AnomalyMap read_anomaly_map(const std::string& path) {
     for (size_t j = 0; j < nx; ++j)
       m.map_nT(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)) = element(grid, i, j);
   const H5Array alt = read_h5_array(path, "alt");
-  if (alt.values.empty() || !std::isfinite(alt.values[0]))
-    throw Error(path + ": field 'alt' must hold the map's altitude (m)");
+  if (alt.values.empty() || !std::isfinite(alt.values[0]) ||
+      std::abs(alt.values[0]) > kMaxMapAltitude_m)
+    throw Error(path + ": field 'alt' must hold the map's altitude (m, finite, within " +
+                std::to_string(static_cast<long>(kMaxMapAltitude_m)) + " m of the ellipsoid)");
   m.alt_m = alt.values[0];
+  m.mask = Eigen::MatrixXd::Ones(m.map_nT.rows(), m.map_nT.cols());
   if (h5_has(path, "mask")) {
     const H5Array mask = read_h5_array(path, "mask");
     if (mask.dims != grid.dims) throw Error(path + ": field 'mask' must have the map's shape");
-    m.mask.resize(m.map_nT.rows(), m.map_nT.cols());
     for (size_t i = 0; i < ny; ++i)
-      for (size_t j = 0; j < nx; ++j)
-        m.mask(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)) = element(mask, i, j);
+      for (size_t j = 0; j < nx; ++j) {
+        const double v = element(mask, i, j);
+        m.mask(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)) =
+            std::isfinite(v) && v != 0 ? 1.0 : 0.0;
+      }
   }
+  mask_invalid_cells(&m, path);
   return m;
 }
 

@@ -32,7 +32,11 @@ void check_settings(const FilterSettings& s, const char* who) {
   if (s.p0.rows() != kStates || s.p0.cols() != kStates || s.qd.rows() != kStates ||
       s.qd.cols() != kStates)
     throw Error(std::string(who) + ": P0 and Qd must be 18 x 18");
-  if (!(s.r_nT2 > 0)) throw Error(std::string(who) + ": R must be > 0 nT^2");
+  if (!(s.r_nT2 > 0) || !std::isfinite(s.r_nT2))
+    throw Error(std::string(who) + ": R must be > 0 nT^2 and finite");
+  if (!s.p0.allFinite() || !s.qd.allFinite())
+    throw Error(std::string(who) +
+                ": P0 or Qd is not finite (an initial or process sigma too large to square)");
 }
 
 void check(const NavTrack& track, const FilterSettings& s, const char* who) {

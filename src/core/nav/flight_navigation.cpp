@@ -7,7 +7,9 @@
 #include "magcomp/core/error.h"
 #include "magcomp/core/geo/igrf.h"
 #include "magcomp/core/math/constants.h"
+#include "magcomp/core/model/field_range.h"
 #include "magcomp/core/nav/nav_model.h"
+#include "magcomp/core/nav/streaming_navigator.h"
 #include "magcomp/neural/features.h"
 
 namespace magcomp::nav {
@@ -53,7 +55,48 @@ FlightTracks flight_tracks(const FlightData& f) {
   return t;
 }
 
+FlightSamples flight_samples(const FlightData& f) {
+  const Eigen::VectorXd lat_deg = column(f, {"lat"}, "true latitude, deg");
+  const Eigen::VectorXd lon_deg = column(f, {"lon"}, "true longitude, deg");
+  const Eigen::VectorXd alt = column(f, {"alt", "utm_z", "msl"}, "true altitude, m");
+  const Eigen::VectorXd roll = column(f, {"roll", "ins_roll"}, "roll, deg") * kDegToRad;
+  const Eigen::VectorXd pitch = column(f, {"pitch", "ins_pitch"}, "pitch, deg") * kDegToRad;
+  const Eigen::VectorXd yaw = column(f, {"yaw", "ins_yaw"}, "yaw, deg") * kDegToRad;
+  // The INS angles' unit (rad or deg) judged on the rows where both columns are finite.
+  const auto radians = [&](const Eigen::VectorXd& v, const Eigen::VectorXd& ref_deg) {
+    double sv = 0, sr = 0;
+    long n = 0;
+    for (Eigen::Index i = 0; i < v.size(); ++i)
+      if (std::isfinite(v[i]) && std::isfinite(ref_deg[i])) sv += v[i], sr += ref_deg[i], ++n;
+    return n > 0 && std::abs(sv / n - sr / n) < 1.0 ? Eigen::VectorXd(v * kDegToRad) : v;
+  };
+  const Eigen::VectorXd ins_lat = radians(column(f, {"ins_lat"}, "INS latitude"), lat_deg);
+  const Eigen::VectorXd ins_lon = radians(column(f, {"ins_lon"}, "INS longitude"), lon_deg);
+  const Eigen::VectorXd ins_alt = column(f, {"ins_alt"}, "INS altitude, m");
+  const Eigen::VectorXd ins_roll = column(f, {"ins_roll"}, "INS roll, deg") * kDegToRad;
+  const Eigen::VectorXd ins_pitch = column(f, {"ins_pitch"}, "INS pitch, deg") * kDegToRad;
+  const Eigen::VectorXd ins_yaw = column(f, {"ins_yaw"}, "INS yaw, deg") * kDegToRad;
+  const Eigen::VectorXd tt = f.tt();
+  FlightSamples s;
+  s.dt_s = f.dt_s();
+  s.ins.resize(static_cast<size_t>(f.size()));
+  s.truth.resize(static_cast<size_t>(f.size()));
+  double alt_sum = 0;
+  long alt_n = 0;
+  for (Eigen::Index i = 0; i < f.size(); ++i) {
+    s.ins[static_cast<size_t>(i)] = {tt[i],       ins_lat[i],   ins_lon[i], ins_alt[i],
+                                     ins_roll[i], ins_pitch[i], ins_yaw[i]};
+    const InsSample t{
+        tt[i], lat_deg[i] * kDegToRad, lon_deg[i] * kDegToRad, alt[i], roll[i], pitch[i], yaw[i]};
+    s.truth[static_cast<size_t>(i)] = t;
+    if (invalid_ins_reason(t).empty()) alt_sum += alt[i], ++alt_n;
+  }
+  if (alt_n > 0) s.mean_alt_m = alt_sum / static_cast<double>(alt_n);
+  return s;
+}
+
 Eigen::VectorXd measured_anomaly_nT(const FlightData& f, const Model& m, bool uncompensated) {
+  require_model_fields_in_range(m, f);
   Eigen::VectorXd a =
       uncompensated ? column(f, {m.scalar}, "the model's scalar") : compensate(m, f);
   a -= igrf_total_nT(f, Igrf::installed());

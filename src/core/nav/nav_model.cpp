@@ -2,6 +2,7 @@
 #include "magcomp/core/nav/nav_model.h"
 
 #include <cmath>
+#include <cstdio>
 
 #include "magcomp/core/error.h"
 #include "magcomp/core/math/constants.h"
@@ -68,6 +69,16 @@ NavTrack track_from_positions(double dt_s, const Eigen::VectorXd& lat, const Eig
   }
   take(stream.flush());
   return t;
+}
+
+void require_setting(double value, double lo, double hi, const std::string& name,
+                     const std::string& unit, bool lo_closed) {
+  const bool above = lo_closed ? value >= lo : value > lo;
+  if (above && value <= hi) return;
+  char buf[160];
+  std::snprintf(buf, sizeof buf, ": must be in %s%g, %g] %s (got %g)", lo_closed ? "[" : "(", lo,
+                hi, unit.c_str(), value);
+  throw Error(name + buf);
 }
 
 FilterSettings filter_model(double dt_s, double lat1, const ModelSigmas& s) {

@@ -3,15 +3,37 @@
 
 #include <cmath>
 
+#include "magcomp/core/math/constants.h"
+
 #include "magcomp/core/nav/nav_model.h"
 
 namespace magcomp::nav {
 namespace {
 
-constexpr double kMatchFraction = 0.25;  // a measurement belongs to an INS stamp within dt/4
-constexpr double kGapSteps = 1.5;        // a step longer than this many dt is a gap
+constexpr double kMatchFraction = 0.25;       // a measurement belongs to an INS stamp within dt/4
+constexpr double kGapSteps = 1.5;             // a step longer than this many dt is a gap
+constexpr double kMaxPropagation_s = 3600.0;  // a longer gap restarts the filter
+constexpr double kMaxLatitude_rad = (90.0 - 0.5) * kDegToRad;
+constexpr double kMinAltitude_m = -12000.0, kMaxAltitude_m = 100000.0;
+
+bool finite_output(const NavigatorOutput& o) {
+  return std::isfinite(o.lat_rad) && std::isfinite(o.lon_rad) && std::isfinite(o.alt_m) &&
+         o.velocity_ned_mps.allFinite() && o.position_cov_ned_m2.allFinite();
+}
 
 }  // namespace
+
+std::string invalid_ins_reason(const InsSample& s) {
+  if (!std::isfinite(s.t_s)) return "stamp not finite";
+  if (!std::isfinite(s.lat_rad) || !std::isfinite(s.lon_rad) || !std::isfinite(s.alt_m))
+    return "position not finite";
+  if (!std::isfinite(s.roll_rad) || !std::isfinite(s.pitch_rad) || !std::isfinite(s.yaw_rad))
+    return "attitude not finite";
+  if (std::abs(s.lat_rad) > kMaxLatitude_rad) return "latitude within 0.5 deg of a pole";
+  if (std::abs(s.lon_rad) > 4 * kPi) return "longitude beyond 720 deg";
+  if (s.alt_m < kMinAltitude_m || s.alt_m > kMaxAltitude_m) return "altitude outside [-12, 100] km";
+  return "";
+}
 
 StreamingNavigator::StreamingNavigator(const AnomalyMap& map, const FilterSettings& settings,
                                        double dt_s)
@@ -26,6 +48,10 @@ void StreamingNavigator::reset() {
 }
 
 std::vector<NavigatorOutput> StreamingNavigator::push_ins(const InsSample& s) {
+  if (!invalid_ins_reason(s).empty()) {
+    ++counts_.invalid_ins;
+    return {};
+  }
   if (std::isfinite(last_ins_t_) && !(s.t_s > last_ins_t_)) {
     ++counts_.out_of_order;
     return {};
@@ -42,6 +68,12 @@ std::vector<NavigatorOutput> StreamingNavigator::push_ins(const InsSample& s) {
 
 std::vector<NavigatorOutput> StreamingNavigator::push_measurement(double t_s, double z_nT,
                                                                   double var_nT2) {
+  if (!std::isfinite(t_s)) {
+    ++counts_.invalid_measurements;
+    return {};
+  }
+  // Beyond any magnetic field: counted here, stepped without it (run_step).
+  if (!(std::abs(z_nT) <= kMaxField_nT) && !std::isnan(z_nT)) ++counts_.invalid_measurements;
   if (std::isfinite(last_meas_t_) && !(t_s > last_meas_t_)) {
     ++counts_.out_of_order;
     return {};
@@ -95,9 +127,31 @@ std::vector<NavigatorOutput> StreamingNavigator::drain(bool force) {
 
 NavigatorOutput StreamingNavigator::run_step(const TrackPoint& p, double z, double var,
                                              bool missing) {
-  if (std::isfinite(last_step_t_) && p.t_s - last_step_t_ > kGapSteps * dt_s_) {
+  if (std::isfinite(last_step_t_) && p.t_s - last_step_t_ > kMaxPropagation_s) {
+    ekf_.reset();  // an hour and more without the INS: start again from the prior
+    ++counts_.filter_restarts;
+  } else if (std::isfinite(last_step_t_) && p.t_s - last_step_t_ > kGapSteps * dt_s_) {
     ekf_.propagate(last_point_.point, p.t_s - last_step_t_ - dt_s_);  // across the gap
   }
+  const bool refused = !std::isnan(z) && !(std::abs(z) <= kMaxField_nT);  // counted when pushed
+  if (refused) z = NAN;
+  NavigatorOutput o = step_output(p, z, var);
+  if (!finite_output(o)) {  // never handed on: the filter restarts from its prior
+    ekf_.reset();
+    ++counts_.filter_restarts;
+    o = step_output(p, NAN, NAN);
+  }
+  ++counts_.steps;
+  counts_.updates += o.step.updated;
+  counts_.off_map += std::isfinite(z) && !o.step.on_map;
+  counts_.gated += o.step.gated;
+  counts_.nan_measurements += std::isnan(z) && !missing && !refused;
+  last_step_t_ = p.t_s;
+  last_point_ = p;
+  return o;
+}
+
+NavigatorOutput StreamingNavigator::step_output(const TrackPoint& p, double z, double var) {
   NavigatorOutput o;
   o.t_s = p.t_s;
   o.ins_lat_rad = p.lat_rad;
@@ -117,13 +171,6 @@ NavigatorOutput StreamingNavigator::run_step(const TrackPoint& p, double z, doub
   o.position_cov_ned_m2 = j.asDiagonal() * cov.topLeftCorner<3, 3>() * j.asDiagonal();
   o.map_nT = map_.value(o.lat_rad, o.lon_rad);
   o.catch_all_nT = x[x.size() - 1];
-  ++counts_.steps;
-  counts_.updates += o.step.updated;
-  counts_.off_map += std::isfinite(z) && !o.step.on_map;
-  counts_.gated += o.step.gated;
-  counts_.nan_measurements += std::isnan(z) && !missing;
-  last_step_t_ = p.t_s;
-  last_point_ = p;
   return o;
 }
 

@@ -91,6 +91,28 @@ HiddenEffect draw(std::mt19937_64& rng) {
   return e;
 }
 
+// How many distinct effects draw() can give: one per (kind, channel), one lag.
+int drawable_effects() {
+  const int currents = static_cast<int>(kCurrents.size()),
+            voltages = static_cast<int>(kVoltages.size()),
+            ins = static_cast<int>(kInsChannels.size());
+  int n = 0;
+  for (const std::string& kind : kKinds) {
+    if (kind == "drift") {
+      n += currents + voltages;
+    } else if (kind == "product") {
+      n += currents + ins;  // keyed on its first channel
+    } else if (kind == "flex") {
+      n += ins;
+    } else if (kind == "lag") {
+      n += 1;
+    } else {
+      n += currents;
+    }
+  }
+  return n;
+}
+
 double rms_of(const Simulation& s, size_t k, const std::string& type) {
   const std::string col = std::string(kSensor) + ".hidden." + std::to_string(k) + "." + type;
   if (!s.truth.has(col)) return 0.0;
@@ -104,6 +126,10 @@ double rms_of(const Simulation& s, size_t k, const std::string& type) {
 std::vector<HiddenEffect> random_effects(const Scenario& base, unsigned seed, int count,
                                          const Igrf& igrf, double rms_min, double rms_max) {
   if (count < 1) throw Error("random effects: the count must be >= 1");
+  if (count > drawable_effects())
+    throw Error("random effects: --random-count " + std::to_string(count) + " exceeds the " +
+                std::to_string(drawable_effects()) +
+                " distinct effects that can be drawn (one per kind and channel, one lag)");
   if (!(rms_min > 0 && rms_max >= rms_min)) throw Error("random effects: bad rms range");
   std::mt19937_64 rng(seed * 2654435761ULL + 17);
   std::vector<HiddenEffect> drawn;

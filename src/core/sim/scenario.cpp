@@ -10,6 +10,7 @@
 #include <type_traits>
 
 #include "magcomp/core/error.h"
+#include "magcomp/core/io/file_io.h"
 
 namespace magcomp::sim {
 
@@ -357,6 +358,7 @@ void read_hidden(const Reader& r, const YAML::Node& root, Scenario* out) {
 
 static Scenario load_scenario_unchecked(const std::string& path) {
   YAML::Node root;
+  require_regular_file(path, "scenario file");
   try {
     root = YAML::LoadFile(path);
   } catch (const YAML::BadFile&) {

@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "magcomp/core/math/constants.h"
+
 namespace magcomp {
 
 StreamAligner::StreamAligner(AlignerSettings settings) : s_(settings) {}
@@ -82,7 +84,10 @@ StreamAligner::ScalarResult StreamAligner::add_scalar(double t, double value, do
     result = ScalarResult::kJumpedBack;
   }
   last_scalar_t_ = t;
-  if (!std::isfinite(value)) ++counts_.nan_scalar;
+  if (!(std::abs(value) <= kMaxField_nT)) {  // NaN, Inf, or no magnetometer's reading
+    ++counts_.nan_scalar;
+    value = NAN;
+  }
   pending_.push_back({t, value, wall_s});
   return result;
 }

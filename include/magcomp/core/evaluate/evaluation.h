@@ -7,6 +7,7 @@
 
 #include "magcomp/core/evaluate/figure_of_merit.h"
 #include "magcomp/core/io/flight_data.h"
+#include "magcomp/core/math/constants.h"
 #include "magcomp/core/model/model.h"
 
 namespace magcomp {
@@ -16,7 +17,7 @@ struct LineStats {
   double line = 0.0;
   Eigen::Index n = 0;  ///< finite samples
   double rmse_nT = 0.0;
-  double std_nT = 0.0;
+  double std_nT = 0.0;                ///< NaN for a line of one sample (no spread to measure)
   double uncompensated_std_nT = NAN;  ///< the same for the scalar before compensation
   double improvement_ratio = NAN;     ///< uncompensated_std_nT / std_nT
 };
@@ -73,6 +74,15 @@ Evaluation evaluate_model(const Model& model, const FlightData& data, const std:
 std::pair<double, Eigen::Index> holdout_error_variance_nT2(
     const Model& model, const std::vector<const FlightData*>& flights, const std::string& truth,
     Eigen::Index min_rows = 600);
+
+/// The least number of samples a score stands on: degrees of freedom once each line's mean is
+/// removed (finite samples less lines).
+constexpr Eigen::Index kMinDegreesOfFreedom = 10;
+
+/// Throws magcomp::Error "SOURCE: WHAT has ..." when an evaluation stands on fewer than
+/// kMinDegreesOfFreedom degrees of freedom or its rms is not finite or beyond kMaxField_nT: a
+/// figure is printed only when it means something.
+void require_scorable(const Evaluation& ev, const std::string& source, const std::string& what);
 
 /// Mean-removed RMS per group, pooled (the `std_nT` above) for any residual and grouping.
 double pooled_std(const Eigen::VectorXd& residual, const Eigen::VectorXd& groups);

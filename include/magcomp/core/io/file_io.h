@@ -6,9 +6,20 @@
 
 namespace magcomp {
 
+/// Refuses an input that is not a regular file before it is opened: a pipe (FIFO), a device or a
+/// directory would block or mislead a reader. `what` names it in the error ("model file", ...).
+/// A missing path is left to the reader (its own "not found" message). Throws magcomp::Error.
+void require_regular_file(const std::string& path, const std::string& what);
+
+/// The path an output would take: the path itself when it exists (symbolic links followed), else
+/// its directory's canonical path and its name; the path as given when its directory is missing.
+/// Two spellings of one file ("m.yaml", "./m.yaml") give the same string.
+std::string canonical_target(const std::string& path);
+
 /// Refuses an output path before any work is done: one that names one of `inputs` (the same
 /// file, by device and inode, or the same path), or an existing file that is not a regular file
-/// (a device, a directory, a pipe). Throws magcomp::Error naming the path and why.
+/// (a device, a directory, a pipe). Throws magcomp::Error naming the path and why. The commands
+/// declare their files to an OutputGuard (output_guard.h), which calls this.
 void check_output_path(const std::string& path, const std::vector<std::string>& inputs = {});
 
 /// A temporary path beside `path` (same directory, so the final rename is atomic).

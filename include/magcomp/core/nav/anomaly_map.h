@@ -9,7 +9,8 @@
 namespace magcomp::nav {
 
 /// Grid: map_nT(i, j) at latitude lat_rad[i], longitude lon_rad[j] (both increasing, uniform
-/// steps), altitude alt_m above the WGS-84 ellipsoid; mask(i, j) != 0 where the cell is valid.
+/// steps), altitude alt_m above the WGS-84 ellipsoid; mask(i, j) != 0 where the cell is valid
+/// (empty: all valid). A masked cell holds a finite filler, never read where covers() is false.
 struct AnomalyMap {
   Eigen::MatrixXd map_nT;
   Eigen::VectorXd lat_rad, lon_rad;
@@ -25,7 +26,7 @@ struct AnomalyMap {
   /// Gradient (dmap/dlat nT/rad, dmap/dlon nT/rad) by a central difference of 1e-8 rad (as
   /// MagNav.jl's map_grad: the float literal 1.0f-8).
   Eigen::Vector2d gradient(double lat_rad, double lon_rad) const;
-  /// Whether (lat, lon) lies inside the grid and its cell is valid.
+  /// Whether (lat, lon) lies inside the grid and every cell its interpolation reads is valid.
   bool covers(double lat_rad, double lon_rad) const;
   /// Grid steps in metres at the map's mean latitude: east (x) and north (y).
   Eigen::Vector2d step_m() const;
@@ -46,7 +47,10 @@ Eigen::MatrixXd upward_continue(const Eigen::MatrixXd& map_nT, double dx_m, doub
 AnomalyMap continued_to(const AnomalyMap& map, double alt_m);
 
 /// Reads a map file with MagNav.jl's names: `map` (ny x nx, nT), `xx` (longitude), `yy`
-/// (latitude), `alt` (m), optional `mask`. The grid is taken in MagNav.jl's layout (written from
+/// (latitude), `alt` (m), optional `mask`. Validated on reading: the axes finite, increasing and
+/// uniform, in degrees or radians; the declared sizes checked against the file before any
+/// allocation; non-finite cells masked; a cell beyond 1e6 nT, an all-masked map or an altitude
+/// beyond 100 km refused. The grid is taken in MagNav.jl's layout (written from
 /// Julia: dimensions (nx, ny)) unless its dimensions are (ny, nx) and it is not square. Angles in
 /// degrees are recognised (|yy| > pi/2 or |xx| > pi) and converted. Throws magcomp::Error naming
 /// the file and field.

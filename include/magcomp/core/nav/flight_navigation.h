@@ -4,11 +4,14 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <cmath>
 #include <string>
+#include <vector>
 
 #include "magcomp/core/io/flight_data.h"
 #include "magcomp/core/model/model.h"
 #include "magcomp/core/nav/ekf.h"
+#include "magcomp/core/nav/streaming_track.h"
 
 namespace magcomp::nav {
 
@@ -20,6 +23,17 @@ struct FlightTracks {
   double mean_alt_m = 0.0;  ///< the true track's mean altitude, m
 };
 FlightTracks flight_tracks(const FlightData& flight);
+
+/// A flight's rows as the navigator's inputs, stamped with the rows' tt (s), from the fields
+/// flight_tracks() reads. Nothing is checked here: the navigator refuses and counts a sample it
+/// cannot use (invalid_ins_reason).
+struct FlightSamples {
+  std::vector<InsSample> ins;    ///< the INS solution
+  std::vector<InsSample> truth;  ///< the true track
+  double dt_s = 0.1;             ///< the flight's sample step (median of tt's steps), s
+  double mean_alt_m = NAN;       ///< mean true altitude over the rows where it is valid, m
+};
+FlightSamples flight_samples(const FlightData& flight);
 
 /// The measured anomaly, nT: the model's compensated field (its raw scalar when `uncompensated`)
 /// less the IGRF at the true position and, when the flight has it, the diurnal field.

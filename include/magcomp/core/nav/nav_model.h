@@ -4,6 +4,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <string>
 #include <vector>
 
 #include "magcomp/core/nav/ekf.h"
@@ -31,6 +32,17 @@ struct ModelSigmas {
   double fogm_nT = 3.0;
   ErrorModelTaus taus;
 };
+
+/// The largest settings the filter takes (their squares stay far from overflow, and nothing
+/// physical lies beyond): a sigma in nT, an initial position sigma in m, a velocity sigma in m/s,
+/// a time constant in s.
+constexpr double kMaxSigma_nT = 1e5, kMaxPositionSigma_m = 1e6, kMaxVelocitySigma_mps = 1e3,
+                 kMaxTimeConstant_s = 1e7;
+
+/// Throws magcomp::Error "NAME: must be in (lo, hi] UNIT (got V)" unless lo < value <= hi (with
+/// `lo_closed`, lo <= value). NAME is the option or parameter that set it.
+void require_setting(double value, double lo, double hi, const std::string& name,
+                     const std::string& unit, bool lo_closed = false);
 
 /// P0, Qd and R of the 18-state filter at the first latitude (rad) for steps of dt_s.
 FilterSettings filter_model(double dt_s, double lat1_rad, const ModelSigmas& s);

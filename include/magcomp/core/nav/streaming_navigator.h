@@ -7,6 +7,7 @@
 #include <Eigen/Core>
 #include <deque>
 #include <map>
+#include <string>
 #include <vector>
 
 #include "magcomp/core/nav/ekf.h"
@@ -35,16 +36,29 @@ struct NavigatorCounts {
   long gaps = 0;                  ///< INS gaps (> 1.5 steps): the track restarted
   long out_of_order = 0;          ///< INS samples or measurements older than the last, dropped
   long unmatched_measurements = 0;  ///< measurements no INS sample was stamped at
+  long invalid_ins = 0;  ///< INS samples refused: a stamp, position or attitude not finite, a
+                         ///< latitude within 0.5 deg of a pole, an altitude off [-12, 100] km
+  long invalid_measurements = 0;  ///< measurements refused: a stamp not finite, |value| > 1e6 nT
+  long filter_restarts = 0;  ///< the state went non-finite, or a gap exceeded an hour: restarted
 };
+
+/// Why an INS sample cannot be a filter step ("" when it can): a stamp, position or attitude
+/// that is not finite, a latitude within 0.5 deg of a pole (the north/east frame is singular
+/// there), an altitude outside [-12, 100] km. The navigator node and `magcomp navigate` both
+/// refuse such samples and count them.
+std::string invalid_ins_reason(const InsSample& s);
 
 class StreamingNavigator {
  public:
   /// INS samples every dt_s (s); the filter's settings; `map` must outlive the navigator.
   StreamingNavigator(const AnomalyMap& map, const FilterSettings& settings, double dt_s);
-  /// The next INS sample (data time increasing). Returns the steps it made possible.
+  /// The next INS sample (data time increasing; one refused by invalid_ins_reason is counted and
+  /// dropped, so its stamp becomes a gap). Returns the steps it made possible.
   std::vector<NavigatorOutput> push_ins(const InsSample& s);
   /// The anomaly measured at data time t_s (nT) and its variance (nT^2; NaN: the settings' R).
-  /// Returns the steps it made possible.
+  /// A value that is not finite or beyond 1e6 nT is no measurement (its step goes without one,
+  /// counted). Returns the steps it made possible. Every output is finite: a state that goes
+  /// non-finite restarts the filter (counted), never reaches the caller.
   std::vector<NavigatorOutput> push_measurement(double t_s, double anomaly_nT, double variance_nT2);
   /// The INS stream ended: its last two samples wait for their measurements like the others.
   std::vector<NavigatorOutput> end_of_ins();
@@ -60,6 +74,8 @@ class StreamingNavigator {
  private:
   std::vector<NavigatorOutput> drain(bool force);
   NavigatorOutput run_step(const TrackPoint& p, double z_nT, double var_nT2, bool missing);
+  // The filter's step at p with measurement z (NaN: none) and what it gives.
+  NavigatorOutput step_output(const TrackPoint& p, double z_nT, double var_nT2);
 
   const AnomalyMap& map_;
   FilterSettings settings_;

@@ -26,7 +26,7 @@ struct AlignerSettings {
 /// What the aligner saw (all counts since construction).
 struct AlignerCounts {
   long scalar_in = 0;          ///< scalar messages received
-  long nan_scalar = 0;         ///< ... holding a NaN or Inf
+  long nan_scalar = 0;         ///< ... holding a NaN, Inf or |value| > 1e6 nT (taken as NaN)
   long duplicate_stamps = 0;   ///< a scalar stamp equal to the last one (dropped)
   long out_of_order = 0;       ///< a scalar stamp slightly before the last one (dropped)
   long jumps_back = 0;         ///< a jump back over jump_back_s (everything reset)
