@@ -51,6 +51,7 @@ nlohmann::json to_json(const nav::NavigationScores& s) {
            {{"ins_refused", c.invalid_ins},
             {"truth_refused", s.invalid_truth},
             {"ins_gaps", c.gaps},
+            {"ins_jumps", c.ins_jumps},
             {"out_of_order_or_duplicate", c.out_of_order},
             {"off_map", c.off_map},
             {"nan_measurements", c.nan_measurements},
@@ -313,17 +314,19 @@ void add_navigate(CLI::App& app) {
         "samples: %ld rows, %ld filter steps, %ld scored against the truth, %ld "
         "measurements used\n",
         s0.rows, c.steps, s0.scored, s0.updates);
-    const long faults = c.invalid_ins + s0.invalid_truth + c.gaps + c.out_of_order + c.off_map +
-                        c.nan_measurements + c.invalid_measurements + c.gated +
+    const long faults = c.invalid_ins + s0.invalid_truth + c.gaps + c.ins_jumps + c.out_of_order +
+                        c.off_map + c.nan_measurements + c.invalid_measurements + c.gated +
                         c.missing_measurements + c.filter_restarts;
     if (faults > 0)
       std::printf(
           "warning: inputs the filter could not use: %ld INS samples refused, %ld true "
-          "positions refused, %ld INS gaps, %ld duplicate or out-of-order stamps, %ld "
+          "positions refused, %ld INS gaps, %ld INS jumps, %ld duplicate or out-of-order stamps, "
+          "%ld "
           "measurements off the map, %ld NaN, %ld refused (beyond 1e6 nT), %ld gated, %ld "
           "missing, %ld filter restarts\n",
-          c.invalid_ins, s0.invalid_truth, c.gaps, c.out_of_order, c.off_map, c.nan_measurements,
-          c.invalid_measurements, c.gated, c.missing_measurements, c.filter_restarts);
+          c.invalid_ins, s0.invalid_truth, c.gaps, c.ins_jumps, c.out_of_order, c.off_map,
+          c.nan_measurements, c.invalid_measurements, c.gated, c.missing_measurements,
+          c.filter_restarts);
     nlohmann::json j = to_json(first.scores);
     j["data"] = *data;
     j["map"] = *map_path;

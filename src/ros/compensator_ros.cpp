@@ -336,6 +336,7 @@ void CompensatorRos::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat)
   stat.add("fluxgate_frame",
            input_->vector_frame().empty() ? std::string("(as given)") : input_->vector_frame());
   stat.add("fluxgate_vectors_without_tf", input_->vectors_without_tf());
+  stat.add("callback_errors", input_->callback_errors());
   stat.add("scalar_in", c.scalar_in);
   stat.add("published", n_out_);
   stat.add("nan_scalar", c.nan_scalar);

@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "magcomp/ros/callback_guard.h"
+
 namespace magcomp::rosio {
 namespace {
 constexpr double kNanoteslaPerTesla = 1e9;      // REP 145 fluxgates are in tesla
@@ -52,69 +54,80 @@ ros::Time InputStream::stamp(double t) const {
 }
 
 void InputStream::on_scalar(const magcomp::ScalarMagnetometer::ConstPtr& m) {
-  last_scalar_wall_s_ = ros::WallTime::now().toSec();
-  const auto r = aligner_.add_scalar(rel(m->header.stamp), m->field_nT, last_scalar_wall_s_);
-  if (r == StreamAligner::ScalarResult::kJumpedBack && cb_.jumped_back) cb_.jumped_back();
-  if (cb_.changed) cb_.changed();
+  guarded("magcomp input", &callback_errors_, [&] {
+    last_scalar_wall_s_ = ros::WallTime::now().toSec();
+    const auto r = aligner_.add_scalar(rel(m->header.stamp), m->field_nT, last_scalar_wall_s_);
+    if (r == StreamAligner::ScalarResult::kJumpedBack && cb_.jumped_back) cb_.jumped_back();
+    if (cb_.changed) cb_.changed();
+  });
 }
 
 void InputStream::on_vector(const sensor_msgs::MagneticField::ConstPtr& m) {
-  Eigen::Vector3d b(m->magnetic_field.x, m->magnetic_field.y, m->magnetic_field.z);
-  // A fluxgate mounted with a rotation: into base_frame (its mount is static: looked up once;
-  // until it is known the vector is used as it is, and counted).
-  const std::string& frame = m->header.frame_id;
-  if (!frame.empty() && frame != base_frame_) {
-    if (!rotation_known_ || frame != vector_frame_) {
-      const double now = ros::WallTime::now().toSec();
-      if (now - last_tf_try_wall_s_ > kMountRetryPeriod_s) {
-        last_tf_try_wall_s_ = now;
-        try {
-          const auto tf = tf_buffer_->lookupTransform(base_frame_, frame, ros::Time(0));
-          const auto& q = tf.transform.rotation;
-          vector_rotation_ = Eigen::Quaterniond(q.w, q.x, q.y, q.z).toRotationMatrix();
-          vector_frame_ = frame;
-          rotation_known_ = true;
-        } catch (const tf2::TransformException& e) {
-          ROS_WARN_THROTTLE(kMountWarningPeriod_s,
-                            "magcomp: no tf2 %s <- %s yet (%s): fluxgate used as is",
-                            base_frame_.c_str(), frame.c_str(), e.what());
+  guarded("magcomp input", &callback_errors_, [&] {
+    Eigen::Vector3d b(m->magnetic_field.x, m->magnetic_field.y, m->magnetic_field.z);
+    // A fluxgate mounted with a rotation: into base_frame (its mount is static: looked up once;
+    // until it is known the vector is used as it is, and counted).
+    const std::string& frame = m->header.frame_id;
+    if (!frame.empty() && frame != base_frame_) {
+      if (!rotation_known_ || frame != vector_frame_) {
+        const double now = ros::WallTime::now().toSec();
+        if (now - last_tf_try_wall_s_ > kMountRetryPeriod_s) {
+          last_tf_try_wall_s_ = now;
+          try {
+            const auto tf = tf_buffer_->lookupTransform(base_frame_, frame, ros::Time(0));
+            const auto& q = tf.transform.rotation;
+            vector_rotation_ = Eigen::Quaterniond(q.w, q.x, q.y, q.z).toRotationMatrix();
+            vector_frame_ = frame;
+            rotation_known_ = true;
+          } catch (const tf2::TransformException& e) {
+            ROS_WARN_THROTTLE(kMountWarningPeriod_s,
+                              "magcomp: no tf2 %s <- %s yet (%s): fluxgate used as is",
+                              base_frame_.c_str(), frame.c_str(), e.what());
+          }
         }
       }
+      if (rotation_known_ && frame == vector_frame_) {
+        b = vector_rotation_ * b;
+      } else {
+        ++n_no_tf_;
+      }
     }
-    if (rotation_known_ && frame == vector_frame_) {
-      b = vector_rotation_ * b;
-    } else {
-      ++n_no_tf_;
+    if (aligner_.add_vector(rel(m->header.stamp), b * kNanoteslaPerTesla) && cb_.changed) {
+      cb_.changed();
     }
-  }
-  if (aligner_.add_vector(rel(m->header.stamp), b * kNanoteslaPerTesla) && cb_.changed) {
-    cb_.changed();
-  }
+  });
 }
 
 void InputStream::on_aux(const magcomp::AuxChannels::ConstPtr& m) {
-  if (m->values.size() != m->names.size()) {
-    ROS_WARN_THROTTLE(kMountWarningPeriod_s,
-                      "magcomp: an AuxChannels message has %zu names and %zu values: dropped",
-                      m->names.size(), m->values.size());
-  }
-  if (aligner_.add_aux(rel(m->header.stamp), m->names, m->values) && cb_.changed) cb_.changed();
+  guarded("magcomp input", &callback_errors_, [&] {
+    if (m->values.size() != m->names.size()) {
+      ROS_WARN_THROTTLE(kMountWarningPeriod_s,
+                        "magcomp: an AuxChannels message has %zu names and %zu values: dropped",
+                        m->names.size(), m->values.size());
+    }
+    if (aligner_.add_aux(rel(m->header.stamp), m->names, m->values) && cb_.changed) cb_.changed();
+  });
 }
 
 void InputStream::on_fix(const sensor_msgs::NavSatFix::ConstPtr& m) {
-  if (aligner_.add_fix(rel(m->header.stamp),
-                       Eigen::Vector3d(m->latitude, m->longitude, m->altitude)) &&
-      cb_.changed) {
-    cb_.changed();
-  }
+  guarded("magcomp input", &callback_errors_, [&] {
+    if (aligner_.add_fix(rel(m->header.stamp),
+                         Eigen::Vector3d(m->latitude, m->longitude, m->altitude)) &&
+        cb_.changed) {
+      cb_.changed();
+    }
+  });
 }
 
 void InputStream::on_reference(const magcomp::ScalarMagnetometer::ConstPtr& m) {
-  aligner_.add_reference(rel(m->header.stamp), m->field_nT);
+  guarded("magcomp input", &callback_errors_,
+          [&] { aligner_.add_reference(rel(m->header.stamp), m->field_nT); });
 }
 
 void InputStream::on_end(const std_msgs::Time::ConstPtr& m) {
-  if (cb_.ended) cb_.ended(m->data.toSec());
+  guarded("magcomp input", &callback_errors_, [&] {
+    if (cb_.ended) cb_.ended(m->data.toSec());
+  });
 }
 
 }  // namespace magcomp::rosio

@@ -524,8 +524,8 @@ void NavigatorRos::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) {
     stat.summary(diagnostic_msgs::DiagnosticStatus::ERROR,
                  "messages dropped on an internal error (see callback_errors)");
   } else if (c.gaps + c.out_of_order + jumps_back_ + nan_inputs_ + c.missing_measurements +
-                 c.invalid_ins + c.invalid_measurements + c.filter_restarts + bad_stamps_ +
-                 ins_no_fix_ + ins_refused_ >
+                 c.invalid_ins + c.invalid_measurements + c.filter_restarts + c.ins_jumps +
+                 bad_stamps_ + ins_no_fix_ + ins_refused_ >
              0) {
     stat.summary(diagnostic_msgs::DiagnosticStatus::WARN,
                  "running; input faults seen (see counts)");
@@ -552,6 +552,7 @@ void NavigatorRos::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) {
   stat.add("ins_refused", ins_refused_ + c.invalid_ins);
   stat.add("measurements_refused", c.invalid_measurements);
   stat.add("filter_restarts", c.filter_restarts);
+  stat.add("ins_jumps", c.ins_jumps);
   stat.add("stamps_out_of_range", bad_stamps_);
   stat.add("callback_errors", callback_errors_);
   stat.add("pending", nav_ ? static_cast<long>(nav_->pending()) : 0L);

@@ -74,7 +74,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   nav::StreamingNavigator nav(test_map(), s, dt);
   double t = 1000.0;
   long ops = 0;
-  while (r.more() && ++ops < 2000) {
+  while (r.more() && ++ops < 16) {
     std::vector<nav::NavigatorOutput> out;
     const uint8_t op = r.byte();
     switch (op % 8) {

@@ -51,6 +51,8 @@ class InputStream {
   /// because the mount was not known yet.
   const std::string& vector_frame() const { return vector_frame_; }
   long vectors_without_tf() const { return n_no_tf_; }
+  /// Messages dropped because their callback threw (callback_guard.h): the node lives on.
+  long callback_errors() const { return callback_errors_; }
   const std::string& scalar_topic() const { return topics_.scalar; }
 
  private:
@@ -70,6 +72,7 @@ class InputStream {
   Eigen::Matrix3d vector_rotation_ = Eigen::Matrix3d::Identity();
   bool rotation_known_ = false;
   double last_tf_try_wall_s_ = -1e9;
+  long callback_errors_ = 0;
   long n_no_tf_ = 0;
   std::unique_ptr<tf2_ros::Buffer> tf_buffer_;
   std::unique_ptr<tf2_ros::TransformListener> tf_listener_;

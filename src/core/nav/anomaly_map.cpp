@@ -26,8 +26,12 @@ void locate(const Eigen::VectorXd& a, double x, Eigen::Index* cell, double* t) {
   const Eigen::Index n = a.size();
   const double step = (a[n - 1] - a[0]) / static_cast<double>(n - 1);
   const double u = (x - a[0]) / step;
-  *cell = std::clamp<Eigen::Index>(static_cast<Eigen::Index>(std::floor(u)), 0, n - 2);
-  *t = u - static_cast<double>(*cell);
+  // The cell is clamped in floating point first: a position far off the grid (or NaN) is never
+  // cast out of an integer's range.
+  const double c =
+      std::isfinite(u) ? std::clamp(std::floor(u), 0.0, static_cast<double>(n - 2)) : 0.0;
+  *cell = static_cast<Eigen::Index>(c);
+  *t = u - c;
 }
 
 // In-place 2-D FFT (forward or inverse, unnormalised inverse divided by the size).

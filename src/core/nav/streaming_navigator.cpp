@@ -4,7 +4,6 @@
 #include <cmath>
 
 #include "magcomp/core/math/constants.h"
-
 #include "magcomp/core/nav/nav_model.h"
 
 namespace magcomp::nav {
@@ -15,10 +14,21 @@ constexpr double kGapSteps = 1.5;             // a step longer than this many dt
 constexpr double kMaxPropagation_s = 3600.0;  // a longer gap restarts the filter
 constexpr double kMaxLatitude_rad = (90.0 - 0.5) * kDegToRad;
 constexpr double kMinAltitude_m = -12000.0, kMaxAltitude_m = 100000.0;
+// Beyond any aircraft: an INS sample this fast from the last starts a new track (a jump).
+constexpr double kMaxSpeed_mps = 2000.0;
+// A correction or a 1-sigma position beyond this is no navigation: the filter restarts.
+constexpr double kMaxCorrection_m = 1e6;
 
-bool finite_output(const NavigatorOutput& o) {
-  return std::isfinite(o.lat_rad) && std::isfinite(o.lon_rad) && std::isfinite(o.alt_m) &&
-         o.velocity_ned_mps.allFinite() && o.position_cov_ned_m2.allFinite();
+// A step's output that can be handed on: finite, its correction of the INS and its horizontal
+// sigma within kMaxCorrection_m.
+bool usable_output(const NavigatorOutput& o) {
+  if (!(std::isfinite(o.lat_rad) && std::isfinite(o.lon_rad) && std::isfinite(o.alt_m) &&
+        o.velocity_ned_mps.allFinite() && o.position_cov_ned_m2.allFinite()))
+    return false;
+  const double north = dlat_to_north_m(o.lat_rad - o.ins_lat_rad, o.ins_lat_rad);
+  const double east = dlon_to_east_m(o.lon_rad - o.ins_lon_rad, o.ins_lat_rad);
+  const double var = o.position_cov_ned_m2(0, 0) + o.position_cov_ned_m2(1, 1);
+  return std::hypot(north, east) <= kMaxCorrection_m && var <= kMaxCorrection_m * kMaxCorrection_m;
 }
 
 }  // namespace
@@ -60,8 +70,17 @@ std::vector<NavigatorOutput> StreamingNavigator::push_ins(const InsSample& s) {
   if (std::isfinite(last_ins_t_) && s.t_s - last_ins_t_ > kGapSteps * dt_s_) {
     ++counts_.gaps;  // the track's differences must not span the gap: end it there
     for (const TrackPoint& p : track_.flush()) waiting_.push_back(p);
+  } else if (std::isfinite(last_ins_t_)) {
+    const double north = dlat_to_north_m(s.lat_rad - last_ins_.lat_rad, s.lat_rad);
+    const double east = dlon_to_east_m(s.lon_rad - last_ins_.lon_rad, s.lat_rad);
+    if (std::hypot(north, east, s.alt_m - last_ins_.alt_m) >
+        kMaxSpeed_mps * (s.t_s - last_ins_t_)) {
+      ++counts_.ins_jumps;  // no aircraft moves so: the track starts again there
+      for (const TrackPoint& p : track_.flush()) waiting_.push_back(p);
+    }
   }
   last_ins_t_ = s.t_s;
+  last_ins_ = s;
   for (const TrackPoint& p : track_.push(s)) waiting_.push_back(p);
   return drain(false);
 }
@@ -136,7 +155,7 @@ NavigatorOutput StreamingNavigator::run_step(const TrackPoint& p, double z, doub
   const bool refused = !std::isnan(z) && !(std::abs(z) <= kMaxField_nT);  // counted when pushed
   if (refused) z = NAN;
   NavigatorOutput o = step_output(p, z, var);
-  if (!finite_output(o)) {  // never handed on: the filter restarts from its prior
+  if (!usable_output(o)) {  // never handed on: the filter restarts from its prior
     ekf_.reset();
     ++counts_.filter_restarts;
     o = step_output(p, NAN, NAN);

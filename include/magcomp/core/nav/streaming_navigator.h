@@ -39,7 +39,9 @@ struct NavigatorCounts {
   long invalid_ins = 0;  ///< INS samples refused: a stamp, position or attitude not finite, a
                          ///< latitude within 0.5 deg of a pole, an altitude off [-12, 100] km
   long invalid_measurements = 0;  ///< measurements refused: a stamp not finite, |value| > 1e6 nT
-  long filter_restarts = 0;  ///< the state went non-finite, or a gap exceeded an hour: restarted
+  long filter_restarts = 0;  ///< the state went non-finite or beyond 1000 km of the INS, or a gap
+                             ///< exceeded an hour: restarted from the prior
+  long ins_jumps = 0;  ///< INS samples faster than 2 km/s from the last: the track started again
 };
 
 /// Why an INS sample cannot be a filter step ("" when it can): a stamp, position or attitude
@@ -86,6 +88,7 @@ class StreamingNavigator {
   std::map<double, std::pair<double, double>> measurements_;  // t -> (nT, nT^2)
   double last_ins_t_ = NAN, last_meas_t_ = NAN, last_step_t_ = NAN;
   TrackPoint last_point_;
+  InsSample last_ins_;
   NavigatorCounts counts_;
 };
 
