@@ -22,6 +22,8 @@ void add_calibrate(CLI::App& app) {
   auto terms = std::make_shared<std::vector<std::string>>();
   auto slow_terms = std::make_shared<std::vector<std::string>>();
   auto holdout_truth = std::make_shared<std::string>("mag_1_c");
+  auto truth = std::make_shared<std::string>();
+  auto track = std::make_shared<std::string>("truth");
   cmd->add_option("--data", *data, "flight HDF5 file(s), comma-separated")->required();
   cmd->add_option("--model", *model_path, "model YAML (plain or fitted: refit)")->required();
   cmd->add_option("--term", *terms, "add a term, e.g. current:cur_strb (repeatable)");
@@ -34,11 +36,22 @@ void add_calibrate(CLI::App& app) {
                   "reference field for the model's error on the lines it is not fitted on (its "
                   "variance enters each sample's uncertainty); empty: none (default mag_1_c, "
                   "where the flights have it)");
+  cmd->add_option("--truth", *truth,
+                  "the reference of this fit: for a reference fit (fit.method reference) and the "
+                  "slow stage (fit.reference), and for the held-out error (--holdout-truth): a "
+                  "field, or map:M.h5 (the anomaly map along --track plus the IGRF and the "
+                  "diurnal: calibrate with no stinger)");
+  cmd->add_option("--track", *track, "with --truth map:M.h5: truth (lat/lon), ins or filter")
+      ->check(CLI::IsMember({"truth", "ins", "filter"}));
   cmd->callback([=] {
     const std::vector<std::string> inputs = flight_paths("--data", *data);
-    OutputGuard guard = guard_for(inputs, {{"--model", *model_path}});
+    std::vector<OutputGuard::File> others = {{"--model", *model_path}};
+    for (const auto& m : map_inputs("--truth", {*truth})) others.push_back(m);
+    OutputGuard guard = guard_for(inputs, others);
     guard.add_output("--out", *out);  // before the work: never over a file it reads
     Model model = load_model_yaml(*model_path);
+    if (!truth->empty()) model.fit.reference = *truth;
+    const std::string holdout = truth->empty() ? *holdout_truth : *truth;
     for (const std::string& t : *terms) {
       try {
         model.add_term(t);
@@ -48,24 +61,26 @@ void add_calibrate(CLI::App& app) {
     }
     for (const std::string& t : *slow_terms) {
       try {
-        model.add_slow_term(t, "mag_1_c");
+        model.add_slow_term(t, truth->empty() ? "mag_1_c" : *truth);
       } catch (const Error& e) {
         throw Error(std::string("--slow-term: ") + e.what());
       }
     }
-    const auto flights = read_flights(inputs);
+    auto flights = read_flights(inputs);
+    for (FlightData& f : flights)
+      add_map_references(&f, {model.fit.reference, holdout}, *track, &model);
     std::vector<const FlightData*> ptrs;
     for (const auto& f : flights) ptrs.push_back(&f);
     fit_model(model, ptrs);
     std::string holdout_note;
-    if (!holdout_truth->empty() && !model.neural) {
-      const auto [var, rows] = holdout_error_variance_nT2(model, ptrs, *holdout_truth);
+    if (!holdout.empty() && !model.neural) {
+      const auto [var, rows] = holdout_error_variance_nT2(model, ptrs, holdout);
       model.report.holdout_error_variance_nT2 = var;
       std::ostringstream note;
       note << std::setprecision(4);
       if (rows > 0 && std::isfinite(var))
-        note << "held-out error std " << std::sqrt(var) << " nT against " << *holdout_truth
-             << " on " << rows << " samples of lines not fitted (in each sample's variance)\n";
+        note << "held-out error std " << std::sqrt(var) << " nT against " << holdout << " on "
+             << rows << " samples of lines not fitted (in each sample's variance)\n";
       holdout_note = note.str();
     }
     if (!std::isfinite(model.report.holdout_error_variance_nT2))

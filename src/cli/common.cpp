@@ -11,6 +11,9 @@
 #include "magcomp/core/error.h"
 #include "magcomp/core/io/file_io.h"
 #include "magcomp/core/io/paths.h"
+#include "magcomp/core/nav/flight_navigation.h"
+#include "magcomp/core/nav/flight_run.h"
+#include "magcomp/core/nav/map_reference.h"
 
 namespace magcomp::cli {
 
@@ -53,6 +56,44 @@ void run_report_page(const std::string& script_name, const std::string& dir,
     throw Error("--report " + dir + ": the page script " + script +
                 " failed; the report's data is in " + dir + "/" + data);
   std::printf("report: %s/index.html\n", dir.c_str());
+}
+
+void add_map_references(FlightData* flight, const std::vector<std::string>& specs,
+                        const std::string& track, const Model* model) {
+  for (const std::string& spec : specs) {
+    std::string path;
+    if (!nav::names_map(spec, &path) || flight->has(spec)) continue;
+    const nav::AnomalyMap map = nav::read_anomaly_map(path);
+    nav::MapReference ref;
+    if (track == "filter") {
+      if (!model || !model->fitted())
+        throw Error("--track filter: needs a fitted model (the filter navigates on its anomaly)");
+      const nav::TrackPositions p =
+          nav::filter_positions(*flight, nav::measured_anomaly_nT(*flight, *model), map);
+      ref = nav::map_reference(*flight, map, nav::MapTrack::Given, Igrf::installed(), &p.lat_rad,
+                               &p.lon_rad);
+    } else {
+      ref = nav::map_reference(*flight, map,
+                               track == "ins" ? nav::MapTrack::Ins : nav::MapTrack::Truth,
+                               Igrf::installed());
+    }
+    for (const std::string& note : ref.notes)
+      std::cerr << "warning: " << path << ": " << note << "\n";
+    if (ref.off_map > 0)
+      std::cerr << "warning: " << path << ": " << ref.off_map << " of " << flight->size()
+                << " samples lie off the map: no reference there\n";
+    flight->set(spec, ref.field_nT);
+  }
+}
+
+std::vector<OutputGuard::File> map_inputs(const std::string& option,
+                                          const std::vector<std::string>& specs) {
+  std::vector<OutputGuard::File> out;
+  for (const std::string& spec : specs) {
+    std::string path;
+    if (nav::names_map(spec, &path)) out.push_back({option, path});
+  }
+  return out;
 }
 
 std::string figure(double v, const char* format) {

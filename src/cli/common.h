@@ -10,6 +10,7 @@
 
 #include "magcomp/core/io/flight_data.h"
 #include "magcomp/core/io/output_guard.h"
+#include "magcomp/core/model/model.h"
 
 namespace magcomp::cli {
 
@@ -43,6 +44,18 @@ void make_report_dir(const std::string& dir);
 /// (share/scripts/<script>, python3); a failing script is an error (magcomp::Error) naming the
 /// directory and `data` (what it holds).
 void run_report_page(const std::string& script, const std::string& dir, const std::string& data);
+
+/// Resolves the reference fields a command reads: each of `specs` that names a map
+/// ("map:M.h5") becomes a column of that name in `flight`: the map's anomaly along `track`
+/// ("truth": lat/lon, "ins": the INS solution, "filter": the navigation filter on `model`'s
+/// anomaly, which must be fitted) plus the IGRF and the diurnal (nav/map_reference.h). Prints
+/// what a user must know as `warning:` lines. Other specs are left to the flight.
+void add_map_references(FlightData* flight, const std::vector<std::string>& specs,
+                        const std::string& track, const Model* model);
+
+/// The maps a list of reference specs names, as the output guard's inputs (option `option`).
+std::vector<OutputGuard::File> map_inputs(const std::string& option,
+                                          const std::vector<std::string>& specs);
 
 /// A figure for a table: printf(format, v), or "n/a" when v is not finite (nothing gave it).
 std::string figure(double v, const char* format);

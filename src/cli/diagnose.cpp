@@ -2,6 +2,7 @@
 // with --apply, run the whole loop (diagnose, add, refit) and write the final model.
 #include <cmath>
 #include <cstdio>
+#include <functional>
 #include <iostream>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -11,8 +12,10 @@
 #include "magcomp/core/diagnose/diagnose_loop.h"
 #include "magcomp/core/diagnose/diagnose_season.h"
 #include "magcomp/core/error.h"
+#include "magcomp/core/evaluate/evaluation.h"
 #include "magcomp/core/io/file_io.h"
 #include "magcomp/core/io/output_guard.h"
+#include "magcomp/core/nav/map_reference.h"
 #include "subcommands.h"
 
 namespace magcomp::cli {
@@ -79,6 +82,17 @@ void print_diagnosis(const Model& model, const Diagnosis& dx, int top, const std
                 a.mutual_information_bits);
   }
   for (const auto& note : dx.notes) std::printf("note: %s\n", note.c_str());
+}
+
+// With the map as the reference, what the floor and the verdict mean.
+void print_map_note(const std::string& truth) {
+  std::string path;
+  if (!nav::names_map(truth, &path)) return;
+  std::printf(
+      "note: the reference is the map %s: its own error and its interpolation are part of every "
+      "held-out error and of the floor; \"complete\" means complete to the sensor noise and the "
+      "map's error together\n",
+      path.c_str());
 }
 
 nlohmann::json to_json(const Diagnosis& dx) {
@@ -150,11 +164,12 @@ nlohmann::json to_json(const Diagnosis& dx) {
 void diagnose_several(const Model& model_in, const std::vector<std::string>& paths,
                       const std::string& model_path, const std::string& truth,
                       const std::string& json_path, int top, const DiagnoseOptions& options,
-                      const OutputGuard& guard) {
+                      const OutputGuard& guard,
+                      const std::function<FlightData(const std::string&)>& read) {
   Model model = model_in;
   if (!model.fitted()) {  // fitted on every flight's calibration segments
     std::vector<FlightData> flights;
-    for (const auto& p : paths) flights.push_back(read_flight(p));
+    for (const auto& p : paths) flights.push_back(read(p));
     std::vector<const FlightData*> all;
     for (const auto& f : flights) all.push_back(&f);
     fit_model(model, all);
@@ -166,7 +181,7 @@ void diagnose_several(const Model& model_in, const std::vector<std::string>& pat
   j["truth"] = truth;
   j["flights"] = nlohmann::json::array();
   for (const std::string& path : paths) {
-    const FlightData flight = read_flight(path);
+    const FlightData flight = read(path);
     per_flight.push_back(diagnose(model, flight, truth, options));
     const Diagnosis& dx = per_flight.back();
     std::printf("flight %s: held-out std %.3f nT; top:", path.c_str(), dx.baseline_std_nT);
@@ -240,12 +255,20 @@ void add_diagnose(CLI::App& app) {
   auto min_share = std::make_shared<double>(0.05);
   auto quick = std::make_shared<bool>(false);
   auto validate = std::make_shared<std::string>();
+  auto track = std::make_shared<std::string>("truth");
   cmd->add_option("--data", *data,
                   "flight HDF5 file; several, comma-separated: each diagnosed in turn, the "
                   "candidates ranked across them")
       ->required();
   cmd->add_option("--model", *model_path, "model YAML (fitted or not)")->required();
-  cmd->add_option("--truth", *truth, "reference field (default mag_1_c)");
+  cmd->add_option("--truth", *truth,
+                  "reference field (default mag_1_c), or map:M.h5: the anomaly map along --track "
+                  "plus the IGRF and the diurnal (no stinger needed; also the slow stage's "
+                  "reference)");
+  cmd->add_option("--track", *track,
+                  "with --truth map:M.h5, where the map is read: truth (lat/lon), ins, or filter "
+                  "(the navigation filter on the model's anomaly; a fitted model); default truth")
+      ->check(CLI::IsMember({"truth", "ins", "filter"}));
   cmd->add_option("--json", *json_path, "write the diagnosis JSON here (with --apply: the rounds)");
   cmd->add_option("--top", *top, "rows to print (default 10)");
   cmd->add_flag("--apply", *apply,
@@ -268,11 +291,20 @@ void add_diagnose(CLI::App& app) {
     if (!validate->empty() && !*apply) throw Error("--validate: only with --apply");
     if (!out->empty() && !*apply) throw Error("--out: only with --apply (the final model)");
     const std::vector<std::string> paths = flight_paths("--data", *data);
-    OutputGuard guard = guard_for(paths, {{"--model", *model_path}, {"--validate", *validate}});
+    std::vector<OutputGuard::File> others = {{"--model", *model_path}, {"--validate", *validate}};
+    for (const auto& m : map_inputs("--truth", {*truth})) others.push_back(m);
+    OutputGuard guard = guard_for(paths, others);
     guard.add_output("--out", *out);
     guard.add_output("--json", *json_path);
     const std::vector<std::string> inputs = guard.input_paths();
-    const Model model = load_model_yaml(*model_path);
+    Model model = load_model_yaml(*model_path);
+    // With the map as the reference, it is also the slow stage's (no stinger flies).
+    if (nav::names_map(*truth)) model.fit.reference = *truth;
+    const auto read = [&](const std::string& path) {
+      FlightData f = read_flight(path);
+      add_map_references(&f, {*truth, model.fit.reference}, *track, &model);
+      return f;
+    };
     DiagnoseOptions options;
     options.full_search = !*quick;
     if (paths.size() > 1) {
@@ -281,10 +313,10 @@ void add_diagnose(CLI::App& app) {
                     "): diagnose the flights together, then add the season's term with "
                     "calibrate --data <all> --term");
       }
-      diagnose_several(model, paths, *model_path, *truth, *json_path, *top, options, guard);
+      diagnose_several(model, paths, *model_path, *truth, *json_path, *top, options, guard, read);
       return;
     }
-    const FlightData flight = read_flight(paths[0]);
+    const FlightData flight = read(paths[0]);
     if (!*apply) {
       if (!model.fitted()) {
         Model fitted = model;
@@ -292,12 +324,14 @@ void add_diagnose(CLI::App& app) {
         const Diagnosis dx = diagnose(fitted, flight, *truth, options);
         guard.check_inputs_unchanged();
         print_diagnosis(fitted, dx, *top, *data, *model_path);
+        print_map_note(*truth);
         if (!json_path->empty()) write_file_atomic(*json_path, to_json(dx).dump(2) + "\n", inputs);
         return;
       }
       const Diagnosis dx = diagnose(model, flight, *truth, options);
       guard.check_inputs_unchanged();
       print_diagnosis(model, dx, *top, *data, *model_path);
+      print_map_note(*truth);
       if (!json_path->empty()) {
         nlohmann::json j = to_json(dx);
         j["data"] = *data;
@@ -308,7 +342,7 @@ void add_diagnose(CLI::App& app) {
       return;
     }
     std::unique_ptr<FlightData> validation;
-    if (!validate->empty()) validation = std::make_unique<FlightData>(read_flight(*validate));
+    if (!validate->empty()) validation = std::make_unique<FlightData>(read(*validate));
     const LoopResult r = diagnose_loop(
         model, flight, *truth, *rounds, *min_share, options,
         [&](int round, const Diagnosis& dx) {
@@ -343,10 +377,24 @@ void add_diagnose(CLI::App& app) {
       std::printf("\n");
     }
     std::printf("stop: %s\n", r.stop_reason.c_str());
-    save_model_yaml(r.model, *out, inputs);
+    // The final model's error on the lines its fit did not select, as calibrate writes it: it
+    // enters each sample's variance (navigate --model-variance, the compensator).
+    Model final_model = r.model;
+    const auto [holdout_var, holdout_rows] =
+        holdout_error_variance_nT2(final_model, {&flight}, *truth);
+    if (holdout_rows > 0 && std::isfinite(holdout_var))
+      final_model.report.holdout_error_variance_nT2 = holdout_var;
+    save_model_yaml(final_model, *out, inputs);
     std::printf("wrote %s (terms:", out->c_str());
     for (const auto& t : r.model.terms) std::printf(" %s", t.c_str());
     std::printf(")\n");
+    if (std::isfinite(final_model.report.holdout_error_variance_nT2))
+      std::printf(
+          "held-out error std %.4g nT against %s on %ld samples of lines not fitted (in "
+          "each sample's variance)\n",
+          std::sqrt(final_model.report.holdout_error_variance_nT2), truth->c_str(),
+          static_cast<long>(holdout_rows));
+    print_map_note(*truth);
     if (!json_path->empty()) {
       nlohmann::json j;
       j["data"] = *data;

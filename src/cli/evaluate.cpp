@@ -150,9 +150,10 @@ void print_evaluation(const Evaluation& ev, const Evaluation* base) {
 void evaluate_one(const std::string& data, const Model& model, const Model* baseline_model,
                   const std::string& model_path, const std::string& baseline_path,
                   const std::string& truth, const std::string& json_path, const std::string& report,
-                  const OutputGuard& guard) {
+                  const OutputGuard& guard, const std::string& track) {
   const std::vector<std::string> inputs = guard.input_paths();
-  const FlightData flight = read_flight(data);
+  FlightData flight = read_flight(data);
+  add_map_references(&flight, {truth}, track, &model);
   // The per-sample variance is kept only for the report's series (the table shows its coverage).
   const bool series = !report.empty();
   const Evaluation ev = evaluate_model(model, flight, truth, series);
@@ -188,17 +189,26 @@ void add_evaluate(CLI::App& app) {
   auto json_path = std::make_shared<std::string>();
   auto report = std::make_shared<std::string>();
   auto baseline_path = std::make_shared<std::string>();
+  auto track = std::make_shared<std::string>("truth");
   cmd->add_option("--data", *data, "flight HDF5 file(s), comma-separated")->required();
   cmd->add_option("--model", *model_path, "fitted model YAML")->required();
-  cmd->add_option("--truth", *truth, "reference field (default mag_1_c)");
+  cmd->add_option("--truth", *truth,
+                  "reference field (default mag_1_c), or map:M.h5: the anomaly map along --track "
+                  "plus the IGRF and the diurnal (no stinger needed)");
+  cmd->add_option("--track", *track,
+                  "with --truth map:M.h5, where the map is read: truth (lat/lon), ins, or filter "
+                  "(the navigation filter on the model's anomaly); default truth")
+      ->check(CLI::IsMember({"truth", "ins", "filter"}));
   cmd->add_option("--json", *json_path, "write the evaluation JSON here");
   cmd->add_option("--report", *report, "write an HTML report with plots into this directory");
   cmd->add_option("--baseline", *baseline_path,
                   "a second fitted model to compare with (before/after)");
   cmd->callback([=] {
     const std::vector<std::string> paths = flight_paths("--data", *data);
-    OutputGuard guard =
-        guard_for(paths, {{"--model", *model_path}, {"--baseline", *baseline_path}});
+    std::vector<OutputGuard::File> others = {{"--model", *model_path},
+                                             {"--baseline", *baseline_path}};
+    for (const auto& m : map_inputs("--truth", {*truth})) others.push_back(m);
+    OutputGuard guard = guard_for(paths, others);
     guard.add_output("--json", *json_path);
     guard.add_output_dir("--report", *report,
                          {"series.h5", "evaluation.json", "index.html", "timeseries.png",
@@ -217,7 +227,7 @@ void add_evaluate(CLI::App& app) {
     }
     if (paths.size() == 1) {
       evaluate_one(paths[0], model, baseline_model.get(), *model_path, *baseline_path, *truth,
-                   *json_path, *report, guard);
+                   *json_path, *report, guard, *track);
       return;
     }
     // Several flights: one at a time (memory is one flight's columns), then pooled.
@@ -226,7 +236,8 @@ void add_evaluate(CLI::App& app) {
     double n = 0, sum_sq = 0, sum_var = 0, sum_unc = 0, n_unc = 0;
     for (const std::string& path : paths) {
       std::printf("flight %s\n", path.c_str());
-      const FlightData flight = read_flight(path);
+      FlightData flight = read_flight(path);
+      add_map_references(&flight, {*truth}, *track, &model);
       const Evaluation ev = evaluate_model(model, flight, *truth, false);
       std::unique_ptr<Evaluation> base;
       if (baseline_model)

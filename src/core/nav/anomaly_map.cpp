@@ -19,7 +19,9 @@ namespace {
 constexpr double kWgs84A_m = 6378137.0;        // MagNav.jl's r_earth
 constexpr double kWgs84E = 0.0818191908426;    // first eccentricity
 constexpr double kGradientStep_rad = 1.0e-8f;  // MagNav.jl's map_grad step (a Float32 literal)
-constexpr double kMaxMapAltitude_m = 1e5;      // a map's altitude, within 100 km of the ellipsoid
+constexpr double kMaxMapAltitude_m = 1e5;
+constexpr double kMinCell_rad = 1e-10;  // 0.6 mm on the ground: no anomaly map is finer      // a
+                                        // map's altitude, within 100 km of the ellipsoid
 
 // Fractional index of x on a uniform axis from a[0] to a[n-1]: the cell and the weight in it.
 void locate(const Eigen::VectorXd& a, double x, Eigen::Index* cell, double* t) {
@@ -254,6 +256,16 @@ AnomalyMap read_anomaly_map(const std::string& path) {
                 std::to_string(m.lon_rad.cwiseAbs().maxCoeff() / kDegToRad) +
                 ", not a longitude in degrees or radians (a map on projected axes, metres, is not "
                 "read: give its axes in degrees)");
+  for (const auto& [axis, name] : {std::pair{&m.lat_rad, "yy"}, std::pair{&m.lon_rad, "xx"}}) {
+    const double step =
+        ((*axis)[axis->size() - 1] - (*axis)[0]) / static_cast<double>(axis->size() - 1);
+    if (!(step >= kMinCell_rad)) {
+      char buf[64];
+      std::snprintf(buf, sizeof buf, "%.3g", step / kDegToRad);
+      throw Error(path + ": field '" + name + "' steps by " + buf +
+                  " deg, below a millimetre: not a map's grid");
+    }
+  }
   auto element = [&](const H5Array& a, size_t i, size_t j) {
     return julia ? a.at(j, i) : a.at(i, j);
   };

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <limits>
 
+#include "magcomp/core/error.h"
 #include "magcomp/core/nav/nav_model.h"
 
 namespace magcomp::nav {
@@ -62,6 +63,30 @@ FlightRun crlb_run(const std::vector<InsSample>& truth, const AnomalyMap& map,
             : NAN;
   }
   return run_flight(truth, z, nullptr, map, settings, dt_s);
+}
+
+TrackPositions filter_positions(const FlightData& flight, const Eigen::VectorXd& anomaly_nT,
+                                const AnomalyMap& map) {
+  const FlightSamples s = flight_samples(flight);
+  double lat1 = NAN;
+  for (const InsSample& x : s.ins)
+    if (invalid_ins_reason(x).empty()) {
+      lat1 = x.lat_rad;
+      break;
+    }
+  if (!std::isfinite(lat1))
+    throw Error(flight.source() + ": no INS sample is usable: no filter track");
+  FilterSettings settings = filter_model(s.dt_s, lat1, ModelSigmas{});
+  settings.offset_from_first = true;
+  const FlightRun run = run_flight(s.ins, anomaly_nT, nullptr, map, settings, s.dt_s);
+  TrackPositions p;
+  p.lat_rad = Eigen::VectorXd::Constant(flight.size(), NAN);
+  p.lon_rad = Eigen::VectorXd::Constant(flight.size(), NAN);
+  for (size_t k = 0; k < run.steps.size(); ++k) {
+    p.lat_rad[run.rows[k]] = run.steps[k].lat_rad;
+    p.lon_rad[run.rows[k]] = run.steps[k].lon_rad;
+  }
+  return p;
 }
 
 NavigationScores score_run(const FlightRun& run, const FlightRun& crlb,

@@ -34,6 +34,15 @@ FlightRun run_flight(const std::vector<InsSample>& ins, const Eigen::VectorXd& a
 FlightRun crlb_run(const std::vector<InsSample>& truth, const AnomalyMap& map,
                    FilterSettings settings, double dt_s);
 
+/// The navigation filter's position at each row (rad; NaN where no step was made), run with its
+/// default settings (nav_model.h) and the first measurement's offset removed, on `anomaly_nT`:
+/// where a flight is, when neither a GPS nor a stinger is trusted.
+struct TrackPositions {
+  Eigen::VectorXd lat_rad, lon_rad;
+};
+TrackPositions filter_positions(const FlightData& flight, const Eigen::VectorXd& anomaly_nT,
+                                const AnomalyMap& map);
+
 /// The figures of a run against the truth. A figure with nothing to compute it from is NaN, and
 /// each says how many samples it comes from.
 struct NavigationScores {
