@@ -19,6 +19,7 @@
 #include "magcomp/core/nav/flight_navigation.h"
 #include "magcomp/core/nav/flight_run.h"
 #include "magcomp/core/nav/nav_model.h"
+#include "magcomp/core/nav/online_calibration.h"
 #include "subcommands.h"
 
 namespace magcomp::cli {
@@ -26,6 +27,8 @@ namespace {
 
 // One measurement series navigated: the run, its scores, its name.
 struct Navigated {
+  std::string
+      key;  // its JSON key: "" (the figures at the top), "baseline", "static", "uncompensated"
   std::string name;
   nav::FlightRun run;
   nav::NavigationScores scores;
@@ -38,6 +41,7 @@ nlohmann::json to_json(const nav::NavigationScores& s) {
           {"drms_ins_m", json_figure(s.drms_ins_m)},
           {"drms_crlb_m", json_figure(s.drms_crlb_m)},
           {"nees_in_95_bounds", json_figure(s.nees_in_bounds)},
+          {"nees_above_95_bound", json_figure(s.nees_above)},
           {"innovation_mean_nT", json_figure(s.innovation_mean_nT)},
           {"innovation_std_nT", json_figure(s.innovation_std_nT)},
           {"nis_mean", json_figure(s.nis_mean)},
@@ -92,6 +96,65 @@ std::string no_measurement_reason(const Navigated& n, const nav::FlightSamples& 
                 map.lat_rad[map.lat_rad.size() - 1] * kRadToDeg, map.lon_rad[0] * kRadToDeg,
                 map.lon_rad[map.lon_rad.size() - 1] * kRadToDeg);
   return buf;
+}
+
+// The rows of `lines` ("1001.10,1001.11"; empty: every row).
+FlightData select_lines(FlightData f, const std::string& lines) {
+  if (lines.empty()) return f;
+  std::vector<double> wanted;
+  for (const std::string& l : split_commas(lines)) {
+    char* end = nullptr;
+    const double v = std::strtod(l.c_str(), &end);
+    if (!end || *end != '\0' || !std::isfinite(v))
+      throw Error("--lines: '" + l + "' is not a line number");
+    wanted.push_back(v);
+  }
+  if (!f.has("line")) throw Error(f.source() + ": field 'line' not found (--lines)");
+  const std::vector<Eigen::Index> rows = f.select(wanted, {});
+  if (rows.empty())
+    throw Error("--lines " + lines + ": no sample of " + f.source() + " lies on them");
+  return f.subset(rows);
+}
+
+// What online calibration learned, as JSON: each coefficient's prior and learned value and
+// sigma, and the share of its prior variance the flight removed.
+nlohmann::json learned_json(const std::vector<nav::LearnedCoefficient>& cs,
+                            const std::string& prior) {
+  nlohmann::json j;
+  j["prior"] = prior;
+  j["coefficients"] = nlohmann::json::array();
+  long learned = 0, kept = 0;
+  for (const auto& c : cs) {
+    j["coefficients"].push_back({{"name", c.name},
+                                 {"prior", c.prior},
+                                 {"learned", c.learned},
+                                 {"prior_sigma", c.prior_sigma},
+                                 {"sigma", c.sigma},
+                                 {"variance_removed", c.variance_removed}});
+    learned += c.variance_removed > 0.5;
+    kept += c.variance_removed < 0.1;
+  }
+  j["learned"] = learned;
+  j["kept_at_prior"] = kept;
+  return j;
+}
+
+// The learned coefficients, as a table.
+void print_learned(const nlohmann::json& j) {
+  const auto& cs = j["coefficients"];
+  std::printf(
+      "\nonline calibration (prior: %s): %ld of %zu coefficients learned (more than half "
+      "of their prior variance removed), %ld kept at their prior (less than 10 %%: not "
+      "observable on this flight's attitudes and map)\n",
+      j["prior"].get<std::string>().c_str(), j["learned"].get<long>(), cs.size(),
+      j["kept_at_prior"].get<long>());
+  std::printf("  %-24s %12s %12s %10s %10s %9s\n", "coefficient", "prior", "learned", "sigma0",
+              "sigma", "learned");
+  for (const auto& c : cs)
+    std::printf("  %-24s %12.4g %12.4g %10.3g %10.3g %8.0f%%\n",
+                c["name"].get<std::string>().c_str(), c["prior"].get<double>(),
+                c["learned"].get<double>(), c["prior_sigma"].get<double>(),
+                c["sigma"].get<double>(), 100 * c["variance_removed"].get<double>());
 }
 
 H5Array array_of(const Eigen::VectorXd& v) {
@@ -185,6 +248,12 @@ void add_navigate(CLI::App& app) {
   auto map_interp = std::make_shared<std::string>("linear");
   auto model_variance = std::make_shared<bool>(false);
   auto map_sigma = std::make_shared<double>(0.0);
+  auto online = std::make_shared<bool>(false);
+  auto cold = std::make_shared<bool>(false);
+  auto prior_path = std::make_shared<std::string>();
+  auto out_model = std::make_shared<std::string>();
+  auto lines = std::make_shared<std::string>();
+  auto coef_walk = std::make_shared<double>(0.0);
   cmd->add_option("--data", *data,
                   "flight HDF5: truth lat, lon (deg), alt/msl (m), roll/pitch/yaw; INS ins_lat, "
                   "ins_lon (rad or deg), ins_alt, ins_roll/pitch/yaw (deg)")
@@ -217,6 +286,25 @@ void add_navigate(CLI::App& app) {
                   "all measurements, the compensation's constant offset; 'none': MagNav.jl's "
                   "filter (default first)")
       ->check(CLI::IsMember({"first", "none"}));
+  cmd->add_flag("--online", *online,
+                "learn the model's coefficients in the filter (online calibration): they ride "
+                "as random-walk states, the map their reference; the measurement is the raw "
+                "scalar less the IGRF and the diurnal");
+  cmd->add_option("--prior", *prior_path,
+                  "with --online: the fitted model whose coefficients (and their covariance) "
+                  "start the states (default --model)");
+  cmd->add_flag("--cold", *cold,
+                "with --online: start the coefficients at zero (permanent 200 nT, induced and "
+                "eddy 500 nT, other terms 50 per unit, 1-sigma)");
+  cmd->add_option("--coefficient-walk", *coef_walk,
+                  "with --online: the coefficients' random walk, a share of their prior sigma "
+                  "per sqrt(hour) (default 0: constant within a flight)");
+  cmd->add_option("--out-model", *out_model,
+                  "with --online: write the learned model (the coefficients at the end and their "
+                  "covariance) here, for evaluate and the compensator");
+  cmd->add_option("--lines", *lines,
+                  "navigate on these lines only, comma-separated (e.g. the survey lines, not the "
+                  "calibration box); the gaps between them are propagated across");
   cmd->callback([=] {
     if (model_path->empty() == anomaly_field->empty())
       throw Error("navigate: give exactly one of --model and --anomaly");
@@ -227,15 +315,23 @@ void add_navigate(CLI::App& app) {
     nav::require_setting(*map_sigma, 0, nav::kMaxSigma_nT, "--map-sigma", "nT", true);
     if (*model_variance && model_path->empty())
       throw Error("navigate: --model-variance needs --model");
+    if (!*online && (*cold || !prior_path->empty() || !out_model->empty()))
+      throw Error("navigate: --cold, --prior and --out-model go with --online");
+    if (*online && model_path->empty())
+      throw Error("navigate: --online needs --model (the terms to learn)");
+    if (*cold && !prior_path->empty()) throw Error("navigate: give --prior or --cold, not both");
+    nav::require_setting(*coef_walk, 0, 10, "--coefficient-walk", "(share per sqrt(h))", true);
     OutputGuard guard({{"--data", *data},
                        {"--map", *map_path},
                        {"--model", *model_path},
-                       {"--baseline", *baseline}});
+                       {"--baseline", *baseline},
+                       {"--prior", *prior_path}});
     guard.add_output("--json", *json_path);
+    guard.add_output("--out-model", *out_model);
     guard.add_output_dir("--report", *report,
                          {"tracks.h5", "navigation.json", "index.html", "tracks.png", "errors.png",
                           "innovations.png"});
-    const FlightData f = read_flight(*data);
+    const FlightData f = select_lines(read_flight(*data), *lines);
     const nav::FlightSamples samples = nav::flight_samples(f);
     nav::AnomalyMap map = nav::read_anomaly_map(*map_path);
     if (*map_interp == "cubic") map.interpolation = nav::AnomalyMap::Interpolation::Cubic;
@@ -268,12 +364,27 @@ void add_navigate(CLI::App& app) {
     };
     std::vector<Navigated> rows;
     Eigen::VectorXd main_anomaly;
-    auto navigate = [&](const std::string& name, const Eigen::VectorXd& z,
-                        const std::optional<Eigen::VectorXd>& r) {
+    auto navigate = [&](const std::string& key, const std::string& name, const Eigen::VectorXd& z,
+                        const std::optional<Eigen::VectorXd>& r,
+                        const nav::OnlineMeasurement* online_in = nullptr,
+                        const nav::FilterSettings* online_settings = nullptr) {
       Navigated n;
+      n.key = key;
       n.name = name;
-      n.run = nav::run_flight(samples.ins, z, r ? &*r : nullptr, map, settings, samples.dt_s);
-      n.scores = nav::score_run(n.run, bound, samples, z, map);
+      n.run = nav::run_flight(samples.ins, z, r ? &*r : nullptr, map,
+                              online_settings ? *online_settings : settings, samples.dt_s,
+                              online_in ? &online_in->columns : nullptr);
+      // Online, the measurement against the map is the raw one compensated as the filter had
+      // learned it at each step.
+      Eigen::VectorXd compared = z;
+      if (online_in) {
+        compared.setConstant(NAN);
+        for (size_t k = 0; k < n.run.steps.size(); ++k) {
+          const Eigen::Index row = n.run.rows[k];
+          compared[row] = z[row] - online_in->columns.row(row).dot(n.run.steps[k].coefficients);
+        }
+      }
+      n.scores = nav::score_run(n.run, bound, samples, compared, map);
       if (n.scores.updates == 0) throw Error(no_measurement_reason(n, samples, map, *map_path));
       if (n.scores.scored == 0)
         throw Error(*data +
@@ -283,12 +394,57 @@ void add_navigate(CLI::App& app) {
                     std::to_string(n.scores.rows) + " rows)");
       rows.push_back(std::move(n));
     };
-    main_anomaly = anomaly_of(f, *model_path, *anomaly_field);
-    navigate(anomaly_field->empty() ? *model_path : *anomaly_field, main_anomaly,
-             model_path->empty() ? std::nullopt : r_of(*model_path));
-    if (!baseline->empty()) navigate(*baseline, anomaly_of(f, *baseline, ""), r_of(*baseline));
+    nlohmann::json online_json;
+    if (*online) {
+      const Model model = load_model_yaml(*model_path);
+      const Model prior = prior_path->empty() ? model : load_model_yaml(*prior_path);
+      nav::CoefficientPriorSettings ps;
+      ps.cold = *cold;
+      ps.walk_share_per_sqrt_h = *coef_walk;
+      nav::FilterSettings online_settings = settings;
+      nav::set_coefficient_prior(model, &prior, ps, &online_settings);
+      const nav::OnlineMeasurement om = nav::online_measurement(f, model);
+      main_anomaly = om.raw_anomaly_nT;
+      navigate("",
+               *cold ? "online (cold)"
+                     : "online (prior " + (prior_path->empty() ? *model_path : *prior_path) + ")",
+               om.raw_anomaly_nT, std::nullopt, &om, &online_settings);
+      const Navigated& n = rows.back();
+      const Eigen::VectorXd learned = n.run.steps.back().coefficients;
+      online_json = learned_json(
+          nav::learned_coefficients(model, online_settings, learned, n.run.coefficient_covariance),
+          *cold ? "cold" : (prior_path->empty() ? *model_path : *prior_path));
+      if (!out_model->empty()) {
+        // Once flown: the whole flight re-fitted against the map at the filter's positions.
+        Eigen::VectorXd lat(static_cast<Eigen::Index>(n.run.steps.size())), lon(lat.size());
+        for (size_t k = 0; k < n.run.steps.size(); ++k) {
+          lat[static_cast<Eigen::Index>(k)] = n.run.steps[k].lat_rad;
+          lon[static_cast<Eigen::Index>(k)] = n.run.steps[k].lon_rad;
+        }
+        const nav::SmoothedCoefficients sm = nav::smoothed_coefficients(
+            om, n.run.rows, lat, lon, map, learned, n.run.coefficient_covariance);
+        Model out = nav::learned_model(model, sm.coefficients, sm.covariance);
+        out.report.estimates.push_back("coefficients learned online in the navigation filter on " +
+                                       *data + " against the map " + *map_path +
+                                       ", then re-fitted over the " + std::to_string(sm.rows) +
+                                       " samples on the map at the filter's positions");
+        online_json["smoothed"] = {{"rows", sm.rows},
+                                   {"residual_std_nT", json_figure(sm.residual_std_nT)}};
+        save_model_yaml(out, *out_model, guard.input_paths());
+      }
+      if (model.fitted())
+        navigate("static", *model_path + " (as given)", anomaly_of(f, *model_path, ""),
+                 r_of(*model_path));
+    } else {
+      main_anomaly = anomaly_of(f, *model_path, *anomaly_field);
+      navigate("", anomaly_field->empty() ? *model_path : *anomaly_field, main_anomaly,
+               model_path->empty() ? std::nullopt : r_of(*model_path));
+    }
+    if (!baseline->empty())
+      navigate("baseline", *baseline, anomaly_of(f, *baseline, ""), r_of(*baseline));
     if (!model_path->empty())
-      navigate("uncompensated", anomaly_of(f, *model_path, "", true), std::nullopt);
+      navigate("uncompensated", "uncompensated", anomaly_of(f, *model_path, "", true),
+               std::nullopt);
     guard.check_inputs_unchanged();
 
     const Navigated& first = rows.front();
@@ -332,10 +488,13 @@ void add_navigate(CLI::App& app) {
     j["map"] = *map_path;
     j["measurement"] = first.name;
     for (size_t k = 1; k < rows.size(); ++k) {
-      const bool raw = rows[k].name == "uncompensated" && k + 1 == rows.size();
-      nlohmann::json& r = j[raw ? "uncompensated" : "baseline"];
+      nlohmann::json& r = j[rows[k].key];
       r = to_json(rows[k].scores);
-      if (!raw) r["model"] = *baseline;
+      if (rows[k].key == "baseline") r["model"] = *baseline;
+    }
+    if (*online) {
+      j["online"] = online_json;
+      print_learned(online_json);
     }
     if (!json_path->empty()) write_file_atomic(*json_path, j.dump(2) + "\n", guard.input_paths());
     if (!report->empty())

@@ -106,10 +106,23 @@ TEST(CliNavigate, ASimulatedFlightNavigatesBetterWithTheBetterModel) {
   EXPECT_LT(full, 0.2 * ins);  // the INS alone drifts far more
   EXPECT_LT(j["measurement_minus_map_std_nT"].get<double>(),
             j["baseline"]["measurement_minus_map_std_nT"].get<double>());
-  // The filter is consistent: within 1.5x its Cramer-Rao bound, NEES inside its 95 % bounds at
-  // least 90 % of the time.
+  // The filter is safe at its defaults: within 1.5x its Cramer-Rao bound, its horizontal NEES
+  // above the 95 % bounds at most 5 % of the time (MagNav.jl's 3 nT noise is conservative for
+  // this model: the errors sit below the bound more often, never above it). With the model's
+  // own variance and the map's error as R it is consistent: inside its bounds 90 % of the time.
   EXPECT_LT(full, 1.5 * j["drms_crlb_m"].get<double>());
-  EXPECT_GE(j["nees_in_95_bounds"].get<double>(), 0.90);
+  EXPECT_LE(j["nees_above_95_bound"].get<double>(), 0.05);
+  ASSERT_EQ(test::run(cli + " navigate --data " + f + " --map " + dir + "/f.map.h5 --model " + dir +
+                          "/full.yaml --model-variance --map-sigma 0.3 --json " + dir +
+                          "/nav_variance.json",
+                      &out),
+            0)
+      << out;
+  const nlohmann::json v = nlohmann::json::parse(std::ifstream(dir + "/nav_variance.json"));
+  std::printf("  with --model-variance: DRMS %.1f m, NEES in its 95 %% bounds %.0f %%\n",
+              v["drms_filter_m"].get<double>(), 100 * v["nees_in_95_bounds"].get<double>());
+  EXPECT_GE(v["nees_in_95_bounds"].get<double>(), 0.90);
+  EXPECT_LT(v["drms_filter_m"].get<double>(), 1.5 * v["drms_crlb_m"].get<double>());
   // The report's tracks: every sample, the filter's error as the JSON gives it.
   const std::string tracks = dir + "/report/tracks.h5";
   const H5Array en = read_h5_array(tracks, "error_north_m");

@@ -11,20 +11,23 @@ namespace {
 constexpr int kStates = 18;
 
 // The measurement row: the map's gradient at the corrected position (lat, lon; the 2-D map has
-// no vertical one) and 1 for the catch-all.
-Eigen::RowVectorXd measurement_row(const AnomalyMap& map, double lat, double lon) {
-  Eigen::RowVectorXd h = Eigen::RowVectorXd::Zero(kStates);
+// no vertical one), 1 for the catch-all, and the model's columns for the coefficient states.
+Eigen::RowVectorXd measurement_row(const AnomalyMap& map, double lat, double lon,
+                                   const Eigen::VectorXd* columns = nullptr) {
+  const Eigen::Index k = columns ? columns->size() : 0;
+  Eigen::RowVectorXd h = Eigen::RowVectorXd::Zero(kStates + k);
   const Eigen::Vector2d g = map.gradient(lat, lon);
   h[0] = g[0];
   h[1] = g[1];
   h[kStates - 1] = 1.0;
+  if (k > 0) h.tail(k) = columns->transpose();
   return h;
 }
 
 // The measurement update of the covariance (and the gain it used): P = (I - K H) P.
 Eigen::VectorXd update_covariance(const Eigen::RowVectorXd& h, double var, Eigen::MatrixXd* p) {
   const Eigen::VectorXd k = *p * h.transpose() / var;
-  *p = (Eigen::MatrixXd::Identity(kStates, kStates) - k * h) * *p;
+  *p = (Eigen::MatrixXd::Identity(h.size(), h.size()) - k * h) * *p;
   return k;
 }
 
@@ -32,6 +35,11 @@ void check_settings(const FilterSettings& s, const char* who) {
   if (s.p0.rows() != kStates || s.p0.cols() != kStates || s.qd.rows() != kStates ||
       s.qd.cols() != kStates)
     throw Error(std::string(who) + ": P0 and Qd must be 18 x 18");
+  const Eigen::Index k = s.c0.size();
+  if (s.pc0.rows() != k || s.pc0.cols() != k || s.qc_per_s.size() != k)
+    throw Error(std::string(who) + ": the coefficient states' prior and walk must match them");
+  if (!s.c0.allFinite() || !s.pc0.allFinite() || !s.qc_per_s.allFinite())
+    throw Error(std::string(who) + ": the coefficient states' prior is not finite");
   if (!(s.r_nT2 > 0) || !std::isfinite(s.r_nT2))
     throw Error(std::string(who) + ": R must be > 0 nT^2 and finite");
   if (!s.p0.allFinite() || !s.qd.allFinite())
@@ -72,24 +80,46 @@ MapMatchingEkf::MapMatchingEkf(const AnomalyMap& map, const FilterSettings& sett
 }
 
 void MapMatchingEkf::reset() {
-  x_ = Eigen::VectorXd::Zero(kStates);
-  p_ = s_.p0;
+  const Eigen::Index k = s_.c0.size();
+  x_ = Eigen::VectorXd::Zero(kStates + k);
+  if (k == 0) {
+    p_ = s_.p0;
+  } else {  // the navigation block and the coefficients' prior, uncorrelated
+    p_ = Eigen::MatrixXd::Zero(kStates + k, kStates + k);
+    p_.topLeftCorner(kStates, kStates) = s_.p0;
+    p_.bottomRightCorner(k, k) = s_.pc0;
+    x_.tail(k) = s_.c0;
+  }
   x_post_ = x_;
   p_post_ = p_;
   offset_nT_ = NAN;
 }
 
 MapMatchingEkf::Step MapMatchingEkf::step(const NavPoint& point, double lat_ins, double lon_ins,
-                                          double anomaly_nT, double r_nT2, double dt_s) {
+                                          double anomaly_nT, double r_nT2, double dt_s,
+                                          const Eigen::VectorXd* columns) {
   Step out;
-  const Eigen::MatrixXd phi = pinson_transition(point, s_.taus, true, dt_s);
+  const Eigen::Index k = s_.c0.size();
   const double lat = lat_ins + x_[0], lon = lon_ins + x_[1];
   out.on_map = map_.covers(lat, lon);
   const double r = std::isfinite(r_nT2) && r_nT2 > 0 ? r_nT2 : s_.r_nT2;
+  // Online calibration: the aircraft's field a.c the model predicts is part of the measurement.
+  double aircraft_nT = 0.0;
+  if (k > 0) {
+    if (columns && columns->size() == k && columns->allFinite()) {
+      aircraft_nT = columns->dot(x_.tail(k));
+    } else {
+      anomaly_nT = NAN;  // no columns: the measurement cannot be predicted
+    }
+  }
   if (s_.offset_from_first && std::isnan(offset_nT_) && std::isfinite(anomaly_nT) && out.on_map)
-    offset_nT_ = anomaly_nT - map_.value(lat, lon);
-  const double resid = anomaly_nT - offset_nT() - (map_.value(lat, lon) + x_[kStates - 1]);
-  const Eigen::RowVectorXd h = measurement_row(map_, lat, lon);
+    offset_nT_ = anomaly_nT - aircraft_nT - map_.value(lat, lon);
+  const double resid =
+      anomaly_nT - offset_nT() - (map_.value(lat, lon) + x_[kStates - 1] + aircraft_nT);
+  const Eigen::RowVectorXd h = k > 0 && std::isfinite(anomaly_nT)
+                                   ? measurement_row(map_, lat, lon, columns)
+                               : k > 0 ? Eigen::RowVectorXd(Eigen::RowVectorXd::Zero(kStates + k))
+                                       : measurement_row(map_, lat, lon);
   const double var = (h * p_ * h.transpose())(0, 0) + r;
   out.innovation_nT = resid;
   out.innovation_var_nT2 = var;
@@ -100,16 +130,30 @@ MapMatchingEkf::Step MapMatchingEkf::step(const NavPoint& point, double lat_ins,
   }
   x_post_ = x_;
   p_post_ = p_;
-  x_ = phi * x_;
-  p_ = phi * p_ * phi.transpose() + s_.qd;
+  propagate_by(point, dt_s, 1.0);
   return out;
 }
 
-void MapMatchingEkf::propagate(const NavPoint& point, double dt_s) {
+// Propagation over dt_s, the navigation states' process noise qd scaled by `q_scale`: the
+// transition acts on the 18 navigation states; the coefficients walk.
+void MapMatchingEkf::propagate_by(const NavPoint& point, double dt_s, double q_scale) {
   const Eigen::MatrixXd phi = pinson_transition(point, s_.taus, true, dt_s);
-  x_ = phi * x_;
-  p_ = phi * p_ * phi.transpose() +
-       s_.qd * (std::isfinite(s_.qd_step_s) ? dt_s / s_.qd_step_s : 1.0);
+  const Eigen::Index k = s_.c0.size();
+  if (k == 0) {
+    x_ = phi * x_;
+    p_ = phi * p_ * phi.transpose() + (q_scale == 1.0 ? s_.qd : Eigen::MatrixXd(s_.qd * q_scale));
+    return;
+  }
+  x_.head(kStates) = phi * x_.head(kStates);
+  const Eigen::MatrixXd nav = p_.topLeftCorner(kStates, kStates);
+  p_.topLeftCorner(kStates, kStates) = phi * nav * phi.transpose() + s_.qd * q_scale;
+  p_.topRightCorner(kStates, k) = phi * p_.topRightCorner(kStates, k);
+  p_.bottomLeftCorner(k, kStates) = p_.topRightCorner(kStates, k).transpose();
+  p_.bottomRightCorner(k, k).diagonal() += s_.qc_per_s * dt_s;
+}
+
+void MapMatchingEkf::propagate(const NavPoint& point, double dt_s) {
+  propagate_by(point, dt_s, std::isfinite(s_.qd_step_s) ? dt_s / s_.qd_step_s : 1.0);
 }
 
 FilterResult run_ekf(const NavTrack& ins, const Eigen::VectorXd& anomaly_nT, const AnomalyMap& map,
@@ -120,7 +164,7 @@ FilterResult run_ekf(const NavTrack& ins, const Eigen::VectorXd& anomaly_nT, con
   if (r_nT2 && r_nT2->size() != n)
     throw Error("ekf: one measurement variance per sample is needed");
   FilterResult out;
-  out.x.resize(kStates, n);
+  out.x.resize(s.states(), n);
   out.p.reserve(static_cast<size_t>(n));
   out.innovation_nT.resize(n);
   out.innovation_var_nT2.resize(n);

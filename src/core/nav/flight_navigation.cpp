@@ -35,11 +35,17 @@ Eigen::VectorXd radians_like(const Eigen::VectorXd& v, const Eigen::VectorXd& re
   return in_degrees(v, reference_deg) ? Eigen::VectorXd(v * kDegToRad) : v;
 }
 
+Eigen::VectorXd flight_height_m(const FlightData& f) {
+  // utm_z: GPS height above the ellipsoid (the maps' and the IGRF's datum); msl (older: alt)
+  // only without it.
+  return column(f, {"utm_z", "msl"}, "true height above the ellipsoid, m");
+}
+
 FlightTracks flight_tracks(const FlightData& f) {
   const double dt = f.dt_s();
   const Eigen::VectorXd lat_deg = column(f, {"lat"}, "true latitude, deg");
   const Eigen::VectorXd lon_deg = column(f, {"lon"}, "true longitude, deg");
-  const Eigen::VectorXd alt = column(f, {"alt", "utm_z", "msl"}, "true altitude, m");
+  const Eigen::VectorXd alt = flight_height_m(f);
   FlightTracks t;
   t.truth = track_from_positions(dt, lat_deg * kDegToRad, lon_deg * kDegToRad, alt,
                                  column(f, {"roll", "ins_roll"}, "roll, deg") * kDegToRad,
@@ -58,7 +64,7 @@ FlightTracks flight_tracks(const FlightData& f) {
 FlightSamples flight_samples(const FlightData& f) {
   const Eigen::VectorXd lat_deg = column(f, {"lat"}, "true latitude, deg");
   const Eigen::VectorXd lon_deg = column(f, {"lon"}, "true longitude, deg");
-  const Eigen::VectorXd alt = column(f, {"alt", "utm_z", "msl"}, "true altitude, m");
+  const Eigen::VectorXd alt = flight_height_m(f);
   const Eigen::VectorXd roll = column(f, {"roll", "ins_roll"}, "roll, deg") * kDegToRad;
   const Eigen::VectorXd pitch = column(f, {"pitch", "ins_pitch"}, "pitch, deg") * kDegToRad;
   const Eigen::VectorXd yaw = column(f, {"yaw", "ins_yaw"}, "yaw, deg") * kDegToRad;

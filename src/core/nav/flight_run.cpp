@@ -34,18 +34,23 @@ void take(std::vector<NavigatorOutput>&& steps, FlightRun* run) {
 
 FlightRun run_flight(const std::vector<InsSample>& ins, const Eigen::VectorXd& anomaly_nT,
                      const Eigen::VectorXd* var_nT2, const AnomalyMap& map,
-                     const FilterSettings& settings, double dt_s) {
+                     const FilterSettings& settings, double dt_s, const Eigen::MatrixXd* columns) {
   StreamingNavigator nav(map, settings, dt_s);
   FlightRun run;
   run.steps.reserve(ins.size());
+  Eigen::VectorXd row;
   for (size_t k = 0; k < ins.size(); ++k) {
     const auto i = static_cast<Eigen::Index>(k);
     take(nav.push_ins(ins[k]), &run);
-    take(nav.push_measurement(ins[k].t_s, anomaly_nT[i], var_nT2 ? (*var_nT2)[i] : NAN), &run);
+    if (columns) row = columns->row(i).transpose();
+    take(nav.push_measurement(ins[k].t_s, anomaly_nT[i], var_nT2 ? (*var_nT2)[i] : NAN,
+                              columns ? &row : nullptr),
+         &run);
   }
   take(nav.end_of_ins(), &run);
   take(nav.flush(), &run);
   run.counts = nav.counts();
+  if (settings.c0.size() > 0) run.coefficient_covariance = nav.coefficient_covariance();
   attach_rows(ins, &run);
   return run;
 }
@@ -114,7 +119,7 @@ NavigationScores score_run(const FlightRun& run, const FlightRun& crlb,
     s.measurement_minus_map_std_nT = std::sqrt(std::max(0.0, sum2 / n - mean * mean));
   }
   double ss_filter = 0, ss_ins = 0, nis = 0, innovation = 0, innovation2 = 0;
-  long inside = 0, used = 0;
+  long inside = 0, above = 0, used = 0;
   for (size_t k = 0; k < run.steps.size(); ++k) {
     const NavigatorOutput& o = run.steps[k];
     if (o.step.updated && std::isfinite(o.step.innovation_nT)) {
@@ -135,6 +140,7 @@ NavigationScores score_run(const FlightRun& run, const FlightRun& crlb,
     const Eigen::Matrix2d c = o.position_cov_ned_m2.topLeftCorner<2, 2>();
     const double nees = err.dot(c.ldlt().solve(err));
     inside += nees >= kNees2Low && nees <= kNees2High;
+    above += nees > kNees2High;
     ++s.scored;
   }
   if (s.scored > 0) {
@@ -142,6 +148,7 @@ NavigationScores score_run(const FlightRun& run, const FlightRun& crlb,
     s.drms_filter_m = std::sqrt(ss_filter / n);
     s.drms_ins_m = std::sqrt(ss_ins / n);
     s.nees_in_bounds = static_cast<double>(inside) / n;
+    s.nees_above = static_cast<double>(above) / n;
   }
   if (used > 0) {
     const double n = static_cast<double>(used);

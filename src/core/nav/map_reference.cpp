@@ -17,12 +17,6 @@ bool names_map(const std::string& spec, std::string* path) {
   return true;
 }
 
-Eigen::VectorXd flight_height_m(const FlightData& f) {
-  for (const char* name : {"utm_z", "alt", "msl"})
-    if (f.has(name)) return f.column(name);
-  throw Error(f.source() + ": field utm_z or alt or msl (height, m) not found");
-}
-
 MapReference map_reference(const FlightData& f, AnomalyMap map, MapTrack track, const Igrf& igrf,
                            const Eigen::VectorXd* lat_in, const Eigen::VectorXd* lon_in) {
   const Eigen::Index n = f.size();

@@ -23,7 +23,8 @@ constexpr double kMaxCorrection_m = 1e6;
 // sigma within kMaxCorrection_m.
 bool usable_output(const NavigatorOutput& o) {
   if (!(std::isfinite(o.lat_rad) && std::isfinite(o.lon_rad) && std::isfinite(o.alt_m) &&
-        o.velocity_ned_mps.allFinite() && o.position_cov_ned_m2.allFinite()))
+        o.velocity_ned_mps.allFinite() && o.position_cov_ned_m2.allFinite() &&
+        o.coefficients.allFinite() && o.coefficient_sigma.allFinite()))
     return false;
   const double north = dlat_to_north_m(o.lat_rad - o.ins_lat_rad, o.ins_lat_rad);
   const double east = dlon_to_east_m(o.lon_rad - o.ins_lon_rad, o.ins_lat_rad);
@@ -32,6 +33,11 @@ bool usable_output(const NavigatorOutput& o) {
 }
 
 }  // namespace
+
+Eigen::MatrixXd StreamingNavigator::coefficient_covariance() const {
+  const Eigen::Index k = ekf_.p_post().rows() - 18;
+  return ekf_.p_post().bottomRightCorner(k, k);
+}
 
 std::string invalid_ins_reason(const InsSample& s) {
   if (!std::isfinite(s.t_s)) return "stamp not finite";
@@ -86,7 +92,8 @@ std::vector<NavigatorOutput> StreamingNavigator::push_ins(const InsSample& s) {
 }
 
 std::vector<NavigatorOutput> StreamingNavigator::push_measurement(double t_s, double z_nT,
-                                                                  double var_nT2) {
+                                                                  double var_nT2,
+                                                                  const Eigen::VectorXd* columns) {
   if (!std::isfinite(t_s)) {
     ++counts_.invalid_measurements;
     return {};
@@ -103,7 +110,7 @@ std::vector<NavigatorOutput> StreamingNavigator::push_measurement(double t_s, do
     ++counts_.unmatched_measurements;  // its INS sample has been stepped without it
     return {};
   }
-  measurements_[t_s] = {z_nT, var_nT2};
+  measurements_[t_s] = {z_nT, var_nT2, columns ? *columns : Eigen::VectorXd()};
   return drain(false);
 }
 
@@ -126,11 +133,10 @@ std::vector<NavigatorOutput> StreamingNavigator::drain(bool force) {
       ++counts_.unmatched_measurements;
       it = measurements_.erase(it);
     }
-    double z = NAN, var = NAN;
+    Measurement m;
     bool missing = false;
     if (it != measurements_.end() && it->first <= p.t_s + tol) {
-      z = it->second.first;
-      var = it->second.second;
+      m = std::move(it->second);
       measurements_.erase(it);
     } else if (!(std::isfinite(last_meas_t_) && last_meas_t_ > p.t_s + tol) && !force) {
       break;  // its measurement may still come
@@ -139,13 +145,15 @@ std::vector<NavigatorOutput> StreamingNavigator::drain(bool force) {
       missing = true;
     }
     waiting_.pop_front();
-    out.push_back(run_step(p, z, var, missing));
+    out.push_back(run_step(p, m, missing));
   }
   return out;
 }
 
-NavigatorOutput StreamingNavigator::run_step(const TrackPoint& p, double z, double var,
+NavigatorOutput StreamingNavigator::run_step(const TrackPoint& p, const Measurement& m_in,
                                              bool missing) {
+  Measurement m = m_in;
+  double& z = m.z_nT;
   if (std::isfinite(last_step_t_) && p.t_s - last_step_t_ > kMaxPropagation_s) {
     ekf_.reset();  // an hour and more without the INS: start again from the prior
     ++counts_.filter_restarts;
@@ -154,11 +162,11 @@ NavigatorOutput StreamingNavigator::run_step(const TrackPoint& p, double z, doub
   }
   const bool refused = !std::isnan(z) && !(std::abs(z) <= kMaxField_nT);  // counted when pushed
   if (refused) z = NAN;
-  NavigatorOutput o = step_output(p, z, var);
+  NavigatorOutput o = step_output(p, m);
   if (!usable_output(o)) {  // never handed on: the filter restarts from its prior
     ekf_.reset();
     ++counts_.filter_restarts;
-    o = step_output(p, NAN, NAN);
+    o = step_output(p, Measurement{});
   }
   ++counts_.steps;
   counts_.updates += o.step.updated;
@@ -170,7 +178,8 @@ NavigatorOutput StreamingNavigator::run_step(const TrackPoint& p, double z, doub
   return o;
 }
 
-NavigatorOutput StreamingNavigator::step_output(const TrackPoint& p, double z, double var) {
+NavigatorOutput StreamingNavigator::step_output(const TrackPoint& p, const Measurement& m) {
+  const double z = m.z_nT, var = m.var_nT2;
   NavigatorOutput o;
   o.t_s = p.t_s;
   o.ins_lat_rad = p.lat_rad;
@@ -178,7 +187,8 @@ NavigatorOutput StreamingNavigator::step_output(const TrackPoint& p, double z, d
   o.ins_alt_m = p.alt_m;
   o.measurement_nT = z;
   o.measurement_var_nT2 = std::isfinite(var) && var > 0 ? var : settings_.r_nT2;
-  o.step = ekf_.step(p.point, p.lat_rad, p.lon_rad, z, var, dt_s_);
+  o.step = ekf_.step(p.point, p.lat_rad, p.lon_rad, z, var, dt_s_,
+                     m.columns.size() ? &m.columns : nullptr);
   const Eigen::VectorXd& x = ekf_.x_post();
   const Eigen::MatrixXd& cov = ekf_.p_post();
   o.lat_rad = p.lat_rad + x[0];
@@ -189,7 +199,12 @@ NavigatorOutput StreamingNavigator::step_output(const TrackPoint& p, double z, d
   const Eigen::Vector3d j(dlat_to_north_m(1.0, o.lat_rad), dlon_to_east_m(1.0, o.lat_rad), -1.0);
   o.position_cov_ned_m2 = j.asDiagonal() * cov.topLeftCorner<3, 3>() * j.asDiagonal();
   o.map_nT = map_.value(o.lat_rad, o.lon_rad);
-  o.catch_all_nT = x[x.size() - 1];
+  o.catch_all_nT = x[17];
+  const Eigen::Index k = x.size() - 18;
+  if (k > 0) {
+    o.coefficients = x.tail(k);
+    o.coefficient_sigma = cov.diagonal().tail(k).cwiseMax(0.0).cwiseSqrt();
+  }
   return o;
 }
 

@@ -37,6 +37,15 @@ struct FilterSettings {
   /// at the INS position (a band-pass fit cannot see the aircraft's constant field, hundreds of
   /// nT, and a zero-mean catch-all would pull it into the position). false: none (MagNav.jl).
   bool offset_from_first = false;
+  /// Online calibration (empty c0: none). The compensation model's k coefficients become
+  /// random-walk states after the 18 navigation states (all of a model's terms are linear in
+  /// them); the measurement is then the raw anomaly (the realigned scalar less the IGRF and the
+  /// diurnal) and predicts map + catch-all + a.c, with a the model's k columns at the sample.
+  Eigen::VectorXd c0;        ///< prior coefficients (the model's units)
+  Eigen::MatrixXd pc0;       ///< their prior covariance (k x k)
+  Eigen::VectorXd qc_per_s;  ///< their random-walk variance growth per second (k)
+  /// The number of states: 18, plus the coefficients.
+  Eigen::Index states() const { return 18 + c0.size(); }
 };
 
 /// The filter's output at each sample, after its measurement update: the error state (18) and
@@ -63,10 +72,13 @@ class MapMatchingEkf {
   MapMatchingEkf(const AnomalyMap& map, const FilterSettings& settings);
   /// The measurement update at INS sample `p` (position lat, lon in rad; anomaly in nT, NaN for
   /// none; its noise variance r_nT2 > 0, NaN: the settings' R), then the propagation over dt_s
-  /// to the next sample. Off the map the measurement is not used.
+  /// to the next sample. Off the map the measurement is not used. With online calibration the
+  /// anomaly is the raw one and `columns` the model's k columns at the sample (none, or one not
+  /// finite: the measurement is not used).
   Step step(const NavPoint& p, double lat_rad, double lon_rad, double anomaly_nT, double r_nT2,
-            double dt_s);
-  /// The error state (18) and covariance after the last step's update (before propagation).
+            double dt_s, const Eigen::VectorXd* columns = nullptr);
+  /// The error state (18, then the coefficients) and covariance after the last step's update
+  /// (before propagation).
   const Eigen::VectorXd& x_post() const { return x_post_; }
   const Eigen::MatrixXd& p_post() const { return p_post_; }
   /// Propagation only, over dt_s (a gap in the INS samples).
@@ -77,6 +89,8 @@ class MapMatchingEkf {
   void reset();
 
  private:
+  void propagate_by(const NavPoint& p, double dt_s, double q_scale);
+
   const AnomalyMap& map_;
   FilterSettings s_;
   Eigen::VectorXd x_, x_post_;

@@ -24,6 +24,12 @@ struct FlightTracks {
 };
 FlightTracks flight_tracks(const FlightData& flight);
 
+/// The flight's true height, m: utm_z (GPS height above the WGS-84 ellipsoid: the datum of the
+/// maps, the IGRF and the navigation filter), else msl (older files' alt). One vertical datum
+/// throughout: the map's continuation, the map reference and the filter's track all read it.
+/// Throws magcomp::Error naming the file.
+Eigen::VectorXd flight_height_m(const FlightData& flight);
+
 /// A flight's rows as the navigator's inputs, stamped with the rows' tt (s), from the fields
 /// flight_tracks() reads. Nothing is checked here: the navigator refuses and counts a sample it
 /// cannot use (invalid_ins_reason).

@@ -20,13 +20,16 @@ struct FlightRun {
   std::vector<NavigatorOutput> steps;
   std::vector<Eigen::Index> rows;
   NavigatorCounts counts;
+  Eigen::MatrixXd coefficient_covariance;  ///< online calibration: at the end (k x k)
 };
 
 /// Feeds each row's INS sample and then its measurement (anomaly_nT, NaN: none; var_nT2, when
-/// given, its variance in nT^2) to a StreamingNavigator, and flushes it at the end.
+/// given, its variance in nT^2; columns, with online calibration, the model's columns: one row
+/// per flight row) to a StreamingNavigator, and flushes it at the end.
 FlightRun run_flight(const std::vector<InsSample>& ins, const Eigen::VectorXd& anomaly_nT,
                      const Eigen::VectorXd* var_nT2, const AnomalyMap& map,
-                     const FilterSettings& settings, double dt_s);
+                     const FilterSettings& settings, double dt_s,
+                     const Eigen::MatrixXd* columns = nullptr);
 
 /// The Cramér-Rao bound along the true track: the filter run on the truth as its INS, measuring
 /// the map's own value wherever the map covers the position (never a map extrapolated off its
@@ -53,8 +56,9 @@ struct NavigationScores {
   long map_compared = 0;   ///< samples of measurement_minus_map_std_nT
   double measurement_minus_map_std_nT = NAN;  ///< at the true position, nT
   double drms_filter_m = NAN, drms_ins_m = NAN, drms_crlb_m = NAN;
-  double nees_in_bounds =
-      NAN;  ///< share of scored steps with the horizontal NEES in its 95 % bounds
+  /// Shares of the scored steps whose horizontal NEES lies in its 95 % bounds, and above them
+  /// (the filter overconfident).
+  double nees_in_bounds = NAN, nees_above = NAN;
   double innovation_mean_nT = NAN, innovation_std_nT = NAN, nis_mean = NAN;
   NavigatorCounts counts;  ///< the run's
 };

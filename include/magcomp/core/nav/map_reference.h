@@ -23,10 +23,6 @@ enum class MapTrack { Truth, Ins, Given };
 /// field of the flight.
 bool names_map(const std::string& spec, std::string* path = nullptr);
 
-/// The flight's height above the ellipsoid (m): utm_z, else alt, else msl (the one vertical datum
-/// of the map, the IGRF and the navigation filter). Throws magcomp::Error naming the file.
-Eigen::VectorXd flight_height_m(const FlightData& flight);
-
 /// The map reference along a flight, and what went into it.
 struct MapReference {
   Eigen::VectorXd field_nT;        ///< map + IGRF + diurnal, nT; NaN where the map does not cover

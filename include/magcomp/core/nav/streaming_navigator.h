@@ -24,6 +24,8 @@ struct NavigatorOutput {
   Eigen::Matrix3d position_cov_ned_m2 = Eigen::Matrix3d::Zero();  ///< north, east, down
   double measurement_nT = NAN, measurement_var_nT2 = NAN;         ///< what the step was given
   double map_nT = NAN, catch_all_nT = NAN;                        ///< at the filter's position
+  /// With online calibration: the coefficients after the update and their 1-sigma (model units).
+  Eigen::VectorXd coefficients, coefficient_sigma;
   MapMatchingEkf::Step step;
 };
 
@@ -60,8 +62,10 @@ class StreamingNavigator {
   /// The anomaly measured at data time t_s (nT) and its variance (nT^2; NaN: the settings' R).
   /// A value that is not finite or beyond 1e6 nT is no measurement (its step goes without one,
   /// counted). Returns the steps it made possible. Every output is finite: a state that goes
-  /// non-finite restarts the filter (counted), never reaches the caller.
-  std::vector<NavigatorOutput> push_measurement(double t_s, double anomaly_nT, double variance_nT2);
+  /// non-finite restarts the filter (counted), never reaches the caller. With online
+  /// calibration the anomaly is the raw one and `columns` the model's columns at t_s.
+  std::vector<NavigatorOutput> push_measurement(double t_s, double anomaly_nT, double variance_nT2,
+                                                const Eigen::VectorXd* columns = nullptr);
   /// The INS stream ended: its last two samples wait for their measurements like the others.
   std::vector<NavigatorOutput> end_of_ins();
   /// Steps every INS sample still waiting, those without a measurement without one (the
@@ -70,22 +74,29 @@ class StreamingNavigator {
   /// INS samples held (in the track and waiting for their measurement).
   size_t pending() const { return track_.pending() + waiting_.size(); }
   const NavigatorCounts& counts() const { return counts_; }
+  /// With online calibration: the coefficients' covariance after the last update (k x k).
+  Eigen::MatrixXd coefficient_covariance() const;
   /// Back to the start: a new flight (time jumped back).
   void reset();
 
  private:
   std::vector<NavigatorOutput> drain(bool force);
-  NavigatorOutput run_step(const TrackPoint& p, double z_nT, double var_nT2, bool missing);
-  // The filter's step at p with measurement z (NaN: none) and what it gives.
-  NavigatorOutput step_output(const TrackPoint& p, double z_nT, double var_nT2);
+  // A measurement waiting for its INS sample.
+  struct Measurement {
+    double z_nT = NAN, var_nT2 = NAN;
+    Eigen::VectorXd columns;  // online calibration's model columns (empty: none)
+  };
+  NavigatorOutput run_step(const TrackPoint& p, const Measurement& m, bool missing);
+  // The filter's step at p with measurement m (z NaN: none) and what it gives.
+  NavigatorOutput step_output(const TrackPoint& p, const Measurement& m);
 
   const AnomalyMap& map_;
   FilterSettings settings_;
   double dt_s_;
   MapMatchingEkf ekf_;
   StreamingTrack track_;
-  std::deque<TrackPoint> waiting_;  // track points waiting for their measurement
-  std::map<double, std::pair<double, double>> measurements_;  // t -> (nT, nT^2)
+  std::deque<TrackPoint> waiting_;              // track points waiting for their measurement
+  std::map<double, Measurement> measurements_;  // by stamp
   double last_ins_t_ = NAN, last_meas_t_ = NAN, last_step_t_ = NAN;
   TrackPoint last_point_;
   InsSample last_ins_;
