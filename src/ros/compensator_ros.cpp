@@ -16,11 +16,11 @@ namespace magcomp::rosio {
 namespace {
 
 const std::set<std::string> kKnownParams = {
-    "model_path",      "scalar_topic", "vector_topic", "aux_topic",     "fix_topic",
-    "reference_topic", "output_topic", "frame_id",     "max_gap_s",     "max_wait_s",
-    "jump_back_s",     "buffer_s",     "watch_model",  "marker_stride", "expected_rate_hz",
-    "flush_after_s",   "base_frame",   "tcp_nodelay",  "queue_size",    "end_of_stream_topic",
-    "publish_track_tf"};
+    "model_path",       "scalar_topic",   "vector_topic", "aux_topic",     "fix_topic",
+    "reference_topic",  "output_topic",   "frame_id",     "max_gap_s",     "max_wait_s",
+    "jump_back_s",      "buffer_s",       "watch_model",  "marker_stride", "expected_rate_hz",
+    "flush_after_s",    "base_frame",     "tcp_nodelay",  "queue_size",    "end_of_stream_topic",
+    "publish_track_tf", "publish_columns"};
 
 constexpr double kTimerPeriod_s = 0.25;  // model-file watch, held inputs, end of stream
 constexpr double kDiagnosticsPeriod_s = 1.0;
@@ -67,6 +67,7 @@ CompensatorRos::CompensatorRos(ros::NodeHandle nh, ros::NodeHandle pnh)
   if (stride < 1) reject_param("marker_stride", "must be >= 1 (outputs per track point)");
   pnh_.param<std::string>("frame_id", frame_id_, "magcomp_track");
   pnh_.param("publish_track_tf", publish_track_tf_, false);
+  pnh_.param("publish_columns", publish_columns_, false);
   pnh_.param<std::string>("base_frame", base_frame_, "base_link");
   double rate = 10.0;
   pnh_.param("expected_rate_hz", rate, 10.0);
@@ -96,6 +97,8 @@ CompensatorRos::CompensatorRos(ros::NodeHandle nh, ros::NodeHandle pnh)
 
   pub_out_ = nh_.advertise<magcomp::CompensatedField>(out_topic, kOutputQueue);
   pub_marker_ = nh_.advertise<visualization_msgs::MarkerArray>(out_topic + "/track", 2, true);
+  if (publish_columns_)
+    pub_columns_ = nh_.advertise<magcomp::AuxChannels>(out_topic + "/columns", kOutputQueue);
   track_ = std::make_unique<TrackMarker>(frame_id_, stride);
   if (publish_track_tf_) tf_broadcaster_ = std::make_unique<tf2_ros::TransformBroadcaster>();
   InputStream::Callbacks cb;
@@ -159,6 +162,7 @@ bool CompensatorRos::load_model(const std::string& why) {
                why.c_str(), next->model().terms.size(), last_published_t_);
     }
     comp_ = std::move(next);
+    column_names_ = comp_->model().make_column_names();
     if (input_) {
       input_->aligner().select_channels(comp_->required_channels());
       input_->aligner().wait_for(!comp_->required_channels().empty(), comp_->needs_igrf());
@@ -286,6 +290,15 @@ void CompensatorRos::publish(const StreamOutput& o) {
   if (input_->aligner().reference_at(o.t_s, &ref)) {
     msg.reference_nT = ref;
     msg.error_nT = msg.compensated_nT - ref;
+  }
+  if (publish_columns_ && o.columns.size() > 0) {
+    // The model's columns at this sample, before the field: a navigator learning the
+    // coefficients online takes them by stamp.
+    const auto cols = boost::make_shared<magcomp::AuxChannels>();
+    cols->header = msg.header;
+    cols->names = column_names_;
+    cols->values.assign(o.columns.data(), o.columns.data() + o.columns.size());
+    pub_columns_.publish(boost::shared_ptr<const magcomp::AuxChannels>(cols));
   }
   pub_out_.publish(boost::shared_ptr<const magcomp::CompensatedField>(out));
   ++n_out_;

@@ -13,6 +13,7 @@
 #include "magcomp/core/error.h"
 #include "magcomp/core/math/constants.h"
 #include "magcomp/core/nav/nav_model.h"
+#include "magcomp/core/nav/online_calibration.h"
 #include "magcomp/ros/callback_guard.h"
 #include "magcomp/ros/ins_attitude.h"
 #include "magcomp/ros/params.h"
@@ -47,7 +48,14 @@ const std::set<std::string> kKnownParams = {"map_path",
                                             "publish_tf",
                                             "path_stride",
                                             "map_offset_from_first",
-                                            "queue_size"};
+                                            "queue_size",
+                                            "online",
+                                            "model_path",
+                                            "prior_path",
+                                            "online_cold",
+                                            "coefficient_walk",
+                                            "columns_topic",
+                                            "learned_model_path"};
 
 constexpr double kTimerPeriod_s = 0.1;
 constexpr double kDiagnosticsPeriod_s = 1.0;
@@ -138,6 +146,33 @@ NavigatorRos::NavigatorRos(ros::NodeHandle nh, ros::NodeHandle pnh)
   enu_ = std::make_unique<LocalEnu>(lat0, lon0, alt0);
 
   nis_gate_ = gate > 0 ? gate : INFINITY;
+  // Online calibration: the compensation model's coefficients learned in the filter.
+  pnh_.param("online", online_, false);
+  std::string columns_topic;
+  pnh_.param<std::string>("columns_topic", columns_topic, "magcomp/compensated/columns");
+  pnh_.param<std::string>("learned_model_path", learned_model_path_, "");
+  if (online_) {
+    std::string model_path, prior_path;
+    pnh_.param<std::string>("model_path", model_path, "");
+    pnh_.param<std::string>("prior_path", prior_path, "");
+    if (model_path.empty())
+      reject_param("model_path",
+                   "required with ~online (the model whose coefficients are learned)");
+    model_ = std::make_unique<Model>(load_model_yaml(model_path));
+    prior_ = std::make_unique<Model>(prior_path.empty() ? *model_ : load_model_yaml(prior_path));
+    pnh_.param("online_cold", prior_settings_.cold, false);
+    prior_settings_.walk_share_per_sqrt_h = getd(pnh_, "coefficient_walk", 0.0);
+    if (!(prior_settings_.walk_share_per_sqrt_h >= 0) ||
+        !std::isfinite(prior_settings_.walk_share_per_sqrt_h))
+      reject_param("coefficient_walk", "must be >= 0 and finite (a share per sqrt(hour))");
+    column_names_ = model_->make_column_names();
+    nav::FilterSettings probe = nav::filter_model(dt_s_, 0.8, sigmas_);
+    try {
+      nav::set_coefficient_prior(*model_, prior_.get(), prior_settings_, &probe);
+    } catch (const Error& e) {
+      reject_param(prior_settings_.cold ? "model_path" : "prior_path", e.what());
+    }
+  }
   pnh_.param("map_offset_from_first", map_offset_from_first_, true);
 
   std::string anomaly_topic, fix_topic, imu_topic, truth_topic, end_topic;
@@ -157,6 +192,15 @@ NavigatorRos::NavigatorRos(ros::NodeHandle nh, ros::NodeHandle pnh)
     sub_truth_ = nh_.subscribe(truth_topic, static_cast<uint32_t>(queue), &NavigatorRos::on_truth,
                                this, hints);
   if (!end_topic.empty()) sub_end_ = nh_.subscribe(end_topic, 10, &NavigatorRos::on_end, this);
+  if (online_) {
+    sub_columns_ = nh_.subscribe(columns_topic, static_cast<uint32_t>(queue),
+                                 &NavigatorRos::on_columns, this, hints);
+    pub_coefficients_ =
+        nh_.advertise<magcomp::AuxChannels>("magcomp/nav/coefficients", kOutputQueue);
+    pub_coefficient_sigma_ =
+        nh_.advertise<magcomp::AuxChannels>("magcomp/nav/coefficient_sigma", kOutputQueue);
+    srv_save_ = pnh_.advertiseService("save_model", &NavigatorRos::on_save_model, this);
+  }
 
   pub_odom_ = nh_.advertise<nav_msgs::Odometry>("magcomp/nav/odometry", kOutputQueue);
   pub_pose_ =
@@ -193,6 +237,7 @@ bool NavigatorRos::jumped_back(double t, double* last) {
     orientations_.clear();
     truth_.clear();
     early_.clear();
+    online_parts_.clear();
     for (nav_msgs::Path* p : {&path_filter_, &path_ins_, &path_truth_}) p->poses.clear();
     truth_seen_ = 0;
     last_anomaly_t_ = last_fix_t_ = last_imu_t_ = NAN;
@@ -237,11 +282,70 @@ void NavigatorRos::take_anomaly(const magcomp::CompensatedField& msg) {
   if (use_compensator_variance_ && std::isfinite(m->variance_nT2))
     var = m->variance_nT2 + map_sigma_nT_ * map_sigma_nT_;
   if (!std::isfinite(m->anomaly_nT)) ++nan_inputs_;  // stepped without it
-  if (nav_) {
-    publish(nav_->push_measurement(t, m->anomaly_nT, var));
-  } else if (early_.size() < kMaxHeld) {
-    early_[t] = {m->anomaly_nT, var};
+  if (!online_) {
+    feed_measurement(t, {m->anomaly_nT, var, {}});
+    return;
   }
+  // Online: the raw anomaly (the compensator's anomaly with its aircraft field put back), paired
+  // with the model's columns of the same stamp.
+  OnlinePart& part = online_parts_[t];
+  part.z_nT = m->anomaly_nT + m->aircraft_correction_nT;
+  part.var_nT2 = var;
+  part.has_z = true;
+  try_online(t);
+}
+
+void NavigatorRos::on_columns(const magcomp::AuxChannels::ConstPtr& m) {
+  guarded("magcomp navigator", &callback_errors_, [&] {
+    if (refuse_stamp(m->header.stamp)) return;
+    if (m->names != column_names_ || m->values.size() != column_names_.size()) {
+      ++columns_mismatched_;  // another model's columns: they cannot be learned here
+      return;
+    }
+    const double t = m->header.stamp.toSec();
+    OnlinePart& part = online_parts_[t];
+    part.columns = Eigen::Map<const Eigen::VectorXd>(m->values.data(),
+                                                     static_cast<Eigen::Index>(m->values.size()));
+    try_online(t);
+  });
+}
+
+void NavigatorRos::try_online(double t) {
+  auto it = online_parts_.find(t);
+  if (it == online_parts_.end() || !it->second.has_z || it->second.columns.size() == 0) {
+    prune_before(online_parts_, t - 10.0);  // a half older than 10 s never finds its pair
+    return;
+  }
+  feed_measurement(t, {it->second.z_nT, it->second.var_nT2, it->second.columns});
+  online_parts_.erase(it);
+}
+
+void NavigatorRos::feed_measurement(double t, const EarlyMeasurement& m) {
+  if (nav_) {
+    publish(nav_->push_measurement(t, m.z_nT, m.var_nT2, m.columns.size() ? &m.columns : nullptr));
+  } else if (early_.size() < kMaxHeld) {
+    early_[t] = m;
+  }
+}
+
+bool NavigatorRos::on_save_model(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res) {
+  res.success = false;
+  if (learned_model_path_.empty()) {
+    res.message = "~learned_model_path is not set: nowhere to write the learned model";
+  } else if (!nav_ || !last_ || last_->coefficients.size() == 0) {
+    res.message = "nothing learned yet (no filter step)";
+  } else {
+    try {
+      save_model_yaml(
+          nav::learned_model(*model_, last_->coefficients, nav_->coefficient_covariance()),
+          learned_model_path_);
+      res.success = true;
+      res.message = "wrote " + learned_model_path_;
+    } catch (const std::exception& e) {
+      res.message = e.what();
+    }
+  }
+  return true;
 }
 
 void NavigatorRos::take_ins_fix(const sensor_msgs::NavSatFix& msg) {
@@ -328,11 +432,14 @@ void NavigatorRos::try_ins(double t) {
   attitudes_.erase(t);
   if (!nav_) {
     nav::FilterSettings fs = nav::filter_model(dt_s_, s.lat_rad, sigmas_);
+    if (online_) nav::set_coefficient_prior(*model_, prior_.get(), prior_settings_, &fs);
     fs.nis_gate = nis_gate_;
     fs.offset_from_first = map_offset_from_first_;
     nav_ = std::make_unique<nav::StreamingNavigator>(map_, fs, dt_s_);
     publish(nav_->push_ins(s));
-    for (const auto& [te, z] : early_) publish(nav_->push_measurement(te, z.x(), z.y()));
+    for (const auto& [te, z] : early_)
+      publish(
+          nav_->push_measurement(te, z.z_nT, z.var_nT2, z.columns.size() ? &z.columns : nullptr));
     early_.clear();
     return;
   }
@@ -473,6 +580,18 @@ void NavigatorRos::publish(const std::vector<nav::NavigatorOutput>& steps) {
     }
     prune_before(truth_, o.t_s);
     pub_status_.publish(st);
+    if (online_ && o.coefficients.size() > 0) {  // what the filter has learned, plain numbers
+      for (auto [pub, v] : {std::pair{&pub_coefficients_, &o.coefficients},
+                            std::pair{&pub_coefficient_sigma_, &o.coefficient_sigma}}) {
+        if (pub->getNumSubscribers() == 0) continue;
+        magcomp::AuxChannels c;
+        c.header.stamp = stamp;
+        c.header.frame_id = map_frame_;
+        c.names = column_names_;
+        c.values.assign(v->data(), v->data() + v->size());
+        pub->publish(c);
+      }
+    }
     if (std::isfinite(st.nis) && o.step.updated) {
       nis_sum_ += st.nis;
       ++nis_n_;
@@ -555,6 +674,10 @@ void NavigatorRos::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) {
   stat.add("ins_jumps", c.ins_jumps);
   stat.add("stamps_out_of_range", bad_stamps_);
   stat.add("callback_errors", callback_errors_);
+  if (online_) {
+    stat.add("online_columns_mismatched", columns_mismatched_);
+    stat.add("online_halves_waiting", static_cast<long>(online_parts_.size()));
+  }
   stat.add("pending", nav_ ? static_cast<long>(nav_->pending()) : 0L);
   if (nis_n_ > 0) stat.add("nis_mean", nis_sum_ / static_cast<double>(nis_n_));
   stat.add("on_map", last_ ? last_->step.on_map : false);

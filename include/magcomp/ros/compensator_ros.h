@@ -61,7 +61,9 @@ class CompensatorRos {
   // Counters for diagnostics (the aligner counts the input faults).
   long n_out_ = 0, n_reloads_ = 0, n_premature_flushes_ = 0;
   // Outputs.
-  ros::Publisher pub_out_, pub_marker_;
+  ros::Publisher pub_out_, pub_marker_, pub_columns_;
+  bool publish_columns_ = false;           // <output_topic>/columns: the model's columns per sample
+  std::vector<std::string> column_names_;  // of the model in use
   ros::ServiceServer srv_reload_;
   ros::WallTimer timer_, diag_timer_;
   diagnostic_updater::Updater updater_;

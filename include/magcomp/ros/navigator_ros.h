@@ -6,12 +6,14 @@
 #pragma once
 
 #include <diagnostic_updater/diagnostic_updater.h>
+#include <magcomp/AuxChannels.h>
 #include <magcomp/CompensatedField.h>
 #include <nav_msgs/Path.h>
 #include <ros/ros.h>
 #include <sensor_msgs/Imu.h>
 #include <sensor_msgs/NavSatFix.h>
 #include <std_msgs/Time.h>
+#include <std_srvs/Trigger.h>
 #include <tf2_ros/transform_broadcaster.h>
 
 #include <Eigen/Geometry>
@@ -21,8 +23,10 @@
 #include <string>
 
 #include "magcomp/core/geo/local_enu.h"
+#include "magcomp/core/model/model.h"
 #include "magcomp/core/nav/anomaly_map.h"
 #include "magcomp/core/nav/nav_model.h"
+#include "magcomp/core/nav/online_calibration.h"
 #include "magcomp/core/nav/streaming_navigator.h"
 
 namespace magcomp::rosio {
@@ -39,11 +43,23 @@ class NavigatorRos {
   void on_imu(const sensor_msgs::Imu::ConstPtr& m);
   void on_truth(const sensor_msgs::NavSatFix::ConstPtr& m);
   void on_end(const std_msgs::Time::ConstPtr& m);
+  /// Online calibration: the compensator's model columns, by stamp.
+  void on_columns(const magcomp::AuxChannels::ConstPtr& m);
+  /// ~save_model: the learned model to learned_model_path (atomic).
+  bool on_save_model(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
   // The callbacks' bodies (run guarded).
   void take_anomaly(const magcomp::CompensatedField& m);
   void take_ins_fix(const sensor_msgs::NavSatFix& m);
   void take_imu(const sensor_msgs::Imu& m);
   void take_truth(const sensor_msgs::NavSatFix& m);
+  // A measurement for the filter (columns: online calibration's, else empty).
+  struct EarlyMeasurement {
+    double z_nT = NAN, var_nT2 = NAN;
+    Eigen::VectorXd columns;
+  };
+  void feed_measurement(double t_s, const EarlyMeasurement& m);
+  /// Online: the anomaly and the columns of stamp t_s, once both are in.
+  void try_online(double t_s);
   /// A stamp ROS time cannot carry back out (seconds at 2^32 - 1): counted, true.
   bool refuse_stamp(const ros::Time& stamp);
   void on_timer();
@@ -76,8 +92,23 @@ class NavigatorRos {
   std::map<double, Eigen::Vector3d> attitudes_;        // roll, pitch, yaw (rad, NED/FRD)
   std::map<double, Eigen::Quaterniond> orientations_;  // the Imu's (ENU/FLU)
   std::map<double, Eigen::Vector2d> truth_;
-  std::map<double, Eigen::Vector2d>
-      early_;  // measurements before the first INS sample      // reference fixes (lat, lon deg)
+  std::map<double, EarlyMeasurement> early_;  // measurements before the first INS sample
+  // Online calibration: the model, its prior, the halves (anomaly, columns) waiting by stamp.
+  bool online_ = false;
+  std::unique_ptr<Model> model_, prior_;
+  nav::CoefficientPriorSettings prior_settings_;
+  std::vector<std::string> column_names_;
+  struct OnlinePart {
+    double z_nT = NAN, var_nT2 = NAN;
+    bool has_z = false;
+    Eigen::VectorXd columns;
+  };
+  std::map<double, OnlinePart> online_parts_;
+  long columns_mismatched_ = 0;
+  std::string learned_model_path_;
+  ros::Subscriber sub_columns_;
+  ros::Publisher pub_coefficients_, pub_coefficient_sigma_;
+  ros::ServiceServer srv_save_;
   double last_anomaly_t_ = NAN, last_fix_t_ = NAN, last_imu_t_ = NAN;
   double last_input_wall_s_ = 0.0;
   // Counters and the latest state, for diagnostics.

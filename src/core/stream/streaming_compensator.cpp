@@ -227,6 +227,7 @@ StreamOutput StreamingCompensator::emit(Eigen::Index index) {
   o.measured_nT = aligned[row];
   const Eigen::RowVectorXd a = design_matrix(model_, terms_, w).row(row);
   o.tl_correction_nT = a.dot(model_.coefficients);
+  o.columns = a.transpose();
   o.correction_nT = o.tl_correction_nT;
   o.igrf_nT = buffer_[static_cast<size_t>(index)].igrf_nT;
   if (streamer_) {

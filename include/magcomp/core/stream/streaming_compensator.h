@@ -43,6 +43,9 @@ struct StreamOutput {
   /// Variance of compensated_nT, nT²: sample_variance_nT2 of the terms' row (model.h); with a
   /// neural stage its validation error². NaN when the model carries no uncertainty.
   double variance_nT2 = NAN;
+  /// The model's columns at the sample (A's row, in Model::make_column_names() order): what an
+  /// online calibration downstream needs to learn the coefficients.
+  Eigen::VectorXd columns;
 };
 
 /// Applies a fitted model to a stream of samples. Each output needs a few samples after it
