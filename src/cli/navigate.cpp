@@ -157,6 +157,25 @@ void print_learned(const nlohmann::json& j) {
                 c["sigma"].get<double>(), 100 * c["variance_removed"].get<double>());
 }
 
+// The filter's DRMS and its bound's over the steps from data time t_s on, m (NaN: none).
+std::pair<double, double> drms_after(const nav::FlightRun& run, const nav::FlightRun& bound,
+                                     const nav::FlightSamples& samples, double t_s) {
+  double ss = 0, sb = 0;
+  long n = 0, nb = 0;
+  for (size_t k = 0; k < run.steps.size(); ++k) {
+    const nav::NavigatorOutput& o = run.steps[k];
+    const nav::InsSample& t = samples.truth[static_cast<size_t>(run.rows[k])];
+    if (!(o.t_s >= t_s) || !nav::invalid_ins_reason(t).empty()) continue;
+    ss += std::pow(nav::dlat_to_north_m(o.lat_rad - t.lat_rad, t.lat_rad), 2) +
+          std::pow(nav::dlon_to_east_m(o.lon_rad - t.lon_rad, t.lat_rad), 2);
+    ++n;
+  }
+  for (const nav::NavigatorOutput& o : bound.steps)
+    if (o.t_s >= t_s) sb += o.position_cov_ned_m2(0, 0) + o.position_cov_ned_m2(1, 1), ++nb;
+  return {n ? std::sqrt(ss / static_cast<double>(n)) : NAN,
+          nb ? std::sqrt(sb / static_cast<double>(nb)) : NAN};
+}
+
 H5Array array_of(const Eigen::VectorXd& v) {
   H5Array a;
   a.dims = {static_cast<size_t>(v.size())};
@@ -254,6 +273,8 @@ void add_navigate(CLI::App& app) {
   auto out_model = std::make_shared<std::string>();
   auto lines = std::make_shared<std::string>();
   auto coef_walk = std::make_shared<double>(0.0);
+  auto particles = std::make_shared<int>(20000);
+  auto handover = std::make_shared<double>(30.0);
   cmd->add_option("--data", *data,
                   "flight HDF5: truth lat, lon (deg), alt/msl (m), roll/pitch/yaw; INS ins_lat, "
                   "ins_lon (rad or deg), ins_alt, ins_roll/pitch/yaw (deg)")
@@ -302,6 +323,13 @@ void add_navigate(CLI::App& app) {
   cmd->add_option("--out-model", *out_model,
                   "with --online: write the learned model (the coefficients at the end and their "
                   "covariance) here, for evaluate and the compensator");
+  cmd->add_option("--particles", *particles,
+                  "a start far from the truth (--init-pos-sigma above 100 m): a particle filter "
+                  "of this many particles runs first and hands over to the EKF once its cloud "
+                  "has gathered (default 20000; 0: the EKF alone)");
+  cmd->add_option("--handover-sigma", *handover,
+                  "the cloud's horizontal 1-sigma, m, below which the particle filter hands over "
+                  "(default 30)");
   cmd->add_option("--lines", *lines,
                   "navigate on these lines only, comma-separated (e.g. the survey lines, not the "
                   "calibration box); the gaps between them are propagated across");
@@ -321,6 +349,9 @@ void add_navigate(CLI::App& app) {
       throw Error("navigate: --online needs --model (the terms to learn)");
     if (*cold && !prior_path->empty()) throw Error("navigate: give --prior or --cold, not both");
     nav::require_setting(*coef_walk, 0, 10, "--coefficient-walk", "(share per sqrt(h))", true);
+    if (*particles != 0 && (*particles < 10 || *particles > 1000000))
+      throw Error("--particles: must be 0 (none) or in 10..1000000");
+    nav::require_setting(*handover, 0, nav::kMaxPositionSigma_m, "--handover-sigma", "m");
     OutputGuard guard({{"--data", *data},
                        {"--map", *map_path},
                        {"--model", *model_path},
@@ -354,6 +385,15 @@ void add_navigate(CLI::App& app) {
                   "is not finite, or lies at a pole or outside [-12, 100] km)");
     nav::FilterSettings settings = nav::filter_model(samples.dt_s, lat1, sig);
     settings.offset_from_first = *map_offset == "first";
+    // A start far from the truth: the particle filter first.
+    std::optional<nav::ParticleSettings> cold_start;
+    if (*init_pos_sigma > 100.0 && *particles > 0) {
+      nav::ParticleSettings ps;
+      ps.particles = *particles;
+      ps.init_sigma_m = *init_pos_sigma;
+      ps.handover_sigma_m = *handover;
+      cold_start = ps;
+    }
     const nav::FlightRun bound = nav::crlb_run(samples.truth, map, settings, samples.dt_s);
 
     // R per sample from a model: its variance plus the map's.
@@ -373,7 +413,8 @@ void add_navigate(CLI::App& app) {
       n.name = name;
       n.run = nav::run_flight(samples.ins, z, r ? &*r : nullptr, map,
                               online_settings ? *online_settings : settings, samples.dt_s,
-                              online_in ? &online_in->columns : nullptr);
+                              online_in ? &online_in->columns : nullptr,
+                              cold_start ? &*cold_start : nullptr);
       // Online, the measurement against the map is the raw one compensated as the filter had
       // learned it at each step.
       Eigen::VectorXd compared = z;
@@ -448,6 +489,22 @@ void add_navigate(CLI::App& app) {
     guard.check_inputs_unchanged();
 
     const Navigated& first = rows.front();
+    if (cold_start) {
+      const double t0 = samples.ins.empty() ? 0.0 : samples.ins.front().t_s;
+      if (std::isfinite(first.run.handover_t_s)) {
+        const auto [after_m, bound_m] =
+            drms_after(first.run, bound, samples, first.run.handover_t_s);
+        std::printf(
+            "cold start: %d particles from %.0f m; handed over to the EKF after %.1f s; "
+            "from then on DRMS %.1f m (CRLB %.1f m)\n",
+            cold_start->particles, cold_start->init_sigma_m, first.run.handover_t_s - t0, after_m,
+            bound_m);
+      } else
+        std::printf(
+            "warning: cold start: %d particles from %.0f m never gathered below %.0f m: the "
+            "particle filter navigated the whole flight\n",
+            cold_start->particles, cold_start->init_sigma_m, cold_start->handover_sigma_m);
+    }
     std::printf("%s: %ld samples at %.3g s, map %ldx%ld cells at %.0f m\n", data->c_str(),
                 static_cast<long>(f.size()), samples.dt_s, static_cast<long>(map.map_nT.rows()),
                 static_cast<long>(map.map_nT.cols()), map.alt_m);
@@ -487,6 +544,15 @@ void add_navigate(CLI::App& app) {
     j["data"] = *data;
     j["map"] = *map_path;
     j["measurement"] = first.name;
+    if (cold_start) {
+      const double t0 = samples.ins.empty() ? 0.0 : samples.ins.front().t_s;
+      const auto [after_m, bound_m] = drms_after(first.run, bound, samples, first.run.handover_t_s);
+      j["cold_start"] = {{"particles", cold_start->particles},
+                         {"init_sigma_m", cold_start->init_sigma_m},
+                         {"handover_after_s", json_figure(first.run.handover_t_s - t0)},
+                         {"drms_after_handover_m", json_figure(after_m)},
+                         {"crlb_after_handover_m", json_figure(bound_m)}};
+    }
     for (size_t k = 1; k < rows.size(); ++k) {
       nlohmann::json& r = j[rows[k].key];
       r = to_json(rows[k].scores);

@@ -55,7 +55,9 @@ const std::set<std::string> kKnownParams = {"map_path",
                                             "online_cold",
                                             "coefficient_walk",
                                             "columns_topic",
-                                            "learned_model_path"};
+                                            "learned_model_path",
+                                            "particles",
+                                            "handover_sigma_m"};
 
 constexpr double kTimerPeriod_s = 0.1;
 constexpr double kDiagnosticsPeriod_s = 1.0;
@@ -146,6 +148,19 @@ NavigatorRos::NavigatorRos(ros::NodeHandle nh, ros::NodeHandle pnh)
   enu_ = std::make_unique<LocalEnu>(lat0, lon0, alt0);
 
   nis_gate_ = gate > 0 ? gate : INFINITY;
+  // A start far from the truth: a particle filter first (particle_filter.h).
+  int particles = 20000;
+  pnh_.param("particles", particles, 20000);
+  if (particles != 0 && (particles < 10 || particles > 1000000))
+    reject_param("particles", "must be 0 (none) or in 10..1000000");
+  const double handover = setting("handover_sigma_m", 30.0, nav::kMaxPositionSigma_m, "m");
+  if (sig.init_pos_m > 100.0 && particles > 0) {
+    nav::ParticleSettings ps;
+    ps.particles = particles;
+    ps.init_sigma_m = sig.init_pos_m;
+    ps.handover_sigma_m = handover;
+    cold_start_ = ps;
+  }
   // Online calibration: the compensation model's coefficients learned in the filter.
   pnh_.param("online", online_, false);
   std::string columns_topic;
@@ -435,7 +450,8 @@ void NavigatorRos::try_ins(double t) {
     if (online_) nav::set_coefficient_prior(*model_, prior_.get(), prior_settings_, &fs);
     fs.nis_gate = nis_gate_;
     fs.offset_from_first = map_offset_from_first_;
-    nav_ = std::make_unique<nav::StreamingNavigator>(map_, fs, dt_s_);
+    nav_ = std::make_unique<nav::StreamingNavigator>(map_, fs, dt_s_,
+                                                     cold_start_ ? &*cold_start_ : nullptr);
     publish(nav_->push_ins(s));
     for (const auto& [te, z] : early_)
       publish(
@@ -674,6 +690,10 @@ void NavigatorRos::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) {
   stat.add("ins_jumps", c.ins_jumps);
   stat.add("stamps_out_of_range", bad_stamps_);
   stat.add("callback_errors", callback_errors_);
+  if (cold_start_) {
+    stat.add("cold_start_particle_steps", c.particle_steps);
+    stat.add("cold_start_handed_over", nav_ && !nav_->in_cold_start());
+  }
   if (online_) {
     stat.add("online_columns_mismatched", columns_mismatched_);
     stat.add("online_halves_waiting", static_cast<long>(online_parts_.size()));

@@ -95,6 +95,7 @@ class NavigatorRos {
   std::map<double, EarlyMeasurement> early_;  // measurements before the first INS sample
   // Online calibration: the model, its prior, the halves (anomaly, columns) waiting by stamp.
   bool online_ = false;
+  std::optional<nav::ParticleSettings> cold_start_;  // init_pos_sigma_m > 100 m
   std::unique_ptr<Model> model_, prior_;
   nav::CoefficientPriorSettings prior_settings_;
   std::vector<std::string> column_names_;

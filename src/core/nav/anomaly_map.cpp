@@ -179,6 +179,26 @@ bool AnomalyMap::covers(double lat, double lon) const {
   return true;
 }
 
+bool AnomalyMap::covered_value(double lat, double lon, double* v) const {
+  if (interpolation == Interpolation::Cubic || mask.size() == 0) {
+    if (!covers(lat, lon)) return false;
+    *v = value(lat, lon);
+    return true;
+  }
+  if (!(lat >= lat_rad[0] && lat <= lat_rad[lat_rad.size() - 1] && lon >= lon_rad[0] &&
+        lon <= lon_rad[lon_rad.size() - 1]))
+    return false;
+  Eigen::Index i, j;
+  double t, s;
+  locate(lat_rad, lat, &i, &t);
+  locate(lon_rad, lon, &j, &s);
+  if (mask(i, j) == 0 || mask(i + 1, j) == 0 || mask(i, j + 1) == 0 || mask(i + 1, j + 1) == 0)
+    return false;
+  *v = (1 - t) * ((1 - s) * map_nT(i, j) + s * map_nT(i, j + 1)) +
+       t * ((1 - s) * map_nT(i + 1, j) + s * map_nT(i + 1, j + 1));
+  return true;
+}
+
 Eigen::Vector2d AnomalyMap::step_m() const {
   // Radii of curvature of the ellipsoid at the mean latitude (meridian and prime vertical).
   const double lat = 0.5 * (lat_rad[0] + lat_rad[lat_rad.size() - 1]);

@@ -95,6 +95,17 @@ void MapMatchingEkf::reset() {
   offset_nT_ = NAN;
 }
 
+void MapMatchingEkf::start_at(double dlat, double dlon, const Eigen::Matrix2d& p_rad2,
+                              double offset_nT) {
+  reset();
+  x_[0] = dlat;
+  x_[1] = dlon;
+  p_.block(0, 0, 2, 2) = p_rad2;
+  x_post_ = x_;
+  p_post_ = p_;
+  offset_nT_ = offset_nT;
+}
+
 MapMatchingEkf::Step MapMatchingEkf::step(const NavPoint& point, double lat_ins, double lon_ins,
                                           double anomaly_nT, double r_nT2, double dt_s,
                                           const Eigen::VectorXd* columns) {

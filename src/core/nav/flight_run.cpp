@@ -34,8 +34,9 @@ void take(std::vector<NavigatorOutput>&& steps, FlightRun* run) {
 
 FlightRun run_flight(const std::vector<InsSample>& ins, const Eigen::VectorXd& anomaly_nT,
                      const Eigen::VectorXd* var_nT2, const AnomalyMap& map,
-                     const FilterSettings& settings, double dt_s, const Eigen::MatrixXd* columns) {
-  StreamingNavigator nav(map, settings, dt_s);
+                     const FilterSettings& settings, double dt_s, const Eigen::MatrixXd* columns,
+                     const ParticleSettings* cold_start) {
+  StreamingNavigator nav(map, settings, dt_s, cold_start);
   FlightRun run;
   run.steps.reserve(ins.size());
   Eigen::VectorXd row;
@@ -51,6 +52,7 @@ FlightRun run_flight(const std::vector<InsSample>& ins, const Eigen::VectorXd& a
   take(nav.flush(), &run);
   run.counts = nav.counts();
   if (settings.c0.size() > 0) run.coefficient_covariance = nav.coefficient_covariance();
+  run.handover_t_s = nav.handover_t_s();
   attach_rows(ins, &run);
   return run;
 }

@@ -52,11 +52,21 @@ std::string invalid_ins_reason(const InsSample& s) {
 }
 
 StreamingNavigator::StreamingNavigator(const AnomalyMap& map, const FilterSettings& settings,
-                                       double dt_s)
-    : map_(map), settings_(settings), dt_s_(dt_s), ekf_(map, settings), track_(dt_s) {}
+                                       double dt_s, const ParticleSettings* cold_start)
+    : map_(map), settings_(settings), dt_s_(dt_s), ekf_(map, settings), track_(dt_s) {
+  if (cold_start) {
+    pf_ = std::make_unique<ParticleFilter>(map, *cold_start);
+    pf_active_ = true;
+  }
+}
 
 void StreamingNavigator::reset() {
   ekf_.reset();
+  if (pf_) {
+    pf_->reset();
+    pf_active_ = true;
+    handover_t_s_ = first_step_t_s_ = NAN;
+  }
   track_.flush();
   waiting_.clear();
   measurements_.clear();
@@ -162,11 +172,12 @@ NavigatorOutput StreamingNavigator::run_step(const TrackPoint& p, const Measurem
   }
   const bool refused = !std::isnan(z) && !(std::abs(z) <= kMaxField_nT);  // counted when pushed
   if (refused) z = NAN;
-  NavigatorOutput o = step_output(p, m);
+  if (std::isnan(first_step_t_s_)) first_step_t_s_ = p.t_s;
+  NavigatorOutput o = pf_active_ ? particle_output(p, m) : step_output(p, m);
   if (!usable_output(o)) {  // never handed on: the filter restarts from its prior
     ekf_.reset();
     ++counts_.filter_restarts;
-    o = step_output(p, Measurement{});
+    o = pf_active_ ? particle_output(p, Measurement{}) : step_output(p, Measurement{});
   }
   ++counts_.steps;
   counts_.updates += o.step.updated;
@@ -175,6 +186,53 @@ NavigatorOutput StreamingNavigator::run_step(const TrackPoint& p, const Measurem
   counts_.nan_measurements += std::isnan(z) && !missing && !refused;
   last_step_t_ = p.t_s;
   last_point_ = p;
+  return o;
+}
+
+NavigatorOutput StreamingNavigator::particle_output(const TrackPoint& p, const Measurement& m) {
+  // With online calibration the particles see the measurement compensated by the prior.
+  double z = m.z_nT;
+  if (settings_.c0.size() > 0)
+    z = m.columns.size() == settings_.c0.size() ? z - m.columns.dot(settings_.c0) : NAN;
+  const double r = std::isfinite(m.var_nT2) && m.var_nT2 > 0 ? m.var_nT2 : settings_.r_nT2;
+  pf_->step(p.lat_rad, p.lon_rad, z, r, std::isfinite(last_step_t_) ? p.t_s - last_step_t_ : 0.0);
+  const ParticleEstimate e = pf_->estimate();
+  const double npr = dlat_to_north_m(1.0, p.lat_rad), epr = dlon_to_east_m(1.0, p.lat_rad);
+  NavigatorOutput o;
+  o.t_s = p.t_s;
+  o.ins_lat_rad = p.lat_rad;
+  o.ins_lon_rad = p.lon_rad;
+  o.ins_alt_m = p.alt_m;
+  o.lat_rad = p.lat_rad + e.offset_m.x() / npr;
+  o.lon_rad = p.lon_rad + e.offset_m.y() / epr;
+  o.alt_m = p.alt_m;
+  o.velocity_ned_mps = Eigen::Vector3d(p.point.vn_mps, p.point.ve_mps, p.point.vd_mps);
+  o.position_cov_ned_m2 = Eigen::Matrix3d::Zero();
+  o.position_cov_ned_m2.topLeftCorner<2, 2>() = e.covariance_m2;
+  o.position_cov_ned_m2(2, 2) = ekf_.p_post()(2, 2);
+  o.measurement_nT = m.z_nT;
+  o.measurement_var_nT2 = r;
+  o.map_nT = map_.value(o.lat_rad, o.lon_rad);
+  o.catch_all_nT = 0.0;
+  o.step.on_map = map_.covers(o.lat_rad, o.lon_rad);
+  o.step.updated = std::isfinite(z);
+  if (o.step.updated) {
+    o.step.innovation_nT = z - o.map_nT - e.measurement_offset_nT;
+    o.step.innovation_var_nT2 = e.measurement_offset_var_nT2 + r;
+  }
+  if (settings_.c0.size() > 0) {
+    o.coefficients = settings_.c0;
+    o.coefficient_sigma = settings_.pc0.diagonal().cwiseSqrt();
+  }
+  ++counts_.particle_steps;
+  if (e.gathered) {  // hand over: the EKF starts where the cloud is
+    Eigen::Matrix2d p_rad2;
+    p_rad2 << e.covariance_m2(0, 0) / (npr * npr), e.covariance_m2(0, 1) / (npr * epr),
+        e.covariance_m2(1, 0) / (npr * epr), e.covariance_m2(1, 1) / (epr * epr);
+    ekf_.start_at(e.offset_m.x() / npr, e.offset_m.y() / epr, p_rad2, e.measurement_offset_nT);
+    pf_active_ = false;
+    handover_t_s_ = p.t_s;
+  }
   return o;
 }
 

@@ -28,6 +28,9 @@ struct AnomalyMap {
   Eigen::Vector2d gradient(double lat_rad, double lon_rad) const;
   /// Whether (lat, lon) lies inside the grid and every cell its interpolation reads is valid.
   bool covers(double lat_rad, double lon_rad) const;
+  /// covers() and value() in one: the value in *value_nT when covered (a particle filter's inner
+  /// loop).
+  bool covered_value(double lat_rad, double lon_rad, double* value_nT) const;
   /// Grid steps in metres at the map's mean latitude: east (x) and north (y).
   Eigen::Vector2d step_m() const;
 };

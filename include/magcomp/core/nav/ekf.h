@@ -87,6 +87,10 @@ class MapMatchingEkf {
   double offset_nT() const { return std::isfinite(offset_nT_) ? offset_nT_ : 0.0; }
   /// Back to the initial state and covariance.
   void reset();
+  /// Back to the initial state, then the position error at (dlat, dlon) rad with covariance
+  /// p_rad2 (2 x 2, rad^2) and the measurements' constant offset `offset_nT`: a start handed over
+  /// by the particle filter.
+  void start_at(double dlat_rad, double dlon_rad, const Eigen::Matrix2d& p_rad2, double offset_nT);
 
  private:
   void propagate_by(const NavPoint& p, double dt_s, double q_scale);

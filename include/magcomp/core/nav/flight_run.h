@@ -21,15 +21,18 @@ struct FlightRun {
   std::vector<Eigen::Index> rows;
   NavigatorCounts counts;
   Eigen::MatrixXd coefficient_covariance;  ///< online calibration: at the end (k x k)
+  double handover_t_s = NAN;  ///< a cold start: when the particle filter handed over (NaN: never)
 };
 
 /// Feeds each row's INS sample and then its measurement (anomaly_nT, NaN: none; var_nT2, when
 /// given, its variance in nT^2; columns, with online calibration, the model's columns: one row
-/// per flight row) to a StreamingNavigator, and flushes it at the end.
+/// per flight row) to a StreamingNavigator (a particle filter first with `cold_start`), and
+/// flushes it at the end.
 FlightRun run_flight(const std::vector<InsSample>& ins, const Eigen::VectorXd& anomaly_nT,
                      const Eigen::VectorXd* var_nT2, const AnomalyMap& map,
                      const FilterSettings& settings, double dt_s,
-                     const Eigen::MatrixXd* columns = nullptr);
+                     const Eigen::MatrixXd* columns = nullptr,
+                     const ParticleSettings* cold_start = nullptr);
 
 /// The Cramér-Rao bound along the true track: the filter run on the truth as its INS, measuring
 /// the map's own value wherever the map covers the position (never a map extrapolated off its

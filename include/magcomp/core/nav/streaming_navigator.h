@@ -7,10 +7,12 @@
 #include <Eigen/Core>
 #include <deque>
 #include <map>
+#include <memory>
 #include <string>
 #include <vector>
 
 #include "magcomp/core/nav/ekf.h"
+#include "magcomp/core/nav/particle_filter.h"
 #include "magcomp/core/nav/streaming_track.h"
 
 namespace magcomp::nav {
@@ -43,7 +45,9 @@ struct NavigatorCounts {
   long invalid_measurements = 0;  ///< measurements refused: a stamp not finite, |value| > 1e6 nT
   long filter_restarts = 0;  ///< the state went non-finite or beyond 1000 km of the INS, or a gap
                              ///< exceeded an hour: restarted from the prior
-  long ins_jumps = 0;  ///< INS samples faster than 2 km/s from the last: the track started again
+  long ins_jumps = 0;
+  long particle_steps = 0;  ///< steps made by the particle filter (a cold start)  ///< INS samples
+                            ///< faster than 2 km/s from the last: the track started again
 };
 
 /// Why an INS sample cannot be a filter step ("" when it can): a stamp, position or attitude
@@ -54,8 +58,15 @@ std::string invalid_ins_reason(const InsSample& s);
 
 class StreamingNavigator {
  public:
-  /// INS samples every dt_s (s); the filter's settings; `map` must outlive the navigator.
-  StreamingNavigator(const AnomalyMap& map, const FilterSettings& settings, double dt_s);
+  /// INS samples every dt_s (s); the filter's settings; `map` must outlive the navigator. With
+  /// `cold_start`, the first steps run a particle filter (particle_filter.h) until its cloud has
+  /// gathered, then the EKF starts where it ended (and again after each restart).
+  StreamingNavigator(const AnomalyMap& map, const FilterSettings& settings, double dt_s,
+                     const ParticleSettings* cold_start = nullptr);
+  /// Data time (s) the particle filter handed over to the EKF (NaN: not yet, or none).
+  double handover_t_s() const { return handover_t_s_; }
+  /// Whether the particle filter is running.
+  bool in_cold_start() const { return pf_active_; }
   /// The next INS sample (data time increasing; one refused by invalid_ins_reason is counted and
   /// dropped, so its stamp becomes a gap). Returns the steps it made possible.
   std::vector<NavigatorOutput> push_ins(const InsSample& s);
@@ -89,6 +100,8 @@ class StreamingNavigator {
   NavigatorOutput run_step(const TrackPoint& p, const Measurement& m, bool missing);
   // The filter's step at p with measurement m (z NaN: none) and what it gives.
   NavigatorOutput step_output(const TrackPoint& p, const Measurement& m);
+  // The same from the particle filter, handing over to the EKF when its cloud has gathered.
+  NavigatorOutput particle_output(const TrackPoint& p, const Measurement& m);
 
   const AnomalyMap& map_;
   FilterSettings settings_;
@@ -100,6 +113,9 @@ class StreamingNavigator {
   double last_ins_t_ = NAN, last_meas_t_ = NAN, last_step_t_ = NAN;
   TrackPoint last_point_;
   InsSample last_ins_;
+  std::unique_ptr<ParticleFilter> pf_;
+  bool pf_active_ = false;
+  double handover_t_s_ = NAN, first_step_t_s_ = NAN;
   NavigatorCounts counts_;
 };
 
