@@ -91,26 +91,6 @@ void FeaturePlan::row(double scalar_nT, double tl_correction_nT, double igrf_nT,
   }
 }
 
-Eigen::VectorXd igrf_total_nT(const FlightData& data, const Igrf& igrf) {
-  const Eigen::Index n = data.size();
-  const auto lat = data.column("lat");
-  const auto lon = data.column("lon");
-  const auto h = data.column("utm_z");
-  const auto year = data.column("year");
-  const auto doy = data.column("doy");
-  const auto tt = data.tt();
-  Eigen::VectorXd out(n);
-  for (Eigen::Index i = 0; i < n; ++i) {
-    if (!std::isfinite(lat[i]) || !std::isfinite(lon[i]) || !std::isfinite(h[i]) ||
-        !std::isfinite(year[i]) || !std::isfinite(doy[i])) {
-      out[i] = NAN;
-      continue;
-    }
-    const double y = decimal_year(static_cast<int>(year[i]), doy[i], tt[i]);
-    out[i] = igrf.geodetic(lat[i], lon[i], h[i], y).total_nT();
-  }
-  return out;
-}
 
 NeuralInputs neural_inputs(const Model& model, const FlightData& data) {
   FeaturePlan plan(model);

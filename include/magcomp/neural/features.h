@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "magcomp/core/geo/igrf.h"
+#include "magcomp/core/geo/igrf_track.h"
 #include "magcomp/core/io/flight_data.h"
 #include "magcomp/core/model/model.h"
 
@@ -51,11 +52,6 @@ class FeaturePlan {
   int diurnal_field_ = -1;
   bool needs_igrf_ = false;
 };
-
-/// The main field `igrf`'s total (nT) at each sample from lat, lon (deg), utm_z (height, m),
-/// year, doy, tt.
-/// Throws magcomp::Error naming the file and the missing field.
-Eigen::VectorXd igrf_total_nT(const FlightData& data, const Igrf& igrf);
 
 /// Everything the neural stage needs from one flight, as whole columns.
 struct NeuralInputs {

@@ -25,11 +25,6 @@ double FieldNED::total_nT() const {
   return std::sqrt(north_nT * north_nT + east_nT * east_nT + down_nT * down_nT);
 }
 
-double decimal_year(int year, double day_of_year, double seconds_of_day) {
-  const bool leap = (year % 4 == 0 && year % 100 != 0) || year % 400 == 0;
-  const double days = leap ? 366.0 : 365.0;
-  return year + (day_of_year - 1.0 + seconds_of_day / 86400.0) / days;
-}
 
 Igrf Igrf::load(const std::string& path) {
   std::ifstream f(path);

@@ -3,7 +3,6 @@
 
 #include <cmath>
 
-#include "magcomp/core/geo/igrf.h"
 
 namespace magcomp {
 namespace {
@@ -57,6 +56,12 @@ double decimal_year_of(int64_t sec, int64_t nsec) {
   int year = 0, doy = 0;
   year_doy_of(sec, &year, &doy);
   return decimal_year(year, doy, tt_of(sec, nsec));
+}
+
+double decimal_year(int year, double day_of_year, double seconds_of_day) {
+  const bool leap = (year % 4 == 0 && year % 100 != 0) || year % 400 == 0;
+  const double days = leap ? 366.0 : 365.0;
+  return year + (day_of_year - 1.0 + seconds_of_day / 86400.0) / days;
 }
 
 }  // namespace magcomp

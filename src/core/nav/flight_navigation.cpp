@@ -10,7 +10,7 @@
 #include "magcomp/core/model/field_range.h"
 #include "magcomp/core/nav/nav_model.h"
 #include "magcomp/core/nav/streaming_navigator.h"
-#include "magcomp/neural/features.h"
+#include "magcomp/core/geo/igrf_track.h"
 
 namespace magcomp::nav {
 namespace {

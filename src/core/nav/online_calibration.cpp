@@ -7,7 +7,7 @@
 
 #include "magcomp/core/error.h"
 #include "magcomp/core/geo/igrf.h"
-#include "magcomp/neural/features.h"
+#include "magcomp/core/geo/igrf_track.h"
 
 namespace magcomp::nav {
 

@@ -5,6 +5,8 @@
 #include <string>
 #include <vector>
 
+#include "magcomp/core/io/time_base.h"  // decimal_year: the date IGRF takes
+
 namespace magcomp {
 
 /// Main-field vector in nT, in a local north-east-down frame.
@@ -42,8 +44,5 @@ class Igrf {
   // coefficients_[e] holds g(n,m) and h(n,m) at epoch e, indexed by gh_index.
   std::vector<std::vector<double>> g_, h_;
 };
-
-/// Decimal year from a calendar year, day of year (1-based) and seconds past midnight UTC.
-double decimal_year(int year, double day_of_year, double seconds_of_day);
 
 }  // namespace magcomp

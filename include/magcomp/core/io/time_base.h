@@ -21,6 +21,9 @@ double tt_of(int64_t sec, int64_t nsec);
 /// Calendar year and day of year (1..366) of an epoch time.
 void year_doy_of(int64_t sec, int* year, int* doy);
 
+/// Decimal year from a calendar year, day of year (1-based) and seconds past midnight UTC.
+double decimal_year(int year, double day_of_year, double seconds_of_day);
+
 /// Decimal year of an epoch time (what IGRF takes).
 double decimal_year_of(int64_t sec, int64_t nsec);
 
