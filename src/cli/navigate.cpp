@@ -266,7 +266,7 @@ void add_navigate(CLI::App& app) {
   auto map_offset = std::make_shared<std::string>("first");
   auto map_interp = std::make_shared<std::string>("linear");
   auto model_variance = std::make_shared<bool>(false);
-  auto map_sigma = std::make_shared<double>(0.0);
+  auto map_sigma = std::make_shared<double>(NAN);
   auto online = std::make_shared<bool>(false);
   auto cold = std::make_shared<bool>(false);
   auto prior_path = std::make_shared<std::string>();
@@ -297,7 +297,9 @@ void add_navigate(CLI::App& app) {
                 "R per sample: the model's variance (its coefficients' uncertainty and its "
                 "held-out error, as the compensator publishes it) plus --map-sigma squared, "
                 "instead of --meas-sigma squared");
-  cmd->add_option("--map-sigma", *map_sigma, "the map's error std, nT, with --model-variance");
+  cmd->add_option("--map-sigma", *map_sigma,
+                  "the map's error std, nT, with --model-variance (default: the map file's "
+                  "error_sigma_nT, else 0.3)");
   cmd->add_option("--map-interp", *map_interp,
                   "the map's interpolation: linear (bilinear, MagNav.jl's test vectors') or cubic "
                   "(cubic convolution); default linear")
@@ -340,7 +342,8 @@ void add_navigate(CLI::App& app) {
     nav::require_setting(*fogm_sigma, 0, nav::kMaxSigma_nT, "--fogm-sigma", "nT");
     nav::require_setting(*fogm_tau, 0, nav::kMaxTimeConstant_s, "--fogm-tau", "s");
     nav::require_setting(*init_pos_sigma, 0, nav::kMaxPositionSigma_m, "--init-pos-sigma", "m");
-    nav::require_setting(*map_sigma, 0, nav::kMaxSigma_nT, "--map-sigma", "nT", true);
+    if (!std::isnan(*map_sigma))
+      nav::require_setting(*map_sigma, 0, nav::kMaxSigma_nT, "--map-sigma", "nT", true);
     if (*model_variance && model_path->empty())
       throw Error("navigate: --model-variance needs --model");
     if (!*online && (*cold || !prior_path->empty() || !out_model->empty()))
@@ -368,6 +371,12 @@ void add_navigate(CLI::App& app) {
     if (*map_interp == "cubic") map.interpolation = nav::AnomalyMap::Interpolation::Cubic;
     if (std::isfinite(samples.mean_alt_m) && samples.mean_alt_m > map.alt_m + 1.0)
       map = nav::continued_to(map, samples.mean_alt_m);
+    if (std::isfinite(samples.mean_alt_m) && samples.mean_alt_m < map.alt_m - 1.0)
+      std::fprintf(stderr,
+                   "warning: %s: the map lies %.0f m above the flight's mean height (%.0f m above "
+                   "the ellipsoid): used as it is (no downward continuation)\n",
+                   map_path->c_str(), map.alt_m - samples.mean_alt_m, samples.mean_alt_m);
+    const double map_sigma_nT = std::isnan(*map_sigma) ? map.error_sigma_nT : *map_sigma;
     nav::ModelSigmas sig;
     sig.meas_var_nT2 = *meas_sigma * *meas_sigma;
     sig.fogm_nT = *fogm_sigma;
@@ -400,7 +409,7 @@ void add_navigate(CLI::App& app) {
     auto r_of = [&](const std::string& path) -> std::optional<Eigen::VectorXd> {
       if (!*model_variance) return std::nullopt;
       Eigen::VectorXd v = compensation_variance_nT2(load_model_yaml(path), f);
-      return Eigen::VectorXd(v.array() + *map_sigma * *map_sigma);
+      return Eigen::VectorXd(v.array() + map_sigma_nT * map_sigma_nT);
     };
     std::vector<Navigated> rows;
     Eigen::VectorXd main_anomaly;

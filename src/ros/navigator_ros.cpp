@@ -116,7 +116,7 @@ NavigatorRos::NavigatorRos(ros::NodeHandle nh, ros::NodeHandle pnh)
   const double meas_sigma = setting("measurement_sigma_nT", 3.0, nav::kMaxSigma_nT, "nT");
   sig.meas_var_nT2 = meas_sigma * meas_sigma;
   pnh_.param("use_compensator_variance", use_compensator_variance_, false);
-  map_sigma_nT_ = setting("map_sigma_nT", 0.0, nav::kMaxSigma_nT, "nT", true);
+  map_sigma_nT_ = setting("map_sigma_nT", map_.error_sigma_nT, nav::kMaxSigma_nT, "nT", true);
   sig.fogm_nT = setting("fogm_sigma_nT", 3.0, nav::kMaxSigma_nT, "nT");
   sig.taus.fogm_s = setting("fogm_tau_s", 600.0, nav::kMaxTimeConstant_s, "s");
   sig.init_pos_m = setting("init_pos_sigma_m", 3.0, nav::kMaxPositionSigma_m, "m");

@@ -14,6 +14,7 @@
 
 #include "hostile_util.h"
 #include "magcomp/core/io/h5_array.h"
+#include "magcomp/core/nav/anomaly_map.h"
 
 namespace magcomp {
 namespace {
@@ -146,6 +147,25 @@ TEST(HostileNavigation, MapsAreValidatedOnReading) {
   }
   expect_refusal("navigate" + data + " --map " + big,
                  {"big.h5", "dataset 'map' declares 1600000000 values"});
+}
+
+// The map's own error (R's map term with --model-variance): read from the file's
+// `error_sigma_nT` when it has one, a stated 0.3 nT otherwise; a negative, infinite or
+// several-valued error is refused naming the file and the field.
+TEST(HostileNavigation, AMapsOwnErrorIsReadFromItsFileAndValidated) {
+  EXPECT_EQ(nav::read_anomaly_map(example("simple_map.h5")).error_sigma_nT, 0.3);
+  const auto with_error = [](const std::string& name, std::vector<double> e) {
+    return map_with(name, [&](auto* a) { (*a)["error_sigma_nT"] = H5Array{{e.size()}, e}; });
+  };
+  EXPECT_EQ(nav::read_anomaly_map(with_error("sigma_2.h5", {2.0})).error_sigma_nT, 2.0);
+  const std::string data = " --data " + example("simple_xyz.h5") + " --anomaly mag_1_c --map ";
+  expect_refusal("navigate" + data + with_error("sigma_neg.h5", {-1.0}),
+                 {"sigma_neg.h5", "field 'error_sigma_nT'"});
+  expect_refusal("navigate" + data +
+                     with_error("sigma_inf.h5", {std::numeric_limits<double>::infinity()}),
+                 {"sigma_inf.h5", "field 'error_sigma_nT'"});
+  expect_refusal("navigate" + data + with_error("sigma_two.h5", {0.3, 0.4}),
+                 {"sigma_two.h5", "field 'error_sigma_nT'"});
 }
 
 TEST(HostileNavigation, NanMapCellsUnderTheTrackAreMaskedNotInterpolated) {

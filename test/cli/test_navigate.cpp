@@ -109,11 +109,12 @@ TEST(CliNavigate, ASimulatedFlightNavigatesBetterWithTheBetterModel) {
   // The filter is safe at its defaults: within 1.5x its Cramer-Rao bound, its horizontal NEES
   // above the 95 % bounds at most 5 % of the time (MagNav.jl's 3 nT noise is conservative for
   // this model: the errors sit below the bound more often, never above it). With the model's
-  // own variance and the map's error as R it is consistent: inside its bounds 90 % of the time.
+  // own variance and the map's error as R (the map file carries none: the stated 0.3 nT default)
+  // it is consistent: inside its bounds 90 % of the time.
   EXPECT_LT(full, 1.5 * j["drms_crlb_m"].get<double>());
   EXPECT_LE(j["nees_above_95_bound"].get<double>(), 0.05);
   ASSERT_EQ(test::run(cli + " navigate --data " + f + " --map " + dir + "/f.map.h5 --model " + dir +
-                          "/full.yaml --model-variance --map-sigma 0.3 --json " + dir +
+                          "/full.yaml --model-variance --json " + dir +
                           "/nav_variance.json",
                       &out),
             0)

@@ -311,6 +311,12 @@ AnomalyMap read_anomaly_map(const std::string& path) {
       }
   }
   mask_invalid_cells(&m, path);
+  if (h5_has(path, "error_sigma_nT")) {
+    const H5Array e = read_h5_array(path, "error_sigma_nT");
+    if (e.values.size() != 1 || !(e.values[0] >= 0 && e.values[0] <= kMaxField_nT))
+      throw Error(path + ": field 'error_sigma_nT' must hold the map's error, one number in nT");
+    m.error_sigma_nT = e.values[0];
+  }
   return m;
 }
 

@@ -16,6 +16,10 @@ struct AnomalyMap {
   Eigen::VectorXd lat_rad, lon_rad;
   double alt_m = 0.0;
   Eigen::MatrixXd mask;
+  /// The map's own error, 1-sigma nT: the file's `error_sigma_nT` when it carries one, else
+  /// kDefaultMapSigma_nT (a stated default: a survey map's level and leveling error).
+  double error_sigma_nT = kDefaultMapSigma_nT;
+  static constexpr double kDefaultMapSigma_nT = 0.3;
   /// How value() interpolates: bilinear (MagNav.jl's :linear, its test vectors') or cubic
   /// convolution (Keys, a = -0.5: C1, exact on quadratics; MagNav.jl's examples use a cubic map).
   enum class Interpolation { Linear, Cubic };
