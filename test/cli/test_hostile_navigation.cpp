@@ -161,9 +161,9 @@ TEST(HostileNavigation, AMapsOwnErrorIsReadFromItsFileAndValidated) {
   const std::string data = " --data " + example("simple_xyz.h5") + " --anomaly mag_1_c --map ";
   expect_refusal("navigate" + data + with_error("sigma_neg.h5", {-1.0}),
                  {"sigma_neg.h5", "field 'error_sigma_nT'"});
-  expect_refusal("navigate" + data +
-                     with_error("sigma_inf.h5", {std::numeric_limits<double>::infinity()}),
-                 {"sigma_inf.h5", "field 'error_sigma_nT'"});
+  expect_refusal(
+      "navigate" + data + with_error("sigma_inf.h5", {std::numeric_limits<double>::infinity()}),
+      {"sigma_inf.h5", "field 'error_sigma_nT'"});
   expect_refusal("navigate" + data + with_error("sigma_two.h5", {0.3, 0.4}),
                  {"sigma_two.h5", "field 'error_sigma_nT'"});
 }

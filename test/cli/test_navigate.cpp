@@ -114,8 +114,7 @@ TEST(CliNavigate, ASimulatedFlightNavigatesBetterWithTheBetterModel) {
   EXPECT_LT(full, 1.5 * j["drms_crlb_m"].get<double>());
   EXPECT_LE(j["nees_above_95_bound"].get<double>(), 0.05);
   ASSERT_EQ(test::run(cli + " navigate --data " + f + " --map " + dir + "/f.map.h5 --model " + dir +
-                          "/full.yaml --model-variance --json " + dir +
-                          "/nav_variance.json",
+                          "/full.yaml --model-variance --json " + dir + "/nav_variance.json",
                       &out),
             0)
       << out;
