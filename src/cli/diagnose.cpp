@@ -11,6 +11,7 @@
 #include "magcomp/core/diagnose/diagnose.h"
 #include "magcomp/core/diagnose/diagnose_loop.h"
 #include "magcomp/core/diagnose/diagnose_season.h"
+#include "magcomp/core/diagnose/term_support.h"
 #include "magcomp/core/error.h"
 #include "magcomp/core/evaluate/evaluation.h"
 #include "magcomp/core/io/file_io.h"
@@ -369,14 +370,26 @@ void add_diagnose(CLI::App& app) {
         std::printf("       refused %s: %s\n", term.c_str(), why.c_str());
       const std::string added = lr.round == 0  ? "(the model as given)"
                                 : lr.black_box ? "[black box] " + lr.added
+                                : lr.together  ? "[together] " + lr.added
                                                : lr.added;
       std::printf("%-6d %-36s %9.1f%% %11.3f nT %9.3f nT %9s nT", lr.round, added.c_str(),
                   100 * lr.explained, lr.heldout_std_nT, lr.all_std_nT,
                   figure(lr.fom_nT, "%.2f").c_str());
       if (validation) std::printf(" %9s nT", figure(lr.validation_std_nT, "%.3f").c_str());
       std::printf("\n");
+      if (lr.together && lr.alone_std_nT.size() == 2)
+        std::printf("       together: held-out %.3f nT; alone %.3f and %.3f nT (each is needed)\n",
+                    lr.heldout_std_nT, lr.alone_std_nT[0], lr.alone_std_nT[1]);
+      for (const auto& [term, why] : lr.removed)
+        std::printf("       removed %s: %s\n", term.c_str(), why.c_str());
     }
     std::printf("stop: %s\n", r.stop_reason.c_str());
+    // Terms the flight barely supports: their channel barely switched where they were fitted.
+    const std::vector<TermSupport> support = term_support(r.model, model, flight);
+    for (const TermSupport& s : support) {
+      const std::string note = support_note(s);
+      if (!note.empty()) std::printf("note: %s: %s\n", s.term.c_str(), note.c_str());
+    }
     // The final model's error on the lines its fit did not select, as calibrate writes it: it
     // enters each sample's variance (navigate --model-variance, the compensator).
     Model final_model = r.model;
@@ -418,9 +431,26 @@ void add_diagnose(CLI::App& app) {
         jr["rejected"] = nlohmann::json::array();
         for (const auto& [term, why] : lr.rejected)
           jr["rejected"].push_back({{"term", term}, {"why", why}});
+        jr["together"] = lr.together;
+        jr["alone_heldout_std_nT"] = lr.alone_std_nT;
+        jr["removed"] = nlohmann::json::array();
+        for (const auto& [term, why] : lr.removed)
+          jr["removed"].push_back({{"term", term}, {"why", why}});
       }
       if (validation) j["validation"] = *validate;
       j["stop"] = r.stop_reason;
+      j["support"] = nlohmann::json::array();
+      for (const TermSupport& s : support) {
+        const auto number = [](double v) {
+          return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json();
+        };
+        j["support"].push_back({{"term", s.term},
+                                {"channel", s.channel},
+                                {"switches", s.switches},
+                                {"size_nT", number(s.size_nT)},
+                                {"size_sigma_nT", number(s.size_sigma_nT)},
+                                {"note", support_note(s)}});
+      }
       j["last_diagnosis"] = to_json(r.last);
       write_file_atomic(*json_path, j.dump(2) + "\n", inputs);
     }

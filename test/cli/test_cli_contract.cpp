@@ -127,6 +127,22 @@ TEST(Cli, DiagnoseWritesTheContractJsonAndTheLoop) {
   ASSERT_GE(loop["rounds"].size(), 2u);
   EXPECT_LT(loop["rounds"].back()["heldout_std_nT"].get<double>(),
             0.2 * loop["rounds"][0]["heldout_std_nT"].get<double>());
+  // Each round says whether it added terms together and what it removed; the support lists
+  // every added term with its channel's switches and its size.
+  for (const auto& round : loop["rounds"]) {
+    EXPECT_TRUE(round["together"].is_boolean());
+    EXPECT_TRUE(round["removed"].is_array());
+  }
+  ASSERT_TRUE(loop["support"].is_array());
+  bool heater = false;
+  for (const auto& s : loop["support"]) {
+    if (s["term"] != "dcurrent:cur_heat") continue;
+    heater = true;
+    EXPECT_EQ(s["channel"], "cur_heat");
+    EXPECT_GT(s["switches"].get<int>(), 0);
+    EXPECT_GT(s["size_nT"].get<double>(), 0.0);
+  }
+  EXPECT_TRUE(heater) << loop["support"].dump();
 }
 
 }  // namespace

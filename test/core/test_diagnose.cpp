@@ -446,6 +446,70 @@ TEST(Diagnose, AProductOfTwoChannelsThatExplainNothingAloneIsFoundByTheScreen) {
   EXPECT_LE(final_err, 1.5 * truth + 0.05);
 }
 
+// Two wires that act together: a supply and its return, on two pumps switched independently
+// during the calibration maneuvers and, on the survey, by one schedule with the second 3 s
+// late. On the survey their fields mostly cancel, so each wire alone, sized on the maneuvers,
+// makes the held-out lines worse; together they are exact. The loop adds them as a pair and
+// names both channels, nothing else.
+TEST(Diagnose, TwoWiresThatOnlyHelpTogetherAreAddedTogether) {
+  FlightData f = test::scenario("tl_only").flight;
+  const std::vector<double> maneuvers = test::calibrated_tl(f).fit.lines;
+  const Eigen::VectorXd t = f.tt();
+  const Eigen::VectorXd line = f.column("line");
+  const auto on = [](double t_s, double period_s) {
+    return std::fmod(t_s, period_s) < 0.5 * period_s ? 2.0 : 0.0;
+  };
+  Eigen::VectorXd a(t.size()), b(t.size());
+  for (Eigen::Index i = 0; i < t.size(); ++i) {
+    const bool maneuver = std::find(maneuvers.begin(), maneuvers.end(), line[i]) != maneuvers.end();
+    a[i] = on(t[i], 40.0);
+    b[i] = maneuver ? on(t[i] + 7.0, 26.0) : on(t[i] - 3.0, 40.0);
+  }
+  f.set("cur_pump_a", a);
+  f.set("cur_pump_b", b);
+  Model wires = test::calibrated_tl(f);
+  wires.terms = {"current:cur_pump_a", "current:cur_pump_b"};
+  const Eigen::MatrixXd cols = design_matrix(wires, f);
+  ASSERT_EQ(cols.cols(), 6);
+  Eigen::VectorXd c(6);
+  c << 0.8, -0.5, 1.1, -0.76, 0.475, -1.045;  // nT per A per unit of field: b's is -0.95 a's
+  const Eigen::VectorXd effect = cols * c;
+  f.mutable_column("mag_5_uc") += effect;
+  const Model start = test::calibrated_tl(f);
+  Model truth_model = start;
+  truth_model.terms.insert(truth_model.terms.end(), wires.terms.begin(), wires.terms.end());
+  truth_model.coefficients.resize(0);
+  fit_model(truth_model, {&f});
+  const LoopResult r = diagnose_loop(start, f, "mag_1_c", 5, 0.05, {});
+  const std::vector<double> held = unfitted_lines(start, r.model, f);
+  Model alone_a = start, alone_b = start;
+  alone_a.add_term("current:cur_pump_a");
+  alone_b.add_term("current:cur_pump_b");
+  for (Model* m : {&alone_a, &alone_b}) {
+    m->coefficients.resize(0);
+    fit_model(*m, {&f});
+  }
+  const double tl = std_on(start, f, held), truth = std_on(truth_model, f, held);
+  const double final_err = std_on(r.model, f, held);
+  std::printf(
+      "  two wires: TL %.3f nT, wire a alone %.3f, wire b alone %.3f, both %.3f; loop %.3f:", tl,
+      std_on(alone_a, f, held), std_on(alone_b, f, held), truth, final_err);
+  for (const auto& lr : r.rounds)
+    if (lr.round > 0) std::printf(" [%s%s]", lr.together ? "together " : "", lr.added.c_str());
+  std::printf("\n  %s\n", r.stop_reason.c_str());
+  // The premise: each alone is worse than TL on the held-out lines.
+  EXPECT_GT(std_on(alone_a, f, held), tl);
+  EXPECT_GT(std_on(alone_b, f, held), tl);
+  EXPECT_LE(final_err, 1.5 * truth + 0.05);
+  std::set<std::string> channels;
+  for (const auto& term : r.model.terms) {
+    const auto e = parse_expr_term(term);
+    if (e)
+      for (const auto& src : e->signal().sources) channels.insert(src);
+  }
+  EXPECT_EQ(channels, (std::set<std::string>{"cur_pump_a", "cur_pump_b"}));
+}
+
 TEST(Diagnose, HysteresisIsFoundAsAPlayOfTheCurrentWithItsWidth) {
   // A soft-iron part magnetised by the bus current with a play of 1.5 A: field:cur_acpwr|play(?)
   // is searched for every current, and the fit estimates the half-width.

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <optional>
 #include <set>
 
 #include "magcomp/core/error.h"
@@ -27,10 +28,17 @@ double std_on_lines(const Evaluation& ev, const std::vector<double>& lines) {
 
 // Scores of a model: held-out lines, all lines, FOM, validation flight.
 LoopRound score(const Model& model, const FlightData& data, const std::string& truth,
-                const std::vector<double>& held, const FlightData* validation) {
+                const std::vector<double>& selection, const std::vector<double>& confirmation,
+                const FlightData* validation) {
   LoopRound r;
   const Evaluation ev = evaluate_model(model, data, truth, false);
+  std::vector<double> held = selection;
+  held.insert(held.end(), confirmation.begin(), confirmation.end());
   r.heldout_std_nT = std_on_lines(ev, held);
+  if (!selection.empty() && !confirmation.empty()) {
+    r.selection_std_nT = std_on_lines(ev, selection);
+    r.confirmation_std_nT = std_on_lines(ev, confirmation);
+  }
   r.all_std_nT = ev.std_nT;
   r.fom_nT = ev.fom.signatures.empty() ? NAN : ev.fom.fom_nT;
   if (validation) r.validation_std_nT = evaluate_model(model, *validation, truth, false).std_nT;
@@ -138,6 +146,33 @@ void add_candidate_term(const std::string& term, bool slow, const std::string& t
   list.erase(std::remove(list.begin(), list.end(), term), list.end());
 }
 
+// `m` without `term` (and out of its slow and black-box lists), unfitted.
+Model without_term(const Model& m, const std::string& term) {
+  Model out = m;
+  for (auto* list : {&out.terms, &out.slow_terms, &out.black_box_terms})
+    list->erase(std::remove(list->begin(), list->end(), term), list->end());
+  out.coefficients.resize(0);
+  return out;
+}
+
+// True when `term` was added to `start` purely: adding it again to `start` grows it by one term
+// (it replaced nothing of the start model: not a lag, not a re-estimated term of its shape).
+bool removable(const Model& start, const std::string& term) {
+  if (std::find(start.terms.begin(), start.terms.end(), term) != start.terms.end()) return false;
+  Model probe = start;
+  try {
+    probe.add_term(term);
+  } catch (const Error&) {
+    return false;
+  }
+  return probe.terms.size() == start.terms.size() + 1;
+}
+
+// The share of `with`'s error variance that a change to `without` would add (negative when the
+// change lowers the error).
+double variance_share(double with_nT, double without_nT) {
+  return 1.0 - std::pow(with_nT / without_nT, 2.0);
+}
 }  // namespace
 
 LoopResult diagnose_loop(const Model& start, const FlightData& data, const std::string& truth,
@@ -149,13 +184,13 @@ LoopResult diagnose_loop(const Model& start, const FlightData& data, const std::
   LoopResult r;
   r.model = start;
   if (!r.model.fitted()) fit_model(r.model, {&data});
-  std::vector<double> held;
+  std::vector<double> selection, confirmation;  // the held-out lines, in two halves
   for (int round = 1;; ++round) {
     Diagnosis dx = diagnose(r.model, data, truth, options);
     if (round == 1) {
-      held = dx.selection_lines;
-      held.insert(held.end(), dx.confirmation_lines.begin(), dx.confirmation_lines.end());
-      r.rounds.push_back(score(r.model, data, truth, held, validation));
+      selection = dx.selection_lines;
+      confirmation = dx.confirmation_lines;
+      r.rounds.push_back(score(r.model, data, truth, selection, confirmation, validation));
     }
     if (on_round) on_round(round, dx);
     // The candidates the loop may add, in rank order: accepted, and explaining at least
@@ -175,7 +210,7 @@ LoopResult diagnose_loop(const Model& start, const FlightData& data, const std::
     auto try_model = [&](Model next, const std::string& added, double explained, bool black_box) {
       next.coefficients.resize(0);
       fit_model(next, {&data});
-      LoopRound lr = score(next, data, truth, held, validation);
+      LoopRound lr = score(next, data, truth, selection, confirmation, validation);
       std::string why = refusal(lr, r.rounds.back());
       // A learned law has many columns: it must also explain the accepted share of the held-out
       // variance, as every candidate must on each split.
@@ -203,12 +238,107 @@ LoopResult diagnose_loop(const Model& start, const FlightData& data, const std::
       r.model = std::move(next);
       return true;
     };
+    auto fit_score = [&](Model m) {
+      m.coefficients.resize(0);
+      fit_model(m, {&data});
+      LoopRound lr = score(m, data, truth, selection, confirmation, validation);
+      return std::make_pair(std::move(m), std::move(lr));
+    };
     // The accepted candidates in rank order: the first that passes every check is kept.
     bool kept = false;
     for (size_t k = 0; k < eligible.size() && k < kTriesPerRound && !kept; ++k) {
       Model next = r.model;
       add_candidate_term(eligible[k]->term, eligible[k]->slow, truth, &next);
       kept = try_model(std::move(next), eligible[k]->term, eligible[k]->explained_fraction, false);
+    }
+    // Effects that act together: when no term passes alone while the residual stays
+    // predictable, pairs of the first ranked candidates of distinct channels, fitted together.
+    // A pair is kept if it passes every check, explains the accepted share of the held-out
+    // variance, and each of its terms lowers the pair's error variance by that share (both are
+    // needed: neither alone reaches it). The best such pair by held-out error.
+    const ExplainableShare& ex0 = dx.explainable;
+    if (!kept && !ex0.within_noise) {
+      // The pool: for each of the three channels that predict most of the residual above its
+      // noise floor (and that the search gives terms of: no trajectory channel), its plain term
+      // and its first ranked term, whatever their share alone: effects that cancel one another
+      // show in the residual's channels, not in each term's share.
+      constexpr size_t kResidualChannels = 3;
+      std::vector<Candidate> pool;
+      std::set<std::string> in_pool;
+      const auto take = [&](const Candidate& c) {
+        if (in_pool.insert(c.term).second) pool.push_back(c);
+      };
+      for (size_t k = 0; k < ex0.channels.size() && k < kResidualChannels; ++k) {
+        const std::string& channel = ex0.channels[k].first;
+        const auto first = std::find_if(dx.candidates.begin(), dx.candidates.end(),
+                                        [&](const Candidate& c) { return c.channel == channel; });
+        if (first == dx.candidates.end()) continue;
+        Candidate plain;
+        plain.term = (is_electrical(channel) ? "current:" : "field:") + channel;
+        plain.channel = channel;
+        take(plain);
+        take(*first);
+      }
+      std::vector<LoopRound> alone(pool.size());
+      for (size_t a = 0; a < pool.size(); ++a) {
+        alone[a].heldout_std_nT = NAN;  // a term that cannot be fitted here is left out
+        try {
+          Model next = r.model;
+          add_candidate_term(pool[a].term, pool[a].slow, truth, &next);
+          alone[a] = fit_score(std::move(next)).second;
+        } catch (const Error&) {
+        }
+      }
+      const LoopRound& now = r.rounds.back();
+      double best_std = INFINITY;
+      std::optional<std::pair<Model, LoopRound>> best;
+      size_t best_a = 0, best_b = 0;
+      for (size_t a = 0; a < pool.size(); ++a) {
+        for (size_t b = a + 1; b < pool.size(); ++b) {
+          if (pool[a].channel == pool[b].channel || !std::isfinite(alone[a].heldout_std_nT) ||
+              !std::isfinite(alone[b].heldout_std_nT))
+            continue;
+          if (refusal(alone[a], now).empty() && refusal(alone[b], now).empty())
+            continue;  // both lower the error alone: not a pair that only acts together
+          Model next = r.model;
+          add_candidate_term(pool[a].term, pool[a].slow, truth, &next);
+          add_candidate_term(pool[b].term, pool[b].slow, truth, &next);
+          auto [fitted, lr] = fit_score(std::move(next));
+          if (!refusal(lr, now).empty()) continue;
+          // On each half of the held-out lines, as a term of the search is accepted on each
+          // split: the accepted share of the variance and the resolution of the std.
+          const auto passes = [&](double with_nT, double without_nT) {
+            return variance_share(with_nT, without_nT) >= options.accept_fraction &&
+                   without_nT - with_nT >= options.resolution_nT;
+          };
+          if (!passes(lr.selection_std_nT, now.selection_std_nT) ||
+              !passes(lr.confirmation_std_nT, now.confirmation_std_nT))
+            continue;
+          if (variance_share(lr.heldout_std_nT, alone[a].heldout_std_nT) <
+                  options.accept_fraction ||
+              variance_share(lr.heldout_std_nT, alone[b].heldout_std_nT) < options.accept_fraction)
+            continue;
+          if (lr.heldout_std_nT < best_std) {
+            best_std = lr.heldout_std_nT;
+            best.emplace(std::move(fitted), std::move(lr));
+            best_a = a;
+            best_b = b;
+          }
+        }
+      }
+      if (best) {
+        LoopRound lr = std::move(best->second);
+        lr.round = round;
+        lr.added = pool[best_a].term + " + " + pool[best_b].term;
+        lr.explained = variance_share(lr.heldout_std_nT, now.heldout_std_nT);
+        lr.together = true;
+        lr.alone_std_nT = {alone[best_a].heldout_std_nT, alone[best_b].heldout_std_nT};
+        lr.rejected = std::move(rejected);
+        rejected.clear();
+        r.rounds.push_back(std::move(lr));
+        r.model = std::move(best->first);
+        kept = true;
+      }
     }
     // When no term of the language passes while the residual stays predictable: a learned law
     // of the channel that predicts most of it, if that is a current or a voltage (a residual
@@ -236,6 +366,55 @@ LoopResult diagnose_loop(const Model& start, const FlightData& data, const std::
         std::string added;
         for (const auto& t : law) added += (added.empty() ? "" : " + ") + t;
         kept = try_model(std::move(next), added, share, true);
+      }
+    }
+    // The backward pass: an earlier round's term that the model no longer needs leaves (the
+    // least needed first, one at a time), so long as the round still lowers the error of the
+    // round before it.
+    if (kept && r.rounds.size() >= 2) {
+      const LoopRound before = r.rounds[r.rounds.size() - 2];
+      std::set<std::string> added_now;  // this round's terms (" + " joins a pair or a law)
+      for (size_t from = 0;;) {
+        const std::string& a = r.rounds.back().added;
+        const size_t to = a.find(" + ", from);
+        added_now.insert(a.substr(from, to == std::string::npos ? std::string::npos : to - from));
+        if (to == std::string::npos) break;
+        from = to + 3;
+      }
+      for (;;) {
+        const LoopRound& now = r.rounds.back();
+        std::optional<std::pair<Model, LoopRound>> drop;
+        std::string drop_term;
+        double drop_share = INFINITY;
+        for (const std::string& t : r.model.terms) {
+          if (!removable(start, t) || added_now.count(t)) continue;
+          auto [m, lr] = fit_score(without_term(r.model, t));
+          const double share = -variance_share(now.heldout_std_nT, lr.heldout_std_nT);
+          const bool validation_ok = !std::isfinite(now.validation_std_nT) ||
+                                     -variance_share(now.validation_std_nT, lr.validation_std_nT) <
+                                         0.25 * options.accept_fraction;
+          if (share < 0.25 * options.accept_fraction && validation_ok &&
+              lr.heldout_std_nT < before.heldout_std_nT && share < drop_share) {
+            drop_share = share;
+            drop_term = t;
+            drop.emplace(std::move(m), std::move(lr));
+          }
+        }
+        if (!drop) break;
+        char why[200];
+        std::snprintf(
+            why, sizeof(why),
+            "made redundant by later terms: without it the held-out error %.4f -> %.4f nT",
+            now.heldout_std_nT, drop->second.heldout_std_nT);
+        LoopRound& last = r.rounds.back();
+        last.removed.emplace_back(drop_term, why);
+        last.heldout_std_nT = drop->second.heldout_std_nT;
+        last.all_std_nT = drop->second.all_std_nT;
+        last.selection_std_nT = drop->second.selection_std_nT;
+        last.confirmation_std_nT = drop->second.confirmation_std_nT;
+        last.fom_nT = drop->second.fom_nT;
+        last.validation_std_nT = drop->second.validation_std_nT;
+        r.model = std::move(drop->first);
       }
     }
     if (!kept) {

@@ -14,9 +14,11 @@ namespace magcomp {
 /// One round of the loop (round 0: the model as given, refitted).
 struct LoopRound {
   int round = 0;
-  std::string added;               ///< the term added in this round ("" for round 0)
-  double explained = 0.0;          ///< its conservative explained share (Candidate)
-  double heldout_std_nT = 0.0;     ///< error std (line means removed) on the held-out lines
+  std::string added;            ///< the term added in this round ("" for round 0)
+  double explained = 0.0;       ///< its conservative explained share (Candidate)
+  double heldout_std_nT = 0.0;  ///< error std (line means removed) on the held-out lines
+  /// The same on each half of them: the first diagnosis's selection and confirmation lines.
+  double selection_std_nT = NAN, confirmation_std_nT = NAN;
   double all_std_nT = 0.0;         ///< the same on every line of the flight
   double fom_nT = NAN;             ///< figure of merit on the model's calibration maneuvers
   double validation_std_nT = NAN;  ///< error std on the validation flight (NaN: none given)
@@ -26,6 +28,14 @@ struct LoopRound {
   /// The terms tried in this round and refused, each with why (a term is kept only if it lowers
   /// the held-out error and, with a validation flight, the error there).
   std::vector<std::pair<std::string, std::string>> rejected;
+  /// The round added two terms together (`added` joins them by " + "): neither passed alone,
+  /// both together did, and each lowers the pair's error by the accepted share.
+  bool together = false;
+  /// The held-out error std of each term of a `together` pair alone, nT (same order as `added`).
+  std::vector<double> alone_std_nT;
+  /// Terms of earlier rounds that this round's terms made redundant (the backward pass), each
+  /// with why; the round's scores are those of the model without them.
+  std::vector<std::pair<std::string, std::string>> removed;
 };
 
 struct LoopResult {
@@ -44,7 +54,14 @@ struct LoopResult {
 /// learned law of the channel of one of the two first ranked candidates that helped on the
 /// selection lines is tried under the same checks (hinges at the channel's quantiles through the
 /// candidate's dynamic tail, marked in Model::black_box_terms and LoopRound::black_box); the
-/// loop stops when that fails too. So the final model is never worse than the start on either.
+/// loop stops when that fails too. Before the learned law, while the residual stays predictable,
+/// pairs of the first ranked candidates of distinct channels are tried together (effects that
+/// act together: neither passes alone), under the same checks plus one: each term of the pair
+/// must lower the pair's held-out error variance by the accepted share. After each kept round, a
+/// backward pass drops an earlier term whose removal raises the held-out variance by less than a
+/// quarter of the accepted share (and the validation error by no more), one at a time: a term
+/// that later terms made redundant leaves, and the round lists it. So the final model is never
+/// worse than the start on either.
 /// `on_round` (optional) is called after each
 /// diagnosis with the round number and the diagnosis.
 LoopResult diagnose_loop(const Model& model, const FlightData& data, const std::string& truth,

@@ -1,0 +1,39 @@
+// magcomp: how well a flight supports each term a diagnosis added: how often its channel moved
+// where the coefficients were fitted, and how uncertain the term's size is.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "magcomp/core/io/flight_data.h"
+#include "magcomp/core/model/model.h"
+
+namespace magcomp {
+
+/// One added term's support on the flight it was fitted on.
+struct TermSupport {
+  std::string term;     ///< the term's spec
+  std::string channel;  ///< its first source channel ("" for a term without one)
+  /// Times the channel crossed between the lower and upper quarter of its 1-99 % range on the
+  /// fit rows (one switch on and off counts two); -1 without a channel.
+  int switches = -1;
+  /// 1-sigma uncertainty of the term's contribution to the compensated field, nT: the rms over
+  /// the flight's rows of sqrt(a_i' Σ a_i), with a_i the term's columns and Σ their block of the
+  /// fit's coefficient covariance (the fit's noise: a band-pass fit sees its band only, so this
+  /// is a lower bound). NaN when the fit gives no covariance.
+  double size_sigma_nT = NAN;
+  /// The term's contribution's std over the flight, nT (its size).
+  double size_nT = NAN;
+};
+
+/// The support of each term of the fitted `model` that `start` does not have, on `data` (the
+/// flight the model was fitted on; its fit rows are model.fit's lines and windows, every row
+/// when it names none).
+std::vector<TermSupport> term_support(const Model& model, const Model& start,
+                                      const FlightData& data);
+
+/// The words a user reads: "cur_X switched 2 times on the calibration rows: its size, 3.1 nT, is
+/// uncertain to ±0.8 nT" when it switched fewer than `few_switches` times, else "" .
+std::string support_note(const TermSupport& s, int few_switches = 10);
+
+}  // namespace magcomp

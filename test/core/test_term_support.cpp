@@ -1,0 +1,75 @@
+// term_support: how often an added term's channel switched where it was fitted, its size and
+// the uncertainty of that size, on a closed-form flight.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <functional>
+
+#include "magcomp/core/diagnose/term_support.h"
+#include "synthetic_flight.h"
+
+namespace magcomp {
+namespace {
+
+// The closed-form flight with a current `x` of 3 nT/A and a known noise on the scalar; the TL
+// model and the model with the current's term, both fitted against the reference on every row.
+struct Case {
+  FlightData flight;
+  Model start, with_term;
+};
+
+Case make_case(const std::function<double(int)>& current_A, double noise_nT) {
+  Case c;
+  c.start = test::tl16_model();
+  c.start.fit.method = FitMethod::kReference;
+  c.start.fit.reference = "mag_1_c";
+  c.start.fit.lines.clear();
+  c.flight = test::synthetic_tl_flight(c.start, test::known_coefficients(16));
+  Eigen::VectorXd x(c.flight.size()), noise(c.flight.size());
+  for (Eigen::Index i = 0; i < x.size(); ++i) {
+    x[i] = current_A(static_cast<int>(i));
+    // A deterministic, white-looking sequence of std noise_nT (uniform on +-sqrt(3) sigma).
+    noise[i] = noise_nT * std::sqrt(3.0) * std::fmod(std::sin(12.9898 * i) * 43758.5453, 1.0);
+  }
+  c.flight.set("cur_x", x);
+  c.flight.mutable_column("mag_5_uc") += 3.0 * x + noise;
+  fit_model(c.start, {&c.flight});
+  c.with_term = c.start;
+  c.with_term.add_term("scalar:cur_x");
+  c.with_term.coefficients.resize(0);
+  fit_model(c.with_term, {&c.flight});
+  return c;
+}
+
+TEST(TermSupport, ATermWhoseChannelSwitchedTwiceIsSaidToBeUncertain) {
+  // On for 500 samples of 6000: one switch on, one off.
+  const Case c = make_case([](int i) { return i >= 1000 && i < 1500 ? 2.0 : 0.0; }, 0.1);
+  const std::vector<TermSupport> s = term_support(c.with_term, c.start, c.flight);
+  ASSERT_EQ(s.size(), 1u);
+  EXPECT_EQ(s[0].term, "scalar:cur_x");
+  EXPECT_EQ(s[0].channel, "cur_x");
+  EXPECT_EQ(s[0].switches, 2);
+  // The size: 3 nT/A times the current's std, 2 A * sqrt(p (1 - p)) with p = 1/12.
+  EXPECT_NEAR(s[0].size_nT, 3.0 * 2.0 * std::sqrt(1.0 / 12 * 11.0 / 12), 0.01);
+  // Its uncertainty: the coefficient's sigma (about 0.1 nT / sqrt(500 * 4 A^2 * 11/12)) times the
+  // current's rms; small against the noise, far from zero.
+  ASSERT_TRUE(std::isfinite(s[0].size_sigma_nT));
+  EXPECT_GT(s[0].size_sigma_nT, 0.0005);
+  EXPECT_LT(s[0].size_sigma_nT, 0.02);
+  const std::string note = support_note(s[0]);
+  EXPECT_NE(note.find("cur_x switched 2 times"), std::string::npos) << note;
+}
+
+TEST(TermSupport, ATermWhoseChannelSwitchesOftenNeedsNoNote) {
+  // A square wave of period 300 samples: 40 switches over the flight.
+  const Case c = make_case([](int i) { return (i / 150) % 2 ? 2.0 : 0.0; }, 0.1);
+  const std::vector<TermSupport> s = term_support(c.with_term, c.start, c.flight);
+  ASSERT_EQ(s.size(), 1u);
+  EXPECT_EQ(s[0].switches, 39);
+  EXPECT_EQ(support_note(s[0]), "");
+  // Nothing added: nothing to say.
+  EXPECT_TRUE(term_support(c.start, c.start, c.flight).empty());
+}
+
+}  // namespace
+}  // namespace magcomp
