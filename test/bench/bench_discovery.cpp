@@ -11,6 +11,7 @@
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
+#include <map>
 
 #include "discovery_run.h"
 
@@ -25,9 +26,10 @@ int main(int argc, char** argv) {
     const int runs = argc > 3 ? std::atoi(argv[3]) : 50;
     const unsigned first = argc > 4 ? static_cast<unsigned>(std::atoi(argv[4])) : 1;
     int predictable = 0, near = 0, near_true = 0, worse = 0, complete_above = 0;
+    std::map<std::string, std::pair<int, int>> named;  // kind -> (runs naming the truth, runs)
     const auto t0 = std::chrono::steady_clock::now();
-    std::printf("%4s %8s %8s %8s %8s %6s %6s %7s %7s  %-8s %s\n", "run", "TL nT", "loop nT",
-                "oracle", "true", "near", "near_t", "eff nT", "next nT", "verdict",
+    std::printf("%4s %8s %8s %8s %8s %6s %6s %5s %7s %7s  %-8s %s\n", "run", "TL nT", "loop nT",
+                "oracle", "true", "near", "near_t", "names", "eff nT", "next nT", "verdict",
                 "effects -> terms kept");
     for (int k = 0; k < runs; ++k) {
       const unsigned r = first + static_cast<unsigned>(k);
@@ -40,10 +42,15 @@ int main(int argc, char** argv) {
       complete_above += d.complete_above_floor();
       std::string kept;
       for (const auto& t : d.added) kept += (kept.empty() ? "" : ", ") + t;
-      std::printf("%4u %8.3f %8.3f %8.3f %8.3f %6s %6s %7.3f %7.3f  %-8s %s -> %s%s%s\n", r,
+      if (d.predictable) {
+        named[d.kind].first += d.names_truth();
+        named[d.kind].second += 1;
+      }
+      std::printf("%4u %8.3f %8.3f %8.3f %8.3f %6s %6s %5s %7.3f %7.3f  %-8s %s -> %s%s%s\n", r,
                   d.tl_next_nT, d.loop_next_nT, d.oracle_next_nT, d.true_terms_next_nT,
                   d.predictable ? (d.near_oracle() ? "yes" : "NO") : "-",
-                  d.predictable ? (d.near_true_terms() ? "yes" : "NO") : "-", d.effect_nT,
+                  d.predictable ? (d.near_true_terms() ? "yes" : "NO") : "-",
+                  d.predictable ? (d.names_truth() ? "yes" : "NO") : "-", d.effect_nT,
                   d.effect_next_nT, d.verdict.substr(0, d.verdict.find(':')).substr(0, 8).c_str(),
                   d.effects.c_str(), kept.empty() ? "(none)" : kept.c_str(),
                   d.worse_than_tl() ? "  WORSE THAN TL" : "",
@@ -59,6 +66,16 @@ int main(int argc, char** argv) {
         runs, predictable, near_true, predictable,
         predictable ? 100.0 * near_true / predictable : 0.0, near, predictable,
         predictable ? 100.0 * near / predictable : 0.0, worse, complete_above, secs);
+    // The final model names exactly the effects' channels (predictable runs), per kind.
+    int named_all = 0, named_runs = 0;
+    std::printf("names the effects' channels exactly:");
+    for (const auto& [kind, n] : named) {
+      std::printf(" %s %d/%d;", kind.c_str(), n.first, n.second);
+      named_all += n.first;
+      named_runs += n.second;
+    }
+    std::printf(" all %d/%d (%.0f %%)\n", named_all, named_runs,
+                named_runs ? 100.0 * named_all / named_runs : 0.0);
     return 0;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "error: %s\n", e.what());

@@ -5,8 +5,10 @@
 // hidden effects removed from the scalar: the floor the true effects' terms would reach).
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 #include <map>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -14,6 +16,7 @@
 #include "magcomp/core/evaluate/evaluation.h"
 #include "magcomp/core/geo/igrf.h"
 #include "magcomp/core/model/model.h"
+#include "magcomp/core/model/terms_expr.h"
 #include "magcomp/core/sim/random_effects.h"
 #include "magcomp/core/sim/scenario.h"
 #include "magcomp/core/sim/simulator.h"
@@ -38,6 +41,14 @@ struct DiscoveryRun {
   /// errors are scored), on the flight the loop learns from and on the next flight: an effect the
   /// first flight barely shows cannot be learned there.
   double effect_nT = NAN, effect_next_nT = NAN;
+  /// The kind of the run's effect (sim::HiddenEffect::type), "several" for two or more.
+  std::string kind;
+  /// The channels the hidden effects act through (each effect's channel and a product's second
+  /// one), and the channels the final model's added terms read (their sources; the total field
+  /// B, which TL and an eddy decay read, is not a channel).
+  std::set<std::string> true_channels, named_channels;
+  /// The final model names the truth: its added terms read exactly the effects' channels.
+  bool names_truth() const { return named_channels == true_channels; }
   /// Within 1.5x the oracle (+0.05 nT) on the next flight.
   bool near_oracle() const { return loop_next_nT <= 1.5 * oracle_next_nT + 0.05; }
   /// Within 1.5x TL plus the effects' own terms (+0.05 nT) on the next flight (issue 20's rule);
@@ -94,7 +105,10 @@ inline DiscoveryRun discovery_run(unsigned r, int count, sim::Scenario base, con
   for (const auto& e : effects) {
     out.effects += (out.effects.empty() ? "" : " + ") + sim::describe(e);
     out.predictable = out.predictable && sim::predictable(e);
+    for (const std::string& c : {e.channel, e.channel2})
+      if (!c.empty()) out.true_channels.insert(c);
   }
+  out.kind = effects.size() == 1 ? effects.front().type : "several";
   sim::Scenario a = base, b = base;
   a.hidden.insert(a.hidden.end(), effects.begin(), effects.end());
   b.hidden = a.hidden;
@@ -107,6 +121,13 @@ inline DiscoveryRun discovery_run(unsigned r, int count, sim::Scenario base, con
   out.loop_next_nT = evaluate_model(loop.model, fb.flight, "mag_1_c", false).std_nT;
   for (size_t k = 1; k < loop.rounds.size(); ++k) out.added.push_back(loop.rounds[k].added);
   out.slow_terms = loop.model.slow_terms;
+  for (const std::string& t : loop.model.terms) {
+    if (std::find(start.terms.begin(), start.terms.end(), t) != start.terms.end()) continue;
+    const auto e = parse_expr_term(t);
+    if (!e) continue;
+    for (const std::string& c : e->signal().sources)
+      if (c != "B") out.named_channels.insert(c);
+  }
   out.verdict = loop.last.verdict;
   out.residual_nT = loop.last.floor.residual_std_nT;
   out.floor_nT = loop.last.floor.floor_nT;
