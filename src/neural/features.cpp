@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "magcomp/core/error.h"
+#include "magcomp/core/geo/anomaly.h"
 #include "magcomp/core/geo/igrf.h"
 
 namespace magcomp {
@@ -76,13 +77,13 @@ void FeaturePlan::row(double scalar_nT, double tl_correction_nT, double igrf_nT,
         out[k] = channels[bound_[static_cast<size_t>(it.field)]];
         break;
       case Kind::kTlAnomaly:
-        out[k] = scalar_nT - tl_correction_nT - igrf_nT - diurnal;
+        out[k] = anomaly_nT(scalar_nT - tl_correction_nT, igrf_nT, diurnal);
         break;
       case Kind::kTlCorrection:
         out[k] = tl_correction_nT;
         break;
       case Kind::kAnomalyOf:
-        out[k] = channels[bound_[static_cast<size_t>(it.field)]] - igrf_nT - diurnal;
+        out[k] = anomaly_nT(channels[bound_[static_cast<size_t>(it.field)]], igrf_nT, diurnal);
         break;
       case Kind::kDirection:
         out[k] = it.axis < 3 ? vector_nT[it.axis] / vector_nT.norm() : vector_nT[it.axis - 3];
@@ -90,7 +91,6 @@ void FeaturePlan::row(double scalar_nT, double tl_correction_nT, double igrf_nT,
     }
   }
 }
-
 
 NeuralInputs neural_inputs(const Model& model, const FlightData& data) {
   FeaturePlan plan(model);
@@ -137,7 +137,7 @@ Eigen::VectorXd neural_target(const Model& model, const FlightData& data, const 
     throw Error(data.source() + ": neural reference field '" + s.reference + "' not in the data");
   }
   const auto ref = data.column(s.reference);
-  if (s.mode == NeuralMode::kAnomaly) return ref - in.igrf_nT - in.diurnal_nT;
+  if (s.mode == NeuralMode::kAnomaly) return anomaly_nT(ref, in.igrf_nT, in.diurnal_nT);
   return in.scalar_nT - in.correction_nT - ref;
 }
 

@@ -8,6 +8,7 @@
 #include <set>
 
 #include "magcomp/core/error.h"
+#include "magcomp/core/geo/anomaly.h"
 #include "magcomp/core/geo/igrf.h"
 #include "magcomp/core/io/time_base.h"
 #include "magcomp/ros/params.h"
@@ -279,11 +280,10 @@ void CompensatorRos::publish(const StreamOutput& o) {
   msg.aircraft_correction_nT = o.correction_nT;
   msg.compensated_nT = o.compensated_nT;
   msg.variance_nT2 = o.variance_nT2;
-  const double d = input_->aligner().channel_at(o.t_s, "diurnal");
-  const double diurnal = std::isfinite(d) ? d : 0.0;
   // A neural stage already needed IGRF at this sample's input; otherwise compute it here.
   const double igrf = std::isfinite(o.igrf_nT) ? o.igrf_nT : igrf_at(o.t_s);
-  msg.anomaly_nT = std::isfinite(igrf) ? o.compensated_nT - igrf - diurnal : NAN;
+  const double d = input_->aligner().channel_at(o.t_s, "diurnal");  // NaN: none received
+  msg.anomaly_nT = anomaly_nT(o.compensated_nT, igrf, std::isfinite(d) ? d : 0.0);
   msg.reference_nT = NAN;
   msg.error_nT = NAN;
   double ref = NAN;

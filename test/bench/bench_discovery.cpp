@@ -12,12 +12,15 @@
 #include <cstdio>
 #include <cstdlib>
 #include <map>
+#include <string>
 
 #include "discovery_run.h"
 
 int main(int argc, char** argv) {
   if (argc < 3) {
-    std::fprintf(stderr, "usage: %s SCENARIO.yaml TL_MODEL.yaml [runs] [first_seed]\n", argv[0]);
+    std::fprintf(stderr,
+                 "usage: %s SCENARIO.yaml TL_MODEL.yaml [runs] [first_seed] [one-at-a-time]\n",
+                 argv[0]);
     return 2;
   }
   try {
@@ -25,6 +28,8 @@ int main(int argc, char** argv) {
     const magcomp::Model tl = magcomp::load_model_yaml(argv[2]);
     const int runs = argc > 3 ? std::atoi(argv[3]) : 50;
     const unsigned first = argc > 4 ? static_cast<unsigned>(std::atoi(argv[4])) : 1;
+    magcomp::DiagnoseOptions options;  // "one-at-a-time": no pairs, no backward pass
+    options.joint_steps = !(argc > 5 && std::string(argv[5]) == "one-at-a-time");
     int predictable = 0, near = 0, near_true = 0, worse = 0, complete_above = 0;
     std::map<std::string, std::pair<int, int>> named;  // kind -> (runs naming the truth, runs)
     const auto t0 = std::chrono::steady_clock::now();
@@ -34,7 +39,8 @@ int main(int argc, char** argv) {
     for (int k = 0; k < runs; ++k) {
       const unsigned r = first + static_cast<unsigned>(k);
       const int count = 1 + static_cast<int>(r % 10 < 6 ? 0 : (r % 10 < 9 ? 1 : 2));
-      const magcomp::test::DiscoveryRun d = magcomp::test::discovery_run(r, count, base, tl);
+      const magcomp::test::DiscoveryRun d =
+          magcomp::test::discovery_run(r, count, base, tl, options);
       predictable += d.predictable;
       near += d.predictable && d.near_oracle();
       near_true += d.predictable && d.near_true_terms();

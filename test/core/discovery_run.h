@@ -95,8 +95,9 @@ inline double hidden_std_within_lines(const sim::Simulation& s, const std::strin
 }
 
 /// Run `r` with `count` effects on `base` (aircraft seed 5000 + r, flights 1000 + 2r and the
-/// next), starting from `tl` (a TL template, fitted here).
-inline DiscoveryRun discovery_run(unsigned r, int count, sim::Scenario base, const Model& tl) {
+/// next), starting from `tl` (a TL template, fitted here), the loop with `options`.
+inline DiscoveryRun discovery_run(unsigned r, int count, sim::Scenario base, const Model& tl,
+                                  const DiagnoseOptions& options = {}) {
   const Igrf& igrf = Igrf::installed();
   base.aircraft_seed = 5000 + r;
   base.seed = 1000 + 2 * r;
@@ -116,7 +117,7 @@ inline DiscoveryRun discovery_run(unsigned r, int count, sim::Scenario base, con
   const sim::Simulation fa = sim::simulate(a, igrf), fb = sim::simulate(b, igrf);
   Model start = tl;
   fit_model(start, {&fa.flight});
-  const LoopResult loop = diagnose_loop(start, fa.flight, "mag_1_c", 5, 0.05, {});
+  const LoopResult loop = diagnose_loop(start, fa.flight, "mag_1_c", 5, 0.05, options);
   out.tl_next_nT = evaluate_model(start, fb.flight, "mag_1_c", false).std_nT;
   out.loop_next_nT = evaluate_model(loop.model, fb.flight, "mag_1_c", false).std_nT;
   for (size_t k = 1; k < loop.rounds.size(); ++k) out.added.push_back(loop.rounds[k].added);

@@ -508,6 +508,11 @@ TEST(Diagnose, TwoWiresThatOnlyHelpTogetherAreAddedTogether) {
       for (const auto& src : e->signal().sources) channels.insert(src);
   }
   EXPECT_EQ(channels, (std::set<std::string>{"cur_pump_a", "cur_pump_b"}));
+  // One term at a time, the loop finds neither.
+  DiagnoseOptions one_at_a_time;
+  one_at_a_time.joint_steps = false;
+  const LoopResult single = diagnose_loop(start, f, "mag_1_c", 5, 0.05, one_at_a_time);
+  EXPECT_GT(std_on(single.model, f, held), 1.5 * truth + 0.05);
 }
 
 TEST(Diagnose, HysteresisIsFoundAsAPlayOfTheCurrentWithItsWidth) {

@@ -257,7 +257,7 @@ LoopResult diagnose_loop(const Model& start, const FlightData& data, const std::
     // variance, and each of its terms lowers the pair's error variance by that share (both are
     // needed: neither alone reaches it). The best such pair by held-out error.
     const ExplainableShare& ex0 = dx.explainable;
-    if (!kept && !ex0.within_noise) {
+    if (options.joint_steps && !kept && !ex0.within_noise) {
       // The pool: for each of the three channels that predict most of the residual above its
       // noise floor (and that the search gives terms of: no trajectory channel), its plain term
       // and its first ranked term, whatever their share alone: effects that cancel one another
@@ -371,7 +371,7 @@ LoopResult diagnose_loop(const Model& start, const FlightData& data, const std::
     // The backward pass: an earlier round's term that the model no longer needs leaves (the
     // least needed first, one at a time), so long as the round still lowers the error of the
     // round before it.
-    if (kept && r.rounds.size() >= 2) {
+    if (options.joint_steps && kept && r.rounds.size() >= 2) {
       const LoopRound before = r.rounds[r.rounds.size() - 2];
       std::set<std::string> added_now;  // this round's terms (" + " joins a pair or a law)
       for (size_t from = 0;;) {

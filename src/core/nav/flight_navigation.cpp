@@ -5,12 +5,13 @@
 #include <vector>
 
 #include "magcomp/core/error.h"
+#include "magcomp/core/geo/anomaly.h"
 #include "magcomp/core/geo/igrf.h"
+#include "magcomp/core/geo/igrf_track.h"
 #include "magcomp/core/math/constants.h"
 #include "magcomp/core/model/field_range.h"
 #include "magcomp/core/nav/nav_model.h"
 #include "magcomp/core/nav/streaming_navigator.h"
-#include "magcomp/core/geo/igrf_track.h"
 
 namespace magcomp::nav {
 namespace {
@@ -103,11 +104,10 @@ FlightSamples flight_samples(const FlightData& f) {
 
 Eigen::VectorXd measured_anomaly_nT(const FlightData& f, const Model& m, bool uncompensated) {
   require_model_fields_in_range(m, f);
-  Eigen::VectorXd a =
+  const Eigen::VectorXd total =
       uncompensated ? column(f, {m.scalar}, "the model's scalar") : compensate(m, f);
-  a -= igrf_total_nT(f, Igrf::installed());
-  if (f.has("diurnal")) a -= Eigen::VectorXd(f.column("diurnal"));
-  return a;
+  return anomaly_nT(total, igrf_total_nT(f, Igrf::installed()),
+                    f.has("diurnal") ? Eigen::VectorXd(f.column("diurnal")) : Eigen::VectorXd());
 }
 
 }  // namespace magcomp::nav

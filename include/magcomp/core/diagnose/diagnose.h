@@ -63,6 +63,9 @@ struct DiagnoseOptions {
   double resolution_nT = 0.03;
   int threads = 2;                ///< worker threads for the search
   bool explainable_share = true;  ///< estimate what a flexible model of all channels predicts
+  /// diagnose_loop: try pairs of terms together when no term passes alone, and drop earlier
+  /// terms that later ones made redundant (false: one term at a time, never removed).
+  bool joint_steps = true;
 };
 
 struct Diagnosis {
