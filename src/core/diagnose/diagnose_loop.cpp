@@ -252,16 +252,17 @@ LoopResult diagnose_loop(const Model& start, const FlightData& data, const std::
       kept = try_model(std::move(next), eligible[k]->term, eligible[k]->explained_fraction, false);
     }
     // Effects that act together: when no term passes alone while the residual stays
-    // predictable, pairs of the first ranked candidates of distinct channels, fitted together.
-    // A pair is kept if it passes every check, explains the accepted share of the held-out
-    // variance, and each of its terms lowers the pair's error variance by that share (both are
-    // needed: neither alone reaches it). The best such pair by held-out error.
+    // predictable, pairs of terms of distinct channels, fitted together. A pair is kept if it
+    // passes every check, lowers the error on each half of the held-out lines by the accepted
+    // share and the resolution, and each of its terms lowers the pair's error variance by the
+    // accepted share (each is needed); at least one of them must fail alone (else it is the
+    // single step's business). The best such pair by held-out error.
     const ExplainableShare& ex0 = dx.explainable;
     if (options.joint_steps && !kept && !ex0.within_noise) {
-      // The pool: for each of the three channels that predict most of the residual above its
-      // noise floor (and that the search gives terms of: no trajectory channel), its plain term
-      // and its first ranked term, whatever their share alone: effects that cancel one another
-      // show in the residual's channels, not in each term's share.
+      // The pool: for each of the three channels that predict most of the residual (and that
+      // the search gives terms of), its plain term and its first ranked term, whatever their
+      // share alone: effects that cancel one another show in the residual's channels, not in
+      // each term's share.
       constexpr size_t kResidualChannels = 3;
       std::vector<Candidate> pool;
       std::set<std::string> in_pool;
