@@ -55,9 +55,11 @@ struct LoopResult {
 /// selection lines is tried under the same checks (hinges at the channel's quantiles through the
 /// candidate's dynamic tail, marked in Model::black_box_terms and LoopRound::black_box); the
 /// loop stops when that fails too. Before the learned law, while the residual stays predictable,
-/// pairs of the first ranked candidates of distinct channels are tried together (effects that
-/// act together: neither passes alone), under the same checks plus one: each term of the pair
-/// must lower the pair's held-out error variance by the accepted share. After each kept round, a
+/// pairs of terms of the channels that predict the residual (each one's plain and first ranked
+/// term) are tried together (effects that act together: one or both fail alone), under the same
+/// checks plus two: the pair lowers the error on each half of the held-out lines by the accepted
+/// share and the resolution, and each of its terms lowers the pair's held-out error variance by
+/// the accepted share (DiagnoseOptions::joint_steps). After each kept round, a
 /// backward pass drops an earlier term whose removal raises the held-out variance by less than a
 /// quarter of the accepted share (and the validation error by no more), one at a time: a term
 /// that later terms made redundant leaves, and the round lists it. So the final model is never
