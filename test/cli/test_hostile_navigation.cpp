@@ -149,6 +149,15 @@ TEST(HostileNavigation, MapsAreValidatedOnReading) {
                  {"big.h5", "dataset 'map' declares 1600000000 values"});
 }
 
+// A map whose dataset's integer datatype is corrupt (found by fuzzing map_h5): libhdf5's
+// conversion to doubles faults (SIGBUS) on it; the probe process reads the values first, so the
+// command refuses the file in one line instead of dying.
+TEST(HostileNavigation, AMapThatCrashesTheHdf5LibraryIsRefusedInOneLine) {
+  expect_refusal("navigate --data " + example("simple_xyz.h5") + " --anomaly mag_1_c --map " +
+                     test::source_dir() + "/test/cli/data/map_corrupt_datatype.h5",
+                 {"map_corrupt_datatype.h5", "corrupt HDF5 file"});
+}
+
 // The map's own error (R's map term with --model-variance): read from the file's
 // `error_sigma_nT` when it has one, a stated 0.3 nT otherwise; a negative, infinite or
 // several-valued error is refused naming the file and the field.

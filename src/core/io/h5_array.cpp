@@ -113,10 +113,13 @@ H5Array read_h5_array(const std::string& path, const std::string& name) {
   H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);  // errors are ours to report, in one line
   if (H5Fis_hdf5(path.c_str()) <= 0) throw Error(path + ": not an HDF5 file");
   if (!probed_clean(path, st)) {
-    const std::string crash = probe_h5_structure(path);
+    // The structure, and the values of every array up to 16 M values (maps, tracks, reference
+    // vectors: each is read whole here anyway).
+    const std::string crash = probe_h5_structure(path, 1ULL << 24);
     if (!crash.empty())
-      throw Error(path + ": corrupt HDF5 file: the HDF5 library fails on its structure (" + crash +
-                  " in a probe process)");
+      throw Error(path +
+                  ": corrupt HDF5 file: the HDF5 library fails on its structure or values (" +
+                  crash + " in a probe process)");
     remember_clean(path, st);
   }
   {

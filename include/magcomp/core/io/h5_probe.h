@@ -8,10 +8,12 @@
 
 namespace magcomp {
 
-/// Walks the root group's datasets of `path` (open, type, shape, storage size) in a forked child.
+/// Walks the root group's datasets of `path` (open, type, shape, storage size) in a forked child,
+/// and reads as numbers every dataset of at most `read_values` values whose declared size the
+/// file can hold (a corrupt datatype crashes the library's conversion, not its structure walk).
 /// Returns "" when the walk completed (or could not be forked), else what ended the child
 /// ("signal 11"). MAGCOMP_HDF5_PROBE=0 turns the probe off (the fuzz targets do, to see the
 /// library's own crashes).
-std::string probe_h5_structure(const std::string& path);
+std::string probe_h5_structure(const std::string& path, unsigned long long read_values = 0);
 
 }  // namespace magcomp
