@@ -265,6 +265,7 @@ void add_navigate(CLI::App& app) {
   auto init_pos_sigma = std::make_shared<double>(3.0);
   auto map_offset = std::make_shared<std::string>("first");
   auto map_interp = std::make_shared<std::string>("linear");
+  auto map_representation = std::make_shared<std::string>("on");
   auto model_variance = std::make_shared<bool>(false);
   auto map_sigma = std::make_shared<double>(NAN);
   auto online = std::make_shared<bool>(false);
@@ -304,6 +305,11 @@ void add_navigate(CLI::App& app) {
                   "the map's interpolation: linear (bilinear, MagNav.jl's test vectors') or cubic "
                   "(cubic convolution); default linear")
       ->check(CLI::IsMember({"linear", "cubic"}));
+  cmd->add_option("--map-representation", *map_representation,
+                  "'on': each measurement's R also holds the map's interpolation error and the "
+                  "linearisation of the map over the position's covariance (from the map's "
+                  "curvature); 'off': R as given, MagNav.jl's filter (default on)")
+      ->check(CLI::IsMember({"on", "off"}));
   cmd->add_option("--map-offset", *map_offset,
                   "'first': remove the first measurement minus the map (at the INS position) from "
                   "all measurements, the compensation's constant offset; 'none': MagNav.jl's "
@@ -380,6 +386,7 @@ void add_navigate(CLI::App& app) {
     nav::ModelSigmas sig;
     sig.meas_var_nT2 = *meas_sigma * *meas_sigma;
     sig.fogm_nT = *fogm_sigma;
+    sig.map_representation_var = *map_representation == "on";
     sig.taus.fogm_s = *fogm_tau;
     sig.init_pos_m = *init_pos_sigma;
     double lat1 = NAN;  // the first valid INS latitude: the filter's initial covariance is there

@@ -23,6 +23,7 @@ namespace {
 
 const std::set<std::string> kKnownParams = {"map_path",
                                             "map_interpolation",
+                                            "map_representation_error",
                                             "map_altitude_m",
                                             "anomaly_topic",
                                             "ins_fix_topic",
@@ -91,6 +92,7 @@ NavigatorRos::NavigatorRos(ros::NodeHandle nh, ros::NodeHandle pnh)
   if (interp != "linear" && interp != "cubic")
     reject_param("map_interpolation", "must be linear or cubic, got '" + interp + "'");
   if (interp == "cubic") map_.interpolation = nav::AnomalyMap::Interpolation::Cubic;
+  pnh_.param("map_representation_error", sigmas_.map_representation_var, true);
   const double map_alt = getd(pnh_, "map_altitude_m", NAN);
   if (std::isfinite(map_alt)) {
     if (map_alt < map_.alt_m - 1.0)

@@ -157,6 +157,52 @@ Eigen::Vector2d AnomalyMap::gradient(double lat, double lon) const {
           (value(lat, lon + d) - value(lat, lon - d)) / 2 / d};
 }
 
+Eigen::Matrix2d AnomalyMap::curvature(double lat, double lon) const {
+  const Eigen::Index ny = map_nT.rows(), nx = map_nT.cols();
+  Eigen::Index i, j;
+  double t, s;
+  locate(lat_rad, lat, &i, &t);
+  locate(lon_rad, lon, &j, &s);
+  i += t > 0.5;  // the nearest node
+  j += s > 0.5;
+  if (ny < 3 || nx < 3 || i < 1 || j < 1 || i + 1 >= ny || j + 1 >= nx)
+    return Eigen::Matrix2d::Zero();
+  if (mask.size() != 0)
+    for (int a = -1; a <= 1; ++a)
+      for (int b = -1; b <= 1; ++b)
+        if (mask(i + a, j + b) == 0) return Eigen::Matrix2d::Zero();
+  const double dlat = (lat_rad[ny - 1] - lat_rad[0]) / double(ny - 1);
+  const double dlon = (lon_rad[nx - 1] - lon_rad[0]) / double(nx - 1);
+  const auto& m = map_nT;
+  Eigen::Matrix2d c;
+  c(0, 0) = (m(i + 1, j) - 2 * m(i, j) + m(i - 1, j)) / (dlat * dlat);
+  c(1, 1) = (m(i, j + 1) - 2 * m(i, j) + m(i, j - 1)) / (dlon * dlon);
+  c(0, 1) = c(1, 0) =
+      (m(i + 1, j + 1) - m(i + 1, j - 1) - m(i - 1, j + 1) + m(i - 1, j - 1)) / (4 * dlat * dlon);
+  return c;
+}
+
+double AnomalyMap::representation_var_nT2(double lat, double lon,
+                                          const Eigen::Matrix2d& p_rad2) const {
+  const Eigen::Matrix2d c = curvature(lat, lon);
+  const Eigen::Matrix2d cp = c * p_rad2;
+  double var = 0.5 * (cp * cp).trace();
+  if (interpolation == Interpolation::Linear && lat_rad.size() > 1 && lon_rad.size() > 1) {
+    Eigen::Index i, j;
+    double t, s;
+    locate(lat_rad, lat, &i, &t);
+    locate(lon_rad, lon, &j, &s);
+    t = std::clamp(t, 0.0, 1.0);
+    s = std::clamp(s, 0.0, 1.0);
+    const double dlat = (lat_rad[lat_rad.size() - 1] - lat_rad[0]) / double(lat_rad.size() - 1);
+    const double dlon = (lon_rad[lon_rad.size() - 1] - lon_rad[0]) / double(lon_rad.size() - 1);
+    const double e =
+        0.5 * (t * (1 - t) * dlat * dlat * c(0, 0) + s * (1 - s) * dlon * dlon * c(1, 1));
+    var += e * e;
+  }
+  return std::isfinite(var) ? var : 0.0;
+}
+
 bool AnomalyMap::covers(double lat, double lon) const {
   if (!(lat >= lat_rad[0] && lat <= lat_rad[lat_rad.size() - 1] && lon >= lon_rad[0] &&
         lon <= lon_rad[lon_rad.size() - 1]))

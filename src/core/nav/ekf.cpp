@@ -113,7 +113,9 @@ MapMatchingEkf::Step MapMatchingEkf::step(const NavPoint& point, double lat_ins,
   const Eigen::Index k = s_.c0.size();
   const double lat = lat_ins + x_[0], lon = lon_ins + x_[1];
   out.on_map = map_.covers(lat, lon);
-  const double r = std::isfinite(r_nT2) && r_nT2 > 0 ? r_nT2 : s_.r_nT2;
+  double r = std::isfinite(r_nT2) && r_nT2 > 0 ? r_nT2 : s_.r_nT2;
+  if (s_.map_representation_var && out.on_map)
+    r += map_.representation_var_nT2(lat, lon, p_.topLeftCorner<2, 2>());
   // Online calibration: the aircraft's field a.c the model predicts is part of the measurement.
   double aircraft_nT = 0.0;
   if (k > 0) {
@@ -200,7 +202,11 @@ std::vector<Eigen::MatrixXd> crlb(const NavTrack& truth, const AnomalyMap& map,
   for (Eigen::Index t = 0; t < truth.size(); ++t) {
     const Eigen::MatrixXd phi = pinson_transition(truth.point(t), s.taus, true, truth.dt_s);
     const Eigen::RowVectorXd h = measurement_row(map, truth.lat_rad[t], truth.lon_rad[t]);
-    const double var = (h * p * h.transpose())(0, 0) + s.r_nT2;
+    const double r = s.r_nT2 + (s.map_representation_var
+                                    ? map.representation_var_nT2(truth.lat_rad[t], truth.lon_rad[t],
+                                                                 Eigen::Matrix2d::Zero())
+                                    : 0.0);
+    const double var = (h * p * h.transpose())(0, 0) + r;
     update_covariance(h, var, &p);
     out.push_back(p);
     p = phi * p * phi.transpose() + s.qd;

@@ -85,6 +85,7 @@ FilterSettings filter_model(double dt_s, double lat1, const ModelSigmas& s) {
   FilterSettings f;
   f.taus = s.taus;
   f.r_nT2 = s.meas_var_nT2;
+  f.map_representation_var = s.map_representation_var;
   Eigen::VectorXd p0(18);
   const double dlat =
       s.init_pos_m * std::sqrt(1 - std::pow(kEccentricity * std::sin(lat1), 2)) / kEarthRadius_m;

@@ -37,6 +37,18 @@ struct AnomalyMap {
   bool covered_value(double lat_rad, double lon_rad, double* value_nT) const;
   /// Grid steps in metres at the map's mean latitude: east (x) and north (y).
   Eigen::Vector2d step_m() const;
+  /// The map's second derivatives at the grid node nearest (lat, lon), rad: [d2/dlat2,
+  /// d2/dlat dlon; d2/dlat dlon, d2/dlon2] in nT/rad^2, by second differences of the nodes about
+  /// it. Zero where a node it reads is masked or lies off the grid.
+  Eigen::Matrix2d curvature(double lat_rad, double lon_rad) const;
+  /// The variance the map's representation adds to one measurement at (lat, lon), rad, beyond
+  /// the survey's own error, nT^2: the interpolation's error (bilinear: half the curvature times
+  /// t(1-t) step^2 along each axis, squared; cubic convolution, exact on quadratics: none) plus the
+  /// linearisation of the map over the position's uncertainty p_rad2 (2 x 2, lat/lon, rad^2):
+  /// 1/2 tr((C P)^2) with C the curvature, the variance of the quadratic term a linear update
+  /// leaves out.
+  double representation_var_nT2(double lat_rad, double lon_rad,
+                                const Eigen::Matrix2d& p_rad2) const;
 };
 
 /// Wavenumbers (rad/m) of an ny x nx grid of steps dx, dy (m), in the FFT's order: k, kx, ky.

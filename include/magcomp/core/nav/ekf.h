@@ -29,6 +29,11 @@ struct FilterSettings {
   Eigen::MatrixXd p0, qd;
   double qd_step_s = NAN;  ///< the step qd is for, s (NaN: unknown; a gap then adds one qd)
   double r_nT2 = 1.0;
+  /// Add the map's representation error to each measurement's R
+  /// (AnomalyMap::representation_var_nT2: the interpolation's error and the linearisation over the
+  /// position's covariance; the bound takes the interpolation's alone). false: R as given
+  /// (MagNav.jl's filter).
+  bool map_representation_var = false;
   ErrorModelTaus taus;
   /// A measurement whose normalised innovation squared (innovation^2 / its variance) exceeds this
   /// is not used (chi-square, 1 dof: 10.83 rejects 0.1 % of consistent ones); infinite: none.

@@ -30,6 +30,8 @@ struct ModelSigmas {
   double baro_m = 1.0, ha_m = 0.001, a_hat_mps2 = 0.01;
   double acc_mps2 = 0.000245, gyro_rps = 0.00000000727;
   double fogm_nT = 3.0;
+  /// Each measurement's R also holds the map's representation error (FilterSettings).
+  bool map_representation_var = false;
   ErrorModelTaus taus;
 };
 
