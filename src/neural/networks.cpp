@@ -5,7 +5,7 @@
 #include <Eigen/Core>
 #include <fstream>
 
-#include "magcomp/neural/network.h"
+#include "magcomp/core/neural/network.h"
 
 namespace magcomp {
 

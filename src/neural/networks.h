@@ -3,7 +3,7 @@
 
 #include <torch/torch.h>
 
-#include "magcomp/neural/spec.h"
+#include "magcomp/core/model/neural_spec.h"
 
 namespace magcomp {
 

@@ -13,7 +13,7 @@
 
 #include "magcomp/core/sim/simulator.h"
 #include "magcomp/core/stream/streaming_compensator.h"
-#include "magcomp/neural/dataset.h"
+#include "magcomp/core/neural/dataset.h"
 #include "magcomp/neural/trainer.h"
 
 using namespace magcomp;

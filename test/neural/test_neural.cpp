@@ -8,11 +8,11 @@
 
 #include "magcomp/core/error.h"
 #include "magcomp/core/evaluate/evaluation.h"
-#include "magcomp/core/model/apply.h"
+#include "magcomp/core/apply/apply.h"
 #include "magcomp/core/sim/simulator.h"
 #include "magcomp/core/stream/streaming_compensator.h"
-#include "magcomp/neural/dataset.h"
-#include "magcomp/neural/network.h"
+#include "magcomp/core/neural/dataset.h"
+#include "magcomp/core/neural/network.h"
 #include "magcomp/neural/trainer.h"
 #include "test_util.h"
 

@@ -8,7 +8,7 @@
 #include <mutex>
 
 #include "magcomp/core/model/model.h"
-#include "magcomp/neural/network.h"
+#include "magcomp/core/neural/network.h"
 #include "magcomp/ros/bag_converter.h"
 #include "rostest_util.h"
 

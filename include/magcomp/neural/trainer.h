@@ -8,8 +8,8 @@
 #include <vector>
 
 #include "magcomp/core/model/model.h"
-#include "magcomp/neural/dataset.h"
-#include "magcomp/neural/spec.h"
+#include "magcomp/core/neural/dataset.h"
+#include "magcomp/core/model/neural_spec.h"
 
 namespace magcomp {
 

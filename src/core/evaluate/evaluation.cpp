@@ -10,9 +10,9 @@
 
 #include "magcomp/core/error.h"
 #include "magcomp/core/evaluate/flight_conditions.h"
-#include "magcomp/core/model/apply.h"
+#include "magcomp/core/apply/apply.h"
 #include "magcomp/core/model/field_range.h"
-#include "magcomp/neural/network.h"
+#include "magcomp/core/neural/network.h"
 
 namespace magcomp {
 

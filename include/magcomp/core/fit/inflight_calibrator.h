@@ -9,7 +9,7 @@
 
 #include "magcomp/core/math/butterworth.h"
 #include "magcomp/core/model/model.h"
-#include "magcomp/core/stream/streaming_compensator.h"
+#include "magcomp/core/model/stream_sample.h"
 
 namespace magcomp {
 

@@ -12,7 +12,7 @@
 
 #include "magcomp/core/io/flight_data.h"
 #include "magcomp/core/model/term.h"
-#include "magcomp/neural/spec.h"
+#include "magcomp/core/model/neural_spec.h"
 
 namespace magcomp {
 
@@ -85,7 +85,7 @@ struct Model {
   std::vector<std::string> column_names;
   Eigen::VectorXd coefficients;
   FitReport report;
-  /// Optional neural stage on top of the terms (see magcomp/neural/spec.h).
+  /// Optional neural stage on top of the terms (see magcomp/core/model/neural_spec.h).
   std::optional<NeuralSpec> neural;
 
   bool fitted() const { return coefficients.size() > 0; }

@@ -10,26 +10,11 @@
 
 #include "magcomp/core/model/model.h"
 #include "magcomp/core/model/signal.h"
-#include "magcomp/neural/features.h"
-#include "magcomp/neural/network.h"
+#include "magcomp/core/model/stream_sample.h"
+#include "magcomp/core/neural/features.h"
+#include "magcomp/core/neural/network.h"
 
 namespace magcomp {
-
-/// The inputs at one scalar-magnetometer stamp (vector field and channels already interpolated
-/// to that stamp). Times in s, fields in nT, vector in the model's vector-sensor frame.
-struct StreamSample {
-  double t_s = 0.0;
-  double scalar_nT = 0.0;
-  Eigen::Vector3d vector_nT = Eigen::Vector3d::Zero();
-  std::vector<double> channels;  ///< values of required_channels(), in that order
-  double igrf_nT = NAN;          ///< IGRF total field at the sample (needs_igrf() models), nT
-};
-
-/// A flight made of stream samples [begin, end): tt, the model's scalar, <vector>_x/_y/_z, the
-/// channels (named `channels`, in the samples' order) and, when `lines` is given, a `line` column.
-FlightData samples_to_flight(const Model& model, const std::vector<std::string>& channels,
-                             const std::vector<const StreamSample*>& samples,
-                             const std::vector<int>* lines = nullptr);
 
 /// The compensation of one sample, nT.
 struct StreamOutput {

@@ -1,5 +1,5 @@
 // magcomp: checks of the neural stage's settings.
-#include "magcomp/neural/spec.h"
+#include "magcomp/core/model/neural_spec.h"
 
 #include <set>
 

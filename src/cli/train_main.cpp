@@ -6,10 +6,10 @@
 #include <iomanip>
 #include <iostream>
 
-#include "../cli/common.h"
+#include "common.h"
 #include "magcomp/core/error.h"
 #include "magcomp/core/model/model.h"
-#include "magcomp/neural/network.h"
+#include "magcomp/core/neural/network.h"
 #include "magcomp/neural/trainer.h"
 
 namespace {

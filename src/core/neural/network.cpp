@@ -1,5 +1,5 @@
 // magcomp: loading the neural library and running a trained network offline and online.
-#include "magcomp/neural/network.h"
+#include "magcomp/core/neural/network.h"
 
 #include <dlfcn.h>
 #include <unistd.h>
@@ -11,7 +11,7 @@
 
 #include "magcomp/core/error.h"
 #include "magcomp/core/io/paths.h"
-#include "magcomp/neural/features.h"
+#include "magcomp/core/neural/features.h"
 
 namespace magcomp {
 namespace {

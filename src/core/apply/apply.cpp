@@ -1,7 +1,7 @@
 // magcomp: applying a model offline.
-#include "magcomp/core/model/apply.h"
+#include "magcomp/core/apply/apply.h"
 
-#include "magcomp/neural/network.h"
+#include "magcomp/core/neural/network.h"
 
 namespace magcomp {
 

@@ -1,5 +1,5 @@
 // magcomp: neural features and target.
-#include "magcomp/neural/features.h"
+#include "magcomp/core/neural/features.h"
 
 #include <cmath>
 

@@ -6,7 +6,7 @@
 #include <vector>
 
 #include "magcomp/core/model/model.h"
-#include "magcomp/neural/features.h"
+#include "magcomp/core/neural/features.h"
 
 namespace magcomp {
 

@@ -1,5 +1,5 @@
 // magcomp: normalisation and training windows.
-#include "magcomp/neural/dataset.h"
+#include "magcomp/core/neural/dataset.h"
 
 #include <cmath>
 

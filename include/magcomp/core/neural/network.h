@@ -10,7 +10,7 @@
 #include <vector>
 
 #include "magcomp/core/io/flight_data.h"
-#include "magcomp/core/model/apply.h"
+#include "magcomp/core/model/compensation.h"
 #include "magcomp/core/model/model.h"
 
 namespace magcomp {
@@ -34,7 +34,7 @@ using CreateNetworkFn = NeuralNetwork* (*)(const NeuralSpec* spec, int n_feature
                                            std::string* error);
 constexpr const char* kCreateNetworkSymbol = "magcomp_create_network";
 
-/// A model with a neural stage applied to a whole flight (apply.h's Compensation), nT.
+/// A model with a neural stage applied to a whole flight (model/compensation.h), nT.
 using NeuralCompensation = Compensation;
 /// Offline inference (apply_model calls it for a model with a trained neural stage): windows end
 /// at each sample and are padded at the flight's start by repeating its first sample (the online
