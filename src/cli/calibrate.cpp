@@ -7,6 +7,7 @@
 #include "common.h"
 #include "magcomp/core/error.h"
 #include "magcomp/core/evaluate/evaluation.h"
+#include "magcomp/core/fit/model_fit.h"
 #include "magcomp/core/io/file_io.h"
 #include "magcomp/core/io/output_guard.h"
 #include "magcomp/core/model/model.h"

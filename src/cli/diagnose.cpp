@@ -14,6 +14,7 @@
 #include "magcomp/core/diagnose/term_support.h"
 #include "magcomp/core/error.h"
 #include "magcomp/core/evaluate/evaluation.h"
+#include "magcomp/core/fit/model_fit.h"
 #include "magcomp/core/io/file_io.h"
 #include "magcomp/core/io/output_guard.h"
 #include "magcomp/core/nav/map_reference.h"

@@ -7,6 +7,7 @@
 #include <iostream>
 
 #include "common.h"
+#include "magcomp/core/apply/apply.h"
 #include "magcomp/core/error.h"
 #include "magcomp/core/model/model.h"
 #include "magcomp/core/neural/network.h"

@@ -5,6 +5,7 @@
 #include <iostream>
 
 #include "magcomp/core/error.h"
+#include "magcomp/core/fit/model_fit.h"
 #include "magcomp/neural/trainer.h"
 
 namespace magcomp {

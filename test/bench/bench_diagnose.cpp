@@ -10,6 +10,7 @@
 #include <random>
 
 #include "magcomp/core/diagnose/diagnose.h"
+#include "magcomp/core/fit/model_fit.h"
 #include "magcomp/core/sim/simulator.h"
 
 int main(int argc, char** argv) {

@@ -11,9 +11,10 @@
 #include <fstream>
 #include <string>
 
+#include "magcomp/core/fit/model_fit.h"
+#include "magcomp/core/neural/dataset.h"
 #include "magcomp/core/sim/simulator.h"
 #include "magcomp/core/stream/streaming_compensator.h"
-#include "magcomp/core/neural/dataset.h"
 #include "magcomp/neural/trainer.h"
 
 using namespace magcomp;

@@ -7,6 +7,8 @@
 #include <cstdio>
 #include <cstdlib>
 
+#include "magcomp/core/apply/apply.h"
+#include "magcomp/core/fit/model_fit.h"
 #include "magcomp/core/math/butterworth.h"
 #include "magcomp/core/model/model.h"
 

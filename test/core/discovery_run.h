@@ -14,6 +14,7 @@
 
 #include "magcomp/core/diagnose/diagnose_loop.h"
 #include "magcomp/core/evaluate/evaluation.h"
+#include "magcomp/core/fit/model_fit.h"
 #include "magcomp/core/geo/igrf.h"
 #include "magcomp/core/model/model.h"
 #include "magcomp/core/model/terms_expr.h"

@@ -5,6 +5,7 @@
 #include <string>
 
 #include "magcomp/core/evaluate/evaluation.h"
+#include "magcomp/core/fit/model_fit.h"
 #include "magcomp/core/model/model.h"
 #include "magcomp/core/sim/simulator.h"
 #include "magcomp/core/stream/streaming_compensator.h"

@@ -12,6 +12,7 @@
 #include "magcomp/core/diagnose/diagnose.h"
 #include "magcomp/core/diagnose/diagnose_loop.h"
 #include "magcomp/core/error.h"
+#include "magcomp/core/fit/model_fit.h"
 #include "magcomp/core/fit/parameter_fit.h"
 #include "magcomp/core/model/terms_expr.h"
 #include "scenario_cache.h"

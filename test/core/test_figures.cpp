@@ -5,6 +5,7 @@
 
 #include "magcomp/core/evaluate/evaluation.h"
 #include "magcomp/core/evaluate/figure_of_merit.h"
+#include "magcomp/core/fit/model_fit.h"
 #include "scenario_cache.h"
 
 namespace magcomp {

@@ -6,6 +6,7 @@
 
 #include "magcomp/core/error.h"
 #include "magcomp/core/evaluate/evaluation.h"
+#include "magcomp/core/fit/model_fit.h"
 #include "magcomp/core/model/model.h"
 #include "scenario_cache.h"
 #include "synthetic_flight.h"

@@ -6,6 +6,7 @@
 
 #include "magcomp/core/error.h"
 #include "magcomp/core/evaluate/evaluation.h"
+#include "magcomp/core/fit/model_fit.h"
 #include "magcomp/core/io/flight_data.h"
 #include "magcomp/core/model/model.h"
 #include "synthetic_flight.h"

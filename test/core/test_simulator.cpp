@@ -7,6 +7,7 @@
 #include <yaml-cpp/yaml.h>
 #include "magcomp/core/diagnose/diagnose.h"
 #include "magcomp/core/error.h"
+#include "magcomp/core/fit/model_fit.h"
 #include "magcomp/core/math/timeseries.h"
 #include "magcomp/core/sim/anomaly_map.h"
 #include "magcomp/core/sim/electrical.h"

@@ -3,6 +3,7 @@
 
 #include <chrono>
 
+#include "magcomp/core/apply/apply.h"
 #include "magcomp/core/stream/streaming_compensator.h"
 #include "scenario_cache.h"
 

@@ -6,6 +6,7 @@
 #include <functional>
 
 #include "magcomp/core/diagnose/term_support.h"
+#include "magcomp/core/fit/model_fit.h"
 #include "synthetic_flight.h"
 
 namespace magcomp {

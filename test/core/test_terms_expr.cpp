@@ -1,7 +1,9 @@
 // Terms of the language: shorthands, projections, free parameters estimated by the fit.
 #include <gtest/gtest.h>
 
+#include "magcomp/core/apply/apply.h"
 #include "magcomp/core/error.h"
+#include "magcomp/core/fit/model_fit.h"
 #include "magcomp/core/model/terms_expr.h"
 #include "scenario_cache.h"
 

@@ -4,6 +4,8 @@
 
 #include <cmath>
 
+#include "magcomp/core/apply/apply.h"
+#include "magcomp/core/fit/model_fit.h"
 #include "magcomp/core/math/butterworth.h"
 #include "magcomp/core/model/model.h"
 #include "test_util.h"

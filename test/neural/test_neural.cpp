@@ -6,13 +6,14 @@
 #include <cmath>
 #include <fstream>
 
+#include "magcomp/core/apply/apply.h"
 #include "magcomp/core/error.h"
 #include "magcomp/core/evaluate/evaluation.h"
-#include "magcomp/core/apply/apply.h"
-#include "magcomp/core/sim/simulator.h"
-#include "magcomp/core/stream/streaming_compensator.h"
+#include "magcomp/core/fit/model_fit.h"
 #include "magcomp/core/neural/dataset.h"
 #include "magcomp/core/neural/network.h"
+#include "magcomp/core/sim/simulator.h"
+#include "magcomp/core/stream/streaming_compensator.h"
 #include "magcomp/neural/trainer.h"
 #include "test_util.h"
 

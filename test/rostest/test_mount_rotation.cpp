@@ -9,6 +9,7 @@
 #include <cmath>
 #include <mutex>
 
+#include "magcomp/core/apply/apply.h"
 #include "magcomp/core/model/model.h"
 #include "rostest_util.h"
 

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <mutex>
 
+#include "magcomp/core/apply/apply.h"
 #include "magcomp/core/model/model.h"
 #include "magcomp/core/neural/network.h"
 #include "magcomp/ros/bag_converter.h"

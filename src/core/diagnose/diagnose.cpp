@@ -1,6 +1,7 @@
 // magcomp: diagnose: the nested split, the base refit, the search over the term language, the
 // verdict.
 #include "magcomp/core/diagnose/diagnose.h"
+#include "magcomp/core/fit/model_fit.h"
 
 #include <Eigen/Dense>
 #include <algorithm>

@@ -1,5 +1,6 @@
 // magcomp: the diagnose -> add -> refit loop.
 #include "magcomp/core/diagnose/diagnose_loop.h"
+#include "magcomp/core/fit/model_fit.h"
 
 #include <algorithm>
 #include <cmath>

@@ -1,5 +1,6 @@
 // magcomp: in-flight calibration.
 #include "magcomp/core/fit/inflight_calibrator.h"
+#include "magcomp/core/fit/model_fit.h"
 
 #include <set>
 

@@ -1,4 +1,5 @@
-// magcomp: design matrix, band-pass / reference fit, compensation.
+// magcomp: fitting a model on flights: calibration runs, band-pass and stacking, the ridge fit (see
+// fit/model_fit.h).
 #include <Eigen/Dense>
 #include <algorithm>
 #include <atomic>
@@ -11,6 +12,7 @@
 #include <thread>
 
 #include "magcomp/core/error.h"
+#include "magcomp/core/fit/model_fit.h"
 #include "magcomp/core/fit/parameter_fit.h"
 #include "magcomp/core/fit/slow_stage.h"
 #include "magcomp/core/math/butterworth.h"
@@ -21,162 +23,6 @@
 #include "magcomp/core/model/terms_expr.h"
 
 namespace magcomp {
-
-std::vector<std::unique_ptr<Term>> Model::make_terms() const {
-  std::vector<std::unique_ptr<Term>> out;
-  for (const std::string& spec : terms) out.push_back(make_term(spec));
-  return out;
-}
-
-std::vector<std::string> Model::make_column_names() const {
-  std::vector<std::string> names;
-  for (const auto& t : make_terms()) {
-    for (const auto& c : t->column_names()) names.push_back(c);
-  }
-  return names;
-}
-
-double Model::scalar_lag_s() const {
-  double lag = 0.0;
-  for (const auto& t : make_terms()) lag += t->scalar_lag_s();
-  return lag;
-}
-
-Eigen::VectorXd aligned_scalar(const Model& model, const FlightData& data) {
-  return aligned_scalar(model, data, model.scalar_lag_s());
-}
-
-Eigen::VectorXd aligned_scalar(const Model& model, const FlightData& data, double lag) {
-  const auto s = data.column(model.scalar);
-  if (lag == 0.0) return s;
-  return shift_samples(s, -lag / data.dt_s());
-}
-
-bool Model::add_term(const std::string& spec) {
-  const std::string canonical = make_term(spec)->spec();
-  if (std::find(terms.begin(), terms.end(), canonical) != terms.end()) return false;
-  if (const auto e = parse_expr_term(canonical)) {
-    for (auto& t : terms) {
-      const auto old = parse_expr_term(t);
-      if (old && old->shape() == e->shape() && old->spec().find('(') != std::string::npos) {
-        for (auto* list : {&slow_terms, &black_box_terms}) {  // they name it by its spec
-          std::replace(list->begin(), list->end(), t, canonical);
-        }
-        t = canonical;  // the same expression with new parameter values
-        coefficients.resize(0);
-        return true;
-      }
-    }
-  }
-  if (canonical.rfind("lag:", 0) == 0) {  // one lag per model: a new one replaces the old
-    terms.erase(std::remove_if(terms.begin(), terms.end(),
-                               [](const std::string& t) { return t.rfind("lag:", 0) == 0; }),
-                terms.end());
-  }
-  terms.push_back(canonical);
-  return true;
-}
-
-void require_slow_term(const std::string& spec) {
-  if (const auto e = parse_expr_term(spec); e && e->signal().has_free())
-    throw Error("'" + spec + "' has a free parameter (?): give its value");
-}
-
-void Model::add_slow_term(const std::string& spec, const std::string& reference) {
-  const std::string canonical = make_term(spec)->spec();
-  require_slow_term(canonical);
-  add_term(canonical);
-  if (std::find(slow_terms.begin(), slow_terms.end(), canonical) == slow_terms.end())
-    slow_terms.push_back(canonical);
-  if (fit.reference.empty()) fit.reference = reference;
-}
-
-std::vector<Eigen::Index> fittable_columns(FitMethod method,
-                                           const std::vector<std::unique_ptr<Term>>& terms) {
-  const bool bandpass = method == FitMethod::kBandpass;
-  std::vector<Eigen::Index> out;
-  Eigen::Index c = 0;
-  for (const auto& t : terms) {
-    for (Eigen::Index k = 0; k < t->columns(); ++k, ++c) {
-      if (!bandpass || t->bandpass_observable()) out.push_back(c);
-    }
-  }
-  return out;
-}
-
-namespace {
-// Per column of `terms`: whether its term is one of `slow_terms`.
-std::vector<bool> slow_mask(const std::vector<std::unique_ptr<Term>>& terms,
-                            const std::vector<std::string>& slow_terms) {
-  std::vector<bool> out;
-  for (const auto& t : terms) {
-    const bool slow =
-        std::find(slow_terms.begin(), slow_terms.end(), t->spec()) != slow_terms.end();
-    out.insert(out.end(), static_cast<size_t>(t->columns()), slow);
-  }
-  return out;
-}
-}  // namespace
-
-std::vector<Eigen::Index> fittable_columns(FitMethod method,
-                                           const std::vector<std::unique_ptr<Term>>& terms,
-                                           const std::vector<std::string>& slow_terms) {
-  std::vector<Eigen::Index> out = fittable_columns(method, terms);
-  if (method != FitMethod::kBandpass || slow_terms.empty()) return out;
-  const std::vector<bool> slow = slow_mask(terms, slow_terms);
-  out.erase(std::remove_if(out.begin(), out.end(),
-                           [&](Eigen::Index c) { return slow[static_cast<size_t>(c)]; }),
-            out.end());
-  return out;
-}
-
-std::vector<Eigen::Index> slow_columns(FitMethod method,
-                                       const std::vector<std::unique_ptr<Term>>& terms,
-                                       const std::vector<std::string>& slow_terms) {
-  std::vector<Eigen::Index> out;
-  if (method != FitMethod::kBandpass || slow_terms.empty()) return out;
-  const std::vector<bool> slow = slow_mask(terms, slow_terms);
-  for (size_t c = 0; c < slow.size(); ++c) {
-    if (slow[c]) out.push_back(static_cast<Eigen::Index>(c));
-  }
-  return out;
-}
-
-const char* fit_method_name(FitMethod m) {
-  return m == FitMethod::kReference ? "reference" : "bandpass";
-}
-
-Eigen::MatrixXd design_matrix(const Model& model, const FlightData& data) {
-  return design_matrix(model, model.make_terms(), data);
-}
-
-Eigen::MatrixXd design_matrix(const Model& model, const std::vector<std::unique_ptr<Term>>& terms,
-                              const FlightData& data) {
-  for (const auto& t : terms) {
-    for (const auto& f : t->fields()) {
-      if (!data.has(f)) {
-        throw Error(data.source() + ": field '" + f + "' needed by term '" + t->spec() +
-                    "' not found");
-      }
-    }
-  }
-  const TermInputs in = make_term_inputs(data, model.vector, model.bt_scale_nT);
-  Eigen::Index cols = 0;
-  for (const auto& t : terms) cols += t->columns();
-  Eigen::MatrixXd a(data.size(), cols);
-  Eigen::Index c = 0;
-  double lag_s = 0.0;
-  for (const auto& t : terms) {
-    const Eigen::Index w = t->columns();
-    t->build(in, a.middleCols(c, w));
-    c += w;
-    lag_s += t->scalar_lag_s();
-  }
-  // The realigned scalar of a lagging sensor carries the round trip of a fractional shift: so do
-  // the columns that model it.
-  if (lag_s != 0.0 && data.size() > 1) lag_round_trip(a, lag_s / data.dt_s());
-  return a;
-}
 
 namespace {
 // A'A as a symmetric rank update (half the work of a general product).
@@ -261,63 +107,6 @@ std::vector<std::pair<Eigen::Index, Eigen::Index>> calibration_runs(
     }
   }
   return kept;
-}
-
-Eigen::Index slice_margin(const Model& model, const std::vector<std::unique_ptr<Term>>& terms,
-                          double dt_s) {
-  int reach = 0;
-  for (const auto& t : terms) {
-    const int r = t->row_reach();
-    if (r < 0) return -1;
-    reach = std::max(reach, r);
-  }
-  const double lag_samples = std::abs(model.scalar_lag_s()) / dt_s;
-  if (!std::isfinite(lag_samples) || lag_samples > 1e6) return -1;
-  // +2: the cubic interpolation of a fractional shift reads two samples past the shifted one.
-  // The columns' lag round trip reads a few rows each side, each needing the terms' reach.
-  return reach + lag_round_trip_reach(lag_samples) +
-         static_cast<Eigen::Index>(std::ceil(lag_samples)) + 2;
-}
-
-void for_each_design_block(
-    const Model& model, const FlightData& data,
-    const std::function<void(Eigen::Index, const Eigen::Ref<const Eigen::MatrixXd>&)>& block,
-    int threads) {
-  const auto terms = model.make_terms();
-  const Eigen::Index n = data.size();
-  const Eigen::Index margin = n > 1 ? slice_margin(model, terms, data.dt_s()) : -1;
-  constexpr Eigen::Index kBlockRows = 16384;  // ~2.4 MB for 18 columns: stays in cache
-  if (margin < 0 || n <= 2 * kBlockRows) {
-    const Eigen::MatrixXd a = design_matrix(model, terms, data);
-    block(0, a);
-    return;
-  }
-  const Eigen::Index blocks = (n + kBlockRows - 1) / kBlockRows;
-  std::atomic<Eigen::Index> next{0};
-  std::mutex error_mutex;
-  std::exception_ptr error;
-  auto worker = [&] {
-    for (Eigen::Index b; (b = next++) < blocks;) {
-      try {
-        const Eigen::Index first = b * kBlockRows;
-        const Eigen::Index count = std::min(kBlockRows, n - first);
-        const Eigen::Index lo = std::max<Eigen::Index>(0, first - margin);
-        const Eigen::Index hi = std::min(n, first + count + margin);
-        const FlightData part = data.rows(lo, hi - lo);
-        const Eigen::MatrixXd a = design_matrix(model, terms, part);
-        block(first, a.middleRows(first - lo, count));
-      } catch (...) {
-        std::lock_guard<std::mutex> lock(error_mutex);
-        if (!error) error = std::current_exception();
-        next = blocks;  // no more blocks
-      }
-    }
-  };
-  std::vector<std::thread> pool;
-  for (int t = 1; t < std::min<Eigen::Index>(threads, blocks); ++t) pool.emplace_back(worker);
-  worker();
-  for (auto& t : pool) t.join();
-  if (error) std::rethrow_exception(error);
 }
 
 Eigen::MatrixXd stack_runs(const FitSettings& s, double dt_s, const Eigen::MatrixXd& x,
@@ -666,80 +455,6 @@ void fit_model(Model& model, const std::vector<const FlightData*>& flights) {
   add_column_warnings(model, g, keep, slow, &report);
   if (!slow.empty()) fit_slow_stage(model, terms, flights, slow, &report);
   model.report = report;
-}
-
-Eigen::VectorXd model_correction(const Model& model, const FlightData& data) {
-  Eigen::VectorXd correction;
-  model_correction_and_variance(model, data, &correction, nullptr);
-  return correction;
-}
-
-namespace {
-// sample_variance_nT2 with the product's buffer given (per-sample callers).
-double row_variance_nT2(const Model& model, const Eigen::Ref<const Eigen::RowVectorXd>& row,
-                        Eigen::VectorXd* buffer) {
-  const Eigen::MatrixXd& cov = model.report.coefficient_covariance;
-  if (cov.rows() != row.size() || !std::isfinite(model.report.noise_variance_nT2)) {
-    return std::numeric_limits<double>::quiet_NaN();
-  }
-  return row_quadratic_form(cov, row, model.report.sample_noise_nT2(), buffer);
-}
-}  // namespace
-
-double sample_variance_nT2(const Model& model, const Eigen::Ref<const Eigen::RowVectorXd>& row) {
-  Eigen::VectorXd buffer;
-  return row_variance_nT2(model, row, &buffer);
-}
-
-void for_each_correction_block(const Model& model, const FlightData& data, bool with_variance,
-                               const std::function<void(Eigen::Index, const Eigen::VectorXd&,
-                                                        const Eigen::VectorXd*)>& block) {
-  if (!model.fitted()) throw Error("model: not calibrated (no coefficients)");
-  const Eigen::MatrixXd& cov = model.report.coefficient_covariance;
-  const double noise_nT2 = model.report.sample_noise_nT2();
-  // Blocks on two threads (each sample's numbers do not depend on which thread computes them).
-  static const int threads =
-      static_cast<int>(std::clamp(std::thread::hardware_concurrency(), 1u, 2u));
-  for_each_design_block(
-      model, data,
-      [&](Eigen::Index first, const Eigen::Ref<const Eigen::MatrixXd>& a) {
-        if (a.cols() != model.coefficients.size()) {
-          throw Error("model: " + std::to_string(model.coefficients.size()) + " coefficients for " +
-                      std::to_string(a.cols()) + " columns");
-        }
-        Eigen::VectorXd correction(a.rows());
-        correction.noalias() = a * model.coefficients;
-        if (!with_variance) {
-          block(first, correction, nullptr);
-          return;
-        }
-        Eigen::VectorXd variance(a.rows());
-        if (cov.rows() != a.cols() || !std::isfinite(noise_nT2)) {
-          variance.setConstant(std::numeric_limits<double>::quiet_NaN());
-        } else {
-          row_quadratic_forms(cov, a, noise_nT2, variance.data());
-        }
-        block(first, correction, &variance);
-      },
-      threads);
-}
-
-void model_correction_and_variance(const Model& model, const FlightData& data,
-                                   Eigen::VectorXd* correction_nT, Eigen::VectorXd* variance_nT2) {
-  correction_nT->resize(data.size());
-  if (variance_nT2) variance_nT2->resize(data.size());
-  for_each_correction_block(
-      model, data, variance_nT2 != nullptr,
-      [&](Eigen::Index first, const Eigen::VectorXd& correction, const Eigen::VectorXd* variance) {
-        correction_nT->segment(first, correction.size()) = correction;
-        if (variance) variance_nT2->segment(first, variance->size()) = *variance;
-      });
-}
-
-Eigen::VectorXd compensation_variance_nT2(const Model& model, const FlightData& data) {
-  Eigen::VectorXd correction, variance;
-  model_correction_and_variance(model, data, &correction, &variance);
-  return variance;
 }
 
 }  // namespace magcomp

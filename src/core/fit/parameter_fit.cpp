@@ -1,5 +1,6 @@
 // magcomp: profile least squares for the nonlinear parameters of terms.
 #include "magcomp/core/fit/parameter_fit.h"
+#include "magcomp/core/fit/model_fit.h"
 
 #include <Eigen/Dense>
 #include <algorithm>

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <vector>
 
+#include "magcomp/core/apply/apply.h"
 #include "magcomp/core/error.h"
 #include "magcomp/core/geo/anomaly.h"
 #include "magcomp/core/geo/igrf.h"

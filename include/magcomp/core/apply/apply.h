@@ -20,4 +20,8 @@ class NeuralNetwork;
 Compensation apply_model(const Model& model, const FlightData& data,
                          std::shared_ptr<NeuralNetwork> network = nullptr);
 
+/// Compensated scalar field in nT: apply_model(model, data).compensated_nT: the terms,
+/// and the neural stage when the model has a trained one.
+Eigen::VectorXd compensate(const Model& model, const FlightData& data);
+
 }  // namespace magcomp

@@ -11,8 +11,8 @@
 #include <vector>
 
 #include "magcomp/core/io/flight_data.h"
-#include "magcomp/core/model/term.h"
 #include "magcomp/core/model/neural_spec.h"
+#include "magcomp/core/model/term.h"
 
 namespace magcomp {
 
@@ -162,47 +162,14 @@ void for_each_design_block(
     const std::function<void(Eigen::Index, const Eigen::Ref<const Eigen::MatrixXd>&)>& block,
     int threads = 1);
 
-/// Fits the model's coefficients on `flights` according to model.fit. Free parameters (?) are
-/// estimated first (parameter_fit.h) and written into model.terms as numbers. Throws
-/// magcomp::Error when the selection is empty or too short. Stores coefficients, column names and
-/// the report.
-void fit_model(Model& model, const std::vector<const FlightData*>& flights);
-
-/// Contiguous calibration runs [first, last] of `data` selected by the fit settings (all samples
-/// for a reference fit without lines or windows), skipping rows where `a` or `y` is not finite, and
-/// dropping runs too short for the band-pass and trim (noted in `warnings`).
-std::vector<std::pair<Eigen::Index, Eigen::Index>> calibration_runs(
-    const FitSettings& fit, const FlightData& data, const Eigen::MatrixXd& a,
-    const Eigen::VectorXd& y, std::vector<std::string>* warnings);
-
-/// The same for the samples `selected` (sorted indices into `data`) instead of the fit's lines
-/// and windows.
-std::vector<std::pair<Eigen::Index, Eigen::Index>> calibration_runs(
-    const FitSettings& fit, const FlightData& data, std::vector<Eigen::Index> selected,
-    const Eigen::MatrixXd& a, const Eigen::VectorXd& y, std::vector<std::string>* warnings);
-
-/// The rows of `x` in each run, band-passed and trimmed (bandpass method) or as they are
-/// (reference method), stacked. dt_s is the sample period.
-Eigen::MatrixXd stack_runs(const FitSettings& fit, double dt_s, const Eigen::MatrixXd& x,
-                           const std::vector<std::pair<Eigen::Index, Eigen::Index>>& runs);
-
 /// The model's scalar field (nT) realigned to the vector sensor: s(t + lag) when the model has a
 /// lag:<s> term (cubic interpolation; NaN where the realigned time falls past the flight's end).
 Eigen::VectorXd aligned_scalar(const Model& model, const FlightData& data);
 /// The same with the model's lag (Model::scalar_lag_s()) already known, s.
 Eigen::VectorXd aligned_scalar(const Model& model, const FlightData& data, double lag_s);
 
-/// The regression target of a fit: the scalar field (bandpass) or scalar - reference (nT).
-Eigen::VectorXd fit_target(const Model& model, const FlightData& data);
-
-/// Ridge least squares (A'A + lambda I) c = A'y, as MagNav.jl's linreg.
-Eigen::VectorXd ridge_solve(const Eigen::MatrixXd& a, const Eigen::VectorXd& y, double lambda);
-
 /// Aircraft correction in nT at every sample: A c (compensated = scalar - correction).
 Eigen::VectorXd model_correction(const Model& model, const FlightData& data);
-/// Compensated scalar field in nT: apply_model(model, data).compensated_nT (apply.h): the terms,
-/// and the neural stage when the model has a trained one.
-Eigen::VectorXd compensate(const Model& model, const FlightData& data);
 
 /// Variance of one compensated sample, nT²: the coefficients' uncertainty propagated through the
 /// sample's design row (a Cov a') plus the fit's noise variance. NaN when the model has no

@@ -1,0 +1,45 @@
+// magcomp: fitting a model's coefficients: the calibration runs a fit reads, their band-pass and
+// stacking, the target, the ridge solve and the fit itself (its report in Model::report).
+#pragma once
+
+#include <Eigen/Core>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "magcomp/core/io/flight_data.h"
+#include "magcomp/core/model/model.h"
+
+namespace magcomp {
+
+/// Fits the model's coefficients on `flights` according to model.fit. Free parameters (?) are
+/// estimated first (parameter_fit.h) and written into model.terms as numbers. Throws
+/// magcomp::Error when the selection is empty or too short. Stores coefficients, column names and
+/// the report.
+void fit_model(Model& model, const std::vector<const FlightData*>& flights);
+
+/// Contiguous calibration runs [first, last] of `data` selected by the fit settings (all samples
+/// for a reference fit without lines or windows), skipping rows where `a` or `y` is not finite, and
+/// dropping runs too short for the band-pass and trim (noted in `warnings`).
+std::vector<std::pair<Eigen::Index, Eigen::Index>> calibration_runs(
+    const FitSettings& fit, const FlightData& data, const Eigen::MatrixXd& a,
+    const Eigen::VectorXd& y, std::vector<std::string>* warnings);
+
+/// The same for the samples `selected` (sorted indices into `data`) instead of the fit's lines
+/// and windows.
+std::vector<std::pair<Eigen::Index, Eigen::Index>> calibration_runs(
+    const FitSettings& fit, const FlightData& data, std::vector<Eigen::Index> selected,
+    const Eigen::MatrixXd& a, const Eigen::VectorXd& y, std::vector<std::string>* warnings);
+
+/// The rows of `x` in each run, band-passed and trimmed (bandpass method) or as they are
+/// (reference method), stacked. dt_s is the sample period.
+Eigen::MatrixXd stack_runs(const FitSettings& fit, double dt_s, const Eigen::MatrixXd& x,
+                           const std::vector<std::pair<Eigen::Index, Eigen::Index>>& runs);
+
+/// The regression target of a fit: the scalar field (bandpass) or scalar - reference (nT).
+Eigen::VectorXd fit_target(const Model& model, const FlightData& data);
+
+/// Ridge least squares (A'A + lambda I) c = A'y, as MagNav.jl's linreg.
+Eigen::VectorXd ridge_solve(const Eigen::MatrixXd& a, const Eigen::VectorXd& y, double lambda);
+
+}  // namespace magcomp

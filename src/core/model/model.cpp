@@ -1,0 +1,138 @@
+// magcomp: the model's terms and columns, its lag and the realigned scalar, adding terms (see
+// model.h).
+#include <algorithm>
+#include <string>
+#include <vector>
+
+#include "magcomp/core/error.h"
+#include "magcomp/core/math/timeseries.h"
+#include "magcomp/core/model/model.h"
+#include "magcomp/core/model/terms_expr.h"
+
+namespace magcomp {
+
+std::vector<std::unique_ptr<Term>> Model::make_terms() const {
+  std::vector<std::unique_ptr<Term>> out;
+  for (const std::string& spec : terms) out.push_back(make_term(spec));
+  return out;
+}
+
+std::vector<std::string> Model::make_column_names() const {
+  std::vector<std::string> names;
+  for (const auto& t : make_terms()) {
+    for (const auto& c : t->column_names()) names.push_back(c);
+  }
+  return names;
+}
+
+double Model::scalar_lag_s() const {
+  double lag = 0.0;
+  for (const auto& t : make_terms()) lag += t->scalar_lag_s();
+  return lag;
+}
+
+Eigen::VectorXd aligned_scalar(const Model& model, const FlightData& data) {
+  return aligned_scalar(model, data, model.scalar_lag_s());
+}
+
+Eigen::VectorXd aligned_scalar(const Model& model, const FlightData& data, double lag) {
+  const auto s = data.column(model.scalar);
+  if (lag == 0.0) return s;
+  return shift_samples(s, -lag / data.dt_s());
+}
+
+bool Model::add_term(const std::string& spec) {
+  const std::string canonical = make_term(spec)->spec();
+  if (std::find(terms.begin(), terms.end(), canonical) != terms.end()) return false;
+  if (const auto e = parse_expr_term(canonical)) {
+    for (auto& t : terms) {
+      const auto old = parse_expr_term(t);
+      if (old && old->shape() == e->shape() && old->spec().find('(') != std::string::npos) {
+        for (auto* list : {&slow_terms, &black_box_terms}) {  // they name it by its spec
+          std::replace(list->begin(), list->end(), t, canonical);
+        }
+        t = canonical;  // the same expression with new parameter values
+        coefficients.resize(0);
+        return true;
+      }
+    }
+  }
+  if (canonical.rfind("lag:", 0) == 0) {  // one lag per model: a new one replaces the old
+    terms.erase(std::remove_if(terms.begin(), terms.end(),
+                               [](const std::string& t) { return t.rfind("lag:", 0) == 0; }),
+                terms.end());
+  }
+  terms.push_back(canonical);
+  return true;
+}
+
+void require_slow_term(const std::string& spec) {
+  if (const auto e = parse_expr_term(spec); e && e->signal().has_free())
+    throw Error("'" + spec + "' has a free parameter (?): give its value");
+}
+
+void Model::add_slow_term(const std::string& spec, const std::string& reference) {
+  const std::string canonical = make_term(spec)->spec();
+  require_slow_term(canonical);
+  add_term(canonical);
+  if (std::find(slow_terms.begin(), slow_terms.end(), canonical) == slow_terms.end())
+    slow_terms.push_back(canonical);
+  if (fit.reference.empty()) fit.reference = reference;
+}
+
+std::vector<Eigen::Index> fittable_columns(FitMethod method,
+                                           const std::vector<std::unique_ptr<Term>>& terms) {
+  const bool bandpass = method == FitMethod::kBandpass;
+  std::vector<Eigen::Index> out;
+  Eigen::Index c = 0;
+  for (const auto& t : terms) {
+    for (Eigen::Index k = 0; k < t->columns(); ++k, ++c) {
+      if (!bandpass || t->bandpass_observable()) out.push_back(c);
+    }
+  }
+  return out;
+}
+
+namespace {
+// Per column of `terms`: whether its term is one of `slow_terms`.
+std::vector<bool> slow_mask(const std::vector<std::unique_ptr<Term>>& terms,
+                            const std::vector<std::string>& slow_terms) {
+  std::vector<bool> out;
+  for (const auto& t : terms) {
+    const bool slow =
+        std::find(slow_terms.begin(), slow_terms.end(), t->spec()) != slow_terms.end();
+    out.insert(out.end(), static_cast<size_t>(t->columns()), slow);
+  }
+  return out;
+}
+}  // namespace
+
+std::vector<Eigen::Index> fittable_columns(FitMethod method,
+                                           const std::vector<std::unique_ptr<Term>>& terms,
+                                           const std::vector<std::string>& slow_terms) {
+  std::vector<Eigen::Index> out = fittable_columns(method, terms);
+  if (method != FitMethod::kBandpass || slow_terms.empty()) return out;
+  const std::vector<bool> slow = slow_mask(terms, slow_terms);
+  out.erase(std::remove_if(out.begin(), out.end(),
+                           [&](Eigen::Index c) { return slow[static_cast<size_t>(c)]; }),
+            out.end());
+  return out;
+}
+
+std::vector<Eigen::Index> slow_columns(FitMethod method,
+                                       const std::vector<std::unique_ptr<Term>>& terms,
+                                       const std::vector<std::string>& slow_terms) {
+  std::vector<Eigen::Index> out;
+  if (method != FitMethod::kBandpass || slow_terms.empty()) return out;
+  const std::vector<bool> slow = slow_mask(terms, slow_terms);
+  for (size_t c = 0; c < slow.size(); ++c) {
+    if (slow[c]) out.push_back(static_cast<Eigen::Index>(c));
+  }
+  return out;
+}
+
+const char* fit_method_name(FitMethod m) {
+  return m == FitMethod::kReference ? "reference" : "bandpass";
+}
+
+}  // namespace magcomp
