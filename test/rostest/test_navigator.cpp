@@ -66,6 +66,7 @@ TEST(Navigator, ReplayedFlightEqualsOfflineNavigation) {
   const nav::AnomalyMap map = nav::read_anomaly_map(map_path);
   nav::FilterSettings s = nav::filter_model(f.dt_s(), tracks.ins.lat_rad[0], nav::ModelSigmas{});
   s.offset_from_first = true;
+  s.map_representation_var = true;  // the node's and navigate's default
   const nav::FilterResult cli = nav::run_ekf(tracks.ins, z, map, s);
   const size_t n = static_cast<size_t>(f.size());
   rostest_util::wait_until_settled([&] { return fixes.size(); }, n, 10.0, 240.0, 0.2);
@@ -104,6 +105,7 @@ TEST(Navigator, ReplayedFlightEqualsOfflineNavigation) {
       nav::track_from_positions(dt, lat, lon, f.column("ins_alt"), roll, pitch, yaw);
   nav::FilterSettings s_node = nav::filter_model(dt, ins.lat_rad[0], nav::ModelSigmas{});
   s_node.offset_from_first = true;
+  s_node.map_representation_var = true;
   const nav::FilterResult offline = nav::run_ekf(ins, z_online, map, s_node);
   const double drms_offline =
       nav::position_errors(ins, offline.x, tracks.truth.lat_rad, tracks.truth.lon_rad).drms_m;

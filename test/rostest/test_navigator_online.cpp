@@ -108,6 +108,7 @@ TEST(NavigatorOnline, LearnsAsTheCoreDoesAndSavesWhatItLearned) {
   const double dt = 0.1;
   nav::FilterSettings s = nav::filter_model(dt, ins[0].lat_rad, nav::ModelSigmas{});
   s.offset_from_first = true;
+  s.map_representation_var = true;  // the node's and navigate's default
   nav::CoefficientPriorSettings ps;
   ps.cold = true;
   nav::set_coefficient_prior(model, &model, ps, &s);

@@ -1,0 +1,331 @@
+// magcomp: diagnose's Search: the base refit on the fit rows, and each candidate's columns
+// fitted with it and scored on the held-out folds (see search.h).
+#include <Eigen/Dense>
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <cstdio>
+#include <future>
+#include <iomanip>
+#include <map>
+#include <set>
+#include <sstream>
+
+#include "magcomp/core/error.h"
+#include "magcomp/core/evaluate/evaluation.h"
+#include "magcomp/core/fit/model_fit.h"
+#include "magcomp/core/model/field_range.h"
+#include "magcomp/core/model/terms_expr.h"
+#include "search.h"
+
+namespace magcomp::diagnose_search {
+
+// Mean-removed RMS per line over the rows of one fold (-1: every held-out row); NaN when fewer
+// than 90 % of the fold's rows have a finite error (a score must stand on the baseline's rows:
+// a lag loses a few at the ends, a NaN coefficient loses them all).
+double fold_std(const Eigen::VectorXd& e, const std::vector<Eigen::Index>& held,
+                const std::vector<int>& fold, const Eigen::VectorXd& line, int which) {
+  std::map<double, std::pair<double, double>> acc;
+  double rows = 0;
+  for (Eigen::Index i : held) {
+    if (which >= 0 && fold[static_cast<size_t>(i)] != which) continue;
+    rows += 1;
+    if (!std::isfinite(e[i])) continue;
+    auto& a = acc[line[i]];
+    a.first += e[i];
+    a.second += 1;
+  }
+  double ss = 0, n = 0;
+  for (Eigen::Index i : held) {
+    if (which >= 0 && fold[static_cast<size_t>(i)] != which) continue;
+    if (!std::isfinite(e[i])) continue;
+    const auto& a = acc[line[i]];
+    const double d = e[i] - a.first / a.second;
+    ss += d * d;
+    n += 1;
+  }
+  return n > 1 && n >= 0.9 * rows ? std::sqrt(ss / n) : NAN;
+}
+
+Search::Search(const Model& m, const FlightData& d, const std::string& truth_name, Diagnosis* dx)
+    : model(m), data(d) {
+  require_model_fields_in_range(model, data, {truth_name});
+  truth = data.column(truth_name);
+  const auto terms = model.make_terms();
+  const Eigen::MatrixXd a_all = design_matrix(model, terms, data);  // names a missing field
+  scalar = aligned_scalar(model, data);
+  line =
+      data.has("line") ? Eigen::VectorXd(data.column("line")) : Eigen::VectorXd::Zero(data.size());
+  const Eigen::Index n = data.size();
+  dt = data.dt_s();
+  span = n > 1 ? data.tt()[n - 1] - data.tt()[0] : 1.0;
+  // --- Fit rows: the model's own calibration when this flight holds it.
+  fs = model.fit;
+  Eigen::VectorXd y;
+  bool own = false;
+  if (!(fs.lines.empty() && fs.windows.empty())) {
+    if (fs.method == FitMethod::kReference && !data.has(fs.reference)) {
+      throw Error(data.source() + ": field '" + fs.reference + "' (fit.reference) not found");
+    }
+    y = fs.method == FitMethod::kBandpass ? scalar
+                                          : Eigen::VectorXd(scalar - data.column(fs.reference));
+    runs = calibration_runs(fs, data, a_all, y, nullptr);
+    own = !runs.empty();
+  }
+  std::vector<bool> in_fit(static_cast<size_t>(n), false);
+  if (own) {
+    for (Eigen::Index i : data.select(fs.lines, fs.windows)) in_fit[static_cast<size_t>(i)] = true;
+    dx->split = fs.method == FitMethod::kBandpass
+                    ? "fit on the model's calibration segments (band-pass)"
+                    : "fit on the model's fit lines (reference " + fs.reference + ")";
+  } else {
+    std::vector<double> lines;
+    for (Eigen::Index i = 0; i < n; ++i) {
+      if (std::isfinite(line[i]) && std::find(lines.begin(), lines.end(), line[i]) == lines.end())
+        lines.push_back(line[i]);
+    }
+    std::sort(lines.begin(), lines.end());
+    if (lines.size() < 3) {
+      throw Error(data.source() +
+                  ": diagnose needs three lines, or the model's calibration segments and two more");
+    }
+    fs.method = FitMethod::kReference;
+    fs.reference = truth_name;
+    fs.windows.clear();
+    fs.lines.clear();
+    for (size_t k = 0; k < lines.size(); k += 2) fs.lines.push_back(lines[k]);
+    y = scalar - truth;
+    runs = calibration_runs(fs, data, a_all, y, nullptr);
+    for (Eigen::Index i : data.select(fs.lines, {})) in_fit[static_cast<size_t>(i)] = true;
+    dx->split = "fit: reference fit against " + truth_name + " on every other line";
+  }
+  if (runs.empty()) throw Error(data.source() + ": no usable fit samples for diagnose");
+  // --- The base: the model's fittable columns, refitted.
+  const std::vector<Eigen::Index> keep = fittable_columns(fs.method, terms, model.slow_terms);
+  a0.resize(n, static_cast<Eigen::Index>(keep.size()));
+  for (size_t k = 0; k < keep.size(); ++k)
+    a0.col(static_cast<Eigen::Index>(k)) = a_all.col(keep[k]);
+  af0 = stack_runs(fs, dt, a0, runs);
+  yf = stack_runs(fs, dt, y, runs).col(0);
+  dx->fit_samples = yf.size();
+  profile = std::make_unique<RidgeProfile>(af0, yf, fs.lambda);
+  const Eigen::VectorXd c0 = profile->solve(Eigen::MatrixXd(yf.size(), 0), nullptr);
+  e0 = scalar - truth - a0 * c0;
+  // --- The base's slow terms, fitted after the band-pass stage as fit_model does.
+  slow0 = Eigen::VectorXd::Zero(n);
+  if (fs.method == FitMethod::kBandpass) {
+    const std::vector<Eigen::Index> slow = slow_columns(fs.method, terms, model.slow_terms);
+    Eigen::MatrixXd sc(n, static_cast<Eigen::Index>(slow.size()));
+    for (size_t k = 0; k < slow.size(); ++k)
+      sc.col(static_cast<Eigen::Index>(k)) = a_all.col(slow[k]);
+    // A candidate's slow fit: with the base's band-pass and slow columns' span removed.
+    if (slow.empty()) {
+      slow_stage = std::make_unique<SlowStage>(a0, e0, runs, fs.lambda);
+    } else {
+      const Eigen::VectorXd cs = SlowStage(a0, e0, runs, fs.lambda).fit(sc);
+      slow0 = sc.unaryExpr([](double v) { return std::isfinite(v) ? v : 0.0; }) * cs;
+      e0 -= slow0;
+      Eigen::MatrixXd nuisance(n, a0.cols() + sc.cols());
+      nuisance << a0, sc;
+      slow_stage = std::make_unique<SlowStage>(nuisance, e0, runs, fs.lambda);
+    }
+  }
+  // --- Held out: every other line, in units (a line, or each contiguous piece of a line flown in
+  // pieces) dealt in time order into selection and confirmation.
+  unit.assign(static_cast<size_t>(n), -1);
+  int units = 0;
+  Eigen::Index prev = -2;
+  for (Eigen::Index i = 0; i < n; ++i) {
+    if (in_fit[static_cast<size_t>(i)] || !std::isfinite(e0[i]) || !std::isfinite(line[i]))
+      continue;
+    if (prev != i - 1 || line[i] != line[prev]) ++units;
+    unit[static_cast<size_t>(i)] = units - 1;
+    held.push_back(i);
+    prev = i;
+  }
+  if (held.size() < 100) throw Error(data.source() + ": too few held-out samples for diagnose");
+  fold.assign(static_cast<size_t>(n), -1);
+  if (units >= 2) {
+    for (Eigen::Index i : held) fold[static_cast<size_t>(i)] = unit[static_cast<size_t>(i)] % 2;
+  } else {  // one held-out piece: its first and second halves
+    for (size_t k = 0; k < held.size(); ++k) {
+      fold[static_cast<size_t>(held[k])] = k < held.size() / 2 ? 0 : 1;
+      unit[static_cast<size_t>(held[k])] = k < held.size() / 2 ? 0 : 1;
+    }
+  }
+  for (Eigen::Index i : held) {
+    auto& v = fold[static_cast<size_t>(i)] == 0 ? dx->selection_lines : dx->confirmation_lines;
+    if (std::find(v.begin(), v.end(), line[i]) == v.end()) v.push_back(line[i]);
+  }
+  dx->split +=
+      "; held out: the other lines, ranked on the selection lines and confirmed on the "
+      "confirmation lines (alternate lines, or pieces of a line, in time order)";
+  dx->heldout_samples = static_cast<Eigen::Index>(held.size());
+  for (int f = 0; f < 2; ++f) base_std[f] = fold_std(e0, held, fold, line, f);
+  base_std[2] = fold_std(e0, held, fold, line, -1);
+  for (double s : base_std)
+    if (!(s > 0 && s <= kMaxField_nT)) {
+      char buf[64];
+      std::snprintf(buf, sizeof buf, "%.3g", s);
+      throw Error(data.source() + ": the held-out error of " + model.scalar + " against " +
+                  truth_name + " has a std of " + buf +
+                  " nT on a split (it must be above 0 and within 1e6 nT, the range of any "
+                  "magnetic field): nothing to diagnose");
+    }
+  dx->baseline_selection_std_nT = base_std[0];
+  dx->baseline_confirmation_std_nT = base_std[1];
+  dx->baseline_std_nT = base_std[2];
+  inputs = make_term_inputs(data, model.vector, model.bt_scale_nT);
+}
+
+double Search::fit_rss(const Eigen::MatrixXd& cols) const {
+  double rss = 0;
+  profile->solve(stacked(cols), &rss);
+  return std::isfinite(rss) ? rss : std::numeric_limits<double>::infinity();
+}
+
+double Search::slow_rss(const Eigen::MatrixXd& cols) const {
+  double rss = 0;
+  slow_stage->fit(cols, &rss);
+  return std::isfinite(rss) ? rss : std::numeric_limits<double>::infinity();
+}
+
+Scored Search::score_slow(const Eigen::MatrixXd& cols) const {
+  Scored s;
+  const Eigen::VectorXd coef = slow_stage->fit(cols);
+  Eigen::VectorXd e = Eigen::VectorXd::Constant(data.size(), NAN);
+  for (Eigen::Index i : held) {
+    double v = e0[i];
+    for (Eigen::Index j = 0; j < cols.cols(); ++j) {
+      if (std::isfinite(cols(i, j))) v -= cols(i, j) * coef[j];
+    }
+    e[i] = v;
+  }
+  s.sel = fold_std(e, held, fold, line, 0);
+  s.conf = fold_std(e, held, fold, line, 1);
+  s.held = fold_std(e, held, fold, line, -1);
+  s.coef = coef;
+  s.slow = true;
+  s.ok = std::isfinite(s.sel) && std::isfinite(s.conf) && std::isfinite(s.held) && coef.allFinite();
+  return s;
+}
+
+Scored Search::score(const Eigen::MatrixXd& cols, bool slow_ok) const {
+  Scored s;
+  const Eigen::MatrixXd band = stacked(cols);
+  const Eigen::VectorXd coef = profile->solve(band, nullptr);
+  const Eigen::Index p = a0.cols(), k = cols.cols();
+  Eigen::VectorXd e = Eigen::VectorXd::Constant(data.size(), NAN);
+  for (Eigen::Index i : held) {
+    double v = scalar[i] - truth[i] - a0.row(i).dot(coef.head(p));
+    for (Eigen::Index j = 0; j < k; ++j) {
+      if (std::isfinite(cols(i, j))) v -= cols(i, j) * coef[p + j];  // no data: no correction
+    }
+    e[i] = v;
+  }
+  s.sel = fold_std(e, held, fold, line, 0);
+  s.conf = fold_std(e, held, fold, line, 1);
+  s.held = fold_std(e, held, fold, line, -1);
+  s.coef = coef.tail(k);
+  s.ok = std::isfinite(s.sel) && std::isfinite(s.conf) && std::isfinite(s.held) && coef.allFinite();
+  if (slow_ok && has_slow_stage() && k > 0) {
+    // The columns' energy on the calibration rows, each segment's mean removed.
+    double raw = 0;
+    for (const auto& [first, last] : runs) {
+      const auto block = cols.middleRows(first, last - first + 1);
+      const Eigen::RowVectorXd mean =
+          block.unaryExpr([](double v) { return std::isfinite(v) ? v : 0.0; }).colwise().mean();
+      raw += (block.rowwise() - mean)
+                 .unaryExpr([](double v) { return std::isfinite(v) ? v : 0.0; })
+                 .squaredNorm();
+    }
+    if (band.squaredNorm() < kSlowBandFraction * raw) {
+      Scored slow = score_slow(cols);
+      if (slow.ok && (!s.ok || slow.sel < s.sel)) return slow;
+    }
+  }
+  return s;
+}
+
+Scored Search::run(const Job& job) const {
+  auto term = make_term(job.spec);
+  auto columns = [&](const Term& t) { return columns_of(t); };
+  long fits = 0;
+  const auto* expr = dynamic_cast<const ExprTerm*>(term.get());
+  // The slow stage sizes what heats or drifts with a current or a voltage; a slow fit of
+  // position, attitude or the field itself against the reference is where map and trajectory
+  // leakage would hide.
+  bool slow_ok = expr && has_slow_stage() && !expr->signal().sources.empty();
+  if (expr) {
+    for (const auto& src : expr->signal().sources) slow_ok = slow_ok && is_electrical(src);
+  }
+  if (expr && expr->signal().has_free()) {
+    TransformKind kind = TransformKind::LowPass;
+    for (const auto& tr : expr->signal().transforms)
+      if (tr.free) kind = tr.kind;
+    const SignalRange range =
+        in_signal_units(kind) ? signal_range(expr->signal(), data) : SignalRange{};
+    std::vector<double> grid = parameter_grid(kind, dt, span, range.hi - range.lo, range.lo);
+    if (grid.empty()) return Scored{};
+    if (kind == TransformKind::Delay) {  // delays up to 2 s at the grid's step: a periodic
+      grid.erase(std::remove_if(grid.begin(), grid.end(), [](double v) { return v > 2.0 + 1e-9; }),
+                 grid.end());       // source (a strobe) makes the objective many-valleyed
+    } else if (grid.size() > 12) {  // a coarser grid; the golden section refines it
+      std::vector<double> thin;
+      for (size_t k = 0; k < grid.size(); k += (grid.size() + 11) / 12) thin.push_back(grid[k]);
+      grid = thin;
+    }
+    // A low-pass or a decay may be slower than the band-pass sees: on its grid the slow stage's
+    // fit is scored too, and refined where it explains more than the band-pass choice.
+    const bool scan_slow =
+        slow_ok && (kind == TransformKind::LowPass || kind == TransformKind::Decay);
+    std::vector<double> slow_f;
+    double v = scan_parameter(kind, grid, [&](double x) {
+      ++fits;
+      const Eigen::MatrixXd c = columns(*make_term(expr->with_parameters({x})));
+      if (scan_slow && slow_f.size() < grid.size()) slow_f.push_back(slow_rss(c));
+      return fit_rss(c);
+    });
+    if (scan_slow && slow_f.size() == grid.size()) {
+      const size_t k =
+          static_cast<size_t>(std::min_element(slow_f.begin(), slow_f.end()) - slow_f.begin());
+      if (slow_f[k] < 0.98 * slow_stage->base_rss()) {
+        const std::vector<double> near = {grid[k > 0 ? k - 1 : 0], grid[k],
+                                          grid[std::min(k + 1, grid.size() - 1)]};
+        const double vs = scan_parameter(kind, near, [&](double x) {
+          ++fits;
+          return slow_rss(columns(*make_term(expr->with_parameters({x}))));
+        });
+        auto slow_term = make_term(expr->with_parameters({vs}));
+        Scored ss = score_slow(columns(*slow_term));
+        ss.spec = slow_term->spec();
+        auto band_term = make_term(expr->with_parameters({v}));
+        const Eigen::MatrixXd band_cols = columns(*band_term);
+        Scored sb = score(band_cols, true);
+        sb.spec = band_term->spec();
+        if (!(band_cols.array().isFinite().any())) sb.ok = false;
+        Scored& best = ss.ok && (!sb.ok || ss.sel < sb.sel) ? ss : sb;
+        best.fits = fits + 2;
+        return best;
+      }
+    }
+    if (kind == TransformKind::Delay && v < 0.5 * dt) {  // no delay: the plain form says it
+      Scored none;
+      none.fits = fits;
+      return none;
+    }
+    term = make_term(expr->with_parameters({v}));
+  }
+  const Eigen::MatrixXd cols = columns(*term);
+  Scored s = score(cols, slow_ok);
+  s.spec = term->spec();
+  s.fits = fits + 1;
+  if (!(cols.array().isFinite().any())) s.ok = false;
+  return s;
+}
+
+double share(double after, double before) {
+  return before > 0 ? 1.0 - (after / before) * (after / before) : 0.0;
+}
+
+}  // namespace magcomp::diagnose_search

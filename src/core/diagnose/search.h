@@ -1,0 +1,180 @@
+// magcomp: diagnose's search, step by step (internal to src/core/diagnose): the jobs a round
+// tries, the Search every candidate is scored against, the candidates they become, the grammar
+// growth and the product screen, the judging and ranking, the floor and the verdict. diagnose()
+// (diagnose.cpp) runs them in that order.
+#pragma once
+
+#include <Eigen/Core>
+#include <memory>
+#include <set>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "magcomp/core/diagnose/diagnose.h"
+#include "magcomp/core/diagnose/explainable_share.h"
+#include "magcomp/core/diagnose/residual_floor.h"
+#include "magcomp/core/fit/model_fit.h"
+#include "magcomp/core/fit/parameter_fit.h"
+#include "magcomp/core/fit/slow_stage.h"
+#include "magcomp/core/io/flight_data.h"
+#include "magcomp/core/math/timeseries.h"
+#include "magcomp/core/model/model.h"
+#include "magcomp/core/model/term.h"
+
+namespace magcomp::diagnose_search {
+
+// --- jobs and their scores (candidates.cpp) ---
+
+bool is_current(const std::string& n);
+bool is_rate(const std::string& n);
+// The shorthand a plain source is written with: current:X, rate:X, or field:X.
+std::string plain_spec(const std::string& x);
+// The TL family a term belongs to (permanent, induced, eddy), else the term itself.
+std::string family_of_tl(const std::string& spec);
+
+// One term to try: its spec (free parameters as ?), what kind of effect, which channel.
+struct Job {
+  std::string spec;
+  std::string family;
+  std::string channel;
+};
+
+// Result of one job.
+struct Scored {
+  bool ok = false;
+  std::string spec;  // parameters as numbers
+  double sel = 0, conf = 0, held = 0;
+  Eigen::VectorXd coef;  // the candidate's coefficients
+  long fits = 0;
+  std::string note;
+  bool slow = false;  // fitted by the slow stage (Model::slow_terms), not the band-pass
+};
+
+// A column whose band-passed energy on the calibration segments is below this share of its
+// energy there (segment means removed) is one the band-pass barely sees: it is also fitted by
+// the slow stage, and the better of the two on the selection lines is kept.
+constexpr double kSlowBandFraction = 0.01;
+
+// --- the search (search.cpp; the lag's part in search_lag.cpp) ---
+
+// Mean-removed RMS per line over the rows of one fold (-1: every held-out row); NaN when fewer
+// than 90 % of the fold's rows have a finite error.
+double fold_std(const Eigen::VectorXd& e, const std::vector<Eigen::Index>& held,
+                const std::vector<int>& fold, const Eigen::VectorXd& line, int which);
+
+// Everything a candidate is scored against: read-only once built, shared by the workers.
+class Search {
+ public:
+  Search(const Model& model, const FlightData& data, const std::string& truth_name, Diagnosis* dx);
+
+  // Scores a term's columns (N x k): fit on the fit rows with the base columns, errors on the
+  // held-out rows of each fold. With `slow_ok`, a column the band-pass barely sees
+  // (kSlowBandFraction) is also scored by the slow stage; the better on the selection lines is
+  // returned.
+  Scored score(const Eigen::MatrixXd& cols, bool slow_ok = false) const;
+  // Scores columns fitted by the slow stage: to the base error on the calibration rows,
+  // unfiltered, each segment's mean removed.
+  Scored score_slow(const Eigen::MatrixXd& cols) const;
+  // The slow stage's residual sum of squares with these columns (nT²).
+  double slow_rss(const Eigen::MatrixXd& cols) const;
+  // Whether the slow stage exists here: a band-pass fit on this flight's calibration segments.
+  bool has_slow_stage() const { return slow_stage != nullptr; }
+  // The fit's residual sum of squares with these columns added.
+  double fit_rss(const Eigen::MatrixXd& cols) const;
+  // Builds, scans (free parameters) and scores one job.
+  Scored run(const Job& job) const;
+  // The lag scan, alone or with partner columns (N x k, built without a lag: columns_of(spec,
+  // false)): each trial realigns the scalar by tau and gives every column tau's round trip.
+  Scored lag_candidate(double* tau_out, const Eigen::MatrixXd& partner) const;
+  // The lag fixed at tau (s), with partner columns (built without a lag).
+  Scored lag_at(double tau, const Eigen::MatrixXd& partner) const;
+  // The columns of a term on this flight, N x k; with `with_lag`, carrying the model's lag
+  // round trip as the base columns do (design_matrix).
+  Eigen::MatrixXd columns_of(const Term& t, bool with_lag = true) const {
+    Eigen::MatrixXd c(data.size(), t.columns());
+    t.build(inputs, c);
+    if (with_lag) lag_round_trip(c, model.scalar_lag_s() / dt);
+    return c;
+  }
+  Eigen::MatrixXd columns_of(const std::string& spec, bool with_lag = true) const {
+    return columns_of(*make_term(spec), with_lag);
+  }
+
+  const Model& model;
+  const FlightData& data;
+  Eigen::VectorXd scalar, truth, line;
+  FitSettings fs;
+  std::vector<std::pair<Eigen::Index, Eigen::Index>> runs;
+  std::vector<Eigen::Index> held;
+  std::vector<int> fold;  // per sample: 0 selection, 1 confirmation, -1 not held out
+  std::vector<int> unit;  // per sample: its held-out unit, in time order (-1: not held out)
+  TermInputs inputs;
+  Eigen::MatrixXd a0;  // the base's fittable columns, N x p
+  Eigen::MatrixXd af0;
+  Eigen::VectorXd yf;
+  std::unique_ptr<RidgeProfile> profile;
+  Eigen::VectorXd e0;                     // base error, N
+  Eigen::VectorXd slow0;                  // the base's slow-stage correction (Model::slow_terms), N
+  std::unique_ptr<SlowStage> slow_stage;  // a candidate's slow fit (band-pass models only)
+  double base_std[3] = {0, 0, 0};         // selection, confirmation, all held out
+  double dt = 0.1, span = 1.0;
+
+ private:
+  Eigen::MatrixXd stacked(const Eigen::MatrixXd& cols) const {
+    const Eigen::MatrixXd z = cols.unaryExpr([](double v) { return std::isfinite(v) ? v : 0.0; });
+    return stack_runs(fs, dt, z, runs);
+  }
+  // stacked() of the columns given a lag's round trip of tau s (only the fit rows are built).
+  Eigen::MatrixXd stacked_at_lag(const Eigen::MatrixXd& cols, double tau) const;
+  // The base's fittable columns without the model's lag round trip, then `partner`: N x (p + k).
+  Eigen::MatrixXd lag_columns(const Eigen::MatrixXd& partner) const;
+  // The fit of lag_columns() `x` with a lag of tau s: the stacked fit rows' residual sum of
+  // squares, and the coefficients in `coef`.
+  double lag_fit(double tau, const Eigen::MatrixXd& x, Eigen::VectorXd* coef) const;
+  // lag_at() with lag_columns() `x` of which the last `partners` are the partner's.
+  Scored lag_scored(double tau, Eigen::MatrixXd x, Eigen::Index partners) const;
+};
+
+// The share of the variance a candidate removes: 1 - (after / before)^2 (0 without a before).
+double share(double after, double before);
+
+// --- the steps of a round ---
+
+// Candidate jobs for the sources and the model (candidates.cpp).
+std::vector<Job> make_jobs(const Model& model, const std::vector<std::string>& sources);
+// Runs jobs on `threads` workers (candidates.cpp).
+std::vector<Scored> run_jobs(const Search& search, const std::vector<Job>& jobs, int threads);
+// Products of the strongest sources (candidates.cpp).
+std::vector<Job> product_jobs(const Model& model, const Search& search,
+                              const std::vector<Job>& jobs, const std::vector<Scored>& scored,
+                              double accept_fraction);
+// Pairs of channels screened cheaply for a product term; the best `keep` become jobs
+// (products.cpp).
+constexpr size_t kScreenedProducts = 12;  // pairs fitted in full after the screen
+std::vector<Job> screened_products(const Search& search, const std::vector<std::string>& sources,
+                                   const std::vector<Job>& taken, size_t keep, int threads);
+// The grammar growth (grammar.cpp): whether a term's time constant sits at the top of its scan,
+// and the children of the best electrical terms.
+bool at_slow_edge(const std::string& spec, const Search& search);
+std::vector<Job> refined_jobs(const Model& model, const Search& search,
+                              const std::vector<Job>& jobs, const std::vector<Scored>& scored,
+                              std::set<std::string>* seen);
+// Every scored job becomes a candidate (candidates.cpp).
+void add_candidates(const std::vector<Job>& jobs, const std::vector<Scored>& scored,
+                    const Search& search, Diagnosis* dx);
+// The scalar lag, alone or with the best channel term (search_lag.cpp).
+void add_lag_candidate(const Model& model, const FlightData& data, const Search& search,
+                       Diagnosis* dx);
+// Acceptance on both halves, then the ranking (judge.cpp).
+void judge_and_rank(const Search& search, const DiagnoseOptions& options,
+                    std::vector<Candidate>* candidates);
+// What remains, its floor and the verdict (verdict.cpp).
+ExplainableShare remaining_share(const FlightData& data, const Search& search,
+                                 const std::vector<std::string>& sources, double baseline_std_nT,
+                                 double resolution_nT);
+ResidualFloor floor_of(const FlightData& data, const Search& search,
+                       const std::vector<std::string>& sources);
+std::string verdict_of(const Diagnosis& dx, double resolution_nT);
+
+}  // namespace magcomp::diagnose_search

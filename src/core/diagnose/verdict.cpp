@@ -1,0 +1,172 @@
+// magcomp: diagnose's remainder: what predicts it, its noise floor, and the verdict (see
+// search.h).
+#include <Eigen/Dense>
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <cstdio>
+#include <future>
+#include <iomanip>
+#include <map>
+#include <set>
+#include <sstream>
+
+#include "magcomp/core/error.h"
+#include "magcomp/core/evaluate/evaluation.h"
+#include "magcomp/core/fit/model_fit.h"
+#include "magcomp/core/model/field_range.h"
+#include "magcomp/core/model/terms_expr.h"
+#include "search.h"
+
+namespace magcomp::diagnose_search {
+
+// What remains: the base residual on the held-out lines (each line's mean removed) against a
+// flexible model of the source channels.
+ExplainableShare remaining_share(const FlightData& data, const Search& search,
+                                 const std::vector<std::string>& sources, double baseline_std_nT,
+                                 double resolution_nT) {
+  Eigen::VectorXd r = Eigen::VectorXd::Constant(data.size(), NAN);
+  std::map<double, std::pair<double, double>> mean;
+  for (Eigen::Index i : search.held) {
+    auto& m = mean[search.line[i]];
+    m.first += search.e0[i];
+    m.second += 1;
+  }
+  for (Eigen::Index i : search.held) {
+    const auto& m = mean[search.line[i]];
+    r[i] = search.e0[i] - m.first / m.second;
+  }
+  std::vector<std::pair<std::string, Eigen::Map<const Eigen::VectorXd>>> channels;
+  for (const auto& s : sources) channels.emplace_back(s, data.column(s));
+  ExplainableShare x =
+      explainable_share(r, search.unit, search.line, data.tt(), search.inputs.direction, channels,
+                        [&data] { data.drop_mapped_pages(); });
+  // A predictable remainder below the resolution is noise for every practical purpose.
+  if (std::sqrt(std::max(0.0, x.share)) * baseline_std_nT < resolution_nT) x.within_noise = true;
+  return x;
+}
+
+// The base residual's floor and what its power follows, on the held-out samples.
+ResidualFloor floor_of(const FlightData& data, const Search& search,
+                       const std::vector<std::string>& sources) {
+  Eigen::VectorXd r = Eigen::VectorXd::Constant(data.size(), NAN);
+  for (Eigen::Index i : search.held) r[i] = search.e0[i];
+  std::vector<std::pair<std::string, Eigen::Map<const Eigen::VectorXd>>> channels;
+  for (const auto& s : sources) channels.emplace_back(s, data.column(s));
+  return residual_floor(r, search.unit, 1.0 / search.dt, channels);
+}
+
+// "complete" only while the held-out residual is within this factor of its own noise floor (or,
+// for a floor far below the resolution, within the resolution of it).
+constexpr double kCompleteWithinFloor = 1.5;
+
+// What is known of a residual no term explains: how far above its floor, what predicts it,
+// whether it follows position (map or trajectory leakage), and what its power follows.
+std::string remainder_description(const Diagnosis& dx) {
+  const ExplainableShare& x = dx.explainable;
+  const ResidualFloor& f = dx.floor;
+  std::ostringstream o;
+  o.setf(std::ios::fixed);
+  o.precision(3);
+  o << "the held-out residual is " << f.residual_std_nT << " nT, " << f.residual_std_nT - f.floor_nT
+    << " nT above a noise floor of " << f.floor_nT << " nT (its spectrum's white level above "
+    << std::setprecision(1) << f.band_lo_hz << " Hz)";
+  const bool predictable = x.computed && !x.within_noise;
+  if (predictable) {
+    std::vector<std::string> chans;
+    bool position = false;
+    for (size_t k = 0; k < x.channels.size() && chans.size() < 3; ++k) {
+      if (x.channels[k].second <= 0) break;
+      chans.push_back(x.channels[k].first);
+      if (chans.size() == 1) position = is_position_channel(x.channels[k].first);
+    }
+    o << std::setprecision(1) << "; " << 100 * x.share << "% +- " << 100 * x.uncertainty
+      << "% of it is predictable (noise floor " << 100 * x.noise_floor << "%)";
+    if (!chans.empty()) {
+      o << ", mostly from ";
+      for (size_t k = 0; k < chans.size(); ++k) o << (k ? ", " : "") << chans[k];
+    }
+    if (position) {
+      o << ": it follows position, so it is map or trajectory leakage (the reference fit, IGRF "
+           "or diurnal), not an aircraft field";
+    } else {
+      o << ", and no term of the search explains it";
+    }
+    if (!x.time_scales.empty()) {
+      const auto top =
+          std::max_element(x.time_scales.begin(), x.time_scales.end(),
+                           [](const auto& a, const auto& b) { return a.second < b.second; });
+      o << "; mostly " << top->first;
+    }
+  } else if (x.computed) {
+    o << "; no recorded channel predicts its sign";
+  }
+  if (!f.amplitude_channel.empty()) {
+    o << std::setprecision(2) << "; its amplitude follows " << f.amplitude_channel
+      << " (rank correlation of the local variance " << f.amplitude_correlation << ")";
+    if (x.computed && !predictable) o << ": its phase is not recorded";
+  }
+  return o.str();
+}
+
+// The verdict: add the top term, or complete (within the floor), or what remains and where.
+std::string verdict_of(const Diagnosis& dx, double resolution_nT) {
+  char buf[512];
+  const ExplainableShare& x = dx.explainable;
+  if (!dx.candidates.empty() && dx.candidates.front().accepted &&
+      dx.candidates.front().explained_fraction >= 0.05) {
+    const Candidate& c = dx.candidates.front();
+    if (c.chosen_on_confirmation) {
+      std::snprintf(buf, sizeof(buf),
+                    "add %s: it explains %.1f%% of the held-out error on the confirmation lines "
+                    "(where it ranks first) and %.1f%% on the selection lines; the held-out "
+                    "error falls from %.3f to %.3f nT",
+                    c.term.c_str(), 100 * c.explained_confirmation, 100 * c.explained_selection,
+                    dx.baseline_std_nT, c.std_after_nT);
+      return buf;
+    }
+    std::snprintf(buf, sizeof(buf),
+                  "add %s: it explains %.1f%% of the held-out error on the selection lines and "
+                  "%.1f%% on the confirmation lines",
+                  c.term.c_str(), 100 * c.explained_selection, 100 * c.explained_confirmation);
+    return buf;
+  }
+  const ResidualFloor& f = dx.floor;
+  if (f.computed) {
+    if (f.residual_std_nT <=
+        std::max(kCompleteWithinFloor * f.floor_nT, f.floor_nT + resolution_nT)) {
+      std::snprintf(buf, sizeof(buf),
+                    "complete: the held-out residual (%.3f nT) is within %.1fx its noise floor "
+                    "(%.3f nT, its spectrum's white level above %.1f Hz) or %.3f nT of it",
+                    f.residual_std_nT, kCompleteWithinFloor, f.floor_nT, f.band_lo_hz,
+                    resolution_nT);
+      return buf;
+    }
+    return "structure remains: " + remainder_description(dx);
+  }
+  if (x.computed && !x.within_noise) {
+    std::string chans;
+    for (size_t k = 0; k < x.channels.size() && k < 3; ++k) {
+      if (x.channels[k].second <= 0) break;
+      chans += (k ? ", " : "") + x.channels[k].first;
+    }
+    std::snprintf(buf, sizeof(buf),
+                  "structure remains: %.1f%% ± %.1f%% of the held-out residual is predictable "
+                  "(noise floor %.1f%%), mostly from %s, and no term of the search explains it",
+                  100 * x.share, 100 * x.uncertainty, 100 * x.noise_floor,
+                  chans.empty() ? "no single channel" : chans.c_str());
+    return buf;
+  }
+  if (x.computed) {
+    std::snprintf(buf, sizeof(buf),
+                  "complete: what remains is within noise (predictable share %.1f%% ± %.1f%%, "
+                  "noise floor %.1f%%; predictable part %.3f nT rms, resolution %.3f nT; the "
+                  "held-out lines are too short for a spectral floor)",
+                  100 * x.share, 100 * x.uncertainty, 100 * x.noise_floor,
+                  std::sqrt(x.share) * dx.baseline_std_nT, resolution_nT);
+    return buf;
+  }
+  return "no candidate explains 5 % on both halves (the explainable share was not computed)";
+}
+
+}  // namespace magcomp::diagnose_search
