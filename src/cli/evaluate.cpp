@@ -14,6 +14,7 @@
 #include "magcomp/core/evaluate/flight_conditions.h"
 #include "magcomp/core/io/file_io.h"
 #include "magcomp/core/io/output_guard.h"
+#include "magcomp/core/neural/attribution.h"
 #include "subcommands.h"
 
 namespace magcomp::cli {
@@ -146,11 +147,41 @@ void print_evaluation(const Evaluation& ev, const Evaluation* base) {
   std::printf("\n");
 }
 
+// --explain: which inputs the model's network leans on, on one flight: printed, and as JSON.
+void print_attribution(const Attribution& a) {
+  std::printf(
+      "\ninputs the network leans on (%s on this flight, %d shuffles each: the rise of its mean "
+      "squared error against its target, nT^2; its own %s nT^2 on %ld samples):\n",
+      a.method.c_str(), a.repeats, figure(a.baseline_mse_nT2, "%.4g").c_str(),
+      static_cast<long>(a.samples));
+  for (const InputImportance& i : a.inputs)
+    std::printf("  %-24s %12s nT^2 %7.1f%%\n", i.feature.c_str(),
+                figure(i.importance_nT2, "%.4g").c_str(), 100 * i.share);
+}
+
+nlohmann::json attribution_json(const Attribution& a) {
+  nlohmann::json inputs = nlohmann::json::array();
+  for (const InputImportance& i : a.inputs) {
+    nlohmann::json lines = nlohmann::json::array();
+    for (const auto& [line, rise] : i.per_line_nT2)
+      lines.push_back({{"line", line}, {"importance_nT2", json_figure(rise)}});
+    inputs.push_back({{"feature", i.feature},
+                      {"importance_nT2", json_figure(i.importance_nT2)},
+                      {"share", json_figure(i.share)},
+                      {"per_line", lines}});
+  }
+  return {{"method", a.method},
+          {"baseline_mse_nT2", json_figure(a.baseline_mse_nT2)},
+          {"samples", static_cast<long>(a.samples)},
+          {"repeats", a.repeats},
+          {"inputs", inputs}};
+}
+
 // One flight: the table, the JSON and the report.
 void evaluate_one(const std::string& data, const Model& model, const Model* baseline_model,
                   const std::string& model_path, const std::string& baseline_path,
                   const std::string& truth, const std::string& json_path, const std::string& report,
-                  const OutputGuard& guard, const std::string& track) {
+                  const OutputGuard& guard, const std::string& track, bool with_explain) {
   const std::vector<std::string> inputs = guard.input_paths();
   FlightData flight = read_flight(data);
   add_map_references(&flight, {truth}, track, &model);
@@ -160,9 +191,16 @@ void evaluate_one(const std::string& data, const Model& model, const Model* base
   std::unique_ptr<Evaluation> base;
   if (baseline_model)
     base = std::make_unique<Evaluation>(evaluate_model(*baseline_model, flight, truth, series));
+  std::unique_ptr<Attribution> attribution;
+  if (with_explain)
+    attribution = std::make_unique<Attribution>(permutation_importance(model, flight));
   guard.check_inputs_unchanged();
   print_evaluation(ev, base.get());
   nlohmann::json j = to_json(ev);
+  if (attribution) {
+    print_attribution(*attribution);
+    j["attribution"] = attribution_json(*attribution);
+  }
   j["data"] = data;
   j["model"] = model_path;
   j["truth"] = truth;
@@ -190,6 +228,7 @@ void add_evaluate(CLI::App& app) {
   auto report = std::make_shared<std::string>();
   auto baseline_path = std::make_shared<std::string>();
   auto track = std::make_shared<std::string>("truth");
+  auto with_explain = std::make_shared<bool>(false);
   cmd->add_option("--data", *data, "flight HDF5 file(s), comma-separated")->required();
   cmd->add_option("--model", *model_path, "fitted model YAML")->required();
   cmd->add_option("--truth", *truth,
@@ -203,6 +242,10 @@ void add_evaluate(CLI::App& app) {
   cmd->add_option("--report", *report, "write an HTML report with plots into this directory");
   cmd->add_option("--baseline", *baseline_path,
                   "a second fitted model to compare with (before/after)");
+  cmd->add_flag("--explain", *with_explain,
+                "with a trained neural stage: each input's share of the network's prediction on "
+                "each flight (permutation importance: the rise of its squared error against its "
+                "target when the input is shuffled), in the table and the JSON (attribution)");
   cmd->callback([=] {
     const std::vector<std::string> paths = flight_paths("--data", *data);
     std::vector<OutputGuard::File> others = {{"--model", *model_path},
@@ -219,6 +262,9 @@ void add_evaluate(CLI::App& app) {
     }
     const Model model = load_model_yaml(*model_path);
     if (!model.fitted()) throw Error(*model_path + ": model has no coefficients; run calibrate");
+    if (*with_explain && !(model.neural && model.neural->trained()))
+      throw Error("--explain: " + *model_path +
+                  " has no trained neural stage (the attribution explains a network)");
     std::unique_ptr<Model> baseline_model;
     if (!baseline_path->empty()) {
       baseline_model = std::make_unique<Model>(load_model_yaml(*baseline_path));
@@ -227,7 +273,7 @@ void add_evaluate(CLI::App& app) {
     }
     if (paths.size() == 1) {
       evaluate_one(paths[0], model, baseline_model.get(), *model_path, *baseline_path, *truth,
-                   *json_path, *report, guard, *track);
+                   *json_path, *report, guard, *track, *with_explain);
       return;
     }
     // Several flights: one at a time (memory is one flight's columns), then pooled.
@@ -243,8 +289,13 @@ void add_evaluate(CLI::App& app) {
       if (baseline_model)
         base = std::make_unique<Evaluation>(evaluate_model(*baseline_model, flight, *truth, false));
       print_evaluation(ev, base.get());
-      std::printf("\n");
       nlohmann::json f = to_json(ev);
+      if (*with_explain) {
+        const Attribution a = permutation_importance(model, flight);
+        print_attribution(a);
+        f["attribution"] = attribution_json(a);
+      }
+      std::printf("\n");
       f["data"] = path;
       if (base) f["baseline"] = to_json(*base);
       j["flights"].push_back(f);

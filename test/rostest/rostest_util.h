@@ -21,6 +21,32 @@
 
 namespace magcomp::rostest_util {
 
+/// Every message of type M received on `topic`, in arrival order (thread-safe).
+template <typename M>
+class MessageCollector {
+ public:
+  MessageCollector(ros::NodeHandle& nh, const std::string& topic) {
+    sub_ = nh.subscribe(topic, 100000, &MessageCollector::on, this);
+  }
+  size_t size() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return out_.size();
+  }
+  std::vector<M> all() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return out_;
+  }
+
+ private:
+  void on(const typename M::ConstPtr& m) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    out_.push_back(*m);
+  }
+  mutable std::mutex mutex_;
+  std::vector<M> out_;
+  ros::Subscriber sub_;
+};
+
 /// Collects every magcomp/CompensatedField published on a topic, in arrival order.
 class OutputCollector {
  public:

@@ -20,29 +20,7 @@
 namespace {
 
 template <typename M>
-class Collector {
- public:
-  Collector(ros::NodeHandle& nh, const std::string& topic) {
-    sub_ = nh.subscribe(topic, 100000, &Collector::on, this);
-  }
-  size_t size() const {
-    std::lock_guard<std::mutex> lock(mutex_);
-    return out_.size();
-  }
-  std::vector<M> all() const {
-    std::lock_guard<std::mutex> lock(mutex_);
-    return out_;
-  }
-
- private:
-  void on(const typename M::ConstPtr& m) {
-    std::lock_guard<std::mutex> lock(mutex_);
-    out_.push_back(*m);
-  }
-  mutable std::mutex mutex_;
-  std::vector<M> out_;
-  ros::Subscriber sub_;
-};
+using Collector = magcomp::rostest_util::MessageCollector<M>;
 
 TEST(Navigator, ReplayedFlightEqualsOfflineNavigation) {
   using namespace magcomp;

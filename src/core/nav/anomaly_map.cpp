@@ -5,13 +5,13 @@
 #include <cmath>
 #include <complex>
 #include <cstdio>
-#include <unsupported/Eigen/FFT>
 #include <vector>
 
 #include "magcomp/core/error.h"
 #include "magcomp/core/io/file_io.h"
 #include "magcomp/core/io/h5_array.h"
 #include "magcomp/core/math/constants.h"
+#include "magcomp/core/math/fft2.h"
 
 namespace magcomp::nav {
 namespace {
@@ -34,28 +34,6 @@ void locate(const Eigen::VectorXd& a, double x, Eigen::Index* cell, double* t) {
       std::isfinite(u) ? std::clamp(std::floor(u), 0.0, static_cast<double>(n - 2)) : 0.0;
   *cell = static_cast<Eigen::Index>(c);
   *t = u - c;
-}
-
-// In-place 2-D FFT (forward or inverse, unnormalised inverse divided by the size).
-void fft2(Eigen::MatrixXcd* m, bool inverse) {
-  Eigen::FFT<double> fft;
-  std::vector<std::complex<double>> in, out;
-  for (int pass = 0; pass < 2; ++pass) {
-    const Eigen::Index lines = pass == 0 ? m->rows() : m->cols();
-    const Eigen::Index len = pass == 0 ? m->cols() : m->rows();
-    in.resize(static_cast<size_t>(len));
-    for (Eigen::Index l = 0; l < lines; ++l) {
-      for (Eigen::Index k = 0; k < len; ++k)
-        in[static_cast<size_t>(k)] = pass == 0 ? (*m)(l, k) : (*m)(k, l);
-      if (inverse) {
-        fft.inv(out, in);
-      } else {
-        fft.fwd(out, in);
-      }
-      for (Eigen::Index k = 0; k < len; ++k)
-        (pass == 0 ? (*m)(l, k) : (*m)(k, l)) = out[static_cast<size_t>(k)];
-    }
-  }
 }
 
 // numpy/Julia fftfreq: sample frequencies of an n-point DFT at sampling rate fs.

@@ -60,21 +60,20 @@ double neural_correction_nT(const NeuralSpec& spec, double scalar_nT, double tl_
   return tl_correction_nT + tl_delta_nT + y_nT;
 }
 
-NeuralCompensation neural_compensate(const Model& model, const FlightData& data,
-                                     std::shared_ptr<NeuralNetwork> network) {
-  const NeuralInputs in = neural_inputs(model, data);
-  const NeuralSpec& s = *model.neural;
-  const Eigen::Index n = data.size(), f = in.features.cols(), k = s.window;
-  if (!network) network = load_neural_network(model, static_cast<int>(f));
+Eigen::MatrixXd standardised_inputs(const NeuralSpec& s, const Eigen::MatrixXd& features) {
+  const Eigen::Index n = features.rows(), f = features.cols();
   Eigen::MatrixXd z(f, n);  // standardised, one sample per column
   for (Eigen::Index i = 0; i < n; ++i) {
-    const Eigen::VectorXd raw = in.features.row(i).transpose();
+    const Eigen::VectorXd raw = features.row(i).transpose();
     standardise_features(s, raw.data(), z.col(i).data());
   }
-  NeuralCompensation out;
-  out.measured_nT = in.scalar_nT;
-  out.terms_correction_nT = in.correction_nT;
-  out.network_nT.resize(n);
+  return z;
+}
+
+Eigen::VectorXd network_output_nT(const NeuralSpec& s, const Eigen::MatrixXd& z,
+                                  NeuralNetwork& network) {
+  const Eigen::Index n = z.cols(), f = z.rows(), k = s.window;
+  Eigen::VectorXd y(n);
   const Eigen::Index chunk = 2048;
   std::vector<double> windows;
   for (Eigen::Index start = 0; start < n; start += chunk) {
@@ -86,9 +85,21 @@ NeuralCompensation neural_compensate(const Model& model, const FlightData& data,
         std::copy(z.col(src).data(), z.col(src).data() + f, windows.data() + (b * k + j) * f);
       }
     }
-    network->predict(windows.data(), count, out.network_nT.data() + start);
+    network.predict(windows.data(), count, y.data() + start);
   }
-  out.network_nT = out.network_nT.array() * s.target_std + s.target_mean;
+  return y.array() * s.target_std + s.target_mean;
+}
+
+NeuralCompensation neural_compensate(const Model& model, const FlightData& data,
+                                     std::shared_ptr<NeuralNetwork> network) {
+  const NeuralInputs in = neural_inputs(model, data);
+  const NeuralSpec& s = *model.neural;
+  const Eigen::Index n = data.size(), f = in.features.cols();
+  if (!network) network = load_neural_network(model, static_cast<int>(f));
+  NeuralCompensation out;
+  out.measured_nT = in.scalar_nT;
+  out.terms_correction_nT = in.correction_nT;
+  out.network_nT = network_output_nT(s, standardised_inputs(s, in.features), *network);
   const Eigen::VectorXd delta = s.tl_delta.size() > 0 ? Eigen::VectorXd(in.tl_columns * s.tl_delta)
                                                       : Eigen::VectorXd::Zero(n);
   out.correction_nT.resize(n);

@@ -1,35 +1,13 @@
 // magcomp simulator: anomaly map synthesis and upward continuation.
 #include "magcomp/core/sim/anomaly_map.h"
 
-#include <unsupported/Eigen/FFT>
-
 #include <algorithm>
 #include <cmath>
 #include <random>
 
-namespace magcomp::sim {
+#include "magcomp/core/math/fft2.h"
 
-void fft2(std::vector<std::complex<double>>& g, Eigen::Index n, bool inverse) {
-  Eigen::FFT<double> fft;
-  std::vector<std::complex<double>> in(static_cast<size_t>(n)), out(static_cast<size_t>(n));
-  auto pass = [&](bool rows) {
-    for (Eigen::Index a = 0; a < n; ++a) {
-      for (Eigen::Index b = 0; b < n; ++b) {
-        in[static_cast<size_t>(b)] = g[static_cast<size_t>(rows ? a * n + b : b * n + a)];
-      }
-      if (inverse) {
-        fft.inv(out, in);  // Eigen scales the inverse by 1/n
-      } else {
-        fft.fwd(out, in);
-      }
-      for (Eigen::Index b = 0; b < n; ++b) {
-        g[static_cast<size_t>(rows ? a * n + b : b * n + a)] = out[static_cast<size_t>(b)];
-      }
-    }
-  };
-  pass(true);
-  pass(false);
-}
+namespace magcomp::sim {
 
 namespace {
 // Wavenumber magnitude (rad/m) of FFT bin (i, j).
@@ -42,45 +20,39 @@ double wavenumber(Eigen::Index i, Eigen::Index j, Eigen::Index n, double spacing
 
 AnomalyMap::AnomalyMap(Eigen::MatrixXd ground, double spacing_m)
     : n_(ground.rows()), spacing_m_(spacing_m) {
-  spectrum_.resize(static_cast<size_t>(n_ * n_));
-  for (Eigen::Index i = 0; i < n_; ++i)
-    for (Eigen::Index j = 0; j < n_; ++j) spectrum_[static_cast<size_t>(i * n_ + j)] = ground(i, j);
-  fft2(spectrum_, n_, false);
+  spectrum_ = ground.cast<std::complex<double>>();
+  fft2(&spectrum_, false);
 }
 
 AnomalyMap AnomalyMap::random(int n, double spacing_m, double rms_nT, double slope, unsigned seed) {
   std::mt19937_64 rng(seed * 104729ULL + 3);
   std::normal_distribution<double> normal(0.0, 1.0);
-  std::vector<std::complex<double>> g(static_cast<size_t>(n) * n);
-  for (auto& v : g) v = normal(rng);
-  fft2(g, n, false);
+  Eigen::MatrixXcd g(n, n);
+  for (Eigen::Index i = 0; i < n; ++i)  // row by row: the draws in the grid's row-major order
+    for (Eigen::Index j = 0; j < n; ++j) g(i, j) = normal(rng);
+  fft2(&g, false);
   for (Eigen::Index i = 0; i < n; ++i) {
     for (Eigen::Index j = 0; j < n; ++j) {
       const double k = wavenumber(i, j, n, spacing_m);
-      g[static_cast<size_t>(i * n + j)] *= k > 0 ? std::pow(k, -slope / 2) : 0.0;
+      g(i, j) *= k > 0 ? std::pow(k, -slope / 2) : 0.0;
     }
   }
-  fft2(g, n, true);
-  Eigen::MatrixXd ground(n, n);
-  for (Eigen::Index i = 0; i < n; ++i)
-    for (Eigen::Index j = 0; j < n; ++j) ground(i, j) = g[static_cast<size_t>(i * n + j)].real();
+  fft2(&g, true);
+  Eigen::MatrixXd ground = g.real();
   const double rms = std::sqrt(ground.array().square().mean());
   if (rms > 0) ground *= rms_nT / rms;
   return AnomalyMap(ground, spacing_m);
 }
 
 Eigen::MatrixXd AnomalyMap::continued(double height_m) const {
-  std::vector<std::complex<double>> g = spectrum_;
+  Eigen::MatrixXcd g = spectrum_;
   for (Eigen::Index i = 0; i < n_; ++i) {
     for (Eigen::Index j = 0; j < n_; ++j) {
-      g[static_cast<size_t>(i * n_ + j)] *= std::exp(-wavenumber(i, j, n_, spacing_m_) * height_m);
+      g(i, j) *= std::exp(-wavenumber(i, j, n_, spacing_m_) * height_m);
     }
   }
-  fft2(g, n_, true);
-  Eigen::MatrixXd out(n_, n_);
-  for (Eigen::Index i = 0; i < n_; ++i)
-    for (Eigen::Index j = 0; j < n_; ++j) out(i, j) = g[static_cast<size_t>(i * n_ + j)].real();
-  return out;
+  fft2(&g, true);
+  return g.real();
 }
 
 double AnomalyMap::sample(const Eigen::MatrixXd& grid, double spacing, double north, double east) {

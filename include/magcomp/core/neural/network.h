@@ -42,6 +42,15 @@ using NeuralCompensation = Compensation;
 NeuralCompensation neural_compensate(const Model& model, const FlightData& data,
                                      std::shared_ptr<NeuralNetwork> network = nullptr);
 
+/// A flight's raw feature rows (N x F) standardised with the spec's normalisation, one sample per
+/// column (F x N): what the network's windows are cut from.
+Eigen::MatrixXd standardised_inputs(const NeuralSpec& spec, const Eigen::MatrixXd& features);
+/// The network's output at every sample, nT (its target's units: the residual of the terms, or
+/// the anomaly), from standardised inputs z (F x N): windows end at each sample and are padded at
+/// the start by repeating the first sample, as neural_compensate does.
+Eigen::VectorXd network_output_nT(const NeuralSpec& spec, const Eigen::MatrixXd& z,
+                                  NeuralNetwork& network);
+
 /// Maps the network's prediction y (nT) to the total correction, given the sample's realigned
 /// scalar, TL correction A c, A·tl_delta, IGRF and diurnal (nT).
 double neural_correction_nT(const NeuralSpec& spec, double scalar_nT, double tl_correction_nT,

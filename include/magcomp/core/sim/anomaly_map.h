@@ -27,11 +27,8 @@ class AnomalyMap {
  private:
   Eigen::Index n_ = 0;
   double spacing_m_ = 100.0;
-  std::vector<std::complex<double>> spectrum_;  // row-major n x n
+  Eigen::MatrixXcd spectrum_;  // n x n, the ground values' 2-D FFT (math/fft2.h)
 };
-
-/// In-place 2-D FFT of a row-major n x n complex grid (forward, or inverse with 1/n^2 scaling).
-void fft2(std::vector<std::complex<double>>& grid, Eigen::Index n, bool inverse);
 
 /// Samples a map at several heights above ground and interpolates linearly in height.
 class LayeredMap {

@@ -1,0 +1,50 @@
+// magcomp: which inputs a trained neural stage leans on: permutation importance on a flight.
+#pragma once
+
+#include <Eigen/Core>
+#include <cmath>
+#include <memory>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "magcomp/core/io/flight_data.h"
+#include "magcomp/core/model/model.h"
+#include "magcomp/core/neural/network.h"
+
+namespace magcomp {
+
+/// One input's weight in the network's prediction.
+struct InputImportance {
+  std::string feature;  ///< as the model's neural.features names it
+  /// The rise of the network's mean squared error against its target when this input is
+  /// shuffled, nT² (near 0 or below: the network does not lean on it).
+  double importance_nT2 = 0.0;
+  /// importance_nT2 over the sum of the positive ones (0 for an input at or below 0).
+  double share = 0.0;
+  /// The same rise on each line of the flight: (line number, nT²), in the lines' order.
+  std::vector<std::pair<double, double>> per_line_nT2;
+};
+
+/// A trained network's attribution on one flight.
+struct Attribution {
+  std::string method = "permutation importance";
+  double baseline_mse_nT2 = NAN;  ///< the network's mean squared error against its target, nT²
+  Eigen::Index samples = 0;       ///< the samples scored (the target finite)
+  int repeats = 0;                ///< shuffles averaged per input
+  std::vector<InputImportance> inputs;  ///< the largest importance first
+};
+
+/// Permutation importance of every input of a model's trained neural stage on `data` (a flight
+/// it was not trained on, for an honest figure). Each standardised input is shuffled across the
+/// scored samples (a permutation drawn from `seed`, `repeats` of them averaged), the windows are
+/// rebuilt and the network run again; an input's importance is the rise of the mean squared
+/// error of the network's output against its training target (neural_target: the residual of
+/// the terms, or the anomaly), nT². Rows whose target is not finite are not scored. Throws
+/// magcomp::Error when the model has no trained neural stage, the data lacks an input or the
+/// target's reference, or no row can be scored.
+Attribution permutation_importance(const Model& model, const FlightData& data,
+                                   std::shared_ptr<NeuralNetwork> network = nullptr,
+                                   int repeats = 2, unsigned seed = 1);
+
+}  // namespace magcomp

@@ -1,0 +1,88 @@
+// magcomp: permutation importance of a neural stage's inputs (see attribution.h).
+#include "magcomp/core/neural/attribution.h"
+
+#include <algorithm>
+#include <map>
+#include <numeric>
+#include <random>
+
+#include "magcomp/core/error.h"
+#include "magcomp/core/neural/features.h"
+
+namespace magcomp {
+namespace {
+
+// Squared error per row against the target, on the scored rows.
+Eigen::VectorXd squared_errors(const Eigen::VectorXd& y_nT, const Eigen::VectorXd& target_nT,
+                               const std::vector<Eigen::Index>& rows) {
+  Eigen::VectorXd e(static_cast<Eigen::Index>(rows.size()));
+  for (size_t r = 0; r < rows.size(); ++r) {
+    const double d = y_nT[rows[r]] - target_nT[rows[r]];
+    e[static_cast<Eigen::Index>(r)] = d * d;
+  }
+  return e;
+}
+
+}  // namespace
+
+Attribution permutation_importance(const Model& model, const FlightData& data,
+                                   std::shared_ptr<NeuralNetwork> network, int repeats,
+                                   unsigned seed) {
+  if (!model.neural || !model.neural->trained())
+    throw Error("attribution: the model has no trained neural stage (run magcomp train)");
+  if (repeats < 1) throw Error("attribution: repeats must be >= 1");
+  const NeuralSpec& s = *model.neural;
+  const NeuralInputs in = neural_inputs(model, data);
+  const Eigen::VectorXd target = neural_target(model, data, in);
+  const Eigen::Index n = data.size(), f = in.features.cols();
+  if (!network) network = load_neural_network(model, static_cast<int>(f));
+  const Eigen::MatrixXd z = standardised_inputs(s, in.features);
+  std::vector<Eigen::Index> rows;
+  for (Eigen::Index i = 0; i < n; ++i)
+    if (std::isfinite(target[i])) rows.push_back(i);
+  if (rows.size() < 2)
+    throw Error(data.source() + ": attribution: no sample with a finite target to score");
+  const Eigen::VectorXd line =
+      data.has("line") ? Eigen::VectorXd(data.column("line")) : Eigen::VectorXd::Zero(n);
+  std::map<double, std::vector<size_t>> by_line;  // scored rows of each line (indices in rows)
+  for (size_t r = 0; r < rows.size(); ++r) by_line[line[rows[r]]].push_back(r);
+
+  Attribution a;
+  a.samples = static_cast<Eigen::Index>(rows.size());
+  a.repeats = repeats;
+  const Eigen::VectorXd base = squared_errors(network_output_nT(s, z, *network), target, rows);
+  a.baseline_mse_nT2 = base.mean();
+  std::mt19937_64 rng(seed * 0x9E3779B97F4A7C15ULL + 11);
+  std::vector<size_t> order(rows.size());
+  for (Eigen::Index k = 0; k < f; ++k) {
+    InputImportance imp;
+    imp.feature = k < static_cast<Eigen::Index>(s.features.size())
+                      ? s.features[static_cast<size_t>(k)]
+                      : "input " + std::to_string(k);
+    Eigen::VectorXd rise = Eigen::VectorXd::Zero(a.samples);
+    for (int rep = 0; rep < repeats; ++rep) {
+      std::iota(order.begin(), order.end(), size_t{0});
+      std::shuffle(order.begin(), order.end(), rng);
+      Eigen::MatrixXd zs = z;
+      for (size_t r = 0; r < rows.size(); ++r) zs(k, rows[r]) = z(k, rows[order[r]]);
+      rise += squared_errors(network_output_nT(s, zs, *network), target, rows) - base;
+    }
+    rise /= repeats;
+    imp.importance_nT2 = rise.mean();
+    for (const auto& [l, members] : by_line) {
+      double sum = 0;
+      for (size_t r : members) sum += rise[static_cast<Eigen::Index>(r)];
+      imp.per_line_nT2.emplace_back(l, sum / static_cast<double>(members.size()));
+    }
+    a.inputs.push_back(std::move(imp));
+  }
+  double positive = 0;
+  for (const auto& i : a.inputs) positive += std::max(0.0, i.importance_nT2);
+  for (auto& i : a.inputs) i.share = positive > 0 ? std::max(0.0, i.importance_nT2) / positive : 0;
+  std::stable_sort(a.inputs.begin(), a.inputs.end(), [](const auto& x, const auto& y) {
+    return x.importance_nT2 > y.importance_nT2;
+  });
+  return a;
+}
+
+}  // namespace magcomp
