@@ -1,0 +1,87 @@
+// magcomp ROS layer: the navigator's diagnostics: its state and every input fault counted (see
+// navigator_ros.h).
+#include "magcomp/ros/navigator_ros.h"
+
+#include <geometry_msgs/PoseWithCovarianceStamped.h>
+#include <magcomp/NavigationStatus.h>
+#include <nav_msgs/OccupancyGrid.h>
+#include <nav_msgs/Odometry.h>
+
+#include <algorithm>
+#include <cmath>
+#include <set>
+
+#include "magcomp/core/error.h"
+#include "magcomp/core/math/constants.h"
+#include "magcomp/core/nav/nav_model.h"
+#include "magcomp/core/nav/online_calibration.h"
+#include "magcomp/ros/callback_guard.h"
+#include "magcomp/ros/ins_attitude.h"
+#include "magcomp/ros/params.h"
+
+namespace magcomp::rosio {
+namespace {
+
+constexpr long kOffMapWarnSteps = 10;  // consecutive steps off the map: a warning
+
+}  // namespace
+
+void NavigatorRos::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) {
+  const nav::NavigatorCounts c = nav_ ? nav_->counts() : nav::NavigatorCounts{};
+  if (consecutive_off_map_ >= kOffMapWarnSteps) {
+    stat.summary(diagnostic_msgs::DiagnosticStatus::WARN,
+                 "off the map: navigating on the INS alone");
+  } else if (callback_errors_ > 0) {
+    stat.summary(diagnostic_msgs::DiagnosticStatus::ERROR,
+                 "messages dropped on an internal error (see callback_errors)");
+  } else if (c.gaps + c.out_of_order + jumps_back_ + nan_inputs_ + c.missing_measurements +
+                 c.invalid_ins + c.invalid_measurements + c.filter_restarts + c.ins_jumps +
+                 bad_stamps_ + ins_no_fix_ + ins_refused_ >
+             0) {
+    stat.summary(diagnostic_msgs::DiagnosticStatus::WARN,
+                 "running; input faults seen (see counts)");
+  } else {
+    stat.summary(diagnostic_msgs::DiagnosticStatus::OK, "running");
+  }
+  stat.add("map_path", map_path_);
+  stat.add("ins_samples_in", c.ins_in);
+  stat.add("measurements_in", c.measurements_in);
+  stat.add("steps", c.steps);
+  stat.add("published", published_);
+  stat.add("updates", c.updates);
+  stat.add("missing_measurements", c.missing_measurements);
+  stat.add("unmatched_measurements_dropped", c.unmatched_measurements);
+  stat.add("off_map_measurements", c.off_map);
+  stat.add("gated_measurements", c.gated);
+  stat.add("nan_measurements", c.nan_measurements);
+  stat.add("ins_gaps", c.gaps);
+  stat.add("out_of_order_dropped", c.out_of_order);
+  stat.add("time_jumps_back", jumps_back_);
+  stat.add("nan_inputs", nan_inputs_);
+  stat.add("imu_without_fix_dropped", imu_without_fix_dropped_);
+  stat.add("ins_no_fix_dropped", ins_no_fix_);
+  stat.add("ins_refused", ins_refused_ + c.invalid_ins);
+  stat.add("measurements_refused", c.invalid_measurements);
+  stat.add("filter_restarts", c.filter_restarts);
+  stat.add("ins_jumps", c.ins_jumps);
+  stat.add("stamps_out_of_range", bad_stamps_);
+  stat.add("callback_errors", callback_errors_);
+  if (cold_start_) {
+    stat.add("cold_start_particle_steps", c.particle_steps);
+    stat.add("cold_start_handed_over", nav_ && !nav_->in_cold_start());
+  }
+  if (online_) {
+    stat.add("online_columns_mismatched", columns_mismatched_);
+    stat.add("online_halves_waiting", static_cast<long>(online_parts_.size()));
+  }
+  stat.add("pending", nav_ ? static_cast<long>(nav_->pending()) : 0L);
+  if (nis_n_ > 0) stat.add("nis_mean", nis_sum_ / static_cast<double>(nis_n_));
+  stat.add("on_map", last_ ? last_->step.on_map : false);
+  if (last_) {
+    stat.add("last_innovation_nT", last_->step.innovation_nT);
+    stat.add("sigma_horizontal_m",
+             std::sqrt(last_->position_cov_ned_m2(0, 0) + last_->position_cov_ned_m2(1, 1)));
+  }
+}
+
+}  // namespace magcomp::rosio
