@@ -34,7 +34,9 @@ int main(int argc, char** argv) {
         tile(col("ins_yaw")) * kDegToRad);
     const Eigen::VectorXd meas = tile(col("mag_1_c"));
     const nav::AnomalyMap map = nav::read_anomaly_map(argv[2]);
-    const nav::FilterSettings s = nav::filter_model(dt, ins.lat_rad[0], nav::ModelSigmas{});
+    nav::ModelSigmas sigmas;
+    sigmas.map_representation_var = true;  // navigate's and the node's default R
+    const nav::FilterSettings s = nav::filter_model(dt, ins.lat_rad[0], sigmas);
     for (int run = 0; run < 3; ++run) {
       const auto t0 = std::chrono::steady_clock::now();
       const nav::FilterResult r = nav::run_ekf(ins, meas, map, s);
