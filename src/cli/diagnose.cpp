@@ -260,7 +260,9 @@ void add_diagnose(CLI::App& app) {
   auto track = std::make_shared<std::string>("truth");
   cmd->add_option("--data", *data,
                   "flight HDF5 file; several, comma-separated: each diagnosed in turn, the "
-                  "candidates ranked across them")
+                  "candidates ranked across them (with --apply: flights of one aircraft; the "
+                  "model is fitted on all of them and every check made on all their held-out "
+                  "lines)")
       ->required();
   cmd->add_option("--model", *model_path, "model YAML (fitted or not)")->required();
   cmd->add_option("--truth", *truth,
@@ -309,16 +311,16 @@ void add_diagnose(CLI::App& app) {
     };
     DiagnoseOptions options;
     options.full_search = !*quick;
-    if (paths.size() > 1) {
-      if (*apply) {
-        throw Error("--apply takes one flight (--data holds " + std::to_string(paths.size()) +
-                    "): diagnose the flights together, then add the season's term with "
-                    "calibrate --data <all> --term");
-      }
+    if (paths.size() > 1 && !*apply) {
       diagnose_several(model, paths, *model_path, *truth, *json_path, *top, options, guard, read);
       return;
     }
-    const FlightData flight = read(paths[0]);
+    // With --apply over several flights, every flight is held: each round diagnoses them all.
+    std::vector<FlightData> held_flights;
+    for (const auto& path : paths) held_flights.push_back(read(path));
+    std::vector<const FlightData*> flights;
+    for (const auto& f : held_flights) flights.push_back(&f);
+    const FlightData& flight = held_flights.front();
     if (!*apply) {
       if (!model.fitted()) {
         Model fitted = model;
@@ -346,9 +348,13 @@ void add_diagnose(CLI::App& app) {
     std::unique_ptr<FlightData> validation;
     if (!validate->empty()) validation = std::make_unique<FlightData>(read(*validate));
     const LoopResult r = diagnose_loop(
-        model, flight, *truth, *rounds, *min_share, options,
-        [&](int round, const Diagnosis& dx) {
-          std::printf("== round %d\n", round);
+        model, flights, *truth, *rounds, *min_share, options,
+        [&](int round, size_t f, const Diagnosis& dx) {
+          if (flights.size() == 1)
+            std::printf("== round %d\n", round);
+          else
+            std::printf("== round %d, flight %zu of %zu (%s)\n", round, f + 1, flights.size(),
+                        paths[f].c_str());
           std::printf("  held-out std %.3f nT; top: %s\n", dx.baseline_std_nT,
                       dx.candidates.empty() ? "(none)" : dx.candidates.front().term.c_str());
           for (size_t k = 0; k < dx.candidates.size() && static_cast<int>(k) < std::min(*top, 5);
@@ -378,6 +384,11 @@ void add_diagnose(CLI::App& app) {
                   figure(lr.fom_nT, "%.2f").c_str());
       if (validation) std::printf(" %9s nT", figure(lr.validation_std_nT, "%.3f").c_str());
       std::printf("\n");
+      if (flights.size() > 1) {
+        std::printf("       held-out std per flight:");
+        for (double v : lr.flight_heldout_std_nT) std::printf(" %s", figure(v, "%.3f").c_str());
+        std::printf(" nT\n");
+      }
       if (lr.together && lr.alone_std_nT.size() == 2)
         std::printf("       together: held-out %.3f nT; alone %.3f and %.3f nT (each is needed)\n",
                     lr.heldout_std_nT, lr.alone_std_nT[0], lr.alone_std_nT[1]);
@@ -385,8 +396,9 @@ void add_diagnose(CLI::App& app) {
         std::printf("       removed %s: %s\n", term.c_str(), why.c_str());
     }
     std::printf("stop: %s\n", r.stop_reason.c_str());
+    for (const std::string& w : r.warnings) std::printf("warning: %s\n", w.c_str());
     // Terms the flight barely supports: their channel barely switched where they were fitted.
-    const std::vector<TermSupport> support = term_support(r.model, model, flight);
+    const std::vector<TermSupport> support = term_support(r.model, model, flights);
     for (const TermSupport& s : support) {
       const std::string note = support_note(s);
       if (!note.empty()) std::printf("note: %s: %s\n", s.term.c_str(), note.c_str());
@@ -395,7 +407,7 @@ void add_diagnose(CLI::App& app) {
     // enters each sample's variance (navigate --model-variance, the compensator).
     Model final_model = r.model;
     const auto [holdout_var, holdout_rows] =
-        holdout_error_variance_nT2(final_model, {&flight}, *truth);
+        holdout_error_variance_nT2(final_model, flights, *truth);
     if (holdout_rows > 0 && std::isfinite(holdout_var))
       final_model.report.holdout_error_variance_nT2 = holdout_var;
     save_model_yaml(final_model, *out, inputs);
@@ -429,6 +441,8 @@ void add_diagnose(CLI::App& app) {
           return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json();
         };
         jr["validation_std_nT"] = number(lr.validation_std_nT);
+        jr["flights_heldout_std_nT"] = nlohmann::json::array();
+        for (double v : lr.flight_heldout_std_nT) jr["flights_heldout_std_nT"].push_back(number(v));
         jr["rejected"] = nlohmann::json::array();
         for (const auto& [term, why] : lr.rejected)
           jr["rejected"].push_back({{"term", term}, {"why", why}});
@@ -440,6 +454,7 @@ void add_diagnose(CLI::App& app) {
       }
       if (validation) j["validation"] = *validate;
       j["stop"] = r.stop_reason;
+      j["warnings"] = r.warnings;
       j["support"] = nlohmann::json::array();
       for (const TermSupport& s : support) {
         const auto number = [](double v) {

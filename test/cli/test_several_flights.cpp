@@ -5,7 +5,9 @@
 #include <cmath>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <set>
 
+#include "magcomp/core/model/model.h"
 #include "magcomp/core/sim/simulator.h"
 #include "scenario_cache.h"
 
@@ -120,13 +122,56 @@ TEST(SeveralFlights, DiagnoseTakesEachFlightInTurnAndRanksTheSeason) {
             0u)
       << season["verdict"];
   EXPECT_NE(out.find("verdict"), std::string::npos);
-  // The loop (--apply) works on one flight.
-  EXPECT_EQ(test::run(test::cli() + " diagnose --apply --out " + dir + "/x.yaml --data " + both +
-                          " --model " + dir + "/m.yaml",
+  // These two flights are of two aircraft (each seed draws its own): one model fitted on both
+  // fits neither, and the loop over them says so.
+  ASSERT_EQ(test::run(test::cli() + " diagnose --channels-only --apply --rounds 1 --out " + dir +
+                          "/x.yaml --data " + both + " --model " + dir + "/m.yaml",
                       &out),
-            2)
+            0)
       << out;
-  EXPECT_NE(out.find("--apply takes one flight"), std::string::npos) << out;
+  EXPECT_NE(out.find("warning: " + flights[0] + ": the model fitted on all the flights leaves"),
+            std::string::npos)
+      << out;
+  // The loop (--apply) over two flights of one aircraft: each round diagnoses each flight, the
+  // model is fitted on both, and both hidden effects are added, each flight's held-out error
+  // falling with them.
+  std::string one_aircraft;
+  for (unsigned seed : {33u, 34u}) {
+    sim::Scenario s =
+        sim::load_scenario(test::source_dir() + "/config/scenarios/rostest_short.yaml");
+    s.seed = seed;
+    s.aircraft_seed = 7;
+    const std::string path = dir + "/g" + std::to_string(seed) + ".h5";
+    sim::write_simulation(sim::simulate(s, Igrf::installed()), path);
+    one_aircraft += (one_aircraft.empty() ? "" : ",") + path;
+  }
+  ASSERT_EQ(test::run(test::cli() + " diagnose --channels-only --apply --out " + dir +
+                          "/x.yaml --json " + dir + "/loop.json --data " + one_aircraft +
+                          " --model " + test::source_dir() + "/config/models/tl_sim.yaml",
+                      &out),
+            0)
+      << out;
+  EXPECT_EQ(out.find("warning:"), std::string::npos) << out;
+  EXPECT_NE(out.find("== round 1, flight 2 of 2"), std::string::npos) << out;
+  const nlohmann::json loop = read_json(dir + "/loop.json");
+  const nlohmann::json& rounds = loop["rounds"];
+  ASSERT_GE(rounds.size(), 3u) << out;
+  std::set<std::string> added;
+  for (const auto& r : rounds) {
+    ASSERT_EQ(r["flights_heldout_std_nT"].size(), 2u);
+    added.insert(r["added"].get<std::string>());
+  }
+  const Model fitted = load_model_yaml(dir + "/x.yaml");
+  bool lag = false, strobe = false;
+  for (const std::string& t : fitted.terms) {
+    if (t.rfind("lag:", 0) == 0) lag = std::fabs(std::stod(t.substr(4)) - 0.3) < 0.01;
+    strobe = strobe || t.find("cur_strb") != std::string::npos;
+  }
+  EXPECT_TRUE(lag && strobe) << out;
+  for (size_t f = 0; f < 2; ++f)
+    EXPECT_LT(rounds.back()["flights_heldout_std_nT"][f].get<double>(),
+              0.2 * rounds.front()["flights_heldout_std_nT"][f].get<double>())
+        << out;
 }
 
 }  // namespace

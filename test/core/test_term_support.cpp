@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <functional>
+#include <random>
 
 #include "magcomp/core/diagnose/term_support.h"
 #include "magcomp/core/fit/model_fit.h"
@@ -70,6 +71,63 @@ TEST(TermSupport, ATermWhoseChannelSwitchesOftenNeedsNoNote) {
   EXPECT_EQ(support_note(s[0]), "");
   // Nothing added: nothing to say.
   EXPECT_TRUE(term_support(c.start, c.start, c.flight).empty());
+}
+
+TEST(TermSupport, TheJackknifeSigmaMatchesTheSpreadOverNoiseDrawsWhereTheFitsOwnUnderstatesIt) {
+  // The current of 3 nT/A as a square wave of 300 samples, under a noise correlated in time (a
+  // first-order process of 0.1 nT with a correlation of 0.98 per sample, about 5 s at 10 Hz): the
+  // fit's residual is not white, so the fit's own covariance (white noise) understates the
+  // coefficient's spread. Over 40 draws of the noise, the jackknife's sigma (20 blocks of the
+  // fit rows) matches the spread of the fitted coefficient.
+  Model start = test::tl16_model();
+  start.fit.method = FitMethod::kReference;
+  start.fit.reference = "mag_1_c";
+  start.fit.lines.clear();
+  const FlightData clean = test::synthetic_tl_flight(start, test::known_coefficients(16));
+  Eigen::VectorXd x(clean.size());
+  for (Eigen::Index i = 0; i < x.size(); ++i) x[i] = (i / 150) % 2 ? 2.0 : 0.0;
+  std::vector<double> coef, jack, own;
+  for (unsigned draw = 0; draw < 40; ++draw) {
+    FlightData f = clean;
+    std::mt19937_64 rng(1000 + draw);
+    std::normal_distribution<double> normal(0.0, 1.0);
+    const double rho = 0.98;
+    Eigen::VectorXd noise(f.size());
+    double v = 0.1 * normal(rng);
+    for (Eigen::Index i = 0; i < noise.size(); ++i) {
+      v = rho * v + 0.1 * std::sqrt(1 - rho * rho) * normal(rng);
+      noise[i] = v;
+    }
+    f.set("cur_x", x);
+    f.mutable_column("mag_5_uc") += 3.0 * x + noise;
+    Model m = start;
+    m.add_term("scalar:cur_x");
+    fit_model(m, {&f});
+    const Eigen::Index j = m.coefficients.size() - 1;  // the current's coefficient
+    ASSERT_EQ(m.column_names[static_cast<size_t>(j)], "scalar:cur_x");
+    coef.push_back(m.coefficients[j]);
+    const Eigen::MatrixXd cov = coefficient_jackknife_covariance(m, {&f});
+    ASSERT_EQ(cov.rows(), m.coefficients.size());
+    jack.push_back(std::sqrt(cov(j, j)));
+    own.push_back(std::sqrt(m.report.coefficient_covariance(j, j)));
+  }
+  const auto mean = [](const std::vector<double>& v) {
+    double s = 0;
+    for (double e : v) s += e;
+    return s / static_cast<double>(v.size());
+  };
+  const double m = mean(coef);
+  double ss = 0;
+  for (double c : coef) ss += (c - m) * (c - m);
+  const double spread = std::sqrt(ss / static_cast<double>(coef.size() - 1));
+  std::printf(
+      "  coefficient %.4f nT/A (true 3): spread over draws %.4f, jackknife %.4f, fit's own "
+      "%.4f\n",
+      m, spread, mean(jack), mean(own));
+  EXPECT_NEAR(m, 3.0, 3 * spread);
+  EXPECT_GT(mean(jack), 0.6 * spread);
+  EXPECT_LT(mean(jack), 1.5 * spread);
+  EXPECT_LT(mean(own), 0.5 * spread);
 }
 
 }  // namespace

@@ -5,9 +5,11 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <map>
 #include <optional>
 #include <set>
 
+#include "magcomp/core/diagnose/diagnose_season.h"
 #include "magcomp/core/error.h"
 #include "magcomp/core/evaluate/evaluation.h"
 #include "magcomp/core/model/terms_expr.h"
@@ -15,33 +17,91 @@
 namespace magcomp {
 namespace {
 
-// Pooled std of an evaluation's error over the given lines (all lines when empty), nT.
-double std_on_lines(const Evaluation& ev, const std::vector<double>& lines) {
-  if (lines.empty()) return ev.std_nT;
+// Sum of squares and count of an evaluation's error over the given lines (all lines when
+// empty), line means removed.
+std::pair<double, double> ss_on_lines(const Evaluation& ev, const std::vector<double>& lines) {
+  if (lines.empty())
+    return {ev.std_nT * ev.std_nT * static_cast<double>(ev.n), static_cast<double>(ev.n)};
   double ss = 0, n = 0;
   for (const auto& l : ev.per_line) {
     if (std::find(lines.begin(), lines.end(), l.line) == lines.end()) continue;
     ss += l.std_nT * l.std_nT * static_cast<double>(l.n);
     n += static_cast<double>(l.n);
   }
+  return {ss, n};
+}
+
+// Pooled std of an evaluation's error over the given lines (all lines when empty), nT.
+double std_on_lines(const Evaluation& ev, const std::vector<double>& lines) {
+  if (lines.empty()) return ev.std_nT;
+  const auto [ss, n] = ss_on_lines(ev, lines);
   return n > 0 ? std::sqrt(ss / n) : ev.std_nT;
 }
 
-// Scores of a model: held-out lines, all lines, FOM, validation flight.
-LoopRound score(const Model& model, const FlightData& data, const std::string& truth,
-                const std::vector<double>& selection, const std::vector<double>& confirmation,
+// Each flight's held-out lines, in two halves (the first diagnosis's selection and confirmation
+// lines of that flight).
+struct HeldOut {
+  std::vector<double> selection, confirmation;
+};
+
+// Scores of a model: held-out lines, all lines, FOM, validation flight. Over several flights,
+// each figure is pooled over the flights' samples (the FOM: their mean).
+LoopRound score(const Model& model, const std::vector<const FlightData*>& flights,
+                const std::string& truth, const std::vector<HeldOut>& held_out,
                 const FlightData* validation) {
   LoopRound r;
-  const Evaluation ev = evaluate_model(model, data, truth, false);
-  std::vector<double> held = selection;
-  held.insert(held.end(), confirmation.begin(), confirmation.end());
-  r.heldout_std_nT = std_on_lines(ev, held);
-  if (!selection.empty() && !confirmation.empty()) {
-    r.selection_std_nT = std_on_lines(ev, selection);
-    r.confirmation_std_nT = std_on_lines(ev, confirmation);
+  if (flights.size() == 1) {
+    const std::vector<double>& selection = held_out[0].selection;
+    const std::vector<double>& confirmation = held_out[0].confirmation;
+    const Evaluation ev = evaluate_model(model, *flights[0], truth, false);
+    std::vector<double> held = selection;
+    held.insert(held.end(), confirmation.begin(), confirmation.end());
+    r.heldout_std_nT = std_on_lines(ev, held);
+    if (!selection.empty() && !confirmation.empty()) {
+      r.selection_std_nT = std_on_lines(ev, selection);
+      r.confirmation_std_nT = std_on_lines(ev, confirmation);
+    }
+    r.all_std_nT = ev.std_nT;
+    r.fom_nT = ev.fom.signatures.empty() ? NAN : ev.fom.fom_nT;
+    r.flight_heldout_std_nT = {r.heldout_std_nT};
+  } else {
+    double held_ss = 0, held_n = 0, sel_ss = 0, sel_n = 0, conf_ss = 0, conf_n = 0, all_ss = 0,
+           all_n = 0, fom_sum = 0, foms = 0;
+    bool halves = true;
+    for (size_t f = 0; f < flights.size(); ++f) {
+      const Evaluation ev = evaluate_model(model, *flights[f], truth, false);
+      const HeldOut& h = held_out[f];
+      std::vector<double> held = h.selection;
+      held.insert(held.end(), h.confirmation.begin(), h.confirmation.end());
+      const auto [ss, n] = ss_on_lines(ev, held);
+      held_ss += ss;
+      held_n += n;
+      r.flight_heldout_std_nT.push_back(n > 0 ? std::sqrt(ss / n) : NAN);
+      halves = halves && !h.selection.empty() && !h.confirmation.empty();
+      if (halves) {
+        const auto [s1, n1] = ss_on_lines(ev, h.selection);
+        const auto [s2, n2] = ss_on_lines(ev, h.confirmation);
+        sel_ss += s1;
+        sel_n += n1;
+        conf_ss += s2;
+        conf_n += n2;
+      }
+      const auto [a, na] = ss_on_lines(ev, {});
+      all_ss += a;
+      all_n += na;
+      if (!ev.fom.signatures.empty()) {
+        fom_sum += ev.fom.fom_nT;
+        ++foms;
+      }
+    }
+    r.heldout_std_nT = held_n > 0 ? std::sqrt(held_ss / held_n) : NAN;
+    if (halves && sel_n > 0 && conf_n > 0) {
+      r.selection_std_nT = std::sqrt(sel_ss / sel_n);
+      r.confirmation_std_nT = std::sqrt(conf_ss / conf_n);
+    }
+    r.all_std_nT = all_n > 0 ? std::sqrt(all_ss / all_n) : NAN;
+    r.fom_nT = foms > 0 ? fom_sum / foms : NAN;
   }
-  r.all_std_nT = ev.std_nT;
-  r.fom_nT = ev.fom.signatures.empty() ? NAN : ev.fom.fom_nT;
   if (validation) r.validation_std_nT = evaluate_model(model, *validation, truth, false).std_nT;
   return r;
 }
@@ -174,44 +234,118 @@ bool removable(const Model& start, const std::string& term) {
 double variance_share(double with_nT, double without_nT) {
   return 1.0 - std::pow(with_nT / without_nT, 2.0);
 }
+// A candidate the loop may add.
+struct Eligible {
+  std::string term;
+  bool slow = false;
+  double explained = 0.0;  ///< its conservative explained share (on the flight it is taken from)
+};
+
+// The candidates of one round's diagnoses that the loop may add, in rank order (see
+// diagnose_loop).
+std::vector<Eligible> eligible_candidates(const std::vector<Diagnosis>& dxs, double min_share) {
+  std::vector<Eligible> out;
+  const auto ok = [&](const Candidate& c) {
+    return c.accepted && c.explained_fraction >= min_share;
+  };
+  if (dxs.size() == 1) {
+    for (const Candidate& c : dxs.front().candidates)
+      if (ok(c)) out.push_back({c.term, c.slow, c.explained_fraction});
+    return out;
+  }
+  // Each shape's best passing form over the flights, then the flights' joint ranking.
+  std::map<std::string, Eligible> best;
+  for (const Diagnosis& d : dxs) {
+    for (const Candidate& c : d.candidates) {
+      if (!ok(c)) continue;
+      auto [it, fresh] =
+          best.emplace(term_shape(c.term), Eligible{c.term, c.slow, c.explained_fraction});
+      if (!fresh && c.explained_fraction > it->second.explained)
+        it->second = {c.term, c.slow, c.explained_fraction};
+    }
+  }
+  for (const SeasonCandidate& s : merge_diagnoses(dxs).candidates) {
+    const auto it = best.find(s.shape);
+    if (it != best.end()) out.push_back(it->second);
+  }
+  return out;
+}
 }  // namespace
 
 LoopResult diagnose_loop(const Model& start, const FlightData& data, const std::string& truth,
                          int max_rounds, double min_share, const DiagnoseOptions& options,
                          const std::function<void(int, const Diagnosis&)>& on_round,
                          const FlightData* validation) {
+  std::function<void(int, size_t, const Diagnosis&)> each;
+  if (on_round) each = [&](int round, size_t, const Diagnosis& dx) { on_round(round, dx); };
+  return diagnose_loop(start, std::vector<const FlightData*>{&data}, truth, max_rounds, min_share,
+                       options, each, validation);
+}
+
+LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*>& flights,
+                         const std::string& truth, int max_rounds, double min_share,
+                         const DiagnoseOptions& options,
+                         const std::function<void(int, size_t, const Diagnosis&)>& on_round,
+                         const FlightData* validation) {
+  if (flights.empty()) throw Error("diagnose: no flight given");
   constexpr size_t kTriesPerRound = 3;
   std::set<std::string> learned_channels;  // one learned law per channel
   LoopResult r;
   r.model = start;
-  if (!r.model.fitted()) fit_model(r.model, {&data});
-  std::vector<double> selection, confirmation;  // the held-out lines, in two halves
+  if (!r.model.fitted()) fit_model(r.model, flights);
+  std::vector<HeldOut> held_out(flights.size());  // each flight's held-out lines, in two halves
   for (int round = 1;; ++round) {
-    Diagnosis dx = diagnose(r.model, data, truth, options);
-    if (round == 1) {
-      selection = dx.selection_lines;
-      confirmation = dx.confirmation_lines;
-      r.rounds.push_back(score(r.model, data, truth, selection, confirmation, validation));
+    std::vector<Diagnosis> dxs;
+    for (size_t f = 0; f < flights.size(); ++f) {
+      dxs.push_back(diagnose(r.model, *flights[f], truth, options));
+      if (round == 1) {
+        held_out[f].selection = dxs.back().selection_lines;
+        held_out[f].confirmation = dxs.back().confirmation_lines;
+      }
+      if (on_round) on_round(round, f, dxs.back());
     }
-    if (on_round) on_round(round, dx);
+    if (round == 1) {
+      r.rounds.push_back(score(r.model, flights, truth, held_out, validation));
+      // Flights of one aircraft: the model fitted on all of them leaves on each about what it
+      // leaves fitted on that flight alone (its diagnosis's baseline).
+      for (size_t f = 0; flights.size() > 1 && f < flights.size(); ++f) {
+        const double joint = r.rounds[0].flight_heldout_std_nT[f];
+        const double alone = dxs[f].baseline_std_nT;
+        if (joint > 3.0 * alone + options.resolution_nT) {
+          char buf[400];
+          std::snprintf(buf, sizeof(buf),
+                        "%s: the model fitted on all the flights leaves %.3f nT on its held-out "
+                        "lines, %.3f nT fitted on it alone: are these flights of one aircraft "
+                        "with the same sensors?",
+                        flights[f]->source().c_str(), joint, alone);
+          r.warnings.push_back(buf);
+        }
+      }
+    }
+    const Diagnosis& dx = dxs.front();
+    // Over several flights, what is said of them together.
+    const std::string verdict = flights.size() == 1 ? dx.verdict : merge_diagnoses(dxs).verdict;
     // The candidates the loop may add, in rank order: accepted, and explaining at least
     // min_share on both halves (a term ranked first on the selection lines may explain little
-    // on the confirmation lines, where the error may lie).
-    std::vector<const Candidate*> eligible;
-    for (const Candidate& c : dx.candidates) {
-      if (c.accepted && c.explained_fraction >= min_share) eligible.push_back(&c);
-    }
+    // on the confirmation lines, where the error may lie). Over several flights: accepted so on
+    // at least one of them (an effect one flight barely shows is another's to find), ranked as
+    // the flights' diagnoses together rank it (merge_diagnoses).
+    const std::vector<Eligible> eligible = eligible_candidates(dxs, min_share);
+    const auto finish = [&](std::string reason) {
+      r.stop_reason = std::move(reason);
+      r.last = dxs.front();
+      r.last_flights = std::move(dxs);
+    };
     if (round > max_rounds) {
-      r.stop_reason = "stopped after " + std::to_string(max_rounds) + " rounds; " + dx.verdict;
-      r.last = std::move(dx);
+      finish("stopped after " + std::to_string(max_rounds) + " rounds; " + verdict);
       break;
     }
     // Fits `next` and keeps it if it passes every check; else records why in `rejected`.
     std::vector<std::pair<std::string, std::string>> rejected;
     auto try_model = [&](Model next, const std::string& added, double explained, bool black_box) {
       next.coefficients.resize(0);
-      fit_model(next, {&data});
-      LoopRound lr = score(next, data, truth, selection, confirmation, validation);
+      fit_model(next, flights);
+      LoopRound lr = score(next, flights, truth, held_out, validation);
       std::string why = refusal(lr, r.rounds.back());
       // A learned law has many columns: it must also explain the accepted share of the held-out
       // variance, as every candidate must on each split.
@@ -241,16 +375,99 @@ LoopResult diagnose_loop(const Model& start, const FlightData& data, const std::
     };
     auto fit_score = [&](Model m) {
       m.coefficients.resize(0);
-      fit_model(m, {&data});
-      LoopRound lr = score(m, data, truth, selection, confirmation, validation);
+      fit_model(m, flights);
+      LoopRound lr = score(m, flights, truth, held_out, validation);
       return std::make_pair(std::move(m), std::move(lr));
     };
-    // The accepted candidates in rank order: the first that passes every check is kept.
+    // On each half of the held-out lines, as a term of the search is accepted on each split:
+    // the accepted share of the variance and the resolution of the std.
+    const auto passes = [&](double with_nT, double without_nT) {
+      return variance_share(with_nT, without_nT) >= options.accept_fraction &&
+             without_nT - with_nT >= options.resolution_nT;
+    };
+    // Whether a pair fitted together (`lr`) passes the checks a pair must: every check of a
+    // single term, the accepted share and the resolution on each half of the held-out lines, and
+    // each of its terms needed (the pair lowers the error variance of each alone by the accepted
+    // share).
+    const auto pair_passes = [&](const LoopRound& lr, const LoopRound& alone_a,
+                                 const LoopRound& alone_b) {
+      const LoopRound& now = r.rounds.back();
+      return refusal(lr, now).empty() && passes(lr.selection_std_nT, now.selection_std_nT) &&
+             passes(lr.confirmation_std_nT, now.confirmation_std_nT) &&
+             variance_share(lr.heldout_std_nT, alone_a.heldout_std_nT) >= options.accept_fraction &&
+             variance_share(lr.heldout_std_nT, alone_b.heldout_std_nT) >= options.accept_fraction;
+    };
+    // Keeps a pair fitted together as this round.
+    const auto keep_pair = [&](std::pair<Model, LoopRound> fitted, const std::string& a,
+                               const std::string& b, double alone_a_nT, double alone_b_nT) {
+      LoopRound lr = std::move(fitted.second);
+      lr.round = round;
+      lr.added = a + " + " + b;
+      lr.explained = variance_share(lr.heldout_std_nT, r.rounds.back().heldout_std_nT);
+      lr.together = true;
+      lr.alone_std_nT = {alone_a_nT, alone_b_nT};
+      lr.rejected = std::move(rejected);
+      rejected.clear();
+      r.rounds.push_back(std::move(lr));
+      r.model = std::move(fitted.first);
+    };
     bool kept = false;
+    // A lag ranked first by the share it explains with the channel term it was judged with
+    // (Candidate::partner), but not eligible alone: the two together, kept if they pass a pair's
+    // checks and lower the held-out error below the first single term that passes (a scalar
+    // lag delays every channel's signature; a delayed channel term stands in for it on that
+    // channel only).
+    if (options.joint_steps) {
+      std::optional<std::pair<Model, LoopRound>> partnered;
+      std::string partnered_a, partnered_b;
+      double partnered_alone[2] = {NAN, NAN};
+      for (const Diagnosis& d : dxs) {
+        if (d.candidates.empty()) continue;
+        const Candidate& top = d.candidates.front();
+        if (top.partner.empty() || (top.accepted && top.explained_fraction >= min_share)) continue;
+        try {
+          Model with_a = r.model, with_b = r.model, with_both = r.model;
+          add_candidate_term(top.term, top.slow, truth, &with_a);
+          add_candidate_term(top.partner, false, truth, &with_b);
+          add_candidate_term(top.term, top.slow, truth, &with_both);
+          add_candidate_term(top.partner, false, truth, &with_both);
+          const LoopRound alone_a = fit_score(std::move(with_a)).second;
+          const LoopRound alone_b = fit_score(std::move(with_b)).second;
+          auto both = fit_score(std::move(with_both));
+          if (!pair_passes(both.second, alone_a, alone_b)) continue;
+          if (partnered && !(both.second.heldout_std_nT < partnered->second.heldout_std_nT))
+            continue;
+          partnered.emplace(std::move(both));
+          partnered_a = top.term;
+          partnered_b = top.partner;
+          partnered_alone[0] = alone_a.heldout_std_nT;
+          partnered_alone[1] = alone_b.heldout_std_nT;
+        } catch (const Error&) {
+        }
+      }
+      if (partnered) {
+        double single_nT = INFINITY;  // the first single term that passes
+        for (size_t k = 0; k < eligible.size() && k < kTriesPerRound; ++k) {
+          Model next = r.model;
+          add_candidate_term(eligible[k].term, eligible[k].slow, truth, &next);
+          const LoopRound lr = fit_score(std::move(next)).second;
+          if (refusal(lr, r.rounds.back()).empty()) {
+            single_nT = lr.heldout_std_nT;
+            break;
+          }
+        }
+        if (partnered->second.heldout_std_nT < single_nT) {
+          keep_pair(std::move(*partnered), partnered_a, partnered_b, partnered_alone[0],
+                    partnered_alone[1]);
+          kept = true;
+        }
+      }
+    }
+    // The accepted candidates in rank order: the first that passes every check is kept.
     for (size_t k = 0; k < eligible.size() && k < kTriesPerRound && !kept; ++k) {
       Model next = r.model;
-      add_candidate_term(eligible[k]->term, eligible[k]->slow, truth, &next);
-      kept = try_model(std::move(next), eligible[k]->term, eligible[k]->explained_fraction, false);
+      add_candidate_term(eligible[k].term, eligible[k].slow, truth, &next);
+      kept = try_model(std::move(next), eligible[k].term, eligible[k].explained, false);
     }
     // Effects that act together: when no term passes alone while the residual stays
     // predictable, pairs of terms of distinct channels, fitted together. A pair is kept if it
@@ -258,8 +475,9 @@ LoopResult diagnose_loop(const Model& start, const FlightData& data, const std::
     // share and the resolution, and each of its terms lowers the pair's error variance by the
     // accepted share (each is needed); at least one of them must fail alone (else it is the
     // single step's business). The best such pair by held-out error.
-    const ExplainableShare& ex0 = dx.explainable;
-    if (options.joint_steps && !kept && !ex0.within_noise) {
+    const bool predictable = std::any_of(
+        dxs.begin(), dxs.end(), [](const Diagnosis& d) { return !d.explainable.within_noise; });
+    if (options.joint_steps && !kept && predictable) {
       // The pool: for each of the three channels that predict most of the residual (and that
       // the search gives terms of), its plain term and its first ranked term, whatever their
       // share alone: effects that cancel one another show in the residual's channels, not in
@@ -270,16 +488,20 @@ LoopResult diagnose_loop(const Model& start, const FlightData& data, const std::
       const auto take = [&](const Candidate& c) {
         if (in_pool.insert(c.term).second) pool.push_back(c);
       };
-      for (size_t k = 0; k < ex0.channels.size() && k < kResidualChannels; ++k) {
-        const std::string& channel = ex0.channels[k].first;
-        const auto first = std::find_if(dx.candidates.begin(), dx.candidates.end(),
-                                        [&](const Candidate& c) { return c.channel == channel; });
-        if (first == dx.candidates.end()) continue;
-        Candidate plain;
-        plain.term = (is_electrical(channel) ? "current:" : "field:") + channel;
-        plain.channel = channel;
-        take(plain);
-        take(*first);
+      for (const Diagnosis& d : dxs) {
+        const ExplainableShare& ex0 = d.explainable;
+        if (ex0.within_noise) continue;
+        for (size_t k = 0; k < ex0.channels.size() && k < kResidualChannels; ++k) {
+          const std::string& channel = ex0.channels[k].first;
+          const auto first = std::find_if(d.candidates.begin(), d.candidates.end(),
+                                          [&](const Candidate& c) { return c.channel == channel; });
+          if (first == d.candidates.end()) continue;
+          Candidate plain;
+          plain.term = (is_electrical(channel) ? "current:" : "field:") + channel;
+          plain.channel = channel;
+          take(plain);
+          take(*first);
+        }
       }
       std::vector<LoopRound> alone(pool.size());
       for (size_t a = 0; a < pool.size(); ++a) {
@@ -306,20 +528,7 @@ LoopResult diagnose_loop(const Model& start, const FlightData& data, const std::
           add_candidate_term(pool[a].term, pool[a].slow, truth, &next);
           add_candidate_term(pool[b].term, pool[b].slow, truth, &next);
           auto [fitted, lr] = fit_score(std::move(next));
-          if (!refusal(lr, now).empty()) continue;
-          // On each half of the held-out lines, as a term of the search is accepted on each
-          // split: the accepted share of the variance and the resolution of the std.
-          const auto passes = [&](double with_nT, double without_nT) {
-            return variance_share(with_nT, without_nT) >= options.accept_fraction &&
-                   without_nT - with_nT >= options.resolution_nT;
-          };
-          if (!passes(lr.selection_std_nT, now.selection_std_nT) ||
-              !passes(lr.confirmation_std_nT, now.confirmation_std_nT))
-            continue;
-          if (variance_share(lr.heldout_std_nT, alone[a].heldout_std_nT) <
-                  options.accept_fraction ||
-              variance_share(lr.heldout_std_nT, alone[b].heldout_std_nT) < options.accept_fraction)
-            continue;
+          if (!pair_passes(lr, alone[a], alone[b])) continue;
           if (lr.heldout_std_nT < best_std) {
             best_std = lr.heldout_std_nT;
             best.emplace(std::move(fitted), std::move(lr));
@@ -329,37 +538,34 @@ LoopResult diagnose_loop(const Model& start, const FlightData& data, const std::
         }
       }
       if (best) {
-        LoopRound lr = std::move(best->second);
-        lr.round = round;
-        lr.added = pool[best_a].term + " + " + pool[best_b].term;
-        lr.explained = variance_share(lr.heldout_std_nT, now.heldout_std_nT);
-        lr.together = true;
-        lr.alone_std_nT = {alone[best_a].heldout_std_nT, alone[best_b].heldout_std_nT};
-        lr.rejected = std::move(rejected);
-        rejected.clear();
-        r.rounds.push_back(std::move(lr));
-        r.model = std::move(best->first);
+        keep_pair(std::move(*best), pool[best_a].term, pool[best_b].term,
+                  alone[best_a].heldout_std_nT, alone[best_b].heldout_std_nT);
         kept = true;
       }
     }
     // When no term of the language passes while the residual stays predictable: a learned law
     // of the channel that predicts most of it, if that is a current or a voltage (a residual
     // that follows position or motion first is leakage, not a law), under the same checks.
-    const ExplainableShare& ex = dx.explainable;
+    // The flight whose residual is predictable (the first such), and its data.
+    size_t law_flight = 0;
+    while (law_flight + 1 < dxs.size() && dxs[law_flight].explainable.within_noise) ++law_flight;
+    const Diagnosis& law_dx = dxs[law_flight];
+    const ExplainableShare& ex = law_dx.explainable;
     if (!kept && !ex.within_noise && !ex.channels.empty() &&
         ex.channels.front().second > ex.noise_floor &&
         learned_channels.insert(ex.channels.front().first).second) {
       const std::string& channel = ex.channels.front().first;
       const double share = ex.channels.front().second;
       const Candidate* shape = nullptr;  // the best ranked one-channel term of the channel
-      for (const Candidate& c : dx.candidates) {
+      for (const Candidate& c : law_dx.candidates) {
         const auto e = c.channel == channel ? parse_expr_term(c.term) : nullptr;
         if (e && e->signal().sources.size() == 1) {
           shape = &c;
           break;
         }
       }
-      const std::vector<std::string> law = learned_law(channel, shape, r.model, data);
+      const std::vector<std::string> law =
+          learned_law(channel, shape, r.model, *flights[law_flight]);
       if (!law.empty()) {
         Model next = r.model;
         for (const auto& t : law) {
@@ -421,16 +627,15 @@ LoopResult diagnose_loop(const Model& start, const FlightData& data, const std::
     }
     if (!kept) {
       if (rejected.empty()) {
-        r.stop_reason = dx.verdict;
+        finish(verdict);
       } else {
-        r.stop_reason = eligible.empty() ? dx.verdict + "; " : "";
-        r.stop_reason += "no term passes: ";
+        std::string reason = eligible.empty() ? verdict + "; " : "";
+        reason += "no term passes: ";
         for (size_t k = 0; k < rejected.size(); ++k) {
-          r.stop_reason += (k ? "; " : "") + rejected[k].first + ": " + rejected[k].second;
+          reason += (k ? "; " : "") + rejected[k].first + ": " + rejected[k].second;
         }
-        r.stop_reason += ": stopped";
+        finish(reason + ": stopped");
       }
-      r.last = std::move(dx);
       break;
     }
   }

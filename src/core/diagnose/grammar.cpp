@@ -107,5 +107,4 @@ std::vector<Job> refined_jobs(const Model& model, const Search& search,
   return out;
 }
 
-
 }  // namespace magcomp::diagnose_search

@@ -150,7 +150,7 @@ void add_lag_candidate(const Model& model, const FlightData& data, const Search&
   Scored lag = search.lag_candidate(&tau, Eigen::MatrixXd(data.size(), 0));
   dx->candidates_tried += lag.fits;
   double lag_pair_share = NAN;
-  std::string partner_note;
+  std::string partner_note, partner_term;
   const Candidate* best = nullptr;
   for (const auto& c : dx->candidates) {
     if (!best || c.explained_selection > best->explained_selection) best = &c;
@@ -168,6 +168,7 @@ void add_lag_candidate(const Model& model, const FlightData& data, const Search&
       std::snprintf(buf, sizeof(buf), "; with %s next: %.1f%% together", partner.c_str(),
                     100 * pair_share);
       partner_note = buf;
+      partner_term = partner;
       lag_pair_share = pair_share;
     }
   }
@@ -187,6 +188,7 @@ void add_lag_candidate(const Model& model, const FlightData& data, const Search&
   c.estimate = est.str() + partner_note;
   c.parameters = {{"lag_s", tau}};
   c.ranking_share = std::isfinite(lag_pair_share) ? lag_pair_share : c.explained_selection;
+  c.partner = partner_term;
   dx->candidates.push_back(c);
 }
 

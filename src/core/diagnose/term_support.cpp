@@ -5,15 +5,17 @@
 #include <cmath>
 #include <cstdio>
 
+#include "magcomp/core/fit/model_fit.h"
 #include "magcomp/core/model/terms_expr.h"
 
 namespace magcomp {
 namespace {
 
-// Crossings of x between its lower and upper quarter (of its 1-99 % range on `rows`).
+// Crossings of x on `rows` between the lower and upper quarter of its 1-99 % range over the
+// whole flight (a channel idle on the rows, its noise only, does not switch there).
 int switches_on(const Eigen::VectorXd& x, const std::vector<Eigen::Index>& rows) {
   std::vector<double> v;
-  for (Eigen::Index i : rows)
+  for (Eigen::Index i = 0; i < x.size(); ++i)
     if (std::isfinite(x[i])) v.push_back(x[i]);
   if (v.size() < 10) return 0;
   std::sort(v.begin(), v.end());
@@ -34,16 +36,27 @@ int switches_on(const Eigen::VectorXd& x, const std::vector<Eigen::Index>& rows)
 
 std::vector<TermSupport> term_support(const Model& model, const Model& start,
                                       const FlightData& data) {
+  return term_support(model, start, std::vector<const FlightData*>{&data});
+}
+
+std::vector<TermSupport> term_support(const Model& model, const Model& start,
+                                      const std::vector<const FlightData*>& flights) {
   std::vector<TermSupport> out;
   if (!model.fitted()) return out;
-  std::vector<Eigen::Index> rows;
-  if (!model.fit.lines.empty() || !model.fit.windows.empty())
-    rows = data.select(model.fit.lines, model.fit.windows);
-  if (rows.empty())
-    for (Eigen::Index i = 0; i < data.size(); ++i) rows.push_back(i);
   const auto terms = model.make_terms();
-  const Eigen::MatrixXd a = design_matrix(model, data);
-  const Eigen::MatrixXd& cov = model.report.coefficient_covariance;
+  // The coefficients' covariance by the jackknife over blocks of the calibration rows (it holds
+  // for a correlated residual and for a column a few events excite), else the fit's own.
+  Eigen::MatrixXd cov = coefficient_jackknife_covariance(model, flights);
+  if (cov.size() == 0) cov = model.report.coefficient_covariance;
+  const bool has_cov = cov.rows() == model.coefficients.size() && cov.cols() == cov.rows();
+  // Per added term: its place in the columns, and the sums over every flight's rows.
+  struct Sums {
+    Eigen::Index from = 0, n = 0;
+    double sum = 0, sum2 = 0, var = 0, count = 0;
+    bool sized = false;
+    bool slow = false;  // fitted by the slow stage: no covariance here
+  };
+  std::vector<Sums> sums;
   Eigen::Index first = 0;
   for (size_t k = 0; k < terms.size(); ++k) {
     const Eigen::Index n = static_cast<Eigen::Index>(terms[k]->column_names().size());
@@ -54,32 +67,52 @@ std::vector<TermSupport> term_support(const Model& model, const Model& start,
     TermSupport s;
     s.term = spec;
     const auto e = parse_expr_term(spec);
-    if (e && !e->signal().sources.empty()) {
-      s.channel = e->signal().sources.front();
-      if (data.has(s.channel)) s.switches = switches_on(data.column(s.channel), rows);
-    }
-    if (from + n > a.cols() || from + n > model.coefficients.size()) {
-      out.push_back(s);
-      continue;
-    }
-    const Eigen::MatrixXd block = a.middleCols(from, n);
-    const Eigen::VectorXd contribution = block * model.coefficients.segment(from, n);
-    double sum = 0, sum2 = 0, var = 0, count = 0;
-    const bool has_cov = cov.rows() == model.coefficients.size() && cov.cols() == cov.rows();
-    const Eigen::MatrixXd sigma = has_cov ? cov.block(from, from, n, n) : Eigen::MatrixXd();
-    for (Eigen::Index i = 0; i < block.rows(); ++i) {
-      if (!contribution.row(i).allFinite() || !block.row(i).allFinite()) continue;
-      sum += contribution[i];
-      sum2 += contribution[i] * contribution[i];
-      if (has_cov) var += block.row(i) * sigma * block.row(i).transpose();
-      ++count;
-    }
-    if (count > 1) {
-      const double mean = sum / count;
-      s.size_nT = std::sqrt(std::max(0.0, sum2 / count - mean * mean));
-      if (has_cov) s.size_sigma_nT = std::sqrt(var / count);
-    }
+    if (e && !e->signal().sources.empty()) s.channel = e->signal().sources.front();
     out.push_back(s);
+    Sums m;
+    m.from = from;
+    m.n = n;
+    m.sized = from + n <= model.coefficients.size();
+    m.slow =
+        std::find(model.slow_terms.begin(), model.slow_terms.end(), spec) != model.slow_terms.end();
+    sums.push_back(m);
+  }
+  for (const FlightData* flight : flights) {
+    const FlightData& data = *flight;
+    std::vector<Eigen::Index> rows;
+    if (!model.fit.lines.empty() || !model.fit.windows.empty())
+      rows = data.select(model.fit.lines, model.fit.windows);
+    if (rows.empty())
+      for (Eigen::Index i = 0; i < data.size(); ++i) rows.push_back(i);
+    const Eigen::MatrixXd a = design_matrix(model, data);
+    for (size_t k = 0; k < out.size(); ++k) {
+      TermSupport& s = out[k];
+      if (!s.channel.empty() && data.has(s.channel))
+        s.switches = std::max(s.switches, 0) + switches_on(data.column(s.channel), rows);
+      Sums& m = sums[k];
+      if (!m.sized || m.from + m.n > a.cols()) {
+        m.sized = false;
+        continue;
+      }
+      const Eigen::MatrixXd block = a.middleCols(m.from, m.n);
+      const Eigen::VectorXd contribution = block * model.coefficients.segment(m.from, m.n);
+      const Eigen::MatrixXd sigma =
+          has_cov ? cov.block(m.from, m.from, m.n, m.n) : Eigen::MatrixXd();
+      for (Eigen::Index i = 0; i < block.rows(); ++i) {
+        if (!contribution.row(i).allFinite() || !block.row(i).allFinite()) continue;
+        m.sum += contribution[i];
+        m.sum2 += contribution[i] * contribution[i];
+        if (has_cov && !m.slow) m.var += block.row(i) * sigma * block.row(i).transpose();
+        ++m.count;
+      }
+    }
+  }
+  for (size_t k = 0; k < out.size(); ++k) {
+    const Sums& m = sums[k];
+    if (!m.sized || m.count <= 1) continue;
+    const double mean = m.sum / m.count;
+    out[k].size_nT = std::sqrt(std::max(0.0, m.sum2 / m.count - mean * mean));
+    if (has_cov && !m.slow) out[k].size_sigma_nT = std::sqrt(m.var / m.count);
   }
   return out;
 }

@@ -457,4 +457,56 @@ void fit_model(Model& model, const std::vector<const FlightData*>& flights) {
   model.report = report;
 }
 
+Eigen::MatrixXd coefficient_jackknife_covariance(const Model& model,
+                                                 const std::vector<const FlightData*>& flights,
+                                                 int groups) {
+  const Eigen::Index p = model.coefficients.size();
+  if (!model.fitted() || flights.empty() || groups < 2) return Eigen::MatrixXd();
+  const auto terms = model.make_terms();
+  std::vector<bool> keep(static_cast<size_t>(p), false);
+  for (Eigen::Index c : fittable_columns(model.fit.method, terms, model.slow_terms))
+    if (c < p) keep[static_cast<size_t>(c)] = true;
+  FitReport report;
+  CalibrationBlocks blocks = calibration_blocks(model, terms, flights, &report);
+  Eigen::MatrixXd a;
+  Eigen::VectorXd y;
+  stack_blocks(&blocks, keep, &a, &y);
+  const Eigen::Index rows = a.rows(), k = a.cols();
+  if (rows < 2 * static_cast<Eigen::Index>(groups) * std::max<Eigen::Index>(k, 1) ||
+      !a.allFinite() || !y.allFinite())
+    return Eigen::MatrixXd();
+  // The normal equations of every group of rows; the whole fit's are their sum.
+  std::vector<Eigen::MatrixXd> g(static_cast<size_t>(groups));
+  std::vector<Eigen::VectorXd> b(static_cast<size_t>(groups));
+  Eigen::MatrixXd g_all = Eigen::MatrixXd::Zero(k, k);
+  Eigen::VectorXd b_all = Eigen::VectorXd::Zero(k);
+  for (int q = 0; q < groups; ++q) {
+    const Eigen::Index from = rows * q / groups, to = rows * (q + 1) / groups;
+    const auto part = a.middleRows(from, to - from);
+    g[static_cast<size_t>(q)] = gram(part);
+    b[static_cast<size_t>(q)] = part.transpose() * y.segment(from, to - from);
+    g_all += g[static_cast<size_t>(q)];
+    b_all += b[static_cast<size_t>(q)];
+  }
+  // The fit without each group in turn, and the spread of those fits.
+  Eigen::MatrixXd theta(k, groups);
+  for (int q = 0; q < groups; ++q)
+    theta.col(q) = ridge_from_normal(g_all - g[static_cast<size_t>(q)],
+                                     b_all - b[static_cast<size_t>(q)], model.fit.lambda);
+  if (!theta.allFinite()) return Eigen::MatrixXd();
+  const Eigen::MatrixXd centred = theta.colwise() - theta.rowwise().mean();
+  const Eigen::MatrixXd cov_fit =
+      (static_cast<double>(groups - 1) / groups) * centred * centred.transpose();
+  Eigen::MatrixXd cov = Eigen::MatrixXd::Zero(p, p);
+  for (Eigen::Index i = 0, ci = 0; i < p; ++i) {
+    if (!keep[static_cast<size_t>(i)]) continue;
+    for (Eigen::Index j = 0, cj = 0; j < p; ++j) {
+      if (!keep[static_cast<size_t>(j)]) continue;
+      cov(i, j) = cov_fit(ci, cj++);
+    }
+    ++ci;
+  }
+  return cov;
+}
+
 }  // namespace magcomp

@@ -33,6 +33,8 @@ struct Candidate {
   /// The share it is ranked by: its selection share, or for a lag the selection share of the lag
   /// together with the channel term whose timing it explains (added in the next round).
   double ranking_share = NAN;
+  /// The term ranking_share was measured with (a lag's channel term), "" when none.
+  std::string partner;
   /// True when it improves the selection lines (where it was ranked) and also the confirmation
   /// lines (used neither to fit nor to choose it) by at least DiagnoseOptions::accept_fraction
   /// of the variance and DiagnoseOptions::resolution_nT of the std; or, for the one candidate

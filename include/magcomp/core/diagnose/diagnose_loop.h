@@ -29,20 +29,29 @@ struct LoopRound {
   /// the held-out error and, with a validation flight, the error there).
   std::vector<std::pair<std::string, std::string>> rejected;
   /// The round added two terms together (`added` joins them by " + "): neither passed alone,
-  /// both together did, and each lowers the pair's error by the accepted share.
+  /// both together did, and each lowers the pair's error by the accepted share; or a lag ranked
+  /// first with the channel term it was judged with (Candidate::partner), not eligible alone,
+  /// whose pair lowers the error below the first single term that passes.
   bool together = false;
   /// The held-out error std of each term of a `together` pair alone, nT (same order as `added`).
   std::vector<double> alone_std_nT;
   /// Terms of earlier rounds that this round's terms made redundant (the backward pass), each
   /// with why; the round's scores are those of the model without them.
   std::vector<std::pair<std::string, std::string>> removed;
+  /// The held-out error std on each flight the loop learns from, nT (in the order given).
+  std::vector<double> flight_heldout_std_nT;
 };
 
 struct LoopResult {
   Model model;                    ///< the final model, fitted
   std::vector<LoopRound> rounds;  ///< round 0 first
   Diagnosis last;                 ///< the last diagnosis (the one that stopped the loop)
+  /// Over several flights: the last round's diagnosis of each (`last` is the first's).
+  std::vector<Diagnosis> last_flights;
   std::string stop_reason;
+  /// Over several flights: each flight on which the model fitted on all of them leaves more than
+  /// three times (plus the resolution) what it leaves fitted on that flight alone, in words.
+  std::vector<std::string> warnings;
 };
 
 /// Runs diagnose -> add the top candidate if it is accepted and explains at least `min_share`
@@ -69,6 +78,21 @@ struct LoopResult {
 LoopResult diagnose_loop(const Model& model, const FlightData& data, const std::string& truth,
                          int max_rounds, double min_share, const DiagnoseOptions& options,
                          const std::function<void(int, const Diagnosis&)>& on_round = {},
+                         const FlightData* validation = nullptr);
+
+/// The same loop over several flights of one aircraft (same sensors, channels and truth field),
+/// for an effect one flight barely shows: each round diagnoses every flight with the model fitted
+/// on all of them; a candidate accepted on any flight (explaining `min_share` there) may be added,
+/// in the order the flights' diagnoses rank it together (merge_diagnoses); the model is refitted
+/// on every flight's calibration rows; and every check (the held-out error, each half of it, the
+/// backward pass) is made on the held-out lines of all flights pooled (sample-weighted variance).
+/// The pairs' pool takes the residual's channels of every flight; a learned law is drawn on the
+/// first flight whose residual stays predictable. With one flight it is the loop above.
+/// `on_round` is called after each flight's diagnosis with the round and the flight's index.
+LoopResult diagnose_loop(const Model& model, const std::vector<const FlightData*>& flights,
+                         const std::string& truth, int max_rounds, double min_share,
+                         const DiagnoseOptions& options,
+                         const std::function<void(int, size_t, const Diagnosis&)>& on_round = {},
                          const FlightData* validation = nullptr);
 
 }  // namespace magcomp

@@ -14,13 +14,15 @@ namespace magcomp {
 struct TermSupport {
   std::string term;     ///< the term's spec
   std::string channel;  ///< its first source channel ("" for a term without one)
-  /// Times the channel crossed between the lower and upper quarter of its 1-99 % range on the
-  /// fit rows (one switch on and off counts two); -1 without a channel.
+  /// Times the channel crossed, on the fit rows, between the lower and upper quarter of its
+  /// 1-99 % range over the whole flight (one switch on and off counts two; a channel idle on the
+  /// fit rows does not switch there, whatever its noise); -1 without a channel.
   int switches = -1;
   /// 1-sigma uncertainty of the term's contribution to the compensated field, nT: the rms over
   /// the flight's rows of sqrt(a_i' Σ a_i), with a_i the term's columns and Σ their block of the
-  /// fit's coefficient covariance (the fit's noise: a band-pass fit sees its band only, so this
-  /// is a lower bound). NaN when the fit gives no covariance.
+  /// coefficients' covariance by the jackknife over 20 blocks of the calibration rows
+  /// (coefficient_jackknife_covariance; the fit's own covariance when the rows are too few). NaN
+  /// when neither is known, and for a term of the slow stage.
   double size_sigma_nT = NAN;
   /// The term's contribution's std over the flight, nT (its size).
   double size_nT = NAN;
@@ -31,6 +33,11 @@ struct TermSupport {
 /// when it names none).
 std::vector<TermSupport> term_support(const Model& model, const Model& start,
                                       const FlightData& data);
+
+/// The same over several flights the model was fitted on together: the switches summed over
+/// their fit rows, the size and its uncertainty over all their rows.
+std::vector<TermSupport> term_support(const Model& model, const Model& start,
+                                      const std::vector<const FlightData*>& flights);
 
 /// The words a user reads: "cur_X switched 2 times on the calibration rows: its size, 3.1 nT, is
 /// uncertain to ±0.8 nT" when it switched fewer than `few_switches` times, else "" .

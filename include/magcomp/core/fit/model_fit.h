@@ -39,6 +39,18 @@ Eigen::MatrixXd stack_runs(const FitSettings& fit, double dt_s, const Eigen::Mat
 /// The regression target of a fit: the scalar field (bandpass) or scalar - reference (nT).
 Eigen::VectorXd fit_target(const Model& model, const FlightData& data);
 
+/// The covariance of a fitted model's band-pass (or reference) stage coefficients by a
+/// delete-one-group jackknife: the calibration rows of `flights` (the fit's, in time order) cut
+/// into `groups` contiguous blocks, the fit redone without each block, and (G-1)/G times the
+/// spread of those fits. Unlike FitReport::coefficient_covariance it holds when the residual is
+/// correlated in time (a band-passed error, a misfit that follows the maneuvers) and when a
+/// column is excited by a few events only (a current switched twice). P x P in column order, in
+/// nT² per (column unit)², zero for the columns the stage does not fit (the slow stage's);
+/// empty when the rows are too few (under 2 x groups x columns) or the model is not fitted.
+Eigen::MatrixXd coefficient_jackknife_covariance(const Model& model,
+                                                 const std::vector<const FlightData*>& flights,
+                                                 int groups = 20);
+
 /// Ridge least squares (A'A + lambda I) c = A'y, as MagNav.jl's linreg.
 Eigen::VectorXd ridge_solve(const Eigen::MatrixXd& a, const Eigen::VectorXd& y, double lambda);
 
