@@ -1,0 +1,61 @@
+// magcomp: the steps of diagnose_loop (internal to src/core/diagnose): scoring a model on the
+// held-out lines of its flights, refusing it, a channel's learned law, adding and removing terms,
+// and the candidates a round may add. diagnose_loop.cpp runs them.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "magcomp/core/diagnose/diagnose.h"
+#include "magcomp/core/diagnose/diagnose_loop.h"
+#include "magcomp/core/io/flight_data.h"
+#include "magcomp/core/model/model.h"
+
+namespace magcomp::loop_steps {
+
+// Each flight's held-out lines, in two halves (the first diagnosis's selection and confirmation
+// lines of that flight).
+struct HeldOut {
+  std::vector<double> selection, confirmation;
+};
+
+/// Scores of a model: held-out lines, all lines, FOM, validation flight. Over several flights,
+/// each figure is pooled over the flights' samples (the FOM: their mean). nT.
+LoopRound score(const Model& model, const std::vector<const FlightData*>& flights,
+                const std::string& truth, const std::vector<HeldOut>& held_out,
+                const FlightData* validation);
+
+/// Why a scored candidate model is refused against the current one ("" when it is kept).
+std::string refusal(const LoopRound& next, const LoopRound& now);
+
+/// A learned law of `channel` on `data` (hinges at its quantiles through the linear transforms
+/// of `shape`); empty when the channel cannot carry one (loop_steps.cpp says when).
+std::vector<std::string> learned_law(const std::string& channel, const Candidate* shape,
+                                     const Model& model, const FlightData& data);
+
+/// Adds a candidate's term to `m`; a slow one (Candidate::slow) joins Model::slow_terms, fitted
+/// against `truth` unless the model names its own reference.
+void add_candidate_term(const std::string& term, bool slow, const std::string& truth, Model* m);
+
+/// `m` without `term` (and out of its slow and black-box lists), unfitted.
+Model without_term(const Model& m, const std::string& term);
+
+/// True when `term` was added to `start` purely (it replaced nothing of the start model).
+bool removable(const Model& start, const std::string& term);
+
+/// The share of `with`'s error variance that a change to `without` would add (negative when the
+/// change lowers the error).
+double variance_share(double with_nT, double without_nT);
+
+// A candidate the loop may add.
+struct Eligible {
+  std::string term;
+  bool slow = false;
+  double explained = 0.0;  ///< its conservative explained share (on the flight it is taken from)
+};
+
+/// The candidates of one round's diagnoses that the loop may add, in rank order (see
+/// diagnose_loop).
+std::vector<Eligible> eligible_candidates(const std::vector<Diagnosis>& dxs, double min_share);
+
+}  // namespace magcomp::loop_steps
