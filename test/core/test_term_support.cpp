@@ -130,5 +130,53 @@ TEST(TermSupport, TheJackknifeSigmaMatchesTheSpreadOverNoiseDrawsWhereTheFitsOwn
   EXPECT_LT(mean(own), 0.5 * spread);
 }
 
+TEST(TermSupport, ATermFittedOnCorrelatedNoiseAloneIsSaidNotToBeDetermined) {
+  // The scalar holds TL and a noise correlated over about 5 s (0.3 nT); a slowly wandering
+  // channel that acts on nothing is added as a term. The fit gives it a size; over blocks of the
+  // fit rows that size is within two sigma of none, and the note says the term may stand in for
+  // another effect. The same channel carrying 3 nT per unit needs no note.
+  Model start = test::tl16_model();
+  start.fit.method = FitMethod::kReference;
+  start.fit.reference = "mag_1_c";
+  start.fit.lines.clear();
+  const FlightData clean = test::synthetic_tl_flight(start, test::known_coefficients(16));
+  std::mt19937_64 rng(7);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  Eigen::VectorXd noise(clean.size()), y(clean.size());
+  double v = 0, w = 0;
+  for (Eigen::Index i = 0; i < noise.size(); ++i) {
+    v = 0.98 * v + 0.3 * std::sqrt(1 - 0.98 * 0.98) * normal(rng);
+    w = 0.97 * w + 0.1 * normal(rng);
+    noise[i] = v;
+    y[i] = 5.0 + w;
+  }
+  for (const double gain : {0.0, 3.0}) {
+    FlightData f = clean;
+    f.set("cur_y", y);
+    f.mutable_column("mag_5_uc") += gain * y + noise;
+    Model tl = start;
+    fit_model(tl, {&f});
+    Model m = tl;
+    m.add_term("scalar:cur_y");
+    m.coefficients.resize(0);
+    fit_model(m, {&f});
+    const std::vector<TermSupport> s = term_support(m, tl, f);
+    ASSERT_EQ(s.size(), 1u);
+    const std::string note = support_note(s[0]);
+    std::printf("  gain %.0f nT per unit: size %.3f nT +- %.3f nT; note: %s\n", gain, s[0].size_nT,
+                s[0].size_sigma_nT, note.c_str());
+    EXPECT_GE(s[0].switches, 10);  // it wanders over its range: not a matter of few switches
+    if (gain == 0.0) {
+      EXPECT_LT(s[0].size_nT, 2.0 * s[0].size_sigma_nT);
+      EXPECT_NE(note.find("is not determined by the calibration rows"), std::string::npos) << note;
+      EXPECT_NE(note.find("cur_y may stand in for another effect"), std::string::npos) << note;
+    } else {
+      EXPECT_NEAR(s[0].size_nT, 3.0 * std::sqrt((y.array() - y.mean()).square().mean()),
+                  0.05 * s[0].size_nT);
+      EXPECT_EQ(note, "");
+    }
+  }
+}
+
 }  // namespace
 }  // namespace magcomp

@@ -118,18 +118,31 @@ std::vector<TermSupport> term_support(const Model& model, const Model& start,
 }
 
 std::string support_note(const TermSupport& s, int few_switches) {
-  if (s.channel.empty() || s.switches < 0 || s.switches >= few_switches) return "";
-  char buf[320];
-  if (std::isfinite(s.size_sigma_nT))
+  if (s.channel.empty() || s.switches < 0) return "";
+  char buf[400];
+  if (s.switches < few_switches) {
+    if (std::isfinite(s.size_sigma_nT))
+      std::snprintf(buf, sizeof(buf),
+                    "%s switched %d times on the calibration rows: its size, %.3g nT, is "
+                    "uncertain to +-%.2g nT",
+                    s.channel.c_str(), s.switches, s.size_nT, s.size_sigma_nT);
+    else
+      std::snprintf(buf, sizeof(buf),
+                    "%s switched %d times on the calibration rows: its size, %.3g nT, is uncertain",
+                    s.channel.c_str(), s.switches, s.size_nT);
+    return buf;
+  }
+  // A size the calibration rows do not determine (within two sigma of none): the term fits
+  // something its channel only stands in for (a slow drift of the fit, another channel).
+  if (std::isfinite(s.size_sigma_nT) && s.size_nT < 2.0 * s.size_sigma_nT) {
     std::snprintf(buf, sizeof(buf),
-                  "%s switched %d times on the calibration rows: its size, %.3g nT, is uncertain "
-                  "to +-%.2g nT (the fit's noise; more with a broadband error)",
-                  s.channel.c_str(), s.switches, s.size_nT, s.size_sigma_nT);
-  else
-    std::snprintf(buf, sizeof(buf),
-                  "%s switched %d times on the calibration rows: its size, %.3g nT, is uncertain",
-                  s.channel.c_str(), s.switches, s.size_nT);
-  return buf;
+                  "its size, %.3g nT, is not determined by the calibration rows (+-%.2g nT over "
+                  "blocks of them): %s may stand in for another effect (a slow drift of the fit, "
+                  "another channel)",
+                  s.size_nT, s.size_sigma_nT, s.channel.c_str());
+    return buf;
+  }
+  return "";
 }
 
 }  // namespace magcomp

@@ -40,7 +40,9 @@ std::vector<TermSupport> term_support(const Model& model, const Model& start,
                                       const std::vector<const FlightData*>& flights);
 
 /// The words a user reads: "cur_X switched 2 times on the calibration rows: its size, 3.1 nT, is
-/// uncertain to ±0.8 nT" when it switched fewer than `few_switches` times, else "" .
+/// uncertain to ±0.8 nT" when it switched fewer than `few_switches` times; "its size, 17.4 nT,
+/// is not determined by the calibration rows (±10 nT over blocks of them): X may stand in for
+/// another effect" when the size lies within two sigma of none; else "".
 std::string support_note(const TermSupport& s, int few_switches = 10);
 
 }  // namespace magcomp
