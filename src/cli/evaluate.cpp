@@ -8,6 +8,7 @@
 #include <iostream>
 #include <nlohmann/json.hpp>
 
+#include "attribution_output.h"
 #include "common.h"
 #include "magcomp/core/error.h"
 #include "magcomp/core/evaluate/evaluation.h"
@@ -145,36 +146,6 @@ void print_evaluation(const Evaluation& ev, const Evaluation* base) {
               figure(ev.improvement_ratio, "%.1f").c_str());
   if (base) std::printf(" %17.3f", base->std_nT);
   std::printf("\n");
-}
-
-// --explain: which inputs the model's network leans on, on one flight: printed, and as JSON.
-void print_attribution(const Attribution& a) {
-  std::printf(
-      "\ninputs the network leans on (%s on this flight, %d shuffles each: the rise of its mean "
-      "squared error against its target, nT^2; its own %s nT^2 on %ld samples):\n",
-      a.method.c_str(), a.repeats, figure(a.baseline_mse_nT2, "%.4g").c_str(),
-      static_cast<long>(a.samples));
-  for (const InputImportance& i : a.inputs)
-    std::printf("  %-24s %12s nT^2 %7.1f%%\n", i.feature.c_str(),
-                figure(i.importance_nT2, "%.4g").c_str(), 100 * i.share);
-}
-
-nlohmann::json attribution_json(const Attribution& a) {
-  nlohmann::json inputs = nlohmann::json::array();
-  for (const InputImportance& i : a.inputs) {
-    nlohmann::json lines = nlohmann::json::array();
-    for (const auto& [line, rise] : i.per_line_nT2)
-      lines.push_back({{"line", line}, {"importance_nT2", json_figure(rise)}});
-    inputs.push_back({{"feature", i.feature},
-                      {"importance_nT2", json_figure(i.importance_nT2)},
-                      {"share", json_figure(i.share)},
-                      {"per_line", lines}});
-  }
-  return {{"method", a.method},
-          {"baseline_mse_nT2", json_figure(a.baseline_mse_nT2)},
-          {"samples", static_cast<long>(a.samples)},
-          {"repeats", a.repeats},
-          {"inputs", inputs}};
 }
 
 // One flight: the table, the JSON and the report.

@@ -3,13 +3,16 @@
 // and the weights file beside it.
 #include <CLI/CLI.hpp>
 #include <cmath>
+#include <cstdio>
 #include <iomanip>
 #include <iostream>
 
+#include "attribution_output.h"
 #include "common.h"
 #include "magcomp/core/apply/apply.h"
 #include "magcomp/core/error.h"
 #include "magcomp/core/model/model.h"
+#include "magcomp/core/neural/attribution.h"
 #include "magcomp/core/neural/network.h"
 #include "magcomp/neural/trainer.h"
 
@@ -113,6 +116,20 @@ int run(int argc, char** argv) {
     }
   }
   std::cout << "\nwrote " << yaml_path << " and " << weights_path << "\n";
+  // What the network leans on, on each validation flight (flights it was not trained on), from
+  // the bundle as written.
+  if (!val_flights.empty()) {
+    const Model trained = load_model_yaml(yaml_path);
+    for (size_t i = 0; i < val_flights.size(); ++i) {
+      std::cout << std::flush;
+      try {
+        cli::print_attribution(permutation_importance(trained, val_flights[i]), validation[i]);
+      } catch (const Error& e) {
+        std::printf("\nno attribution on %s: %s\n", validation[i].c_str(), e.what());
+      }
+    }
+    std::fflush(stdout);
+  }
   return 0;
 }
 

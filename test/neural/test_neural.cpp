@@ -7,6 +7,7 @@
 #include <cmath>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <sstream>
 
 #include "magcomp/core/apply/apply.h"
 #include "magcomp/core/error.h"
@@ -350,6 +351,42 @@ TEST(Neural, AttributionRanksTheHiddenWiresChannelFirstAndItsFiguresAddUp) {
             0);
   EXPECT_NE(out.find("--explain"), std::string::npos) << out;
   EXPECT_EQ(std::count(out.begin(), out.end(), '\n'), 1) << out;
+}
+
+TEST(Neural, TrainPrintsWhatTheNetworkLeansOnOnTheValidationFlight) {
+  // magcomp_train on two flights of rostest_short (the second for validation): after the bundle
+  // is written, each input's share on the validation flight, the wire's current first, the
+  // shares adding to 100 %.
+  const std::string dir = test::temp_dir("neural_train_attribution");
+  std::string paths;
+  for (unsigned seed : {11u, 13u}) {
+    sim::Scenario s =
+        sim::load_scenario(test::source_dir() + "/config/scenarios/rostest_short.yaml");
+    s.seed = seed;
+    s.aircraft_seed = 42;
+    const std::string path = dir + "/f" + std::to_string(seed) + ".h5";
+    sim::write_simulation(sim::simulate(s, Igrf::installed()), path);
+    paths += (paths.empty() ? "" : ",") + path;
+  }
+  save_model_yaml(neural_model("mlp", "residual", 5, 12), dir + "/m.yaml");
+  std::string out;
+  ASSERT_EQ(test::run(std::string(MAGCOMP_TRAIN) + " --quiet --data " + paths + " --model " + dir +
+                          "/m.yaml --out " + dir + "/bundle",
+                      &out),
+            0)
+      << out;
+  const size_t at =
+      out.find("inputs the network leans on (permutation importance on " + dir + "/f13.h5");
+  ASSERT_NE(at, std::string::npos) << out;
+  std::istringstream table(out.substr(out.find('\n', at) + 1));
+  std::string first, feature, unit, share;
+  double total = 0, rise = 0;
+  for (int k = 0; k < 7 && table >> feature >> rise >> unit >> share; ++k) {
+    if (k == 0) first = feature;
+    total += std::stod(share);  // "73.6%"
+  }
+  EXPECT_EQ(first, "cur_strb") << out;
+  EXPECT_NEAR(total, 100.0, 0.5) << out;
 }
 
 }  // namespace
