@@ -7,7 +7,12 @@
 // an exact term from TL), the runs worse
 // than TL (must be 0), the "complete" verdicts above 1.5x the noise floor (must be 0). Each line
 // also gives the hidden effects' std within lines on the first flight (eff) and the next (next).
-// Usage: magcomp_bench_discovery SCENARIO.yaml TL_MODEL.yaml [runs] [first_seed]
+// Then the same figures per number of simultaneous effects, and per run over its draws.
+// Usage: magcomp_bench_discovery SCENARIO.yaml TL_MODEL.yaml [runs] [first_seed] [options]
+// options: one-at-a-time (no pairs, no backward pass); half-several (runs alternate one effect
+// and two or three, instead of 60 % one, 30 % two, 10 % three); draws=N (each run on N aircraft:
+// the same effects, other aircraft and flights).
+#include <array>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -28,40 +33,75 @@ int main(int argc, char** argv) {
     const magcomp::Model tl = magcomp::load_model_yaml(argv[2]);
     const int runs = argc > 3 ? std::atoi(argv[3]) : 50;
     const unsigned first = argc > 4 ? static_cast<unsigned>(std::atoi(argv[4])) : 1;
-    magcomp::DiagnoseOptions options;  // "one-at-a-time": no pairs, no backward pass
-    options.joint_steps = !(argc > 5 && std::string(argv[5]) == "one-at-a-time");
-    int predictable = 0, near = 0, near_true = 0, worse = 0, complete_above = 0;
+    magcomp::DiagnoseOptions options;
+    bool half_several = false;
+    unsigned draws = 1;
+    for (int a = 5; a < argc; ++a) {
+      const std::string opt = argv[a];
+      if (opt == "one-at-a-time") {
+        options.joint_steps = false;
+      } else if (opt == "half-several") {
+        half_several = true;
+      } else if (opt.rfind("draws=", 0) == 0 && std::atoi(opt.c_str() + 6) >= 1) {
+        draws = static_cast<unsigned>(std::atoi(opt.c_str() + 6));
+      } else {
+        std::fprintf(stderr, "error: option '%s': one-at-a-time, half-several or draws=N\n",
+                     opt.c_str());
+        return 2;
+      }
+    }
+    int predictable = 0, near = 0, near_true = 0, worse = 0, complete_above = 0, total = 0;
     std::map<std::string, std::pair<int, int>> named;  // kind -> (runs naming the truth, runs)
+    // Per number of effects: predictable runs, near the oracle, near the true terms, named.
+    std::map<int, std::array<int, 4>> by_count;
+    int runs_all_draws_near = 0, runs_predictable = 0;  // runs near the true terms on every draw
     const auto t0 = std::chrono::steady_clock::now();
     std::printf("%4s %8s %8s %8s %8s %6s %6s %5s %7s %7s  %-8s %s\n", "run", "TL nT", "loop nT",
                 "oracle", "true", "near", "near_t", "names", "eff nT", "next nT", "verdict",
                 "effects -> terms kept");
     for (int k = 0; k < runs; ++k) {
       const unsigned r = first + static_cast<unsigned>(k);
-      const int count = 1 + static_cast<int>(r % 10 < 6 ? 0 : (r % 10 < 9 ? 1 : 2));
-      const magcomp::test::DiscoveryRun d =
-          magcomp::test::discovery_run(r, count, base, tl, options);
-      predictable += d.predictable;
-      near += d.predictable && d.near_oracle();
-      near_true += d.predictable && d.near_true_terms();
-      worse += d.worse_than_tl();
-      complete_above += d.complete_above_floor();
-      std::string kept;
-      for (const auto& t : d.added) kept += (kept.empty() ? "" : ", ") + t;
-      if (d.predictable) {
-        named[d.kind].first += d.names_truth();
-        named[d.kind].second += 1;
+      const int count = half_several ? (r % 2 == 0 ? 1 : (r % 4 == 1 ? 2 : 3))
+                                     : 1 + static_cast<int>(r % 10 < 6 ? 0 : (r % 10 < 9 ? 1 : 2));
+      bool every_draw = true, run_predictable = true;
+      for (unsigned draw = 0; draw < draws; ++draw) {
+        const magcomp::test::DiscoveryRun d =
+            magcomp::test::discovery_run(r, count, base, tl, options, draw);
+        ++total;
+        run_predictable = d.predictable;
+        every_draw = every_draw && d.near_true_terms();
+        if (d.predictable) {
+          auto& c = by_count[count];
+          c[0] += 1;
+          c[1] += d.near_oracle();
+          c[2] += d.near_true_terms();
+          c[3] += d.names_truth();
+        }
+        predictable += d.predictable;
+        near += d.predictable && d.near_oracle();
+        near_true += d.predictable && d.near_true_terms();
+        worse += d.worse_than_tl();
+        complete_above += d.complete_above_floor();
+        std::string kept;
+        for (const auto& t : d.added) kept += (kept.empty() ? "" : ", ") + t;
+        if (d.predictable) {
+          named[d.kind].first += d.names_truth();
+          named[d.kind].second += 1;
+        }
+        std::printf("%4u%s %8.3f %8.3f %8.3f %8.3f %6s %6s %5s %7.3f %7.3f  %-8s %s -> %s%s%s\n", r,
+                    draws > 1 ? ("/" + std::to_string(draw)).c_str() : "", d.tl_next_nT,
+                    d.loop_next_nT, d.oracle_next_nT, d.true_terms_next_nT,
+                    d.predictable ? (d.near_oracle() ? "yes" : "NO") : "-",
+                    d.predictable ? (d.near_true_terms() ? "yes" : "NO") : "-",
+                    d.predictable ? (d.names_truth() ? "yes" : "NO") : "-", d.effect_nT,
+                    d.effect_next_nT, d.verdict.substr(0, d.verdict.find(':')).substr(0, 8).c_str(),
+                    d.effects.c_str(), kept.empty() ? "(none)" : kept.c_str(),
+                    d.worse_than_tl() ? "  WORSE THAN TL" : "",
+                    d.complete_above_floor() ? "  COMPLETE ABOVE FLOOR" : "");
+        std::fflush(stdout);
       }
-      std::printf("%4u %8.3f %8.3f %8.3f %8.3f %6s %6s %5s %7.3f %7.3f  %-8s %s -> %s%s%s\n", r,
-                  d.tl_next_nT, d.loop_next_nT, d.oracle_next_nT, d.true_terms_next_nT,
-                  d.predictable ? (d.near_oracle() ? "yes" : "NO") : "-",
-                  d.predictable ? (d.near_true_terms() ? "yes" : "NO") : "-",
-                  d.predictable ? (d.names_truth() ? "yes" : "NO") : "-", d.effect_nT,
-                  d.effect_next_nT, d.verdict.substr(0, d.verdict.find(':')).substr(0, 8).c_str(),
-                  d.effects.c_str(), kept.empty() ? "(none)" : kept.c_str(),
-                  d.worse_than_tl() ? "  WORSE THAN TL" : "",
-                  d.complete_above_floor() ? "  COMPLETE ABOVE FLOOR" : "");
-      std::fflush(stdout);
+      runs_predictable += run_predictable;
+      runs_all_draws_near += run_predictable && every_draw;
     }
     const double secs =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -69,7 +109,7 @@ int main(int argc, char** argv) {
         "runs %d (predictable %d): on the next flight within 1.5x TL + the true terms %d/%d "
         "(%.0f %%), within 1.5x the oracle %d/%d (%.0f %%); worse than TL %d; complete above "
         "1.5x the floor %d; %.0f s\n",
-        runs, predictable, near_true, predictable,
+        total, predictable, near_true, predictable,
         predictable ? 100.0 * near_true / predictable : 0.0, near, predictable,
         predictable ? 100.0 * near / predictable : 0.0, worse, complete_above, secs);
     // The final model names exactly the effects' channels (predictable runs), per kind.
@@ -82,6 +122,14 @@ int main(int argc, char** argv) {
     }
     std::printf(" all %d/%d (%.0f %%)\n", named_all, named_runs,
                 named_runs ? 100.0 * named_all / named_runs : 0.0);
+    for (const auto& [count, c] : by_count)
+      std::printf(
+          "%d effect(s): %d predictable runs, within 1.5x the oracle %d, within 1.5x the true "
+          "terms %d, naming the effects' channels %d\n",
+          count, c[0], c[1], c[2], c[3]);
+    if (draws > 1)
+      std::printf("runs within 1.5x the true terms on all %u draws: %d/%d predictable runs\n",
+                  draws, runs_all_draws_near, runs_predictable);
     return 0;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "error: %s\n", e.what());

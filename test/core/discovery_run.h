@@ -96,13 +96,17 @@ inline double hidden_std_within_lines(const sim::Simulation& s, const std::strin
 }
 
 /// Run `r` with `count` effects on `base` (aircraft seed 5000 + r, flights 1000 + 2r and the
-/// next), starting from `tl` (a TL template, fitted here), the loop with `options`.
+/// next), starting from `tl` (a TL template, fitted here), the loop with `options`. Draw d > 0
+/// puts the same effects on another aircraft and other flights (both seeds + 100000 d), so that a
+/// run's result is not one draw's luck.
 inline DiscoveryRun discovery_run(unsigned r, int count, sim::Scenario base, const Model& tl,
-                                  const DiagnoseOptions& options = {}) {
+                                  const DiagnoseOptions& options = {}, unsigned draw = 0) {
   const Igrf& igrf = Igrf::installed();
   base.aircraft_seed = 5000 + r;
   base.seed = 1000 + 2 * r;
   const std::vector<sim::HiddenEffect> effects = sim::random_effects(base, r, count, igrf);
+  base.aircraft_seed += 100000LL * draw;
+  base.seed += 100000U * draw;
   DiscoveryRun out;
   for (const auto& e : effects) {
     out.effects += (out.effects.empty() ? "" : " + ") + sim::describe(e);
