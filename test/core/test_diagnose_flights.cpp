@@ -74,10 +74,10 @@ TEST(DiagnoseFlights, AnEffectTheFirstFlightNeverCalibratesIsFoundOnTheSecondAnd
 
   // The first flight alone: its calibration rows never see the pump, so no term of it can be
   // fitted there, whatever the residual shows.
-  const LoopResult one = diagnose_loop(start, a, "mag_1_c", 4, 0.05, options);
+  const LoopResult one = diagnose_loop(start, a, "mag_1_c", 2, 0.05, options);
   const double one_next = evaluate_model(one.model, next, "mag_1_c").std_nT;
   // Both flights: the second's calibration rows see it.
-  const LoopResult both = diagnose_loop(tl, {&a, &b}, "mag_1_c", 4, 0.05, options);
+  const LoopResult both = diagnose_loop(tl, {&a, &b}, "mag_1_c", 2, 0.05, options);
   const double both_next = evaluate_model(both.model, next, "mag_1_c").std_nT;
   std::printf(
       "  next flight: TL %.3f nT, truth %.3f; loop on the first flight %.3f, on both %.3f\n",
