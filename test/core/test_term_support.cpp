@@ -13,6 +13,28 @@
 namespace magcomp {
 namespace {
 
+// The 16-term TL model fitted against mag_1_c on every row (unfitted).
+Model reference_tl16() {
+  Model m = test::tl16_model();
+  m.fit.method = FitMethod::kReference;
+  m.fit.reference = "mag_1_c";
+  m.fit.lines.clear();
+  return m;
+}
+
+// A first-order noise of std sigma_nT, correlated by rho from one sample to the next.
+Eigen::VectorXd correlated_noise(Eigen::Index n, double sigma_nT, double rho,
+                                 std::mt19937_64* rng) {
+  std::normal_distribution<double> normal(0.0, 1.0);
+  Eigen::VectorXd noise(n);
+  double v = sigma_nT * normal(*rng);
+  for (Eigen::Index i = 0; i < n; ++i) {
+    v = rho * v + sigma_nT * std::sqrt(1 - rho * rho) * normal(*rng);
+    noise[i] = v;
+  }
+  return noise;
+}
+
 // The closed-form flight with a current `x` of 3 nT/A and a known noise on the scalar; the TL
 // model and the model with the current's term, both fitted against the reference on every row.
 struct Case {
@@ -22,10 +44,7 @@ struct Case {
 
 Case make_case(const std::function<double(int)>& current_A, double noise_nT) {
   Case c;
-  c.start = test::tl16_model();
-  c.start.fit.method = FitMethod::kReference;
-  c.start.fit.reference = "mag_1_c";
-  c.start.fit.lines.clear();
+  c.start = reference_tl16();
   c.flight = test::synthetic_tl_flight(c.start, test::known_coefficients(16));
   Eigen::VectorXd x(c.flight.size()), noise(c.flight.size());
   for (Eigen::Index i = 0; i < x.size(); ++i) {
@@ -79,10 +98,7 @@ TEST(TermSupport, TheJackknifeSigmaMatchesTheSpreadOverNoiseDrawsWhereTheFitsOwn
   // fit's residual is not white, so the fit's own covariance (white noise) understates the
   // coefficient's spread. Over 40 draws of the noise, the jackknife's sigma (20 blocks of the
   // fit rows) matches the spread of the fitted coefficient.
-  Model start = test::tl16_model();
-  start.fit.method = FitMethod::kReference;
-  start.fit.reference = "mag_1_c";
-  start.fit.lines.clear();
+  const Model start = reference_tl16();
   const FlightData clean = test::synthetic_tl_flight(start, test::known_coefficients(16));
   Eigen::VectorXd x(clean.size());
   for (Eigen::Index i = 0; i < x.size(); ++i) x[i] = (i / 150) % 2 ? 2.0 : 0.0;
@@ -90,14 +106,7 @@ TEST(TermSupport, TheJackknifeSigmaMatchesTheSpreadOverNoiseDrawsWhereTheFitsOwn
   for (unsigned draw = 0; draw < 40; ++draw) {
     FlightData f = clean;
     std::mt19937_64 rng(1000 + draw);
-    std::normal_distribution<double> normal(0.0, 1.0);
-    const double rho = 0.98;
-    Eigen::VectorXd noise(f.size());
-    double v = 0.1 * normal(rng);
-    for (Eigen::Index i = 0; i < noise.size(); ++i) {
-      v = rho * v + 0.1 * std::sqrt(1 - rho * rho) * normal(rng);
-      noise[i] = v;
-    }
+    const Eigen::VectorXd noise = correlated_noise(f.size(), 0.1, 0.98, &rng);
     f.set("cur_x", x);
     f.mutable_column("mag_5_uc") += 3.0 * x + noise;
     Model m = start;
@@ -135,10 +144,7 @@ TEST(TermSupport, ATermFittedOnCorrelatedNoiseAloneIsSaidNotToBeDetermined) {
   // channel that acts on nothing is added as a term. The fit gives it a size; over blocks of the
   // fit rows that size is within two sigma of none, and the note says the term may stand in for
   // another effect. The same channel carrying 3 nT per unit needs no note.
-  Model start = test::tl16_model();
-  start.fit.method = FitMethod::kReference;
-  start.fit.reference = "mag_1_c";
-  start.fit.lines.clear();
+  const Model start = reference_tl16();
   const FlightData clean = test::synthetic_tl_flight(start, test::known_coefficients(16));
   std::mt19937_64 rng(7);
   std::normal_distribution<double> normal(0.0, 1.0);

@@ -258,16 +258,10 @@ void stack_blocks(CalibrationBlocks* blocks, const std::vector<bool>& keep, Eige
   }
 }
 
-// The coefficients' covariance (ridge sandwich, p x p with zeros for the columns not fitted),
-// from the Gram matrix g of the fitted columns and the noise variance (nT^2).
-Eigen::MatrixXd coefficient_covariance(const Eigen::MatrixXd& g, double lambda,
-                                       double noise_variance_nT2, const std::vector<bool>& keep) {
+// A covariance of the fitted columns placed among all the model's columns (zero for the
+// columns not fitted), P x P.
+Eigen::MatrixXd to_all_columns(const Eigen::MatrixXd& cov_fit, const std::vector<bool>& keep) {
   const Eigen::Index p = static_cast<Eigen::Index>(keep.size());
-  const Eigen::Index fitted_cols = g.rows();
-  Eigen::MatrixXd gl = g;
-  gl.diagonal().array() += lambda;
-  const Eigen::MatrixXd inv = gl.ldlt().solve(Eigen::MatrixXd::Identity(fitted_cols, fitted_cols));
-  const Eigen::MatrixXd cov_fit = noise_variance_nT2 * (inv * g * inv);
   Eigen::MatrixXd cov = Eigen::MatrixXd::Zero(p, p);
   for (Eigen::Index i = 0, ci = 0; i < p; ++i) {
     if (!keep[static_cast<size_t>(i)]) continue;
@@ -277,6 +271,19 @@ Eigen::MatrixXd coefficient_covariance(const Eigen::MatrixXd& g, double lambda,
     }
     ++ci;
   }
+  return cov;
+}
+
+// The coefficients' covariance (ridge sandwich, p x p with zeros for the columns not fitted),
+// from the Gram matrix g of the fitted columns and the noise variance (nT^2).
+Eigen::MatrixXd coefficient_covariance(const Eigen::MatrixXd& g, double lambda,
+                                       double noise_variance_nT2, const std::vector<bool>& keep) {
+  const Eigen::Index fitted_cols = g.rows();
+  Eigen::MatrixXd gl = g;
+  gl.diagonal().array() += lambda;
+  const Eigen::MatrixXd inv = gl.ldlt().solve(Eigen::MatrixXd::Identity(fitted_cols, fitted_cols));
+  const Eigen::MatrixXd cov_fit = noise_variance_nT2 * (inv * g * inv);
+  Eigen::MatrixXd cov = to_all_columns(cov_fit, keep);
   if (!cov.allFinite()) cov.resize(0, 0);
   return cov;
 }
@@ -497,15 +504,7 @@ Eigen::MatrixXd coefficient_jackknife_covariance(const Model& model,
   const Eigen::MatrixXd centred = theta.colwise() - theta.rowwise().mean();
   const Eigen::MatrixXd cov_fit =
       (static_cast<double>(groups - 1) / groups) * centred * centred.transpose();
-  Eigen::MatrixXd cov = Eigen::MatrixXd::Zero(p, p);
-  for (Eigen::Index i = 0, ci = 0; i < p; ++i) {
-    if (!keep[static_cast<size_t>(i)]) continue;
-    for (Eigen::Index j = 0, cj = 0; j < p; ++j) {
-      if (!keep[static_cast<size_t>(j)]) continue;
-      cov(i, j) = cov_fit(ci, cj++);
-    }
-    ++ci;
-  }
+  Eigen::MatrixXd cov = to_all_columns(cov_fit, keep);
   return cov;
 }
 
