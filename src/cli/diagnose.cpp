@@ -256,6 +256,7 @@ void add_diagnose(CLI::App& app) {
   auto rounds = std::make_shared<int>(5);
   auto min_share = std::make_shared<double>(0.05);
   auto quick = std::make_shared<bool>(false);
+  auto choose_lambda = std::make_shared<bool>(false);
   auto validate = std::make_shared<std::string>();
   auto track = std::make_shared<std::string>("truth");
   cmd->add_option("--data", *data,
@@ -285,6 +286,10 @@ void add_diagnose(CLI::App& app) {
   cmd->add_option("--validate", *validate,
                   "with --apply: another flight of the same aircraft; a term is kept only if it "
                   "also lowers the error there");
+  cmd->add_flag(
+      "--choose-lambda", *choose_lambda,
+      "with --apply: each round first chooses fit.lambda on the held-out lines (1/10, "
+      "1/100 or 1/1000 of the model's, or back to it, if the error falls on both halves)");
   cmd->add_flag("--channels-only", *quick,
                 "search only the cur_/vol_ and attitude-rate channels (faster)");
   cmd->callback([=] {
@@ -294,6 +299,7 @@ void add_diagnose(CLI::App& app) {
     if (*top < 0) throw Error("--top: must be >= 0");
     if (!validate->empty() && !*apply) throw Error("--validate: only with --apply");
     if (!out->empty() && !*apply) throw Error("--out: only with --apply (the final model)");
+    if (*choose_lambda && !*apply) throw Error("--choose-lambda: only with --apply");
     const std::vector<std::string> paths = flight_paths("--data", *data);
     std::vector<OutputGuard::File> others = {{"--model", *model_path}, {"--validate", *validate}};
     for (const auto& m : map_inputs("--truth", {*truth})) others.push_back(m);
@@ -311,6 +317,7 @@ void add_diagnose(CLI::App& app) {
     };
     DiagnoseOptions options;
     options.full_search = !*quick;
+    options.choose_lambda = *choose_lambda;
     if (paths.size() > 1 && !*apply) {
       diagnose_several(model, paths, *model_path, *truth, *json_path, *top, options, guard, read);
       return;
@@ -375,10 +382,11 @@ void add_diagnose(CLI::App& app) {
     for (const auto& lr : r.rounds) {
       for (const auto& [term, why] : lr.rejected)
         std::printf("       refused %s: %s\n", term.c_str(), why.c_str());
-      const std::string added = lr.round == 0  ? "(the model as given)"
-                                : lr.black_box ? "[black box] " + lr.added
-                                : lr.together  ? "[together] " + lr.added
-                                               : lr.added;
+      const std::string added = lr.round == 0       ? "(the model as given)"
+                                : lr.black_box      ? "[black box] " + lr.added
+                                : lr.together       ? "[together] " + lr.added
+                                : lr.regularisation ? "[ridge] " + lr.added
+                                                    : lr.added;
       std::printf("%-6d %-36s %9.1f%% %11.3f nT %9.3f nT %9s nT", lr.round, added.c_str(),
                   100 * lr.explained, lr.heldout_std_nT, lr.all_std_nT,
                   figure(lr.fom_nT, "%.2f").c_str());
@@ -447,6 +455,8 @@ void add_diagnose(CLI::App& app) {
         for (const auto& [term, why] : lr.rejected)
           jr["rejected"].push_back({{"term", term}, {"why", why}});
         jr["together"] = lr.together;
+        jr["lambda"] = number(lr.lambda);
+        jr["regularisation"] = lr.regularisation;
         jr["alone_heldout_std_nT"] = lr.alone_std_nT;
         jr["removed"] = nlohmann::json::array();
         for (const auto& [term, why] : lr.removed)

@@ -9,7 +9,8 @@
 // also gives the hidden effects' std within lines on the first flight (eff) and the next (next).
 // Then the same figures per number of simultaneous effects, and per run over its draws.
 // Usage: magcomp_bench_discovery SCENARIO.yaml TL_MODEL.yaml [runs] [first_seed] [options]
-// options: one-at-a-time (no pairs, no backward pass); half-several (runs alternate one effect
+// options: one-at-a-time (no pairs, no backward pass); choose-lambda (each round first chooses
+// fit.lambda on the held-out lines); half-several (runs alternate one effect
 // and two or three, instead of 60 % one, 30 % two, 10 % three); draws=N (each run on N aircraft:
 // the same effects, other aircraft and flights).
 #include <array>
@@ -23,8 +24,7 @@
 
 int main(int argc, char** argv) {
   if (argc < 3) {
-    std::fprintf(stderr,
-                 "usage: %s SCENARIO.yaml TL_MODEL.yaml [runs] [first_seed] [one-at-a-time]\n",
+    std::fprintf(stderr, "usage: %s SCENARIO.yaml TL_MODEL.yaml [runs] [first_seed] [options]\n",
                  argv[0]);
     return 2;
   }
@@ -40,12 +40,15 @@ int main(int argc, char** argv) {
       const std::string opt = argv[a];
       if (opt == "one-at-a-time") {
         options.joint_steps = false;
+      } else if (opt == "choose-lambda") {
+        options.choose_lambda = true;
       } else if (opt == "half-several") {
         half_several = true;
       } else if (opt.rfind("draws=", 0) == 0 && std::atoi(opt.c_str() + 6) >= 1) {
         draws = static_cast<unsigned>(std::atoi(opt.c_str() + 6));
       } else {
-        std::fprintf(stderr, "error: option '%s': one-at-a-time, half-several or draws=N\n",
+        std::fprintf(stderr,
+                     "error: option '%s': one-at-a-time, choose-lambda, half-several or draws=N\n",
                      opt.c_str());
         return 2;
       }

@@ -132,6 +132,8 @@ TEST(Cli, DiagnoseWritesTheContractJsonAndTheLoop) {
   for (const auto& round : loop["rounds"]) {
     EXPECT_TRUE(round["together"].is_boolean());
     EXPECT_TRUE(round["removed"].is_array());
+    EXPECT_TRUE(round["regularisation"].is_boolean());
+    EXPECT_GT(round["lambda"].get<double>(), 0.0);
   }
   ASSERT_TRUE(loop["support"].is_array());
   bool heater = false;

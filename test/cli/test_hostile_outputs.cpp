@@ -213,5 +213,15 @@ TEST(HostileOutputs, AnUnknownTransformListsEveryKnownOne) {
       {"unknown transform 'nope'", "play(r)", "sat(s)", "step(x0)", "ramp(x0)", "decay(tau_s)"});
 }
 
+TEST(HostileOutputs, LoopOnlyFlagsWithoutTheLoopAreRefused) {
+  // --choose-lambda and --validate change the loop (--apply); without it they would be ignored.
+  expect_refusal(
+      "diagnose --data " + files().flight + " --model " + files().model + " --choose-lambda",
+      {"--choose-lambda: only with --apply"});
+  expect_refusal("diagnose --data " + files().flight + " --model " + files().model +
+                     " --validate " + files().flight,
+                 {"--validate: only with --apply"});
+}
+
 }  // namespace
 }  // namespace magcomp

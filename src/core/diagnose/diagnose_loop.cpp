@@ -18,6 +18,7 @@
 namespace magcomp {
 
 using loop_steps::add_candidate_term;
+using loop_steps::better_lambda;
 using loop_steps::Eligible;
 using loop_steps::eligible_candidates;
 using loop_steps::HeldOut;
@@ -49,16 +50,19 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
   LoopResult r;
   r.model = start;
   if (!r.model.fitted()) fit_model(r.model, flights);
-  std::vector<HeldOut> held_out(flights.size());  // each flight's held-out lines, in two halves
+  std::vector<HeldOut> held_out(flights.size());  // each flight's held-out samples, in two halves
   for (int round = 1;; ++round) {
     std::vector<Diagnosis> dxs;
-    for (size_t f = 0; f < flights.size(); ++f) {
-      dxs.push_back(diagnose(r.model, *flights[f], truth, options));
-      if (round == 1) {
-        held_out[f].selection = dxs.back().selection_lines;
-        held_out[f].confirmation = dxs.back().confirmation_lines;
-      }
-      if (on_round) on_round(round, f, dxs.back());
+    const auto diagnose_all = [&] {
+      dxs.clear();
+      for (size_t f = 0; f < flights.size(); ++f)
+        dxs.push_back(diagnose(r.model, *flights[f], truth, options));
+    };
+    diagnose_all();
+    for (size_t f = 0; round == 1 && f < flights.size(); ++f) {
+      held_out[f].fold = dxs[f].heldout_fold;
+      held_out[f].line = flights[f]->has("line") ? Eigen::VectorXd(flights[f]->column("line"))
+                                                 : Eigen::VectorXd::Zero(flights[f]->size());
     }
     if (round == 1) {
       r.rounds.push_back(score(r.model, flights, truth, held_out, validation));
@@ -78,6 +82,24 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
         }
       }
     }
+    // The ridge strength, chosen on the held-out lines before the round's terms; the round is
+    // diagnosed again with it.
+    if (options.choose_lambda && round <= max_rounds) {
+      if (auto step = better_lambda(r.model, start.fit.lambda, r.rounds.back(), flights, truth,
+                                    held_out, validation, options)) {
+        LoopRound lr = std::move(step->second);
+        char added[64];
+        std::snprintf(added, sizeof(added), "fit.lambda %.3g", step->first.fit.lambda);
+        lr.round = round;
+        lr.added = added;
+        lr.explained = variance_share(lr.heldout_std_nT, r.rounds.back().heldout_std_nT);
+        lr.regularisation = true;
+        r.rounds.push_back(std::move(lr));
+        r.model = std::move(step->first);
+        diagnose_all();
+      }
+    }
+    for (size_t f = 0; on_round && f < flights.size(); ++f) on_round(round, f, dxs[f]);
     const Diagnosis& dx = dxs.front();
     // Over several flights, what is said of them together.
     const std::string verdict = flights.size() == 1 ? dx.verdict : merge_diagnoses(dxs).verdict;

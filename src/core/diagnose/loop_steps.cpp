@@ -11,94 +11,115 @@
 #include "magcomp/core/diagnose/diagnose_season.h"
 #include "magcomp/core/error.h"
 #include "magcomp/core/evaluate/evaluation.h"
+#include "magcomp/core/fit/model_fit.h"
 #include "magcomp/core/model/terms_expr.h"
 
 namespace magcomp::loop_steps {
 namespace {
 
-// Sum of squares and count of an evaluation's error over the given lines (all lines when
-// empty), line means removed.
-std::pair<double, double> ss_on_lines(const Evaluation& ev, const std::vector<double>& lines) {
-  if (lines.empty())
-    return {ev.std_nT * ev.std_nT * static_cast<double>(ev.n), static_cast<double>(ev.n)};
-  double ss = 0, n = 0;
-  for (const auto& l : ev.per_line) {
-    if (std::find(lines.begin(), lines.end(), l.line) == lines.end()) continue;
-    ss += l.std_nT * l.std_nT * static_cast<double>(l.n);
-    n += static_cast<double>(l.n);
+// Sum of squares and count of an error over the held-out samples of one half (-1: both), each
+// line's mean (over those samples) removed.
+std::pair<double, double> ss_on_fold(const Eigen::VectorXd& e, const HeldOut& h, int which) {
+  std::map<double, std::pair<double, double>> mean;
+  const Eigen::Index n = std::min<Eigen::Index>(e.size(), static_cast<Eigen::Index>(h.fold.size()));
+  const auto in = [&](Eigen::Index i) {
+    const int f = h.fold[static_cast<size_t>(i)];
+    return f >= 0 && (which < 0 || f == which) && std::isfinite(e[i]);
+  };
+  for (Eigen::Index i = 0; i < n; ++i) {
+    if (!in(i)) continue;
+    auto& a = mean[h.line[i]];
+    a.first += e[i];
+    a.second += 1;
   }
-  return {ss, n};
-}
-
-// Pooled std of an evaluation's error over the given lines (all lines when empty), nT.
-double std_on_lines(const Evaluation& ev, const std::vector<double>& lines) {
-  if (lines.empty()) return ev.std_nT;
-  const auto [ss, n] = ss_on_lines(ev, lines);
-  return n > 0 ? std::sqrt(ss / n) : ev.std_nT;
+  double ss = 0, count = 0;
+  for (Eigen::Index i = 0; i < n; ++i) {
+    if (!in(i)) continue;
+    const auto& a = mean[h.line[i]];
+    const double d = e[i] - a.first / a.second;
+    ss += d * d;
+    count += 1;
+  }
+  return {ss, count};
 }
 
 }  // namespace
 
-// Scores of a model: held-out lines, all lines, FOM, validation flight. Over several flights,
-// each figure is pooled over the flights' samples (the FOM: their mean).
+// Scores of a model: held-out samples (both halves, and each), all lines, FOM, validation
+// flight. Over several flights, each figure is pooled over the flights' samples (the FOM: their
+// mean).
 LoopRound score(const Model& model, const std::vector<const FlightData*>& flights,
                 const std::string& truth, const std::vector<HeldOut>& held_out,
                 const FlightData* validation) {
   LoopRound r;
-  if (flights.size() == 1) {
-    const std::vector<double>& selection = held_out[0].selection;
-    const std::vector<double>& confirmation = held_out[0].confirmation;
-    const Evaluation ev = evaluate_model(model, *flights[0], truth, false);
-    std::vector<double> held = selection;
-    held.insert(held.end(), confirmation.begin(), confirmation.end());
-    r.heldout_std_nT = std_on_lines(ev, held);
-    if (!selection.empty() && !confirmation.empty()) {
-      r.selection_std_nT = std_on_lines(ev, selection);
-      r.confirmation_std_nT = std_on_lines(ev, confirmation);
-    }
-    r.all_std_nT = ev.std_nT;
-    r.fom_nT = ev.fom.signatures.empty() ? NAN : ev.fom.fom_nT;
-    r.flight_heldout_std_nT = {r.heldout_std_nT};
-  } else {
-    double held_ss = 0, held_n = 0, sel_ss = 0, sel_n = 0, conf_ss = 0, conf_n = 0, all_ss = 0,
-           all_n = 0, fom_sum = 0, foms = 0;
-    bool halves = true;
-    for (size_t f = 0; f < flights.size(); ++f) {
-      const Evaluation ev = evaluate_model(model, *flights[f], truth, false);
-      const HeldOut& h = held_out[f];
-      std::vector<double> held = h.selection;
-      held.insert(held.end(), h.confirmation.begin(), h.confirmation.end());
-      const auto [ss, n] = ss_on_lines(ev, held);
-      held_ss += ss;
-      held_n += n;
-      r.flight_heldout_std_nT.push_back(n > 0 ? std::sqrt(ss / n) : NAN);
-      halves = halves && !h.selection.empty() && !h.confirmation.empty();
-      if (halves) {
-        const auto [s1, n1] = ss_on_lines(ev, h.selection);
-        const auto [s2, n2] = ss_on_lines(ev, h.confirmation);
-        sel_ss += s1;
-        sel_n += n1;
-        conf_ss += s2;
-        conf_n += n2;
-      }
-      const auto [a, na] = ss_on_lines(ev, {});
-      all_ss += a;
-      all_n += na;
-      if (!ev.fom.signatures.empty()) {
-        fom_sum += ev.fom.fom_nT;
-        ++foms;
+  r.lambda = model.fit.lambda;
+  double ss[3] = {0, 0, 0}, n[3] = {0, 0, 0};  // both halves, selection, confirmation
+  double all_ss = 0, all_n = 0, fom_sum = 0, foms = 0;
+  for (size_t f = 0; f < flights.size(); ++f) {
+    const Evaluation ev = evaluate_model(model, *flights[f], truth, false);
+    double flight_ss = 0, flight_n = 0;
+    for (int which = -1; which <= 1; ++which) {
+      const auto [s, c] = ss_on_fold(ev.error_nT, held_out[f], which);
+      ss[which + 1] += s;
+      n[which + 1] += c;
+      if (which < 0) {
+        flight_ss = s;
+        flight_n = c;
       }
     }
-    r.heldout_std_nT = held_n > 0 ? std::sqrt(held_ss / held_n) : NAN;
-    if (halves && sel_n > 0 && conf_n > 0) {
-      r.selection_std_nT = std::sqrt(sel_ss / sel_n);
-      r.confirmation_std_nT = std::sqrt(conf_ss / conf_n);
+    r.flight_heldout_std_nT.push_back(flight_n > 0 ? std::sqrt(flight_ss / flight_n) : NAN);
+    all_ss += ev.std_nT * ev.std_nT * static_cast<double>(ev.n);
+    all_n += static_cast<double>(ev.n);
+    if (!ev.fom.signatures.empty()) {
+      fom_sum += ev.fom.fom_nT;
+      ++foms;
     }
-    r.all_std_nT = all_n > 0 ? std::sqrt(all_ss / all_n) : NAN;
-    r.fom_nT = foms > 0 ? fom_sum / foms : NAN;
   }
+  const auto pooled = [](double s, double c) { return c > 0 ? std::sqrt(s / c) : NAN; };
+  r.heldout_std_nT = pooled(ss[0], n[0]);
+  if (n[1] > 0 && n[2] > 0) {
+    r.selection_std_nT = pooled(ss[1], n[1]);
+    r.confirmation_std_nT = pooled(ss[2], n[2]);
+  }
+  r.all_std_nT = pooled(all_ss, all_n);
+  r.fom_nT = foms > 0 ? fom_sum / foms : NAN;
   if (validation) r.validation_std_nT = evaluate_model(model, *validation, truth, false).std_nT;
   return r;
+}
+
+// The ridge strength chosen on the held-out samples (see loop_steps.h).
+std::optional<std::pair<Model, LoopRound>> better_lambda(
+    const Model& model, double ceiling, const LoopRound& now,
+    const std::vector<const FlightData*>& flights, const std::string& truth,
+    const std::vector<HeldOut>& held_out, const FlightData* validation,
+    const DiagnoseOptions& options) {
+  if (!(ceiling > 0.0)) return std::nullopt;
+  std::optional<std::pair<Model, LoopRound>> best;
+  for (const double factor : {1.0, 1e-1, 1e-2, 1e-3}) {
+    if (ceiling * factor == model.fit.lambda) continue;
+    Model m = model;
+    m.fit.lambda = ceiling * factor;
+    m.coefficients.resize(0);
+    try {
+      fit_model(m, flights);
+    } catch (const Error&) {
+      continue;  // too weak a ridge for these columns: not a choice
+    }
+    LoopRound lr = score(m, flights, truth, held_out, validation);
+    if (!std::isfinite(lr.heldout_std_nT)) continue;
+    if (!best || lr.heldout_std_nT < best->second.heldout_std_nT)
+      best.emplace(std::move(m), std::move(lr));
+  }
+  if (!best) return std::nullopt;
+  const LoopRound& lr = best->second;
+  const bool halves =
+      !std::isfinite(now.selection_std_nT) || (lr.selection_std_nT < now.selection_std_nT &&
+                                               lr.confirmation_std_nT < now.confirmation_std_nT);
+  if (!halves || !refusal(lr, now).empty() ||
+      variance_share(lr.heldout_std_nT, now.heldout_std_nT) < options.accept_fraction ||
+      now.heldout_std_nT - lr.heldout_std_nT < options.resolution_nT)
+    return std::nullopt;
+  return best;
 }
 
 // Why a scored candidate model is refused against the current one ("" when it is kept).

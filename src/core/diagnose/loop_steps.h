@@ -3,7 +3,9 @@
 // and the candidates a round may add. diagnose_loop.cpp runs them.
 #pragma once
 
+#include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "magcomp/core/diagnose/diagnose.h"
@@ -13,10 +15,12 @@
 
 namespace magcomp::loop_steps {
 
-// Each flight's held-out lines, in two halves (the first diagnosis's selection and confirmation
-// lines of that flight).
+// Each flight's held-out samples, in two halves: the first diagnosis's split of that flight
+// (Diagnosis::heldout_fold: 0 selection, 1 confirmation, -1 not held out), and the flight's line
+// of each sample (each line's mean is removed).
 struct HeldOut {
-  std::vector<double> selection, confirmation;
+  std::vector<signed char> fold;
+  Eigen::VectorXd line;
 };
 
 /// Scores of a model: held-out lines, all lines, FOM, validation flight. Over several flights,
@@ -24,6 +28,19 @@ struct HeldOut {
 LoopRound score(const Model& model, const std::vector<const FlightData*>& flights,
                 const std::string& truth, const std::vector<HeldOut>& held_out,
                 const FlightData* validation);
+
+/// The ridge strength (fit.lambda) chosen on the held-out samples: `model` (scored `now`)
+/// refitted with `ceiling` (the loop's start model's fit.lambda) and 1/10, 1/100 and 1/1000 of it
+/// (but its own), and the one with the lowest held-out error, if it lowers that error by the
+/// accepted share and the resolution, lowers it on each half, and passes `refusal`. Nullopt when
+/// the model's own strength stays. Never above the ceiling: a stronger ridge than the user's
+/// lowers the held-out error where an effect the model lacks leaks into its columns (their fit
+/// shrinks with the leak), which hides the effect instead of writing it.
+std::optional<std::pair<Model, LoopRound>> better_lambda(
+    const Model& model, double ceiling, const LoopRound& now,
+    const std::vector<const FlightData*>& flights, const std::string& truth,
+    const std::vector<HeldOut>& held_out, const FlightData* validation,
+    const DiagnoseOptions& options);
 
 /// Why a scored candidate model is refused against the current one ("" when it is kept).
 std::string refusal(const LoopRound& next, const LoopRound& now);

@@ -153,7 +153,10 @@ Search::Search(const Model& m, const FlightData& d, const std::string& truth_nam
       unit[static_cast<size_t>(held[k])] = k < held.size() / 2 ? 0 : 1;
     }
   }
+  dx->heldout_fold.assign(static_cast<size_t>(n), -1);
   for (Eigen::Index i : held) {
+    dx->heldout_fold[static_cast<size_t>(i)] =
+        static_cast<signed char>(fold[static_cast<size_t>(i)]);
     auto& v = fold[static_cast<size_t>(i)] == 0 ? dx->selection_lines : dx->confirmation_lines;
     if (std::find(v.begin(), v.end(), line[i]) == v.end()) v.push_back(line[i]);
   }

@@ -68,6 +68,9 @@ struct DiagnoseOptions {
   /// diagnose_loop: try pairs of terms together when no term passes alone, and drop earlier
   /// terms that later ones made redundant (false: one term at a time, never removed).
   bool joint_steps = true;
+  /// diagnose_loop: choose the ridge strength (fit.lambda) on the held-out lines before each
+  /// round's terms (false: keep the model's; doc/diagnose.md says what it gains and costs).
+  bool choose_lambda = false;
 };
 
 struct Diagnosis {
@@ -79,8 +82,11 @@ struct Diagnosis {
   std::string split;                       ///< how fit, selection and confirmation were chosen
   std::vector<double> selection_lines;     ///< held-out lines the candidates are ranked on
   std::vector<double> confirmation_lines;  ///< held-out lines that confirm (or reject) them
-  std::vector<Candidate> candidates;       ///< accepted first (best first), then the rejected
-  long candidates_tried = 0;               ///< terms fitted, parameter scans included
+  /// Each sample's part of the split: 0 selection, 1 confirmation, -1 not held out (a line flown
+  /// in pieces may hold pieces of both halves; its number is then in both lists above).
+  std::vector<signed char> heldout_fold;
+  std::vector<Candidate> candidates;             ///< accepted first (best first), then the rejected
+  long candidates_tried = 0;                     ///< terms fitted, parameter scans included
   std::vector<ChannelAssociation> associations;  ///< strongest |Spearman| first
   ExplainableShare explainable;                  ///< what remains predictable, and where
   ResidualFloor

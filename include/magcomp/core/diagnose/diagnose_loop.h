@@ -40,6 +40,11 @@ struct LoopRound {
   std::vector<std::pair<std::string, std::string>> removed;
   /// The held-out error std on each flight the loop learns from, nT (in the order given).
   std::vector<double> flight_heldout_std_nT;
+  /// The ridge strength of this round's model (fit.lambda, dimensionless).
+  double lambda = NAN;
+  /// The round changed only the ridge strength (fit.lambda, chosen on the held-out lines;
+  /// `added` reads "fit.lambda <value>"), before the round's terms; it shares their round number.
+  bool regularisation = false;
 };
 
 struct LoopResult {
@@ -72,9 +77,15 @@ struct LoopResult {
 /// backward pass drops an earlier term whose removal raises the held-out variance by less than a
 /// quarter of the accepted share (and the validation error by no more), one at a time: a term
 /// that later terms made redundant leaves, and the round lists it. So the final model is never
-/// worse than the start on either.
-/// `on_round` (optional) is called after each
-/// diagnosis with the round number and the diagnosis.
+/// worse than the start on either. With DiagnoseOptions::choose_lambda (off by default), before
+/// each round's terms the ridge strength fit.lambda is chosen on the held-out lines among the
+/// start model's and 1/10, 1/100 and 1/1000 of it: the one with the lowest held-out error is kept
+/// if that error falls by the accepted share and the resolution, falls on each half, and (with a
+/// validation flight) falls there; the round is then diagnosed again. A ridge too strong for the
+/// flight biases the fit, and a term that only undoes the bias would otherwise be taken for an
+/// effect. It never exceeds the start model's: a stronger ridge hides an effect the model lacks
+/// instead of writing it.
+/// `on_round` (optional) is called after each diagnosis with the round number and the diagnosis.
 LoopResult diagnose_loop(const Model& model, const FlightData& data, const std::string& truth,
                          int max_rounds, double min_share, const DiagnoseOptions& options,
                          const std::function<void(int, const Diagnosis&)>& on_round = {},
