@@ -6,6 +6,7 @@
 #include <cmath>
 
 #include "magcomp/core/error.h"
+#include "magcomp/core/geo/potential_field.h"
 #include "magcomp/core/io/h5_array.h"
 #include "magcomp/core/math/constants.h"
 #include "magcomp/core/nav/anomaly_map.h"

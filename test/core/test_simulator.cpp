@@ -8,8 +8,8 @@
 #include "magcomp/core/diagnose/diagnose.h"
 #include "magcomp/core/error.h"
 #include "magcomp/core/fit/model_fit.h"
+#include "magcomp/core/geo/potential_field.h"
 #include "magcomp/core/math/timeseries.h"
-#include "magcomp/core/sim/anomaly_map.h"
 #include "magcomp/core/sim/electrical.h"
 
 #include "scenario_cache.h"
@@ -47,15 +47,19 @@ TEST(SimulatorPhysics, UpwardContinuationMatchesBuriedSource) {
       }
     return g;
   };
-  const sim::AnomalyMap map(source(depth), spacing);
-  const Eigen::MatrixXd continued = map.continued(up);
+  const std::vector<Eigen::MatrixXd> layers =
+      upward_continue(source(depth), spacing, spacing, std::vector<double>{up / 2, up});
+  const Eigen::MatrixXd& continued = layers[1];
   const Eigen::MatrixXd expected = source(depth + up);
   const double peak = expected.cwiseAbs().maxCoeff();
   const double err = (continued - expected).block(64, 64, 128, 128).cwiseAbs().maxCoeff();
   std::printf("  upward continuation: max error %.2e of the peak\n", err / peak);
   EXPECT_LT(err / peak, 1e-3);
-  // And the map at zero height is the map itself.
-  EXPECT_LT((map.continued(0.0) - source(depth)).cwiseAbs().maxCoeff() / peak, 1e-9);
+  // Every layer of one transform is the single continuation to its height, and continuing twice
+  // by h/2 is continuing by h (exp(-k h/2)^2 = exp(-k h)).
+  EXPECT_EQ((layers[0] - upward_continue(source(depth), spacing, spacing, up / 2)).norm(), 0.0);
+  const Eigen::MatrixXd twice = upward_continue(layers[0], spacing, spacing, up / 2);
+  EXPECT_LT((twice - continued).cwiseAbs().maxCoeff() / peak, 1e-9);
 }
 
 TEST(Simulator, SameSeedSameFlightAndTheSchemaReadsBack) {

@@ -1,17 +1,16 @@
-// magcomp: anomaly maps: bilinear interpolation, FFT upward continuation, MagNav.jl's files.
+// magcomp: anomaly maps: bilinear interpolation, upward continuation, MagNav.jl's files.
 #include "magcomp/core/nav/anomaly_map.h"
 
 #include <algorithm>
 #include <cmath>
-#include <complex>
 #include <cstdio>
 #include <vector>
 
 #include "magcomp/core/error.h"
+#include "magcomp/core/geo/potential_field.h"
 #include "magcomp/core/io/file_io.h"
 #include "magcomp/core/io/h5_array.h"
 #include "magcomp/core/math/constants.h"
-#include "magcomp/core/math/fft2.h"
 
 namespace magcomp::nav {
 namespace {
@@ -34,12 +33,6 @@ void locate(const Eigen::VectorXd& a, double x, Eigen::Index* cell, double* t) {
       std::isfinite(u) ? std::clamp(std::floor(u), 0.0, static_cast<double>(n - 2)) : 0.0;
   *cell = static_cast<Eigen::Index>(c);
   *t = u - c;
-}
-
-// numpy/Julia fftfreq: sample frequencies of an n-point DFT at sampling rate fs.
-double fftfreq(Eigen::Index i, Eigen::Index n, double fs) {
-  const Eigen::Index k = i < (n + 1) / 2 ? i : i - n;
-  return static_cast<double>(k) * fs / static_cast<double>(n);
 }
 
 // A map axis: at least 2 finite values, increasing, uniform (each value within 5 % of a step of
@@ -232,32 +225,6 @@ Eigen::Vector2d AnomalyMap::step_m() const {
   const double dlon = (lon_rad[lon_rad.size() - 1] - lon_rad[0]) / (lon_rad.size() - 1);
   const double dlat = (lat_rad[lat_rad.size() - 1] - lat_rad[0]) / (lat_rad.size() - 1);
   return {dlon * (rn + alt_m) * std::cos(lat), dlat * (rm + alt_m)};
-}
-
-Wavenumbers wavenumbers(double dx_m, double dy_m, int nx, int ny) {
-  Wavenumbers w;
-  w.kx = Eigen::MatrixXd::Zero(ny, nx);
-  w.ky = Eigen::MatrixXd::Zero(ny, nx);
-  for (int i = 0; i < ny; ++i) {
-    for (int j = 0; j < nx; ++j) {
-      if (nx * dx_m != 0) w.kx(i, j) = 2 * kPi * fftfreq(j, nx, 1.0 / dx_m);
-      if (ny * dy_m != 0) w.ky(i, j) = 2 * kPi * fftfreq(i, ny, 1.0 / dy_m);
-    }
-  }
-  w.k = (w.kx.array().square() + w.ky.array().square()).sqrt();
-  return w;
-}
-
-Eigen::MatrixXd upward_continue(const Eigen::MatrixXd& map_nT, double dx_m, double dy_m,
-                                double dz_m) {
-  if (dz_m == 0) return map_nT;
-  const auto ny = static_cast<int>(map_nT.rows()), nx = static_cast<int>(map_nT.cols());
-  const Wavenumbers w = wavenumbers(dx_m, dy_m, nx, ny);
-  Eigen::MatrixXcd f = map_nT.cast<std::complex<double>>();
-  fft2(&f, false);
-  f.array() *= (-w.k.array() * dz_m).exp().cast<std::complex<double>>();
-  fft2(&f, true);
-  return f.real();
 }
 
 AnomalyMap continued_to(const AnomalyMap& map, double alt_m) {

@@ -15,13 +15,14 @@
 
 #include "magcomp/core/error.h"
 #include "magcomp/core/geo/igrf.h"
+#include "magcomp/core/geo/potential_field.h"
 #include "magcomp/core/io/file_io.h"
 #include "magcomp/core/io/time_base.h"
 #include "magcomp/core/math/timeseries.h"
 #include "magcomp/core/model/signal.h"
 #include "magcomp/core/nav/nav_model.h"
 #include "magcomp/core/nav/pinson.h"
-#include "magcomp/core/sim/anomaly_map.h"
+#include "magcomp/core/sim/crustal_field.h"
 #include "magcomp/core/sim/electrical.h"
 #include "magcomp/core/sim/trajectory.h"
 
@@ -98,7 +99,7 @@ class Simulator {
 
  private:
   void earth_field();
-  void navigation_map(const AnomalyMap& map);
+  void navigation_map(const Eigen::MatrixXd& ground_nT);
   void drifting_ins();
   std::map<std::string, Eigen::VectorXd> ins_quantities() const;
   const Eigen::VectorXd& source(const std::string& name) const {
@@ -155,12 +156,12 @@ void Simulator::earth_field() {
       igrf_ned[static_cast<size_t>(i)] = (1 - w) * a + w * b;
     }
   }
-  const AnomalyMap map = AnomalyMap::random(s_.anomaly_grid_n, s_.anomaly_grid_m, s_.anomaly_rms_nT,
-                                            s_.anomaly_spectral_slope, s_.seed);
+  const Eigen::MatrixXd ground = random_ground_anomaly(
+      s_.anomaly_grid_n, s_.anomaly_grid_m, s_.anomaly_rms_nT, s_.anomaly_spectral_slope, s_.seed);
   const double h_min = tr_.alt_m.minCoeff() - s_.terrain_m;
   const double h_max = tr_.alt_m.maxCoeff() - s_.terrain_m;
-  const LayeredMap layers(map, h_min, h_max, 100.0);
-  if (s_.nav_map) navigation_map(map);
+  const LayeredMap layers(ground, s_.anomaly_grid_m, h_min, h_max, 100.0);
+  if (s_.nav_map) navigation_map(ground);
   e.anomaly.resize(n_);
   e.diurnal.resize(n_);
   e.igrf_total.resize(n_);
@@ -596,10 +597,10 @@ void Simulator::ins_fields() {
 // The anomaly the flight samples, as a map a navigator would carry: a latitude/longitude grid over
 // the flight and a margin, at the flight's mean height above the (flat) ground, its cell the
 // anomaly grid's. The flight at that height samples exactly this field.
-void Simulator::navigation_map(const AnomalyMap& map) {
+void Simulator::navigation_map(const Eigen::MatrixXd& ground) {
   const double mean_alt = tr_.alt_m.mean();
-  const Eigen::MatrixXd grid = map.continued(mean_alt - s_.terrain_m);
-  const double cell = map.spacing_m(), margin = s_.nav_map_margin_m;
+  const double cell = s_.anomaly_grid_m, margin = s_.nav_map_margin_m;
+  const Eigen::MatrixXd grid = upward_continue(ground, cell, cell, mean_alt - s_.terrain_m);
   const double n0 = tr_.north_m.minCoeff() - margin, n1 = tr_.north_m.maxCoeff() + margin;
   const double e0 = tr_.east_m.minCoeff() - margin, e1 = tr_.east_m.maxCoeff() + margin;
   const auto ny = static_cast<Eigen::Index>(std::ceil((n1 - n0) / cell)) + 1;
@@ -619,7 +620,7 @@ void Simulator::navigation_map(const AnomalyMap& map) {
     m.lon_rad[j] = (s_.origin_lon_deg + (e0 + cell * j) * deg_per_east_m) * kDegToRad;
   for (Eigen::Index i = 0; i < ny; ++i)
     for (Eigen::Index j = 0; j < nx; ++j)
-      m.map_nT(i, j) = AnomalyMap::sample(grid, cell, n0 + cell * i, e0 + cell * j);
+      m.map_nT(i, j) = periodic_value(grid, cell, n0 + cell * i, e0 + cell * j);
 }
 
 // A navigation-grade INS: its position errors propagated with the filter's own error model

@@ -1,5 +1,5 @@
 // magcomp: a magnetic anomaly map on a regular latitude/longitude grid: bilinear value and
-// gradient, wavenumbers and upward continuation by FFT, read from MagNav.jl's HDF5 map files.
+// gradient, upward continuation (geo/potential_field), read from MagNav.jl's HDF5 map files.
 #pragma once
 
 #include <Eigen/Core>
@@ -51,18 +51,8 @@ struct AnomalyMap {
                                 const Eigen::Matrix2d& p_rad2) const;
 };
 
-/// Wavenumbers (rad/m) of an ny x nx grid of steps dx, dy (m), in the FFT's order: k, kx, ky.
-struct Wavenumbers {
-  Eigen::MatrixXd k, kx, ky;
-};
-Wavenumbers wavenumbers(double dx_m, double dy_m, int nx, int ny);
-
-/// Upward continuation of a gridded potential field by dz_m (m, >= 0) in the wavenumber domain
-/// (exp(-k dz)), without padding: the grid is taken as periodic.
-Eigen::MatrixXd upward_continue(const Eigen::MatrixXd& map_nT, double dx_m, double dy_m,
-                                double dz_m);
-
-/// The map continued up to alt_m (>= the map's altitude).
+/// The map continued up to alt_m (>= the map's altitude), by geo/potential_field's
+/// upward_continue on the grid's steps in metres (step_m()).
 AnomalyMap continued_to(const AnomalyMap& map, double alt_m);
 
 /// Reads a map file with MagNav.jl's names: `map` (ny x nx, nT), `xx` (longitude), `yy`
