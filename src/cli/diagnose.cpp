@@ -97,6 +97,9 @@ void print_map_note(const std::string& truth) {
       path.c_str());
 }
 
+// A number in the JSON, or null when it is not finite.
+nlohmann::json number(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(); }
+
 nlohmann::json to_json(const Diagnosis& dx) {
   nlohmann::json j;
   j["split"] = dx.split;
@@ -123,6 +126,7 @@ nlohmann::json to_json(const Diagnosis& dx) {
                                {"accepted", c.accepted},
                                {"slow", c.slow},
                                {"chosen_on_confirmation", c.chosen_on_confirmation},
+                               {"base_span_share", number(c.base_span_share)},
                                {"estimate", c.estimate},
                                {"parameters", p}});
   }
@@ -397,6 +401,12 @@ void add_diagnose(CLI::App& app) {
         for (double v : lr.flight_heldout_std_nT) std::printf(" %s", figure(v, "%.3f").c_str());
         std::printf(" nT\n");
       }
+      if (!lr.in_place_of.empty())
+        std::printf(
+            "       in place of %s: %.4f%% of its columns' energy lies within the model's "
+            "own columns, so its gain is the ridge's hold on them, not an effect of its "
+            "channel\n",
+            lr.in_place_of.c_str(), 100 * lr.in_place_of_span_share);
       if (lr.together && lr.alone_std_nT.size() == 2)
         std::printf("       together: held-out %.3f nT; alone %.3f and %.3f nT (each is needed)\n",
                     lr.heldout_std_nT, lr.alone_std_nT[0], lr.alone_std_nT[1]);
@@ -445,9 +455,6 @@ void add_diagnose(CLI::App& app) {
              {"all_std_nT", lr.all_std_nT},
              {"fom_nT", std::isfinite(lr.fom_nT) ? nlohmann::json(lr.fom_nT) : nlohmann::json()}});
         auto& jr = j["rounds"].back();
-        const auto number = [](double v) {
-          return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json();
-        };
         jr["validation_std_nT"] = number(lr.validation_std_nT);
         jr["flights_heldout_std_nT"] = nlohmann::json::array();
         for (double v : lr.flight_heldout_std_nT) jr["flights_heldout_std_nT"].push_back(number(v));
@@ -457,6 +464,8 @@ void add_diagnose(CLI::App& app) {
         jr["together"] = lr.together;
         jr["lambda"] = number(lr.lambda);
         jr["regularisation"] = lr.regularisation;
+        jr["in_place_of"] = lr.in_place_of;
+        jr["in_place_of_span_share"] = number(lr.in_place_of_span_share);
         jr["alone_heldout_std_nT"] = lr.alone_std_nT;
         jr["removed"] = nlohmann::json::array();
         for (const auto& [term, why] : lr.removed)
@@ -467,9 +476,6 @@ void add_diagnose(CLI::App& app) {
       j["warnings"] = r.warnings;
       j["support"] = nlohmann::json::array();
       for (const TermSupport& s : support) {
-        const auto number = [](double v) {
-          return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json();
-        };
         j["support"].push_back({{"term", s.term},
                                 {"channel", s.channel},
                                 {"switches", s.switches},

@@ -10,7 +10,8 @@
 // Then the same figures per number of simultaneous effects, and per run over its draws.
 // Usage: magcomp_bench_discovery SCENARIO.yaml TL_MODEL.yaml [runs] [first_seed] [options]
 // options: one-at-a-time (no pairs, no backward pass); choose-lambda (each round first chooses
-// fit.lambda on the held-out lines); half-several (runs alternate one effect
+// fit.lambda on the held-out lines); no-span-ridge (a term within the model's span is added as
+// any other, without the ridge step first); half-several (runs alternate one effect
 // and two or three, instead of 60 % one, 30 % two, 10 % three); draws=N (each run on N aircraft:
 // the same effects, other aircraft and flights).
 #include <array>
@@ -42,14 +43,18 @@ int main(int argc, char** argv) {
         options.joint_steps = false;
       } else if (opt == "choose-lambda") {
         options.choose_lambda = true;
+      } else if (opt == "no-span-ridge") {
+        options.ridge_for_span_terms = false;
       } else if (opt == "half-several") {
         half_several = true;
       } else if (opt.rfind("draws=", 0) == 0 && std::atoi(opt.c_str() + 6) >= 1) {
         draws = static_cast<unsigned>(std::atoi(opt.c_str() + 6));
       } else {
-        std::fprintf(stderr,
-                     "error: option '%s': one-at-a-time, choose-lambda, half-several or draws=N\n",
-                     opt.c_str());
+        std::fprintf(
+            stderr,
+            "error: option '%s': one-at-a-time, choose-lambda, no-span-ridge, half-several or "
+            "draws=N\n",
+            opt.c_str());
         return 2;
       }
     }

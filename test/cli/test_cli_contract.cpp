@@ -103,6 +103,10 @@ TEST(Cli, DiagnoseWritesTheContractJsonAndTheLoop) {
   EXPECT_FALSE(top["chosen_on_confirmation"].get<bool>());
   EXPECT_TRUE(top["parameters"].is_object());
   EXPECT_GT(top["parameters"]["gain_nT_per_unit"].get<double>(), 0.0);
+  // A heater's wire switched on and off adds a direction of its own to TL's columns.
+  ASSERT_TRUE(top["base_span_share"].is_number());
+  EXPECT_GE(top["base_span_share"].get<double>(), 0.0);
+  EXPECT_LT(top["base_span_share"].get<double>(), 0.9);
   EXPECT_TRUE(j["explainable_share"]["share"].is_number());
   EXPECT_TRUE(j["explainable_share"]["within_noise"].is_boolean());
   // Rejected candidates come after every accepted one.
@@ -133,6 +137,7 @@ TEST(Cli, DiagnoseWritesTheContractJsonAndTheLoop) {
     EXPECT_TRUE(round["together"].is_boolean());
     EXPECT_TRUE(round["removed"].is_array());
     EXPECT_TRUE(round["regularisation"].is_boolean());
+    EXPECT_TRUE(round["in_place_of"].is_string());
     EXPECT_GT(round["lambda"].get<double>(), 0.0);
   }
   ASSERT_TRUE(loop["support"].is_array());

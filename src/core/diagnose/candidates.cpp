@@ -146,6 +146,7 @@ void add_candidates(const std::vector<Job>& jobs, const std::vector<Scored>& sco
     c.explained_selection = share(scored[k].sel, search.base_std[0]);
     c.explained_confirmation = share(scored[k].conf, search.base_std[1]);
     c.slow = scored[k].slow;
+    c.base_span_share = scored[k].base_span_share;
     if (const auto* e = dynamic_cast<const ExprTerm*>(term.get())) {
       c.estimate = e->size_in_words(scored[k].coef);
       c.parameters = e->parameters();

@@ -84,7 +84,16 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
     }
     // The ridge strength, chosen on the held-out lines before the round's terms; the round is
     // diagnosed again with it.
-    if (options.choose_lambda && round <= max_rounds) {
+    // Without --choose-lambda, the same step when the round's first eligible term lies within
+    // the model's own span (kWithinSpanShare): its gain would be the ridge's, named after a
+    // channel that carries no effect.
+    std::optional<Eligible> within_span;
+    if (options.ridge_for_span_terms) {
+      const std::vector<Eligible> e = eligible_candidates(dxs, min_share);
+      if (!e.empty() && e.front().base_span_share >= loop_steps::kWithinSpanShare)
+        within_span = e.front();
+    }
+    if ((options.choose_lambda || within_span) && round <= max_rounds) {
       if (auto step = better_lambda(r.model, start.fit.lambda, r.rounds.back(), flights, truth,
                                     held_out, validation, options)) {
         LoopRound lr = std::move(step->second);
@@ -94,6 +103,10 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
         lr.added = added;
         lr.explained = variance_share(lr.heldout_std_nT, r.rounds.back().heldout_std_nT);
         lr.regularisation = true;
+        if (within_span) {
+          lr.in_place_of = within_span->term;
+          lr.in_place_of_span_share = within_span->base_span_share;
+        }
         r.rounds.push_back(std::move(lr));
         r.model = std::move(step->first);
         diagnose_all();

@@ -262,7 +262,7 @@ std::vector<Eligible> eligible_candidates(const std::vector<Diagnosis>& dxs, dou
   };
   if (dxs.size() == 1) {
     for (const Candidate& c : dxs.front().candidates)
-      if (ok(c)) out.push_back({c.term, c.slow, c.explained_fraction});
+      if (ok(c)) out.push_back({c.term, c.slow, c.explained_fraction, c.base_span_share});
     return out;
   }
   // Each shape's best passing form over the flights, then the flights' joint ranking.
@@ -270,10 +270,10 @@ std::vector<Eligible> eligible_candidates(const std::vector<Diagnosis>& dxs, dou
   for (const Diagnosis& d : dxs) {
     for (const Candidate& c : d.candidates) {
       if (!ok(c)) continue;
-      auto [it, fresh] =
-          best.emplace(term_shape(c.term), Eligible{c.term, c.slow, c.explained_fraction});
+      auto [it, fresh] = best.emplace(
+          term_shape(c.term), Eligible{c.term, c.slow, c.explained_fraction, c.base_span_share});
       if (!fresh && c.explained_fraction > it->second.explained)
-        it->second = {c.term, c.slow, c.explained_fraction};
+        it->second = {c.term, c.slow, c.explained_fraction, c.base_span_share};
     }
   }
   for (const SeasonCandidate& s : merge_diagnoses(dxs).candidates) {

@@ -3,6 +3,7 @@
 // and the candidates a round may add. diagnose_loop.cpp runs them.
 #pragma once
 
+#include <cmath>
 #include <optional>
 #include <string>
 #include <utility>
@@ -69,7 +70,13 @@ struct Eligible {
   std::string term;
   bool slow = false;
   double explained = 0.0;  ///< its conservative explained share (on the flight it is taken from)
+  double base_span_share = NAN;  ///< Candidate::base_span_share (on that flight)
 };
+
+/// A term whose fit-row columns lie this much within the model's own span (Candidate::
+/// base_span_share; within 1 % of their amplitude) adds no direction of its own: its gain is the
+/// ridge's hold on the model's coefficients, which the loop tries to relax first.
+constexpr double kWithinSpanShare = 0.9999;
 
 /// The candidates of one round's diagnoses that the loop may add, in rank order (see
 /// diagnose_loop).

@@ -106,6 +106,11 @@ Search::Search(const Model& m, const FlightData& d, const std::string& truth_nam
   for (size_t k = 0; k < keep.size(); ++k)
     a0.col(static_cast<Eigen::Index>(k)) = a_all.col(keep[k]);
   af0 = stack_runs(fs, dt, a0, runs);
+  {
+    Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(af0);
+    qr.setThreshold(1e-10);
+    af0_basis = qr.householderQ() * Eigen::MatrixXd::Identity(af0.rows(), qr.rank());
+  }
   yf = stack_runs(fs, dt, y, runs).col(0);
   dx->fit_samples = yf.size();
   profile = std::make_unique<RidgeProfile>(af0, yf, fs.lambda);
@@ -181,6 +186,12 @@ Search::Search(const Model& m, const FlightData& d, const std::string& truth_nam
   inputs = make_term_inputs(data, model.vector, model.bt_scale_nT);
 }
 
+double Search::base_span_share(const Eigen::MatrixXd& band) const {
+  const double all = band.squaredNorm();
+  if (!(all > 0) || !std::isfinite(all)) return NAN;
+  return (af0_basis.transpose() * band).squaredNorm() / all;
+}
+
 double Search::fit_rss(const Eigen::MatrixXd& cols) const {
   double rss = 0;
   profile->solve(stacked(cols), &rss);
@@ -230,6 +241,7 @@ Scored Search::score(const Eigen::MatrixXd& cols, bool slow_ok) const {
   s.conf = fold_std(e, held, fold, line, 1);
   s.held = fold_std(e, held, fold, line, -1);
   s.coef = coef.tail(k);
+  s.base_span_share = base_span_share(band);
   s.ok = std::isfinite(s.sel) && std::isfinite(s.conf) && std::isfinite(s.held) && coef.allFinite();
   if (slow_ok && has_slow_stage() && k > 0) {
     // The columns' energy on the calibration rows, each segment's mean removed.

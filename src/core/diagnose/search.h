@@ -49,6 +49,9 @@ struct Scored {
   long fits = 0;
   std::string note;
   bool slow = false;  // fitted by the slow stage (Model::slow_terms), not the band-pass
+  // The share of the columns' energy on the fit rows that lies in the span of the base's
+  // columns there (NaN when fitted by the slow stage).
+  double base_span_share = NAN;
 };
 
 // A column whose band-passed energy on the calibration segments is below this share of its
@@ -80,6 +83,9 @@ class Search {
   double slow_rss(const Eigen::MatrixXd& cols) const;
   // Whether the slow stage exists here: a band-pass fit on this flight's calibration segments.
   bool has_slow_stage() const { return slow_stage != nullptr; }
+  // The share (0..1) of the energy of stacked fit-row columns (M x k) that lies in the span of
+  // the base's fittable columns on those rows (af0).
+  double base_span_share(const Eigen::MatrixXd& band) const;
   // The fit's residual sum of squares with these columns added.
   double fit_rss(const Eigen::MatrixXd& cols) const;
   // Builds, scans (free parameters) and scores one job.
@@ -112,6 +118,7 @@ class Search {
   TermInputs inputs;
   Eigen::MatrixXd a0;  // the base's fittable columns, N x p
   Eigen::MatrixXd af0;
+  Eigen::MatrixXd af0_basis;  // an orthonormal basis of af0's column span, M x rank
   Eigen::VectorXd yf;
   std::unique_ptr<RidgeProfile> profile;
   Eigen::VectorXd e0;                     // base error, N

@@ -56,8 +56,7 @@ ResidualFloor floor_of(const FlightData& data, const Search& search,
   return residual_floor(r, search.unit, 1.0 / search.dt, channels);
 }
 
-// "complete" only while the held-out residual is within this factor of its own noise floor (or,
-// for a floor far below the resolution, within the resolution of it).
+// "complete" only while the held-out residual is within this factor of its own noise floor.
 constexpr double kCompleteWithinFloor = 1.5;
 
 // What is known of a residual no term explains: how far above its floor, what predicts it,
@@ -133,11 +132,20 @@ std::string verdict_of(const Diagnosis& dx, double resolution_nT) {
   }
   const ResidualFloor& f = dx.floor;
   if (f.computed) {
-    if (f.residual_std_nT <=
-        std::max(kCompleteWithinFloor * f.floor_nT, f.floor_nT + resolution_nT)) {
+    if (f.residual_std_nT <= kCompleteWithinFloor * f.floor_nT) {
       std::snprintf(buf, sizeof(buf),
                     "complete: the held-out residual (%.3f nT) is within %.1fx its noise floor "
-                    "(%.3f nT, its spectrum's white level above %.1f Hz) or %.3f nT of it",
+                    "(%.3f nT, its spectrum's white level above %.1f Hz)",
+                    f.residual_std_nT, kCompleteWithinFloor, f.floor_nT, f.band_lo_hz);
+      return buf;
+    }
+    // Above the floor by less than a term must gain: structure, but none the search resolves.
+    if (f.residual_std_nT <= f.floor_nT + resolution_nT) {
+      std::snprintf(buf, sizeof(buf),
+                    "below the resolution: the held-out residual (%.3f nT) is above %.1fx its "
+                    "noise floor (%.3f nT, its spectrum's white level above %.1f Hz), by less "
+                    "than the %.3f nT a term must gain; what remains is too small for the search "
+                    "to resolve, not noise",
                     f.residual_std_nT, kCompleteWithinFloor, f.floor_nT, f.band_lo_hz,
                     resolution_nT);
       return buf;

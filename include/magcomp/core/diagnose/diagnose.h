@@ -54,6 +54,10 @@ struct Candidate {
   /// (Model::slow_terms: fitted after the band-pass stage against the reference, unfiltered, on
   /// the calibration segments).
   bool slow = false;
+  /// The share (0..1) of its columns' energy on the fit rows that the model's own columns there
+  /// already span (NaN for a slow term): near 1, the term adds no direction of its own and only
+  /// moves the ridge's hold on the model's coefficients.
+  double base_span_share = NAN;
 };
 
 /// Settings of a diagnosis (defaults: the full search).
@@ -71,6 +75,10 @@ struct DiagnoseOptions {
   /// diagnose_loop: choose the ridge strength (fit.lambda) on the held-out lines before each
   /// round's terms (false: keep the model's; doc/diagnose.md says what it gains and costs).
   bool choose_lambda = false;
+  /// diagnose_loop: when a round's first term lies within the model's own span
+  /// (Candidate::base_span_share), choose the ridge strength as choose_lambda does before adding
+  /// it (false: add such a term as any other).
+  bool ridge_for_span_terms = true;
 };
 
 struct Diagnosis {

@@ -45,6 +45,11 @@ struct LoopRound {
   /// The round changed only the ridge strength (fit.lambda, chosen on the held-out lines;
   /// `added` reads "fit.lambda <value>"), before the round's terms; it shares their round number.
   bool regularisation = false;
+  /// For a ridge step taken because the round's first term lay within the model's own span
+  /// (DiagnoseOptions::ridge_for_span_terms): that term, and the share of its columns' energy the
+  /// model's columns span (Candidate::base_span_share). Empty otherwise.
+  std::string in_place_of;
+  double in_place_of_span_share = NAN;
 };
 
 struct LoopResult {
