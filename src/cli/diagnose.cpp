@@ -126,9 +126,11 @@ nlohmann::json to_json(const Diagnosis& dx) {
                                {"accepted", c.accepted},
                                {"slow", c.slow},
                                {"chosen_on_confirmation", c.chosen_on_confirmation},
-                               {"base_span_share", number(c.base_span_share)},
                                {"estimate", c.estimate},
                                {"parameters", p}});
+    // Where it is measured (a band-pass term): absent for a slow term, never null.
+    if (std::isfinite(c.base_span_share))
+      j["candidates"].back()["base_span_share"] = c.base_span_share;
   }
   const ExplainableShare& x = dx.explainable;
   nlohmann::json e;
@@ -465,7 +467,7 @@ void add_diagnose(CLI::App& app) {
         jr["lambda"] = number(lr.lambda);
         jr["regularisation"] = lr.regularisation;
         jr["in_place_of"] = lr.in_place_of;
-        jr["in_place_of_span_share"] = number(lr.in_place_of_span_share);
+        if (!lr.in_place_of.empty()) jr["in_place_of_span_share"] = lr.in_place_of_span_share;
         jr["alone_heldout_std_nT"] = lr.alone_std_nT;
         jr["removed"] = nlohmann::json::array();
         for (const auto& [term, why] : lr.removed)
