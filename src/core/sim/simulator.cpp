@@ -1,4 +1,6 @@
-// magcomp simulator: assembly of the Earth field, the aircraft, the sensors and the hidden effects.
+// magcomp simulator: assembly of the Earth field, the aircraft, the sensors and the hidden effects
+// (the steps in simulator_steps.h; the sensors in simulator_sensors.cpp, the navigation map and
+// INS in simulator_navigation.cpp).
 #include "magcomp/core/sim/simulator.h"
 
 #include <unistd.h>
@@ -25,28 +27,9 @@
 #include "magcomp/core/sim/crustal_field.h"
 #include "magcomp/core/sim/electrical.h"
 #include "magcomp/core/sim/trajectory.h"
+#include "simulator_steps.h"
 
 namespace magcomp::sim {
-namespace {
-
-using Vectors = std::vector<Eigen::Vector3d>;
-
-// Per-sensor aircraft field: B_a = p + M B + E dB/dt (body frame, nT; E in s).
-struct AircraftField {
-  Eigen::Vector3d permanent_nT;
-  Eigen::Matrix3d induced;
-  Eigen::Matrix3d eddy_s;
-};
-
-bool applies(const HiddenEffect& e, const SensorMount& m) {
-  if (e.sensors.empty()) return e.type == "fluxgate" ? m.vector : !m.vector;
-  return std::find(e.sensors.begin(), e.sensors.end(), m.name) != e.sensors.end();
-}
-
-double rms(const Eigen::VectorXd& v) { return std::sqrt(v.array().square().mean()); }
-double stdev(const Eigen::VectorXd& v) { return std::sqrt((v.array() - v.mean()).square().mean()); }
-
-}  // namespace
 
 std::string truth_path(const std::string& out_h5, const std::string& extension) {
   std::string base = out_h5;
@@ -60,81 +43,7 @@ std::string map_path(const std::string& out_h5) {
   return base + ".map.h5";
 }
 
-namespace {
-
-// The Earth field along the track, in the body frame (FLU) and as totals, nT.
-struct EarthAlongTrack {
-  Eigen::VectorXd tt, anomaly, diurnal, igrf_total, earth_total;
-  Vectors body;  // Earth field in base_link
-  Vectors rate;  // its rate of change, nT/s
-};
-
-// One simulation's state: the steps below run in this order, and draw from one random stream in
-// this order (the same seed gives the same file).
-class Simulator {
- public:
-  Simulator(const Scenario& s, const Igrf& igrf)
-      : s_(s),
-        igrf_(igrf),
-        tr_(fly(s)),
-        n_(tr_.size()),
-        dt_(1.0 / s.sample_rate_hz),
-        rng_(s.seed * 2654435761ULL + 5),
-        normal_(0.0, 1.0) {}
-
-  Simulation run() {
-    earth_field();
-    channels_ = simulate_channels(tr_, s_.seed);
-    ins_ = ins_quantities();
-    begin_truth();
-    draw_aircraft();
-    y_ << YAML::Key << "sensors" << YAML::Value << YAML::BeginMap;
-    for (size_t k = 0; k < sensor_mounts().size(); ++k) sensor(k);
-    y_ << YAML::EndMap;
-    hidden_effects_truth();
-    reference_and_survey_fields();
-    if (s_.nav_ins_drift) drifting_ins();
-    return std::move(sim_);
-  }
-
- private:
-  void earth_field();
-  void navigation_map(const Eigen::MatrixXd& ground_nT);
-  void drifting_ins();
-  std::map<std::string, Eigen::VectorXd> ins_quantities() const;
-  const Eigen::VectorXd& source(const std::string& name) const {
-    auto it = channels_.find(name);
-    return it != channels_.end() ? it->second : ins_.at(name);
-  }
-  void begin_truth();
-  void draw_aircraft();
-  Vectors sensor_field(const AircraftField& a) const;
-  void sensor(size_t index);
-  void fluxgate(const SensorMount& m, const Vectors& field);
-  void scalar(const SensorMount& m, const Vectors& field);
-  // One effect's contribution to a scalar sensor (nT), adding its body field to hidden_vec or
-  // its scalar part to scalar_extra.
-  Eigen::VectorXd hidden_contribution(const HiddenEffect& e, const SensorMount& m,
-                                      const Vectors& field, Vectors* hidden_vec,
-                                      Eigen::VectorXd* scalar_extra) const;
-  void hidden_effects_truth();
-  void hidden_effect_truth(const HiddenEffect& e);
-  void reference_and_survey_fields();
-  void ins_fields();
-
-  const Scenario& s_;
-  const Igrf& igrf_;  ///< the main field, given by the caller
-  const Track tr_;
-  const Eigen::Index n_;
-  const double dt_;
-  std::mt19937_64 rng_;
-  std::normal_distribution<double> normal_;
-  EarthAlongTrack earth_;
-  std::map<std::string, Eigen::VectorXd> channels_, ins_;
-  std::vector<AircraftField> aircraft_;
-  Simulation sim_;
-  YAML::Emitter y_;
-};
+namespace steps {
 
 void Simulator::earth_field() {
   // IGRF every second, interpolated; the crustal anomaly and the diurnal along B̂.
@@ -264,200 +173,6 @@ void Simulator::draw_aircraft() {
       for (int c = 0; c < 3; ++c) a.eddy_s(r, c) = w * 0.0008 * an(arng);
     aircraft_.push_back(a);
   }
-}
-
-Vectors Simulator::sensor_field(const AircraftField& a) const {
-  Vectors field(static_cast<size_t>(n_));  // Earth + aircraft, body frame
-  for (Eigen::Index i = 0; i < n_; ++i) {
-    const auto k = static_cast<size_t>(i);
-    field[k] =
-        earth_.body[k] + a.permanent_nT + a.induced * earth_.body[k] + a.eddy_s * earth_.rate[k];
-  }
-  return field;
-}
-
-void Simulator::sensor(size_t index) {
-  const SensorMount& m = sensor_mounts()[index];
-  const AircraftField& a = aircraft_[index];
-  const Vectors field = sensor_field(a);
-  y_ << YAML::Key << m.name << YAML::Value << YAML::BeginMap;
-  y_ << YAML::Key << "position_m" << YAML::Value << YAML::Flow
-     << std::vector<double>{m.position_m.x(), m.position_m.y(), m.position_m.z()};
-  y_ << YAML::Key << "permanent_nT" << YAML::Value << YAML::Flow
-     << std::vector<double>{a.permanent_nT.x(), a.permanent_nT.y(), a.permanent_nT.z()};
-  if (m.vector) {
-    fluxgate(m, field);
-  } else {
-    scalar(m, field);
-  }
-  y_ << YAML::EndMap;
-}
-
-void Simulator::fluxgate(const SensorMount& m, const Vectors& field) {
-  Eigen::MatrixX3d out(n_, 3), clean(n_, 3);
-  for (Eigen::Index i = 0; i < n_; ++i) clean.row(i) = field[static_cast<size_t>(i)].transpose();
-  out = clean;
-  for (const HiddenEffect& e : s_.hidden) {
-    if (e.type != "fluxgate" || !applies(e, m)) continue;
-    Eigen::Matrix3d t = Eigen::Matrix3d::Identity();
-    t.diagonal() += e.scale;
-    t(1, 0) = std::sin(e.nonorthogonality_rad[0]);  // y axis leans toward x
-    t(2, 0) = std::sin(e.nonorthogonality_rad[1]);  // z toward x
-    t(2, 1) = std::sin(e.nonorthogonality_rad[2]);  // z toward y
-    out = ((out * t.transpose()).rowwise() + e.offset_nT.transpose()).eval();
-  }
-  for (int c = 0; c < 3; ++c) {
-    for (Eigen::Index i = 0; i < n_; ++i) out(i, c) += s_.fluxgate_noise_nT * normal_(rng_);
-  }
-  const char* axis[3] = {"_x", "_y", "_z"};
-  for (int c = 0; c < 3; ++c) {
-    sim_.flight.set(m.name + axis[c], out.col(c));
-    sim_.truth.set(m.name + ".clean" + axis[c], clean.col(c));
-  }
-  sim_.flight.set(m.name + "_t", out.rowwise().norm());
-}
-
-Eigen::VectorXd Simulator::hidden_contribution(const HiddenEffect& e, const SensorMount& m,
-                                               const Vectors& field, Vectors* hidden_vec,
-                                               Eigen::VectorXd* scalar_extra) const {
-  Eigen::VectorXd contrib(n_);
-  // A body field b(t): its effect on the scalar is the exact change of the norm.
-  auto body_field = [&](const std::function<Eigen::Vector3d(Eigen::Index)>& b_of) {
-    for (Eigen::Index i = 0; i < n_; ++i) {
-      const auto kk = static_cast<size_t>(i);
-      const Eigen::Vector3d b = b_of(i);
-      contrib[i] = (field[kk] + b).norm() - field[kk].norm();
-      (*hidden_vec)[kk] += b;
-    }
-  };
-  if (e.type == "wire") {
-    const Eigen::Vector3d per_ampere =
-        wire_field_per_ampere_nT(e.position_m - 0.5 * e.length_m * e.direction,
-                                 e.position_m + 0.5 * e.length_m * e.direction, m.position_m);
-    const Eigen::VectorXd& current = channels_.at(e.channel);
-    body_field([&](Eigen::Index i) { return Eigen::Vector3d(per_ampere * current[i]); });
-  } else if (e.type == "inductive") {
-    const Eigen::VectorXd rate = central_rate(channels_.at(e.channel), dt_);
-    body_field([&](Eigen::Index i) { return Eigen::Vector3d(e.gain * e.direction * rate[i]); });
-  } else if (e.type == "thermal" || e.type == "flex" || e.type == "relay" ||
-             e.type == "eddy_decay") {
-    // b = gain · direction · s(t) (eddy_decay: gain · E · lp(dB/dt)); s low-passed by the
-    // effect's time constant (none for a relay).
-    const double alpha = e.time_constant_s > 0 ? std::exp(-dt_ / e.time_constant_s) : 0.0;
-    static const Eigen::Matrix3d kEddyPattern =
-        (Eigen::Matrix3d() << 1.0, 0.5, 0.0, 0.3, -0.8, 0.4, 0.0, 0.6, 1.0).finished();
-    Eigen::Vector3d state = Eigen::Vector3d::Zero();
-    body_field([&](Eigen::Index i) -> Eigen::Vector3d {
-      if (e.type == "eddy_decay") {
-        const Eigen::Vector3d& r = earth_.rate[static_cast<size_t>(i)];
-        state = i == 0 ? r : Eigen::Vector3d(alpha * state + (1 - alpha) * r);
-        return e.gain * (kEddyPattern * state);
-      }
-      const double x = source(e.channel)[i];
-      double v = e.type == "thermal" ? std::pow(std::abs(x), e.exponent)
-                 : e.type == "relay" ? (x > e.threshold ? 1.0 : 0.0)
-                                     : x;
-      if (e.type != "relay" && e.time_constant_s > 0) {
-        state[0] = i == 0 ? v : alpha * state[0] + (1 - alpha) * v;
-        v = state[0];
-      }
-      return e.gain * v * e.direction;
-    });
-  } else if (e.type == "hysteresis") {
-    // A soft-iron part magnetised by a current's field, with play: the backlash operator of
-    // half-width `threshold` on the current.
-    const Eigen::VectorXd& x = channels_.at(e.channel);
-    double state = x[0];
-    body_field([&](Eigen::Index i) {
-      state = std::max(x[i] - e.threshold, std::min(x[i] + e.threshold, state));
-      return Eigen::Vector3d(e.gain * state * e.direction);
-    });
-  } else if (e.type == "saturation") {
-    // A current through a core: nothing below the dead band's end, then a field that levels off.
-    const Eigen::VectorXd& x = channels_.at(e.channel);
-    body_field([&](Eigen::Index i) {
-      const double v = e.level * std::tanh(std::max(x[i] - e.threshold, 0.0) / e.level);
-      return Eigen::Vector3d(e.gain * v * e.direction);
-    });
-  } else if (e.type == "product") {
-    const Eigen::VectorXd& x = source(e.channel);
-    const Eigen::VectorXd& y = source(e.channel2);
-    body_field([&](Eigen::Index i) { return Eigen::Vector3d(e.gain * x[i] * y[i] * e.direction); });
-  } else if (e.type == "heading") {
-    for (Eigen::Index i = 0; i < n_; ++i) {
-      contrib[i] = e.gain * field[static_cast<size_t>(i)].normalized().dot(e.direction);
-    }
-    *scalar_extra += contrib;
-  } else if (e.type == "ripple") {
-    // Its own random stream (the scenario's seed and the sensor): the other fields of a
-    // scenario without a ripple are unchanged.
-    std::mt19937 rng(s_.seed * 2654435761u +
-                     static_cast<unsigned>(std::hash<std::string>{}(m.name)));
-    std::normal_distribution<double> step(0.0, e.phase_walk_rad * std::sqrt(dt_));
-    const Eigen::VectorXd& x = channels_.at(e.channel);
-    double phase = 0.0;
-    for (Eigen::Index i = 0; i < n_; ++i) {
-      phase += step(rng);
-      contrib[i] = e.gain * x[i] * std::sin(2 * kPi * e.frequency_hz * dt_ * i + phase);
-    }
-    *scalar_extra += contrib;
-  } else if (e.type == "drift") {
-    const Eigen::VectorXd& x = channels_.at(e.channel);
-    const double alpha = std::exp(-dt_ / e.time_constant_s);
-    double state = x[0];
-    for (Eigen::Index i = 0; i < n_; ++i) {
-      state = alpha * state + (1 - alpha) * x[i];
-      contrib[i] = e.gain * (state - x[0]);
-    }
-    *scalar_extra += contrib;
-  }
-  return contrib;
-}
-
-void Simulator::scalar(const SensorMount& m, const Vectors& field) {
-  // The exact norm of Earth + aircraft + hidden body fields, then the scalar effects, the lag
-  // and the noise.
-  Eigen::VectorXd base(n_);
-  for (Eigen::Index i = 0; i < n_; ++i) base[i] = field[static_cast<size_t>(i)].norm();
-  sim_.truth.set(m.name + ".aircraft", base - earth_.earth_total);
-  y_ << YAML::Key << "aircraft_rms_nT" << YAML::Value << rms(base - earth_.earth_total);
-  y_ << YAML::Key << "aircraft_std_nT" << YAML::Value << stdev(base - earth_.earth_total);
-  Vectors hidden_vec(static_cast<size_t>(n_), Eigen::Vector3d::Zero());
-  Eigen::VectorXd scalar_extra = Eigen::VectorXd::Zero(n_);
-  std::vector<std::pair<size_t, Eigen::VectorXd>> contributions;
-  for (size_t k = 0; k < s_.hidden.size(); ++k) {
-    const HiddenEffect& e = s_.hidden[k];
-    if (!applies(e, m) || e.type == "fluxgate" || e.type == "lag") continue;
-    contributions.emplace_back(k, hidden_contribution(e, m, field, &hidden_vec, &scalar_extra));
-  }
-  Eigen::VectorXd clean(n_);
-  for (Eigen::Index i = 0; i < n_; ++i) {
-    const auto kk = static_cast<size_t>(i);
-    clean[i] = (field[kk] + hidden_vec[kk]).norm() + scalar_extra[i];
-  }
-  for (size_t k = 0; k < s_.hidden.size(); ++k) {
-    const HiddenEffect& e = s_.hidden[k];
-    if (e.type != "lag" || !applies(e, m)) continue;
-    // Before the flight's first sample the sensor read the field of the first sample.
-    const Eigen::VectorXd lagged = shift_samples(clean, e.lag_s / dt_, true);
-    contributions.emplace_back(k, lagged - clean);
-    clean = lagged;
-  }
-  Eigen::VectorXd noise(n_);
-  for (Eigen::Index i = 0; i < n_; ++i) noise[i] = s_.scalar_noise_nT * normal_(rng_);
-  sim_.flight.set(m.name, clean + noise);
-  sim_.truth.set(m.name + ".clean", clean);
-  sim_.truth.set(m.name + ".noise", noise);
-  y_ << YAML::Key << "hidden" << YAML::Value << YAML::BeginSeq;
-  for (const auto& [k, contrib] : contributions) {
-    const std::string col = m.name + ".hidden." + std::to_string(k) + "." + s_.hidden[k].type;
-    sim_.truth.set(col, contrib);
-    y_ << YAML::BeginMap << YAML::Key << "effect" << YAML::Value << static_cast<int>(k) << YAML::Key
-       << "type" << YAML::Value << s_.hidden[k].type << YAML::Key << "column" << YAML::Value << col
-       << YAML::Key << "rms_nT" << YAML::Value << rms(contrib) << YAML::Key << "std_nT"
-       << YAML::Value << stdev(contrib) << YAML::EndMap;
-  }
-  y_ << YAML::EndSeq;
 }
 
 void Simulator::hidden_effects_truth() {
@@ -594,73 +309,7 @@ void Simulator::ins_fields() {
   f.set("tas", tr_.speed_mps);
 }
 
-// The anomaly the flight samples, as a map a navigator would carry: a latitude/longitude grid over
-// the flight and a margin, at the flight's mean height above the (flat) ground, its cell the
-// anomaly grid's. The flight at that height samples exactly this field.
-void Simulator::navigation_map(const Eigen::MatrixXd& ground) {
-  const double mean_alt = tr_.alt_m.mean();
-  const double cell = s_.anomaly_grid_m, margin = s_.nav_map_margin_m;
-  const Eigen::MatrixXd grid = upward_continue(ground, cell, cell, mean_alt - s_.terrain_m);
-  const double n0 = tr_.north_m.minCoeff() - margin, n1 = tr_.north_m.maxCoeff() + margin;
-  const double e0 = tr_.east_m.minCoeff() - margin, e1 = tr_.east_m.maxCoeff() + margin;
-  const auto ny = static_cast<Eigen::Index>(std::ceil((n1 - n0) / cell)) + 1;
-  const auto nx = static_cast<Eigen::Index>(std::ceil((e1 - e0) / cell)) + 1;
-  const double deg_per_north_m = 1.0 / kMeanEarthRadius_m / kDegToRad;
-  const double deg_per_east_m =
-      1.0 / (kMeanEarthRadius_m * std::cos(s_.origin_lat_deg * kDegToRad)) / kDegToRad;
-  nav::AnomalyMap& m = sim_.map;
-  m.alt_m = mean_alt;
-  m.lat_rad.resize(ny);
-  m.lon_rad.resize(nx);
-  m.map_nT.resize(ny, nx);
-  m.mask = Eigen::MatrixXd::Ones(ny, nx);
-  for (Eigen::Index i = 0; i < ny; ++i)
-    m.lat_rad[i] = (s_.origin_lat_deg + (n0 + cell * i) * deg_per_north_m) * kDegToRad;
-  for (Eigen::Index j = 0; j < nx; ++j)
-    m.lon_rad[j] = (s_.origin_lon_deg + (e0 + cell * j) * deg_per_east_m) * kDegToRad;
-  for (Eigen::Index i = 0; i < ny; ++i)
-    for (Eigen::Index j = 0; j < nx; ++j)
-      m.map_nT(i, j) = periodic_value(grid, cell, n0 + cell * i, e0 + cell * j);
-}
-
-// A navigation-grade INS: its position errors propagated with the filter's own error model
-// (Pinson dynamics, MagNav.jl's default sigmas) from an initial error drawn from P0, on a random
-// stream of their own. The attitude and velocities stay as recorded.
-void Simulator::drifting_ins() {
-  const double dt = 1.0 / s_.sample_rate_hz;
-  const Eigen::VectorXd lat = tr_.lat_deg * kDegToRad, lon = tr_.lon_deg * kDegToRad;
-  const nav::NavTrack truth =
-      nav::track_from_positions(dt, lat, lon, tr_.alt_m, tr_.roll_rad, tr_.pitch_rad, tr_.yaw_rad);
-  const nav::FilterSettings model = nav::filter_model(dt, lat[0], nav::ModelSigmas{});
-  std::mt19937_64 rng(s_.nav_ins_seed * 0x9E3779B97F4A7C15ULL + s_.seed);
-  std::normal_distribution<double> normal(0.0, 1.0);
-  const Eigen::VectorXd sd0 = model.p0.diagonal().cwiseSqrt(),
-                        sdq = model.qd.diagonal().cwiseSqrt();
-  Eigen::VectorXd x(18);
-  for (int k = 0; k < 18; ++k) x[k] = sd0[k] * normal(rng);
-  x[17] = 0.0;  // the catch-all is the filter's, not the INS's
-  Eigen::VectorXd ins_lat(n_), ins_lon(n_), ins_alt(n_);
-  for (Eigen::Index i = 0; i < n_; ++i) {
-    ins_lat[i] = lat[i] + x[0];
-    ins_lon[i] = lon[i] + x[1];
-    ins_alt[i] = tr_.alt_m[i] + x[2];
-    const Eigen::MatrixXd phi = nav::pinson_transition(truth.point(i), model.taus, true, dt);
-    x = phi * x;
-    for (int k = 0; k < 17; ++k) x[k] += sdq[k] * normal(rng);
-  }
-  sim_.flight.set("ins_lat", ins_lat);
-  sim_.flight.set("ins_lon", ins_lon);
-  sim_.flight.set("ins_alt", ins_alt);
-  const nav::PositionErrors e =
-      nav::position_errors(nav::track_from_positions(dt, ins_lat, ins_lon, ins_alt, tr_.roll_rad,
-                                                     tr_.pitch_rad, tr_.yaw_rad),
-                           {}, lat, lon);
-  char line[96];
-  std::snprintf(line, sizeof(line), "ins_drift_drms_m: %.3f\n", e.drms_m);
-  sim_.truth_yaml += line;
-}
-
-}  // namespace
+}  // namespace steps
 
 std::string expected_term(const HiddenEffect& e) {
   const std::string lp = "|lp(" + format_param(e.time_constant_s) + ")";
@@ -683,7 +332,7 @@ std::string expected_term(const HiddenEffect& e) {
   return "";
 }
 
-Simulation simulate(const Scenario& s, const Igrf& igrf) { return Simulator(s, igrf).run(); }
+Simulation simulate(const Scenario& s, const Igrf& igrf) { return steps::Simulator(s, igrf).run(); }
 
 void write_simulation(const Simulation& sim, const std::string& out_h5,
                       const std::vector<std::string>& inputs) {
