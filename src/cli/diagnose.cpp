@@ -248,247 +248,257 @@ void diagnose_several(const Model& model_in, const std::vector<std::string>& pat
   if (!json_path.empty()) write_file_atomic(json_path, j.dump(2) + "\n", guard.input_paths());
 }
 
+// What diagnose's command line asks for.
+struct DiagnoseArgs {
+  std::string data, model_path, truth = "mag_1_c", json_path, out, validate, track = "truth";
+  int top = 10, rounds = 5;
+  double min_share = 0.05;
+  bool apply = false, quick = false, choose_lambda = false;
+};
+
+// One round of the loop on one flight, as it runs: its baseline, its first candidates, its
+// verdict.
+void print_round_progress(int round, size_t f, const std::vector<std::string>& paths,
+                          const Diagnosis& dx, int top) {
+  const size_t flights = paths.size();
+  if (flights == 1)
+    std::printf("== round %d\n", round);
+  else
+    std::printf("== round %d, flight %zu of %zu (%s)\n", round, f + 1, flights, paths[f].c_str());
+  std::printf("  held-out std %.3f nT; top: %s\n", dx.baseline_std_nT,
+              dx.candidates.empty() ? "(none)" : dx.candidates.front().term.c_str());
+  for (size_t k = 0; k < dx.candidates.size() && static_cast<int>(k) < std::min(top, 5); ++k) {
+    const Candidate& c = dx.candidates[k];
+    std::printf("    %-34s %6.1f%% (selection %5.1f%%, confirmation %5.1f%%) %s%s\n",
+                c.term.c_str(), 100 * c.explained_fraction, 100 * c.explained_selection,
+                100 * c.explained_confirmation, c.estimate.c_str(),
+                c.accepted ? "" : " [rejected]");
+  }
+  std::printf("  verdict: %s\n", dx.verdict.c_str());
+  std::fflush(stdout);
+}
+
+// The loop's rounds: what each added (or refused, or removed), and the errors after it.
+void print_rounds_table(const LoopResult& r, bool validation, size_t flights) {
+  std::printf("\n%-6s %-36s %10s %14s %12s %12s%s\n", "round", "added term", "explained",
+              "held-out std", "all-lines", "FOM", validation ? "   validation" : "");
+  for (const auto& lr : r.rounds) {
+    for (const auto& [term, why] : lr.rejected)
+      std::printf("       refused %s: %s\n", term.c_str(), why.c_str());
+    const std::string added = lr.round == 0       ? "(the model as given)"
+                              : lr.black_box      ? "[black box] " + lr.added
+                              : lr.together       ? "[together] " + lr.added
+                              : lr.regularisation ? "[ridge] " + lr.added
+                                                  : lr.added;
+    std::printf("%-6d %-36s %9.1f%% %11.3f nT %9.3f nT %9s nT", lr.round, added.c_str(),
+                100 * lr.explained, lr.heldout_std_nT, lr.all_std_nT,
+                figure(lr.fom_nT, "%.2f").c_str());
+    if (validation) std::printf(" %9s nT", figure(lr.validation_std_nT, "%.3f").c_str());
+    std::printf("\n");
+    if (flights > 1) {
+      std::printf("       held-out std per flight:");
+      for (double v : lr.flight_heldout_std_nT) std::printf(" %s", figure(v, "%.3f").c_str());
+      std::printf(" nT\n");
+    }
+    if (!lr.in_place_of.empty())
+      std::printf(
+          "       in place of %s: %.4f%% of its columns' energy lies within the model's "
+          "own columns, so its gain is the ridge's hold on them, not an effect of its "
+          "channel\n",
+          lr.in_place_of.c_str(), 100 * lr.in_place_of_span_share);
+    if (lr.together && lr.alone_std_nT.size() == 2)
+      std::printf("       together: held-out %.3f nT; alone %.3f and %.3f nT (each is needed)\n",
+                  lr.heldout_std_nT, lr.alone_std_nT[0], lr.alone_std_nT[1]);
+    for (const auto& [term, why] : lr.removed)
+      std::printf("       removed %s: %s\n", term.c_str(), why.c_str());
+  }
+}
+
+// The loop's JSON: its rounds, its stop, the added terms' support and its last diagnosis.
+nlohmann::json loop_json(const LoopResult& r, const std::vector<TermSupport>& support) {
+  nlohmann::json j;
+  j["rounds"] = nlohmann::json::array();
+  for (const auto& lr : r.rounds) {
+    j["rounds"].push_back({{"round", lr.round},
+                           {"added", lr.added},
+                           {"black_box", lr.black_box},
+                           {"explained_fraction", lr.explained},
+                           {"heldout_std_nT", lr.heldout_std_nT},
+                           {"all_std_nT", lr.all_std_nT},
+                           {"fom_nT", number(lr.fom_nT)}});
+    auto& jr = j["rounds"].back();
+    jr["validation_std_nT"] = number(lr.validation_std_nT);
+    jr["flights_heldout_std_nT"] = nlohmann::json::array();
+    for (double v : lr.flight_heldout_std_nT) jr["flights_heldout_std_nT"].push_back(number(v));
+    jr["rejected"] = nlohmann::json::array();
+    for (const auto& [term, why] : lr.rejected)
+      jr["rejected"].push_back({{"term", term}, {"why", why}});
+    jr["together"] = lr.together;
+    jr["lambda"] = number(lr.lambda);
+    jr["regularisation"] = lr.regularisation;
+    jr["in_place_of"] = lr.in_place_of;
+    if (!lr.in_place_of.empty()) jr["in_place_of_span_share"] = lr.in_place_of_span_share;
+    jr["alone_heldout_std_nT"] = lr.alone_std_nT;
+    jr["removed"] = nlohmann::json::array();
+    for (const auto& [term, why] : lr.removed)
+      jr["removed"].push_back({{"term", term}, {"why", why}});
+  }
+  j["stop"] = r.stop_reason;
+  j["warnings"] = r.warnings;
+  j["support"] = nlohmann::json::array();
+  for (const TermSupport& s : support) {
+    j["support"].push_back({{"term", s.term},
+                            {"channel", s.channel},
+                            {"switches", s.switches},
+                            {"size_nT", number(s.size_nT)},
+                            {"size_sigma_nT", number(s.size_sigma_nT)},
+                            {"note", support_note(s)}});
+  }
+  j["last_diagnosis"] = to_json(r.last);
+  return j;
+}
+
+// The final model with its held-out error variance, as calibrate writes it (it enters each
+// sample's variance: navigate --model-variance, the compensator), written to `out`.
+void write_final_model(const LoopResult& r, const std::vector<const FlightData*>& flights,
+                       const std::string& truth, const std::string& out,
+                       const std::vector<std::string>& inputs) {
+  Model final_model = r.model;
+  const auto [holdout_var, holdout_rows] = holdout_error_variance_nT2(final_model, flights, truth);
+  if (holdout_rows > 0 && std::isfinite(holdout_var))
+    final_model.report.holdout_error_variance_nT2 = holdout_var;
+  save_model_yaml(final_model, out, inputs);
+  std::printf("wrote %s (terms:", out.c_str());
+  for (const auto& t : r.model.terms) std::printf(" %s", t.c_str());
+  std::printf(")\n");
+  if (std::isfinite(final_model.report.holdout_error_variance_nT2))
+    std::printf(
+        "held-out error std %.4g nT against %s on %ld samples of lines not fitted (in "
+        "each sample's variance)\n",
+        std::sqrt(final_model.report.holdout_error_variance_nT2), truth.c_str(),
+        static_cast<long>(holdout_rows));
+}
+
+// The command: one flight diagnosed, several ranked together, or the loop (--apply).
+void run_diagnose(const DiagnoseArgs& a) {
+  if (a.apply && a.out.empty()) throw Error("--apply needs --out (the final model YAML)");
+  if (!(a.min_share >= 0 && a.min_share < 1)) throw Error("--min-share: must be in [0, 1)");
+  if (a.rounds < 1 || a.rounds > 50) throw Error("--rounds: must be in 1..50");
+  if (a.top < 0) throw Error("--top: must be >= 0");
+  if (!a.validate.empty() && !a.apply) throw Error("--validate: only with --apply");
+  if (!a.out.empty() && !a.apply) throw Error("--out: only with --apply (the final model)");
+  if (a.choose_lambda && !a.apply) throw Error("--choose-lambda: only with --apply");
+  const std::vector<std::string> paths = flight_paths("--data", a.data);
+  std::vector<OutputGuard::File> others = {{"--model", a.model_path}, {"--validate", a.validate}};
+  for (const auto& m : map_inputs("--truth", {a.truth})) others.push_back(m);
+  OutputGuard guard = guard_for(paths, others);
+  guard.add_output("--out", a.out);
+  guard.add_output("--json", a.json_path);
+  const std::vector<std::string> inputs = guard.input_paths();
+  Model model = load_model_yaml(a.model_path);
+  // With the map as the reference, it is also the slow stage's (no stinger flies).
+  if (nav::names_map(a.truth)) model.fit.reference = a.truth;
+  const auto read = [&](const std::string& path) {
+    FlightData f = read_flight(path);
+    add_map_references(&f, {a.truth, model.fit.reference}, a.track, &model);
+    return f;
+  };
+  DiagnoseOptions options;
+  options.full_search = !a.quick;
+  options.choose_lambda = a.choose_lambda;
+  if (paths.size() > 1 && !a.apply) {
+    diagnose_several(model, paths, a.model_path, a.truth, a.json_path, a.top, options, guard, read);
+    return;
+  }
+  // With --apply over several flights, every flight is held: each round diagnoses them all.
+  std::vector<FlightData> held_flights;
+  for (const auto& path : paths) held_flights.push_back(read(path));
+  std::vector<const FlightData*> flights;
+  for (const auto& f : held_flights) flights.push_back(&f);
+  if (!a.apply) {
+    const FlightData& flight = held_flights.front();
+    if (!model.fitted()) fit_model(model, {&flight});
+    const Diagnosis dx = diagnose(model, flight, a.truth, options);
+    guard.check_inputs_unchanged();
+    print_diagnosis(model, dx, a.top, a.data, a.model_path);
+    print_map_note(a.truth);
+    if (a.json_path.empty()) return;
+    nlohmann::json j = to_json(dx);
+    j["data"] = a.data;
+    j["model"] = a.model_path;
+    j["truth"] = a.truth;
+    write_file_atomic(a.json_path, j.dump(2) + "\n", inputs);
+    return;
+  }
+  std::unique_ptr<FlightData> validation;
+  if (!a.validate.empty()) validation = std::make_unique<FlightData>(read(a.validate));
+  const LoopResult r = diagnose_loop(
+      model, flights, a.truth, a.rounds, a.min_share, options,
+      [&](int round, size_t f, const Diagnosis& dx) {
+        print_round_progress(round, f, paths, dx, a.top);
+      },
+      validation.get());
+  guard.check_inputs_unchanged();
+  print_rounds_table(r, validation != nullptr, flights.size());
+  std::printf("stop: %s\n", r.stop_reason.c_str());
+  for (const std::string& w : r.warnings) std::printf("warning: %s\n", w.c_str());
+  // Terms the flight barely supports: their channel barely switched where they were fitted.
+  const std::vector<TermSupport> support = term_support(r.model, model, flights);
+  for (const TermSupport& s : support) {
+    const std::string note = support_note(s);
+    if (!note.empty()) std::printf("note: %s: %s\n", s.term.c_str(), note.c_str());
+  }
+  write_final_model(r, flights, a.truth, a.out, inputs);
+  print_map_note(a.truth);
+  if (a.json_path.empty()) return;
+  nlohmann::json j = loop_json(r, support);
+  j["data"] = a.data;
+  j["model"] = a.model_path;
+  j["out"] = a.out;
+  if (validation) j["validation"] = a.validate;
+  write_file_atomic(a.json_path, j.dump(2) + "\n", inputs);
+}
+
 }  // namespace
 
 void add_diagnose(CLI::App& app) {
   auto* cmd = app.add_subcommand("diagnose", "rank candidate missing effects on held-out data");
-  auto data = std::make_shared<std::string>();
-  auto model_path = std::make_shared<std::string>();
-  auto truth = std::make_shared<std::string>("mag_1_c");
-  auto json_path = std::make_shared<std::string>();
-  auto top = std::make_shared<int>(10);
-  auto apply = std::make_shared<bool>(false);
-  auto out = std::make_shared<std::string>();
-  auto rounds = std::make_shared<int>(5);
-  auto min_share = std::make_shared<double>(0.05);
-  auto quick = std::make_shared<bool>(false);
-  auto choose_lambda = std::make_shared<bool>(false);
-  auto validate = std::make_shared<std::string>();
-  auto track = std::make_shared<std::string>("truth");
-  cmd->add_option("--data", *data,
+  auto a = std::make_shared<DiagnoseArgs>();
+  cmd->add_option("--data", a->data,
                   "flight HDF5 file; several, comma-separated: each diagnosed in turn, the "
                   "candidates ranked across them (with --apply: flights of one aircraft; the "
                   "model is fitted on all of them and every check made on all their held-out "
                   "lines)")
       ->required();
-  cmd->add_option("--model", *model_path, "model YAML (fitted or not)")->required();
-  cmd->add_option("--truth", *truth,
+  cmd->add_option("--model", a->model_path, "model YAML (fitted or not)")->required();
+  cmd->add_option("--truth", a->truth,
                   "reference field (default mag_1_c), or map:M.h5: the anomaly map along --track "
                   "plus the IGRF and the diurnal (no stinger needed; also the slow stage's "
                   "reference)");
-  cmd->add_option("--track", *track,
+  cmd->add_option("--track", a->track,
                   "with --truth map:M.h5, where the map is read: truth (lat/lon), ins, or filter "
                   "(the navigation filter on the model's anomaly; a fitted model); default truth")
       ->check(CLI::IsMember({"truth", "ins", "filter"}));
-  cmd->add_option("--json", *json_path, "write the diagnosis JSON here (with --apply: the rounds)");
-  cmd->add_option("--top", *top, "rows to print (default 10)");
-  cmd->add_flag("--apply", *apply,
+  cmd->add_option("--json", a->json_path,
+                  "write the diagnosis JSON here (with --apply: the rounds)");
+  cmd->add_option("--top", a->top, "rows to print (default 10)");
+  cmd->add_flag("--apply", a->apply,
                 "run the loop: add the accepted top term while it explains --min-share, refit, "
                 "repeat (--rounds); write the final model to --out");
-  cmd->add_option("--out", *out, "with --apply: the final model YAML");
-  cmd->add_option("--rounds", *rounds, "with --apply: at most this many terms added (default 5)");
-  cmd->add_option("--min-share", *min_share,
+  cmd->add_option("--out", a->out, "with --apply: the final model YAML");
+  cmd->add_option("--rounds", a->rounds, "with --apply: at most this many terms added (default 5)");
+  cmd->add_option("--min-share", a->min_share,
                   "with --apply: the share of the held-out error a term must explain (0.05)");
-  cmd->add_option("--validate", *validate,
+  cmd->add_option("--validate", a->validate,
                   "with --apply: another flight of the same aircraft; a term is kept only if it "
                   "also lowers the error there");
   cmd->add_flag(
-      "--choose-lambda", *choose_lambda,
+      "--choose-lambda", a->choose_lambda,
       "with --apply: each round first chooses fit.lambda on the held-out lines (1/10, "
       "1/100 or 1/1000 of the model's, or back to it, if the error falls on both halves)");
-  cmd->add_flag("--channels-only", *quick,
+  cmd->add_flag("--channels-only", a->quick,
                 "search only the cur_/vol_ and attitude-rate channels (faster)");
-  cmd->callback([=] {
-    if (*apply && out->empty()) throw Error("--apply needs --out (the final model YAML)");
-    if (!(*min_share >= 0 && *min_share < 1)) throw Error("--min-share: must be in [0, 1)");
-    if (*rounds < 1 || *rounds > 50) throw Error("--rounds: must be in 1..50");
-    if (*top < 0) throw Error("--top: must be >= 0");
-    if (!validate->empty() && !*apply) throw Error("--validate: only with --apply");
-    if (!out->empty() && !*apply) throw Error("--out: only with --apply (the final model)");
-    if (*choose_lambda && !*apply) throw Error("--choose-lambda: only with --apply");
-    const std::vector<std::string> paths = flight_paths("--data", *data);
-    std::vector<OutputGuard::File> others = {{"--model", *model_path}, {"--validate", *validate}};
-    for (const auto& m : map_inputs("--truth", {*truth})) others.push_back(m);
-    OutputGuard guard = guard_for(paths, others);
-    guard.add_output("--out", *out);
-    guard.add_output("--json", *json_path);
-    const std::vector<std::string> inputs = guard.input_paths();
-    Model model = load_model_yaml(*model_path);
-    // With the map as the reference, it is also the slow stage's (no stinger flies).
-    if (nav::names_map(*truth)) model.fit.reference = *truth;
-    const auto read = [&](const std::string& path) {
-      FlightData f = read_flight(path);
-      add_map_references(&f, {*truth, model.fit.reference}, *track, &model);
-      return f;
-    };
-    DiagnoseOptions options;
-    options.full_search = !*quick;
-    options.choose_lambda = *choose_lambda;
-    if (paths.size() > 1 && !*apply) {
-      diagnose_several(model, paths, *model_path, *truth, *json_path, *top, options, guard, read);
-      return;
-    }
-    // With --apply over several flights, every flight is held: each round diagnoses them all.
-    std::vector<FlightData> held_flights;
-    for (const auto& path : paths) held_flights.push_back(read(path));
-    std::vector<const FlightData*> flights;
-    for (const auto& f : held_flights) flights.push_back(&f);
-    const FlightData& flight = held_flights.front();
-    if (!*apply) {
-      if (!model.fitted()) {
-        Model fitted = model;
-        fit_model(fitted, {&flight});
-        const Diagnosis dx = diagnose(fitted, flight, *truth, options);
-        guard.check_inputs_unchanged();
-        print_diagnosis(fitted, dx, *top, *data, *model_path);
-        print_map_note(*truth);
-        if (!json_path->empty()) write_file_atomic(*json_path, to_json(dx).dump(2) + "\n", inputs);
-        return;
-      }
-      const Diagnosis dx = diagnose(model, flight, *truth, options);
-      guard.check_inputs_unchanged();
-      print_diagnosis(model, dx, *top, *data, *model_path);
-      print_map_note(*truth);
-      if (!json_path->empty()) {
-        nlohmann::json j = to_json(dx);
-        j["data"] = *data;
-        j["model"] = *model_path;
-        j["truth"] = *truth;
-        write_file_atomic(*json_path, j.dump(2) + "\n", inputs);
-      }
-      return;
-    }
-    std::unique_ptr<FlightData> validation;
-    if (!validate->empty()) validation = std::make_unique<FlightData>(read(*validate));
-    const LoopResult r = diagnose_loop(
-        model, flights, *truth, *rounds, *min_share, options,
-        [&](int round, size_t f, const Diagnosis& dx) {
-          if (flights.size() == 1)
-            std::printf("== round %d\n", round);
-          else
-            std::printf("== round %d, flight %zu of %zu (%s)\n", round, f + 1, flights.size(),
-                        paths[f].c_str());
-          std::printf("  held-out std %.3f nT; top: %s\n", dx.baseline_std_nT,
-                      dx.candidates.empty() ? "(none)" : dx.candidates.front().term.c_str());
-          for (size_t k = 0; k < dx.candidates.size() && static_cast<int>(k) < std::min(*top, 5);
-               ++k) {
-            const Candidate& c = dx.candidates[k];
-            std::printf("    %-34s %6.1f%% (selection %5.1f%%, confirmation %5.1f%%) %s%s\n",
-                        c.term.c_str(), 100 * c.explained_fraction, 100 * c.explained_selection,
-                        100 * c.explained_confirmation, c.estimate.c_str(),
-                        c.accepted ? "" : " [rejected]");
-          }
-          std::printf("  verdict: %s\n", dx.verdict.c_str());
-          std::fflush(stdout);
-        },
-        validation.get());
-    guard.check_inputs_unchanged();
-    std::printf("\n%-6s %-36s %10s %14s %12s %12s%s\n", "round", "added term", "explained",
-                "held-out std", "all-lines", "FOM", validation ? "   validation" : "");
-    for (const auto& lr : r.rounds) {
-      for (const auto& [term, why] : lr.rejected)
-        std::printf("       refused %s: %s\n", term.c_str(), why.c_str());
-      const std::string added = lr.round == 0       ? "(the model as given)"
-                                : lr.black_box      ? "[black box] " + lr.added
-                                : lr.together       ? "[together] " + lr.added
-                                : lr.regularisation ? "[ridge] " + lr.added
-                                                    : lr.added;
-      std::printf("%-6d %-36s %9.1f%% %11.3f nT %9.3f nT %9s nT", lr.round, added.c_str(),
-                  100 * lr.explained, lr.heldout_std_nT, lr.all_std_nT,
-                  figure(lr.fom_nT, "%.2f").c_str());
-      if (validation) std::printf(" %9s nT", figure(lr.validation_std_nT, "%.3f").c_str());
-      std::printf("\n");
-      if (flights.size() > 1) {
-        std::printf("       held-out std per flight:");
-        for (double v : lr.flight_heldout_std_nT) std::printf(" %s", figure(v, "%.3f").c_str());
-        std::printf(" nT\n");
-      }
-      if (!lr.in_place_of.empty())
-        std::printf(
-            "       in place of %s: %.4f%% of its columns' energy lies within the model's "
-            "own columns, so its gain is the ridge's hold on them, not an effect of its "
-            "channel\n",
-            lr.in_place_of.c_str(), 100 * lr.in_place_of_span_share);
-      if (lr.together && lr.alone_std_nT.size() == 2)
-        std::printf("       together: held-out %.3f nT; alone %.3f and %.3f nT (each is needed)\n",
-                    lr.heldout_std_nT, lr.alone_std_nT[0], lr.alone_std_nT[1]);
-      for (const auto& [term, why] : lr.removed)
-        std::printf("       removed %s: %s\n", term.c_str(), why.c_str());
-    }
-    std::printf("stop: %s\n", r.stop_reason.c_str());
-    for (const std::string& w : r.warnings) std::printf("warning: %s\n", w.c_str());
-    // Terms the flight barely supports: their channel barely switched where they were fitted.
-    const std::vector<TermSupport> support = term_support(r.model, model, flights);
-    for (const TermSupport& s : support) {
-      const std::string note = support_note(s);
-      if (!note.empty()) std::printf("note: %s: %s\n", s.term.c_str(), note.c_str());
-    }
-    // The final model's error on the lines its fit did not select, as calibrate writes it: it
-    // enters each sample's variance (navigate --model-variance, the compensator).
-    Model final_model = r.model;
-    const auto [holdout_var, holdout_rows] =
-        holdout_error_variance_nT2(final_model, flights, *truth);
-    if (holdout_rows > 0 && std::isfinite(holdout_var))
-      final_model.report.holdout_error_variance_nT2 = holdout_var;
-    save_model_yaml(final_model, *out, inputs);
-    std::printf("wrote %s (terms:", out->c_str());
-    for (const auto& t : r.model.terms) std::printf(" %s", t.c_str());
-    std::printf(")\n");
-    if (std::isfinite(final_model.report.holdout_error_variance_nT2))
-      std::printf(
-          "held-out error std %.4g nT against %s on %ld samples of lines not fitted (in "
-          "each sample's variance)\n",
-          std::sqrt(final_model.report.holdout_error_variance_nT2), truth->c_str(),
-          static_cast<long>(holdout_rows));
-    print_map_note(*truth);
-    if (!json_path->empty()) {
-      nlohmann::json j;
-      j["data"] = *data;
-      j["model"] = *model_path;
-      j["out"] = *out;
-      j["rounds"] = nlohmann::json::array();
-      for (const auto& lr : r.rounds) {
-        j["rounds"].push_back(
-            {{"round", lr.round},
-             {"added", lr.added},
-             {"black_box", lr.black_box},
-             {"explained_fraction", lr.explained},
-             {"heldout_std_nT", lr.heldout_std_nT},
-             {"all_std_nT", lr.all_std_nT},
-             {"fom_nT", std::isfinite(lr.fom_nT) ? nlohmann::json(lr.fom_nT) : nlohmann::json()}});
-        auto& jr = j["rounds"].back();
-        jr["validation_std_nT"] = number(lr.validation_std_nT);
-        jr["flights_heldout_std_nT"] = nlohmann::json::array();
-        for (double v : lr.flight_heldout_std_nT) jr["flights_heldout_std_nT"].push_back(number(v));
-        jr["rejected"] = nlohmann::json::array();
-        for (const auto& [term, why] : lr.rejected)
-          jr["rejected"].push_back({{"term", term}, {"why", why}});
-        jr["together"] = lr.together;
-        jr["lambda"] = number(lr.lambda);
-        jr["regularisation"] = lr.regularisation;
-        jr["in_place_of"] = lr.in_place_of;
-        if (!lr.in_place_of.empty()) jr["in_place_of_span_share"] = lr.in_place_of_span_share;
-        jr["alone_heldout_std_nT"] = lr.alone_std_nT;
-        jr["removed"] = nlohmann::json::array();
-        for (const auto& [term, why] : lr.removed)
-          jr["removed"].push_back({{"term", term}, {"why", why}});
-      }
-      if (validation) j["validation"] = *validate;
-      j["stop"] = r.stop_reason;
-      j["warnings"] = r.warnings;
-      j["support"] = nlohmann::json::array();
-      for (const TermSupport& s : support) {
-        j["support"].push_back({{"term", s.term},
-                                {"channel", s.channel},
-                                {"switches", s.switches},
-                                {"size_nT", number(s.size_nT)},
-                                {"size_sigma_nT", number(s.size_sigma_nT)},
-                                {"note", support_note(s)}});
-      }
-      j["last_diagnosis"] = to_json(r.last);
-      write_file_atomic(*json_path, j.dump(2) + "\n", inputs);
-    }
-  });
+  cmd->callback([a] { run_diagnose(*a); });
 }
 
 }  // namespace magcomp::cli

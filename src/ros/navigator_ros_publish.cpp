@@ -60,113 +60,57 @@ void NavigatorRos::on_timer() {
   });
 }
 
+namespace {
+
+// A pose in the map frame: position pos_enu_m (m), attitude q (base_link to ENU), position
+// covariance cov_enu_m2 (m^2). The attitude is the INS's: its uncertainty is not estimated here
+// (a large value, so a fusion node takes it from the INS).
+geometry_msgs::PoseWithCovariance pose_of(const Eigen::Vector3d& pos_enu_m,
+                                          const Eigen::Quaterniond& q,
+                                          const Eigen::Matrix3d& cov_enu_m2) {
+  geometry_msgs::PoseWithCovariance pose;
+  pose.pose.position.x = pos_enu_m.x();
+  pose.pose.position.y = pos_enu_m.y();
+  pose.pose.position.z = pos_enu_m.z();
+  pose.pose.orientation.w = q.w();
+  pose.pose.orientation.x = q.x();
+  pose.pose.orientation.y = q.y();
+  pose.pose.orientation.z = q.z();
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) pose.covariance[static_cast<size_t>(6 * i + j)] = cov_enu_m2(i, j);
+  for (int i = 3; i < 6; ++i) pose.covariance[static_cast<size_t>(7 * i)] = 1e3;
+  return pose;
+}
+
+}  // namespace
+
 void NavigatorRos::publish(const std::vector<nav::NavigatorOutput>& steps) {
   for (const nav::NavigatorOutput& o : steps) {
     const ros::Time stamp(o.t_s);
-    const double lat_deg = o.lat_rad * kRadToDeg, lon_deg = o.lon_rad * kRadToDeg;
-    const Eigen::Vector3d pos = enu_->forward(lat_deg, lon_deg, o.alt_m);
+    const Eigen::Vector3d pos =
+        enu_->forward(o.lat_rad * kRadToDeg, o.lon_rad * kRadToDeg, o.alt_m);
     // Covariance NED -> ENU (x east, y north, z up).
     const Eigen::Matrix3d swap = LocalEnu::ned_to_enu();
     const Eigen::Matrix3d cov = swap * o.position_cov_ned_m2 * swap.transpose();
-    const Eigen::Vector3d vel_enu = swap * o.velocity_ned_mps;
     Eigen::Quaterniond q = Eigen::Quaterniond::Identity();
     auto qi = orientations_.find(o.t_s);
     if (qi != orientations_.end()) q = qi->second;
     prune_before(orientations_, o.t_s);
-
-    geometry_msgs::PoseWithCovariance pose;
-    pose.pose.position.x = pos.x();
-    pose.pose.position.y = pos.y();
-    pose.pose.position.z = pos.z();
-    pose.pose.orientation.w = q.w();
-    pose.pose.orientation.x = q.x();
-    pose.pose.orientation.y = q.y();
-    pose.pose.orientation.z = q.z();
-    for (int i = 0; i < 3; ++i)
-      for (int j = 0; j < 3; ++j) pose.covariance[static_cast<size_t>(6 * i + j)] = cov(i, j);
-    // The attitude is the INS's: its uncertainty is not estimated here (a large value, so a
-    // fusion node takes it from the INS).
-    for (int i = 3; i < 6; ++i) pose.covariance[static_cast<size_t>(7 * i)] = 1e3;
-    if (pub_odom_.getNumSubscribers() > 0) {
-      nav_msgs::Odometry odom;
-      odom.header.stamp = stamp;
-      odom.header.frame_id = map_frame_;
-      odom.child_frame_id = base_frame_;
-      odom.pose = pose;
-      // The twist is in the child frame (base_link, x forward y left z up).
-      const Eigen::Vector3d v_body = q.conjugate() * vel_enu;
-      odom.twist.twist.linear.x = v_body.x();
-      odom.twist.twist.linear.y = v_body.y();
-      odom.twist.twist.linear.z = v_body.z();
-      for (int i = 0; i < 6; ++i)
-        odom.twist.covariance[static_cast<size_t>(7 * i)] = i < 3 ? 0.01 : 1e3;
-      pub_odom_.publish(odom);
-    }
+    const geometry_msgs::PoseWithCovariance pose = pose_of(pos, q, cov);
+    if (pub_odom_.getNumSubscribers() > 0)
+      publish_odometry(stamp, pose, q, swap * o.velocity_ned_mps);
     geometry_msgs::PoseWithCovarianceStamped ps;
     ps.header.stamp = stamp;
     ps.header.frame_id = map_frame_;
     ps.pose = pose;
     pub_pose_.publish(ps);
-    sensor_msgs::NavSatFix fix;
-    fix.header.stamp = stamp;
-    fix.header.frame_id = base_frame_;
-    fix.status.status = o.step.on_map ? sensor_msgs::NavSatStatus::STATUS_FIX
-                                      : sensor_msgs::NavSatStatus::STATUS_NO_FIX;
-    fix.latitude = lat_deg;
-    fix.longitude = lon_deg;
-    fix.altitude = o.alt_m;
-    for (int i = 0; i < 3; ++i)
-      for (int j = 0; j < 3; ++j)
-        fix.position_covariance[static_cast<size_t>(3 * i + j)] = cov(i, j);
-    fix.position_covariance_type = sensor_msgs::NavSatFix::COVARIANCE_TYPE_KNOWN;
-    pub_fix_.publish(fix);
-
-    magcomp::NavigationStatus st;
-    st.header.stamp = stamp;
-    st.header.frame_id = map_frame_;
-    st.measurement_nT = o.measurement_nT;
-    st.map_nT = o.map_nT;
-    st.catch_all_nT = o.catch_all_nT;
-    st.innovation_nT = o.step.innovation_nT;
-    st.innovation_sigma_nT = std::sqrt(o.step.innovation_var_nT2);
-    st.nis = o.step.innovation_nT * o.step.innovation_nT / o.step.innovation_var_nT2;
-    st.measurement_sigma_nT = std::sqrt(o.measurement_var_nT2);
-    st.measurement_used = o.step.updated;
-    st.on_map = o.step.on_map;
-    st.sigma_north_m = std::sqrt(o.position_cov_ned_m2(0, 0));
-    st.sigma_east_m = std::sqrt(o.position_cov_ned_m2(1, 1));
-    st.correction_north_m = nav::dlat_to_north_m(o.lat_rad - o.ins_lat_rad, o.lat_rad);
-    st.correction_east_m = nav::dlon_to_east_m(o.lon_rad - o.ins_lon_rad, o.lat_rad);
-    st.error_north_m = st.error_east_m = st.error_horizontal_m = st.ins_error_horizontal_m = NAN;
-    auto tr = truth_.find(o.t_s);
-    if (tr != truth_.end()) {
-      const double tl = tr->second.x() * kDegToRad, tn = tr->second.y() * kDegToRad;
-      st.error_north_m = nav::dlat_to_north_m(o.lat_rad - tl, tl);
-      st.error_east_m = nav::dlon_to_east_m(o.lon_rad - tn, tl);
-      st.error_horizontal_m = std::hypot(st.error_north_m, st.error_east_m);
-      st.ins_error_horizontal_m = std::hypot(nav::dlat_to_north_m(o.ins_lat_rad - tl, tl),
-                                             nav::dlon_to_east_m(o.ins_lon_rad - tn, tl));
-    }
-    prune_before(truth_, o.t_s);
-    pub_status_.publish(st);
-    if (online_ && o.coefficients.size() > 0) {  // what the filter has learned, plain numbers
-      for (auto [pub, v] : {std::pair{&pub_coefficients_, &o.coefficients},
-                            std::pair{&pub_coefficient_sigma_, &o.coefficient_sigma}}) {
-        if (pub->getNumSubscribers() == 0) continue;
-        magcomp::AuxChannels c;
-        c.header.stamp = stamp;
-        c.header.frame_id = map_frame_;
-        c.names = column_names_;
-        c.values.assign(v->data(), v->data() + v->size());
-        pub->publish(c);
-      }
-    }
-    if (std::isfinite(st.nis) && o.step.updated) {
-      nis_sum_ += st.nis;
+    publish_fix(o, stamp, cov);
+    const double nis = publish_status(o, stamp);
+    if (std::isfinite(nis) && o.step.updated) {
+      nis_sum_ += nis;
       ++nis_n_;
     }
     consecutive_off_map_ = o.step.on_map ? 0 : consecutive_off_map_ + 1;
-
     if (tf_) {
       geometry_msgs::TransformStamped tf;
       tf.header.stamp = stamp;
@@ -178,28 +122,110 @@ void NavigatorRos::publish(const std::vector<nav::NavigatorOutput>& steps) {
       tf.transform.rotation = pose.pose.orientation;
       tf_->sendTransform(tf);
     }
-    if (published_ % path_stride_ == 0) {
-      geometry_msgs::PoseStamped p;
-      p.header = ps.header;
-      p.pose = pose.pose;
-      path_filter_.poses.push_back(p);
-      const Eigen::Vector3d ins =
-          enu_->forward(o.ins_lat_rad * kRadToDeg, o.ins_lon_rad * kRadToDeg, o.ins_alt_m);
-      p.pose.position.x = ins.x();
-      p.pose.position.y = ins.y();
-      p.pose.position.z = ins.z();
-      path_ins_.poses.push_back(p);
-      if (path_filter_.poses.size() % 20 == 0) {
-        for (auto pair : {std::make_pair(&path_filter_, &pub_path_filter_),
-                          std::make_pair(&path_ins_, &pub_path_ins_),
-                          std::make_pair(&path_truth_, &pub_path_truth_)}) {
-          pair.first->header.stamp = stamp;
-          pair.second->publish(*pair.first);
-        }
-      }
-    }
+    geometry_msgs::PoseStamped p;
+    p.header = ps.header;
+    p.pose = pose.pose;
+    publish_paths(o, p);
     ++published_;
     last_ = o;
+  }
+}
+
+void NavigatorRos::publish_odometry(const ros::Time& stamp,
+                                    const geometry_msgs::PoseWithCovariance& pose,
+                                    const Eigen::Quaterniond& q, const Eigen::Vector3d& vel_enu) {
+  nav_msgs::Odometry odom;
+  odom.header.stamp = stamp;
+  odom.header.frame_id = map_frame_;
+  odom.child_frame_id = base_frame_;
+  odom.pose = pose;
+  // The twist is in the child frame (base_link, x forward y left z up).
+  const Eigen::Vector3d v_body = q.conjugate() * vel_enu;
+  odom.twist.twist.linear.x = v_body.x();
+  odom.twist.twist.linear.y = v_body.y();
+  odom.twist.twist.linear.z = v_body.z();
+  for (int i = 0; i < 6; ++i)
+    odom.twist.covariance[static_cast<size_t>(7 * i)] = i < 3 ? 0.01 : 1e3;
+  pub_odom_.publish(odom);
+}
+
+void NavigatorRos::publish_fix(const nav::NavigatorOutput& o, const ros::Time& stamp,
+                               const Eigen::Matrix3d& cov) {
+  sensor_msgs::NavSatFix fix;
+  fix.header.stamp = stamp;
+  fix.header.frame_id = base_frame_;
+  fix.status.status = o.step.on_map ? sensor_msgs::NavSatStatus::STATUS_FIX
+                                    : sensor_msgs::NavSatStatus::STATUS_NO_FIX;
+  fix.latitude = o.lat_rad * kRadToDeg;
+  fix.longitude = o.lon_rad * kRadToDeg;
+  fix.altitude = o.alt_m;
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) fix.position_covariance[static_cast<size_t>(3 * i + j)] = cov(i, j);
+  fix.position_covariance_type = sensor_msgs::NavSatFix::COVARIANCE_TYPE_KNOWN;
+  pub_fix_.publish(fix);
+}
+
+double NavigatorRos::publish_status(const nav::NavigatorOutput& o, const ros::Time& stamp) {
+  magcomp::NavigationStatus st;
+  st.header.stamp = stamp;
+  st.header.frame_id = map_frame_;
+  st.measurement_nT = o.measurement_nT;
+  st.map_nT = o.map_nT;
+  st.catch_all_nT = o.catch_all_nT;
+  st.innovation_nT = o.step.innovation_nT;
+  st.innovation_sigma_nT = std::sqrt(o.step.innovation_var_nT2);
+  st.nis = o.step.innovation_nT * o.step.innovation_nT / o.step.innovation_var_nT2;
+  st.measurement_sigma_nT = std::sqrt(o.measurement_var_nT2);
+  st.measurement_used = o.step.updated;
+  st.on_map = o.step.on_map;
+  st.sigma_north_m = std::sqrt(o.position_cov_ned_m2(0, 0));
+  st.sigma_east_m = std::sqrt(o.position_cov_ned_m2(1, 1));
+  st.correction_north_m = nav::dlat_to_north_m(o.lat_rad - o.ins_lat_rad, o.lat_rad);
+  st.correction_east_m = nav::dlon_to_east_m(o.lon_rad - o.ins_lon_rad, o.lat_rad);
+  st.error_north_m = st.error_east_m = st.error_horizontal_m = st.ins_error_horizontal_m = NAN;
+  auto tr = truth_.find(o.t_s);
+  if (tr != truth_.end()) {
+    const double tl = tr->second.x() * kDegToRad, tn = tr->second.y() * kDegToRad;
+    st.error_north_m = nav::dlat_to_north_m(o.lat_rad - tl, tl);
+    st.error_east_m = nav::dlon_to_east_m(o.lon_rad - tn, tl);
+    st.error_horizontal_m = std::hypot(st.error_north_m, st.error_east_m);
+    st.ins_error_horizontal_m = std::hypot(nav::dlat_to_north_m(o.ins_lat_rad - tl, tl),
+                                           nav::dlon_to_east_m(o.ins_lon_rad - tn, tl));
+  }
+  prune_before(truth_, o.t_s);
+  pub_status_.publish(st);
+  if (online_ && o.coefficients.size() > 0) {  // what the filter has learned, plain numbers
+    for (auto [pub, v] : {std::pair{&pub_coefficients_, &o.coefficients},
+                          std::pair{&pub_coefficient_sigma_, &o.coefficient_sigma}}) {
+      if (pub->getNumSubscribers() == 0) continue;
+      magcomp::AuxChannels c;
+      c.header.stamp = stamp;
+      c.header.frame_id = map_frame_;
+      c.names = column_names_;
+      c.values.assign(v->data(), v->data() + v->size());
+      pub->publish(c);
+    }
+  }
+  return st.nis;
+}
+
+void NavigatorRos::publish_paths(const nav::NavigatorOutput& o,
+                                 const geometry_msgs::PoseStamped& filter) {
+  if (published_ % path_stride_ != 0) return;
+  path_filter_.poses.push_back(filter);
+  geometry_msgs::PoseStamped p = filter;
+  const Eigen::Vector3d ins =
+      enu_->forward(o.ins_lat_rad * kRadToDeg, o.ins_lon_rad * kRadToDeg, o.ins_alt_m);
+  p.pose.position.x = ins.x();
+  p.pose.position.y = ins.y();
+  p.pose.position.z = ins.z();
+  path_ins_.poses.push_back(p);
+  if (path_filter_.poses.size() % 20 != 0) return;
+  for (auto pair : {std::make_pair(&path_filter_, &pub_path_filter_),
+                    std::make_pair(&path_ins_, &pub_path_ins_),
+                    std::make_pair(&path_truth_, &pub_path_truth_)}) {
+    pair.first->header.stamp = filter.header.stamp;
+    pair.second->publish(*pair.first);
   }
 }
 

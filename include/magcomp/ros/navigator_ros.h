@@ -6,6 +6,8 @@
 #pragma once
 
 #include <diagnostic_updater/diagnostic_updater.h>
+#include <geometry_msgs/PoseStamped.h>
+#include <geometry_msgs/PoseWithCovariance.h>
 #include <magcomp/AuxChannels.h>
 #include <magcomp/CompensatedField.h>
 #include <nav_msgs/Path.h>
@@ -70,7 +72,19 @@ class NavigatorRos {
   /// A stamp earlier than the last of its own stream (`last_s`) by more than jump_back_s: a new
   /// flight (a looped bag); everything restarts.
   bool jumped_back(double t_s, double* last_s);
+  /// Each step's outputs: odometry, pose, fix, status, what the filter learned, tf, paths.
   void publish(const std::vector<nav::NavigatorOutput>& steps);
+  /// The odometry of a step: `pose` in the map frame, velocity vel_enu_mps (ENU, m/s) turned
+  /// into base_link by the attitude q (base_link to ENU).
+  void publish_odometry(const ros::Time& stamp, const geometry_msgs::PoseWithCovariance& pose,
+                        const Eigen::Quaterniond& q, const Eigen::Vector3d& vel_enu_mps);
+  /// The fix of a step, its position covariance cov_enu_m2 (ENU, m^2).
+  void publish_fix(const nav::NavigatorOutput& o, const ros::Time& stamp,
+                   const Eigen::Matrix3d& cov_enu_m2);
+  /// The status of a step (and, online, its coefficients and their sigmas); returns its NIS.
+  double publish_status(const nav::NavigatorOutput& o, const ros::Time& stamp);
+  /// The filter's and the INS's paths, every path_stride-th step, published every 20 poses.
+  void publish_paths(const nav::NavigatorOutput& o, const geometry_msgs::PoseStamped& filter);
   void diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat);
 
   ros::NodeHandle nh_, pnh_;

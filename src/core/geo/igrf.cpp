@@ -25,7 +25,6 @@ double FieldNED::total_nT() const {
   return std::sqrt(north_nT * north_nT + east_nT * east_nT + down_nT * down_nT);
 }
 
-
 Igrf Igrf::load(const std::string& path) {
   std::ifstream f(path);
   if (!f) throw Error(path + ": IGRF coefficient file not found or not readable");
