@@ -97,9 +97,6 @@ void print_map_note(const std::string& truth) {
       path.c_str());
 }
 
-// A number in the JSON, or null when it is not finite.
-nlohmann::json number(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(); }
-
 nlohmann::json to_json(const Diagnosis& dx) {
   nlohmann::json j;
   j["split"] = dx.split;
@@ -212,8 +209,7 @@ void diagnose_several(const Model& model_in, const std::vector<std::string>& pat
   for (size_t k = 0; k < season.candidates.size(); ++k) {
     const SeasonCandidate& c = season.candidates[k];
     nlohmann::json per = nlohmann::json::array();
-    for (double e : c.explained)
-      per.push_back(std::isfinite(e) ? nlohmann::json(e) : nlohmann::json());
+    for (double e : c.explained) per.push_back(json_figure(e));
     candidates.push_back({{"term", c.term},
                           {"shape", c.shape},
                           {"accepted_on", c.accepted_on},
@@ -325,16 +321,17 @@ nlohmann::json loop_json(const LoopResult& r, const std::vector<TermSupport>& su
                            {"explained_fraction", lr.explained},
                            {"heldout_std_nT", lr.heldout_std_nT},
                            {"all_std_nT", lr.all_std_nT},
-                           {"fom_nT", number(lr.fom_nT)}});
+                           {"fom_nT", json_figure(lr.fom_nT)}});
     auto& jr = j["rounds"].back();
-    jr["validation_std_nT"] = number(lr.validation_std_nT);
+    jr["validation_std_nT"] = json_figure(lr.validation_std_nT);
     jr["flights_heldout_std_nT"] = nlohmann::json::array();
-    for (double v : lr.flight_heldout_std_nT) jr["flights_heldout_std_nT"].push_back(number(v));
+    for (double v : lr.flight_heldout_std_nT)
+      jr["flights_heldout_std_nT"].push_back(json_figure(v));
     jr["rejected"] = nlohmann::json::array();
     for (const auto& [term, why] : lr.rejected)
       jr["rejected"].push_back({{"term", term}, {"why", why}});
     jr["together"] = lr.together;
-    jr["lambda"] = number(lr.lambda);
+    jr["lambda"] = json_figure(lr.lambda);
     jr["regularisation"] = lr.regularisation;
     jr["in_place_of"] = lr.in_place_of;
     if (!lr.in_place_of.empty()) jr["in_place_of_span_share"] = lr.in_place_of_span_share;
@@ -350,8 +347,8 @@ nlohmann::json loop_json(const LoopResult& r, const std::vector<TermSupport>& su
     j["support"].push_back({{"term", s.term},
                             {"channel", s.channel},
                             {"switches", s.switches},
-                            {"size_nT", number(s.size_nT)},
-                            {"size_sigma_nT", number(s.size_sigma_nT)},
+                            {"size_nT", json_figure(s.size_nT)},
+                            {"size_sigma_nT", json_figure(s.size_sigma_nT)},
                             {"note", support_note(s)}});
   }
   j["last_diagnosis"] = to_json(r.last);

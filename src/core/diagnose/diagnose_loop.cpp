@@ -87,12 +87,16 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
     // Without --choose-lambda, the same step when the round's first eligible term lies within
     // the model's own span (kWithinSpanShare): its gain would be the ridge's, named after a
     // channel that carries no effect.
+    // The candidates the loop may add, in rank order: accepted, and explaining at least
+    // min_share on both halves (a term ranked first on the selection lines may explain little
+    // on the confirmation lines, where the error may lie). Over several flights: accepted so on
+    // at least one of them (an effect one flight barely shows is another's to find), ranked as
+    // the flights' diagnoses together rank it (merge_diagnoses).
+    std::vector<Eligible> eligible = eligible_candidates(dxs, min_share);
     std::optional<Eligible> within_span;
-    if (options.ridge_for_span_terms) {
-      const std::vector<Eligible> e = eligible_candidates(dxs, min_share);
-      if (!e.empty() && e.front().base_span_share >= loop_steps::kWithinSpanShare)
-        within_span = e.front();
-    }
+    if (options.ridge_for_span_terms && !eligible.empty() &&
+        eligible.front().base_span_share >= loop_steps::kWithinSpanShare)
+      within_span = eligible.front();
     if ((options.choose_lambda || within_span) && round <= max_rounds) {
       if (auto step = better_lambda(r.model, start.fit.lambda, r.rounds.back(), flights, truth,
                                     held_out, validation, options)) {
@@ -110,18 +114,13 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
         r.rounds.push_back(std::move(lr));
         r.model = std::move(step->first);
         diagnose_all();
+        eligible = eligible_candidates(dxs, min_share);
       }
     }
     for (size_t f = 0; on_round && f < flights.size(); ++f) on_round(round, f, dxs[f]);
     const Diagnosis& dx = dxs.front();
     // Over several flights, what is said of them together.
     const std::string verdict = flights.size() == 1 ? dx.verdict : merge_diagnoses(dxs).verdict;
-    // The candidates the loop may add, in rank order: accepted, and explaining at least
-    // min_share on both halves (a term ranked first on the selection lines may explain little
-    // on the confirmation lines, where the error may lie). Over several flights: accepted so on
-    // at least one of them (an effect one flight barely shows is another's to find), ranked as
-    // the flights' diagnoses together rank it (merge_diagnoses).
-    const std::vector<Eligible> eligible = eligible_candidates(dxs, min_share);
     const auto finish = [&](std::string reason) {
       r.stop_reason = std::move(reason);
       r.last = dxs.front();
