@@ -188,115 +188,118 @@ void evaluate_one(const std::string& data, const Model& model, const Model* base
   run_report_page("magcomp_report.py", report, "series.h5 and evaluation.json");
 }
 
+// What `magcomp evaluate` is asked, as given on the command line.
+struct EvaluateArgs {
+  std::string data, model_path, truth = "mag_1_c", json_path, report, baseline_path;
+  std::string track = "truth";
+  bool explain = false;
+};
+
+// Several flights: each evaluated in turn (memory is one flight's columns), then pooled.
+void evaluate_several(const EvaluateArgs& a, const std::vector<std::string>& paths,
+                      const Model& model, const Model* baseline_model, const OutputGuard& guard) {
+  nlohmann::json j;
+  j["flights"] = nlohmann::json::array();
+  double n = 0, sum_sq = 0, sum_var = 0, sum_unc = 0, n_unc = 0;
+  for (const std::string& path : paths) {
+    std::printf("flight %s\n", path.c_str());
+    FlightData flight = read_flight(path);
+    add_map_references(&flight, {a.truth}, a.track, &model);
+    const Evaluation ev = evaluate_model(model, flight, a.truth, false);
+    std::unique_ptr<Evaluation> base;
+    if (baseline_model)
+      base = std::make_unique<Evaluation>(evaluate_model(*baseline_model, flight, a.truth, false));
+    print_evaluation(ev, base.get());
+    nlohmann::json f = to_json(ev);
+    if (a.explain) {
+      const Attribution at = permutation_importance(model, flight);
+      print_attribution(at);
+      f["attribution"] = attribution_json(at);
+    }
+    std::printf("\n");
+    f["data"] = path;
+    if (base) f["baseline"] = to_json(*base);
+    j["flights"].push_back(f);
+    const double k = static_cast<double>(ev.n);
+    n += k;
+    sum_sq += ev.rmse_nT * ev.rmse_nT * k;
+    sum_var += ev.std_nT * ev.std_nT * k;
+    if (std::isfinite(ev.uncompensated_std_nT)) {
+      sum_unc += ev.uncompensated_std_nT * ev.uncompensated_std_nT * k;
+      n_unc += k;
+    }
+  }
+  const double rmse = std::sqrt(sum_sq / n), std_nT = std::sqrt(sum_var / n);
+  const double unc = n_unc > 0 ? std::sqrt(sum_unc / n_unc) : NAN;
+  guard.check_inputs_unchanged();
+  std::printf("%-10s %8ld %12.3f %10.3f %16s %9s   (%zu flights)\n", "all", static_cast<long>(n),
+              rmse, std_nT, figure(unc, "%.3f").c_str(),
+              figure(std_nT > 0 ? unc / std_nT : NAN, "%.1f").c_str(), paths.size());
+  j["n"] = static_cast<long>(n);
+  j["rmse_nT"] = rmse;
+  j["std_nT"] = std_nT;
+  j["uncompensated_std_nT"] = json_figure(unc);
+  j["improvement_ratio"] = json_figure(std_nT > 0 ? unc / std_nT : NAN);
+  j["data"] = paths;
+  j["model"] = a.model_path;
+  j["truth"] = a.truth;
+  j["terms"] = model.terms;
+  if (!a.json_path.empty()) write_file_atomic(a.json_path, j.dump(2) + "\n", guard.input_paths());
+}
+
+void run_evaluate(const EvaluateArgs& a) {
+  const std::vector<std::string> paths = flight_paths("--data", a.data);
+  std::vector<OutputGuard::File> others = {{"--model", a.model_path},
+                                           {"--baseline", a.baseline_path}};
+  for (const auto& m : map_inputs("--truth", {a.truth})) others.push_back(m);
+  OutputGuard guard = guard_for(paths, others);
+  guard.add_output("--json", a.json_path);
+  guard.add_output_dir("--report", a.report,
+                       {"series.h5", "evaluation.json", "index.html", "timeseries.png",
+                        "groups.png", "map.png", "spectrum.png", "channels.png"});
+  if (paths.size() > 1 && !a.report.empty())
+    throw Error("--report takes one flight (--data holds " + std::to_string(paths.size()) + ")");
+  const Model model = load_model_yaml(a.model_path);
+  if (!model.fitted()) throw Error(a.model_path + ": model has no coefficients; run calibrate");
+  if (a.explain && !(model.neural && model.neural->trained()))
+    throw Error("--explain: " + a.model_path +
+                " has no trained neural stage (the attribution explains a network)");
+  std::unique_ptr<Model> baseline_model;
+  if (!a.baseline_path.empty()) {
+    baseline_model = std::make_unique<Model>(load_model_yaml(a.baseline_path));
+    if (!baseline_model->fitted())
+      throw Error(a.baseline_path + ": model has no coefficients; run calibrate");
+  }
+  if (paths.size() == 1)
+    evaluate_one(paths[0], model, baseline_model.get(), a.model_path, a.baseline_path, a.truth,
+                 a.json_path, a.report, guard, a.track, a.explain);
+  else
+    evaluate_several(a, paths, model, baseline_model.get(), guard);
+}
+
 }  // namespace
 
 void add_evaluate(CLI::App& app) {
   auto* cmd = app.add_subcommand("evaluate", "compare a fitted model with a reference field");
-  auto data = std::make_shared<std::string>();
-  auto model_path = std::make_shared<std::string>();
-  auto truth = std::make_shared<std::string>("mag_1_c");
-  auto json_path = std::make_shared<std::string>();
-  auto report = std::make_shared<std::string>();
-  auto baseline_path = std::make_shared<std::string>();
-  auto track = std::make_shared<std::string>("truth");
-  auto with_explain = std::make_shared<bool>(false);
-  cmd->add_option("--data", *data, "flight HDF5 file(s), comma-separated")->required();
-  cmd->add_option("--model", *model_path, "fitted model YAML")->required();
-  cmd->add_option("--truth", *truth,
+  auto a = std::make_shared<EvaluateArgs>();
+  cmd->add_option("--data", a->data, "flight HDF5 file(s), comma-separated")->required();
+  cmd->add_option("--model", a->model_path, "fitted model YAML")->required();
+  cmd->add_option("--truth", a->truth,
                   "reference field (default mag_1_c), or map:M.h5: the anomaly map along --track "
                   "plus the IGRF and the diurnal (no stinger needed)");
-  cmd->add_option("--track", *track,
+  cmd->add_option("--track", a->track,
                   "with --truth map:M.h5, where the map is read: truth (lat/lon), ins, or filter "
                   "(the navigation filter on the model's anomaly); default truth")
       ->check(CLI::IsMember({"truth", "ins", "filter"}));
-  cmd->add_option("--json", *json_path, "write the evaluation JSON here");
-  cmd->add_option("--report", *report, "write an HTML report with plots into this directory");
-  cmd->add_option("--baseline", *baseline_path,
+  cmd->add_option("--json", a->json_path, "write the evaluation JSON here");
+  cmd->add_option("--report", a->report, "write an HTML report with plots into this directory");
+  cmd->add_option("--baseline", a->baseline_path,
                   "a second fitted model to compare with (before/after)");
-  cmd->add_flag("--explain", *with_explain,
+  cmd->add_flag("--explain", a->explain,
                 "with a trained neural stage: each input's share of the network's prediction on "
                 "each flight (permutation importance: the rise of its squared error against its "
                 "target when the input is shuffled), in the table and the JSON (attribution)");
-  cmd->callback([=] {
-    const std::vector<std::string> paths = flight_paths("--data", *data);
-    std::vector<OutputGuard::File> others = {{"--model", *model_path},
-                                             {"--baseline", *baseline_path}};
-    for (const auto& m : map_inputs("--truth", {*truth})) others.push_back(m);
-    OutputGuard guard = guard_for(paths, others);
-    guard.add_output("--json", *json_path);
-    guard.add_output_dir("--report", *report,
-                         {"series.h5", "evaluation.json", "index.html", "timeseries.png",
-                          "groups.png", "map.png", "spectrum.png", "channels.png"});
-    const std::vector<std::string> inputs = guard.input_paths();
-    if (paths.size() > 1 && !report->empty()) {
-      throw Error("--report takes one flight (--data holds " + std::to_string(paths.size()) + ")");
-    }
-    const Model model = load_model_yaml(*model_path);
-    if (!model.fitted()) throw Error(*model_path + ": model has no coefficients; run calibrate");
-    if (*with_explain && !(model.neural && model.neural->trained()))
-      throw Error("--explain: " + *model_path +
-                  " has no trained neural stage (the attribution explains a network)");
-    std::unique_ptr<Model> baseline_model;
-    if (!baseline_path->empty()) {
-      baseline_model = std::make_unique<Model>(load_model_yaml(*baseline_path));
-      if (!baseline_model->fitted())
-        throw Error(*baseline_path + ": model has no coefficients; run calibrate");
-    }
-    if (paths.size() == 1) {
-      evaluate_one(paths[0], model, baseline_model.get(), *model_path, *baseline_path, *truth,
-                   *json_path, *report, guard, *track, *with_explain);
-      return;
-    }
-    // Several flights: one at a time (memory is one flight's columns), then pooled.
-    nlohmann::json j;
-    j["flights"] = nlohmann::json::array();
-    double n = 0, sum_sq = 0, sum_var = 0, sum_unc = 0, n_unc = 0;
-    for (const std::string& path : paths) {
-      std::printf("flight %s\n", path.c_str());
-      FlightData flight = read_flight(path);
-      add_map_references(&flight, {*truth}, *track, &model);
-      const Evaluation ev = evaluate_model(model, flight, *truth, false);
-      std::unique_ptr<Evaluation> base;
-      if (baseline_model)
-        base = std::make_unique<Evaluation>(evaluate_model(*baseline_model, flight, *truth, false));
-      print_evaluation(ev, base.get());
-      nlohmann::json f = to_json(ev);
-      if (*with_explain) {
-        const Attribution a = permutation_importance(model, flight);
-        print_attribution(a);
-        f["attribution"] = attribution_json(a);
-      }
-      std::printf("\n");
-      f["data"] = path;
-      if (base) f["baseline"] = to_json(*base);
-      j["flights"].push_back(f);
-      const double k = static_cast<double>(ev.n);
-      n += k;
-      sum_sq += ev.rmse_nT * ev.rmse_nT * k;
-      sum_var += ev.std_nT * ev.std_nT * k;
-      if (std::isfinite(ev.uncompensated_std_nT)) {
-        sum_unc += ev.uncompensated_std_nT * ev.uncompensated_std_nT * k;
-        n_unc += k;
-      }
-    }
-    const double rmse = std::sqrt(sum_sq / n), std_nT = std::sqrt(sum_var / n);
-    const double unc = n_unc > 0 ? std::sqrt(sum_unc / n_unc) : NAN;
-    guard.check_inputs_unchanged();
-    std::printf("%-10s %8ld %12.3f %10.3f %16s %9s   (%zu flights)\n", "all", static_cast<long>(n),
-                rmse, std_nT, figure(unc, "%.3f").c_str(),
-                figure(std_nT > 0 ? unc / std_nT : NAN, "%.1f").c_str(), paths.size());
-    const auto num = json_figure;
-    j["n"] = static_cast<long>(n);
-    j["rmse_nT"] = rmse;
-    j["std_nT"] = std_nT;
-    j["uncompensated_std_nT"] = num(unc);
-    j["improvement_ratio"] = num(std_nT > 0 ? unc / std_nT : NAN);
-    j["data"] = paths;
-    j["model"] = *model_path;
-    j["truth"] = *truth;
-    j["terms"] = model.terms;
-    if (!json_path->empty()) write_file_atomic(*json_path, j.dump(2) + "\n", inputs);
-  });
+  cmd->callback([a] { run_evaluate(*a); });
 }
 
 }  // namespace magcomp::cli

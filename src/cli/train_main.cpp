@@ -28,66 +28,30 @@ double rms(const Eigen::VectorXd& v) {
   return n ? std::sqrt(s / n) : NAN;
 }
 
-int run(int argc, char** argv) {
-  CLI::App app{"magcomp train: train the neural stage of a model on whole flights"};
+// What `magcomp_train` is asked, as given on the command line.
+struct TrainArgs {
   std::vector<std::string> data, validation;
   std::string model_path, out;
   int epochs = 0;
   long long seed = -1;
   bool quiet = false;
-  app.add_option("--data", data, "training flight HDF5 file(s), comma-separated or repeated")
-      ->required()
-      ->delimiter(',');
-  app.add_option("--validation", validation,
-                 "validation flight(s) for early stopping (default: the last --data flight when "
-                 "there are two or more)")
-      ->delimiter(',');
-  app.add_option("--model", model_path, "model YAML with a neural: block (TL fitted or not)")
-      ->required();
-  app.add_option("--out", out,
-                 "OUT.yaml (weights in OUT.pt beside it) or a bundle directory (model.yaml + "
-                 "weights.pt)")
-      ->required();
-  app.add_option("--epochs", epochs, "override neural.training.epochs");
-  app.add_option("--seed", seed, "override neural.training.seed");
-  app.add_flag("--quiet", quiet, "no progress bar");
-  CLI11_PARSE(app, argc, argv);
+};
 
-  // Every file read and written, checked before the work (outputs never over an input).
-  std::vector<OutputGuard::File> inputs = {{"--model", model_path}};
-  for (const auto& p : data) inputs.push_back({"--data", p});
-  for (const auto& p : validation) inputs.push_back({"--validation", p});
-  OutputGuard guard(inputs);
-  const bool to_yaml = out.size() > 5 && out.substr(out.size() - 5) == ".yaml";
-  guard.add_output("--out", to_yaml ? out : out + "/model.yaml");
-  guard.add_output("--out (weights)",
-                   to_yaml ? out.substr(0, out.size() - 5) + ".pt" : out + "/weights.pt");
-  Model model = load_model_yaml(model_path);
-  if (!model.neural) throw Error(model_path + ": key 'neural' missing: nothing to train");
+// The model whose neural stage is trained, with --epochs and --seed applied and validated.
+Model model_to_train(const TrainArgs& a) {
+  Model model = load_model_yaml(a.model_path);
+  if (!model.neural) throw Error(a.model_path + ": key 'neural' missing: nothing to train");
   NeuralSpec& spec = *model.neural;
-  if (epochs > 0) spec.training.epochs = epochs;
-  if (seed >= 0) spec.training.seed = static_cast<std::uint64_t>(seed);
-  validate_neural_spec(spec, model_path);
-  if (validation.empty() && data.size() >= 2) {
-    validation.push_back(data.back());
-    data.pop_back();
-  }
-  for (const auto& v : validation) {
-    for (const auto& d : data) {
-      if (v == d) throw Error("--validation: " + v + " is also a training flight (leakage)");
-    }
-  }
-  std::vector<FlightData> train_flights, val_flights;
-  for (const auto& p : data) train_flights.push_back(cli::read_flight(p));
-  for (const auto& p : validation) val_flights.push_back(cli::read_flight(p));
-  if (val_flights.empty()) {
-    std::cout << "warning: no validation flight: no early stopping, the last epoch is kept\n";
-  }
-  std::cout << "training " << architecture_name(spec.architecture) << " (" << mode_name(spec.mode)
-            << ", window " << spec.window << ", " << spec.features.size() << " features) on "
-            << train_flights.size() << " flight(s), validation on " << val_flights.size()
-            << " flight(s)" << std::endl;
-  const BundleReport rep = train_bundle(model, train_flights, val_flights, out, !quiet);
+  if (a.epochs > 0) spec.training.epochs = a.epochs;
+  if (a.seed >= 0) spec.training.seed = static_cast<std::uint64_t>(a.seed);
+  validate_neural_spec(spec, a.model_path);
+  return model;
+}
+
+// The training's figures, and each validation flight's error with the terms alone and with the
+// network.
+void print_training(const Model& model, const BundleReport& rep,
+                    const std::vector<FlightData>& val_flights) {
   const TrainResult& r = rep.result;
   const NeuralSpec& s = *model.neural;
   if (rep.tl_fitted_here) {
@@ -97,12 +61,10 @@ int run(int argc, char** argv) {
   }
   std::cout << rep.train_windows << " training windows, " << rep.validation_windows
             << " validation windows\n";
-  const std::string yaml_path = rep.yaml_path, weights_path = rep.weights_path;
   std::cout << std::fixed << std::setprecision(3) << "trained " << r.epochs_run << " epoch(s) in "
             << r.seconds << " s; kept epoch " << r.best_epoch;
   if (!r.validation_rmse_nT.empty()) {
     std::cout << " (validation rmse " << s.validation_rmse_nT << " nT)";
-    // The same validation flights with TL alone, for comparison.
     for (size_t i = 0; i < val_flights.size(); ++i) {
       const FlightData& f = val_flights[i];
       if (!f.has(s.reference)) continue;
@@ -115,21 +77,79 @@ int run(int argc, char** argv) {
                 << " nT, with the network " << rms(nn_err) << " nT";
     }
   }
-  std::cout << "\nwrote " << yaml_path << " and " << weights_path << "\n";
-  // What the network leans on, on each validation flight (flights it was not trained on), from
-  // the bundle as written.
-  if (!val_flights.empty()) {
-    const Model trained = load_model_yaml(yaml_path);
-    for (size_t i = 0; i < val_flights.size(); ++i) {
-      std::cout << std::flush;
-      try {
-        cli::print_attribution(permutation_importance(trained, val_flights[i]), validation[i]);
-      } catch (const Error& e) {
-        std::printf("\nno attribution on %s: %s\n", validation[i].c_str(), e.what());
-      }
+  std::cout << "\nwrote " << rep.yaml_path << " and " << rep.weights_path << "\n";
+}
+
+// What the network leans on, on each validation flight (flights it was not trained on), from the
+// bundle as written at yaml_path.
+void print_validation_attribution(const std::string& yaml_path,
+                                  const std::vector<FlightData>& val_flights,
+                                  const std::vector<std::string>& validation) {
+  if (val_flights.empty()) return;
+  const Model trained = load_model_yaml(yaml_path);
+  for (size_t i = 0; i < val_flights.size(); ++i) {
+    std::cout << std::flush;
+    try {
+      cli::print_attribution(permutation_importance(trained, val_flights[i]), validation[i]);
+    } catch (const Error& e) {
+      std::printf("\nno attribution on %s: %s\n", validation[i].c_str(), e.what());
     }
-    std::fflush(stdout);
   }
+  std::fflush(stdout);
+}
+
+int run(int argc, char** argv) {
+  CLI::App app{"magcomp train: train the neural stage of a model on whole flights"};
+  TrainArgs a;
+  app.add_option("--data", a.data, "training flight HDF5 file(s), comma-separated or repeated")
+      ->required()
+      ->delimiter(',');
+  app.add_option("--validation", a.validation,
+                 "validation flight(s) for early stopping (default: the last --data flight when "
+                 "there are two or more)")
+      ->delimiter(',');
+  app.add_option("--model", a.model_path, "model YAML with a neural: block (TL fitted or not)")
+      ->required();
+  app.add_option("--out", a.out,
+                 "OUT.yaml (weights in OUT.pt beside it) or a bundle directory (model.yaml + "
+                 "weights.pt)")
+      ->required();
+  app.add_option("--epochs", a.epochs, "override neural.training.epochs");
+  app.add_option("--seed", a.seed, "override neural.training.seed");
+  app.add_flag("--quiet", a.quiet, "no progress bar");
+  CLI11_PARSE(app, argc, argv);
+
+  // Every file read and written, checked before the work (outputs never over an input).
+  std::vector<OutputGuard::File> inputs = {{"--model", a.model_path}};
+  for (const auto& p : a.data) inputs.push_back({"--data", p});
+  for (const auto& p : a.validation) inputs.push_back({"--validation", p});
+  OutputGuard guard(inputs);
+  const std::string& out = a.out;
+  const bool to_yaml = out.size() > 5 && out.substr(out.size() - 5) == ".yaml";
+  guard.add_output("--out", to_yaml ? out : out + "/model.yaml");
+  guard.add_output("--out (weights)",
+                   to_yaml ? out.substr(0, out.size() - 5) + ".pt" : out + "/weights.pt");
+  Model model = model_to_train(a);
+  if (a.validation.empty() && a.data.size() >= 2) {
+    a.validation.push_back(a.data.back());
+    a.data.pop_back();
+  }
+  for (const auto& v : a.validation)
+    for (const auto& d : a.data)
+      if (v == d) throw Error("--validation: " + v + " is also a training flight (leakage)");
+  std::vector<FlightData> train_flights, val_flights;
+  for (const auto& p : a.data) train_flights.push_back(cli::read_flight(p));
+  for (const auto& p : a.validation) val_flights.push_back(cli::read_flight(p));
+  if (val_flights.empty())
+    std::cout << "warning: no validation flight: no early stopping, the last epoch is kept\n";
+  const NeuralSpec& spec = *model.neural;
+  std::cout << "training " << architecture_name(spec.architecture) << " (" << mode_name(spec.mode)
+            << ", window " << spec.window << ", " << spec.features.size() << " features) on "
+            << train_flights.size() << " flight(s), validation on " << val_flights.size()
+            << " flight(s)" << std::endl;
+  const BundleReport rep = train_bundle(model, train_flights, val_flights, out, !a.quiet);
+  print_training(model, rep, val_flights);
+  print_validation_attribution(rep.yaml_path, val_flights, a.validation);
   return 0;
 }
 
