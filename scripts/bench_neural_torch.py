@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
-"""magcomp benchmark, PyTorch side: one training epoch of the same CNN on the same standardised
-windows that magcomp_bench_neural wrote (Debian's python3-torch, /usr/bin/python3).
-Usage: bench_neural_torch.py DATA.bin THREADS"""
+"""magcomp benchmark, PyTorch side: one training epoch of the same CNN (or LSTM) on the same
+standardised windows that magcomp_bench_neural wrote (Debian's python3-torch, /usr/bin/python3).
+Usage: bench_neural_torch.py DATA.bin THREADS [cnn|lstm [BATCH]]"""
 import sys
 import time
 
@@ -27,8 +27,23 @@ class Cnn(torch.nn.Module):
         return self.fc2(torch.relu(self.fc1(z.flatten(1)))).squeeze(1)
 
 
+class Lstm(torch.nn.Module):
+    """The architecture of magcomp's LSTM: two layers of 16 units over the window (batch first),
+    the last step's output to one value."""
+
+    def __init__(self, features):
+        super().__init__()
+        self.lstm = torch.nn.LSTM(features, 16, num_layers=2, batch_first=True)
+        self.fc = torch.nn.Linear(16, 1)
+
+    def forward(self, x):
+        out, _ = self.lstm(x)
+        return self.fc(out[:, -1]).squeeze(1)
+
+
 def main():
     path, threads = sys.argv[1], int(sys.argv[2])
+    arch = sys.argv[3] if len(sys.argv) > 3 else "cnn"
     torch.set_num_threads(threads)
     torch.manual_seed(1)
     with open(path, "rb") as f:
@@ -37,7 +52,9 @@ def main():
         y = torch.from_numpy(np.fromfile(f, dtype=np.float32, count=n))
         first = torch.from_numpy(np.fromfile(f, dtype=np.int64, count=n))
         ends = torch.from_numpy(np.fromfile(f, dtype=np.int64, count=ne))
-    net = Cnn(int(nf), int(k))
+    if len(sys.argv) > 4:
+        batch = int(sys.argv[4])
+    net = Cnn(int(nf), int(k)) if arch == "cnn" else Lstm(int(nf))
     opt = torch.optim.Adam(net.parameters(), lr=1e-3, weight_decay=5e-3)
     offsets = torch.arange(-(k - 1), 1, dtype=torch.int64)
     t0 = time.perf_counter()
@@ -51,7 +68,7 @@ def main():
         loss.backward()
         opt.step()
     dt = time.perf_counter() - t0
-    print(f"pytorch cnn_epoch windows {len(ends)} features {nf} window {k} batch {batch} "
+    print(f"pytorch {arch}_epoch windows {len(ends)} features {nf} window {k} batch {batch} "
           f"threads {threads} seconds {dt:.2f} torch {torch.__version__}")
 
 

@@ -26,7 +26,7 @@ namespace {
 void print_diagnosis(const Model& model, const Diagnosis& dx, int top, const std::string& data,
                      const std::string& model_path) {
   std::printf("model: %s with %s, terms:", model.scalar.c_str(), model.vector.c_str());
-  for (const auto& t : model.terms) std::printf(" %s", t.c_str());
+  for (const auto& t : model.terms) std::printf(" %s", t.text().c_str());
   std::printf("\nsplit: %s\n", dx.split.c_str());
   std::printf("  selection lines:");
   for (double l : dx.selection_lines) std::printf(" %g", l);
@@ -366,7 +366,7 @@ void write_final_model(const LoopResult& r, const std::vector<const FlightData*>
     final_model.report.holdout_error_variance_nT2 = holdout_var;
   save_model_yaml(final_model, out, inputs);
   std::printf("wrote %s (terms:", out.c_str());
-  for (const auto& t : r.model.terms) std::printf(" %s", t.c_str());
+  for (const auto& t : r.model.terms) std::printf(" %s", t.text().c_str());
   std::printf(")\n");
   if (std::isfinite(final_model.report.holdout_error_variance_nT2))
     std::printf(

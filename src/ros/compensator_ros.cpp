@@ -333,7 +333,7 @@ void CompensatorRos::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat)
   stat.add("model_error", model_error_);
   if (comp_) {
     std::string terms;
-    for (const auto& t : comp_->model().terms) terms += (terms.empty() ? "" : " ") + t;
+    for (const auto& t : comp_->model().terms) terms += (terms.empty() ? "" : " ") + t.text();
     stat.add("terms", terms);
     stat.add("lookahead_samples", comp_->lookahead());
     // Terms of a learned law (hinges fitted by diagnose --apply): a shape, not a physical law.

@@ -28,7 +28,7 @@
 #include "magcomp/core/nav/flight_navigation.h"
 #include "magcomp/ros/bag_converter.h"
 #include "magcomp/ros/bag_writer.h"
-#include "magcomp/ros/ins_attitude.h"
+#include "magcomp/core/geo/attitude.h"
 
 namespace magcomp::rosio {
 

@@ -12,11 +12,11 @@
 
 #include "held_samples.h"
 #include "magcomp/core/error.h"
+#include "magcomp/core/geo/attitude.h"
 #include "magcomp/core/math/constants.h"
 #include "magcomp/core/nav/nav_model.h"
 #include "magcomp/core/nav/online_calibration.h"
 #include "magcomp/ros/callback_guard.h"
-#include "magcomp/ros/ins_attitude.h"
 #include "magcomp/ros/params.h"
 
 namespace magcomp::rosio {
@@ -242,12 +242,11 @@ bool NavigatorRos::jumped_back(double t, double* last) {
     ++jumps_back_;
     ROS_WARN("magcomp navigator: time jumped back %.3f s: the filter restarts", *last - t);
     nav_.reset();  // made again at the next INS sample
-    fixes_.clear();
-    attitudes_.clear();
+    ins_pairs_.clear();
     orientations_.clear();
     truth_.clear();
     early_.clear();
-    online_parts_.clear();
+    online_pairs_.clear();
     for (nav_msgs::Path* p : {&path_filter_, &path_ins_, &path_truth_}) p->poses.clear();
     truth_seen_ = 0;
     last_anomaly_t_ = last_fix_t_ = last_imu_t_ = NAN;
@@ -298,11 +297,8 @@ void NavigatorRos::take_anomaly(const magcomp::CompensatedField& msg) {
   }
   // Online: the raw anomaly (the compensator's anomaly with its aircraft field put back), paired
   // with the model's columns of the same stamp.
-  OnlinePart& part = online_parts_[t];
-  part.z_nT = m->anomaly_nT + m->aircraft_correction_nT;
-  part.var_nT2 = var;
-  part.has_z = true;
-  try_online(t);
+  if (auto pair = online_pairs_.add_first(t, {m->anomaly_nT + m->aircraft_correction_nT, var}))
+    feed_measurement(t, {pair->first.z_nT, pair->first.var_nT2, pair->second});
 }
 
 void NavigatorRos::on_columns(const magcomp::AuxChannels::ConstPtr& m) {
@@ -313,21 +309,11 @@ void NavigatorRos::on_columns(const magcomp::AuxChannels::ConstPtr& m) {
       return;
     }
     const double t = m->header.stamp.toSec();
-    OnlinePart& part = online_parts_[t];
-    part.columns = Eigen::Map<const Eigen::VectorXd>(m->values.data(),
-                                                     static_cast<Eigen::Index>(m->values.size()));
-    try_online(t);
+    const Eigen::VectorXd columns = Eigen::Map<const Eigen::VectorXd>(
+        m->values.data(), static_cast<Eigen::Index>(m->values.size()));
+    if (auto pair = online_pairs_.add_second(t, columns))
+      feed_measurement(t, {pair->first.z_nT, pair->first.var_nT2, pair->second});
   });
-}
-
-void NavigatorRos::try_online(double t) {
-  auto it = online_parts_.find(t);
-  if (it == online_parts_.end() || !it->second.has_z || it->second.columns.size() == 0) {
-    prune_before(online_parts_, t - 10.0);  // a half older than 10 s never finds its pair
-    return;
-  }
-  feed_measurement(t, {it->second.z_nT, it->second.var_nT2, it->second.columns});
-  online_parts_.erase(it);
 }
 
 void NavigatorRos::feed_measurement(double t, const EarlyMeasurement& m) {
@@ -372,8 +358,8 @@ void NavigatorRos::take_ins_fix(const sensor_msgs::NavSatFix& msg) {
     ++nan_inputs_;
     return;
   }
-  fixes_[t] = {m->latitude, m->longitude, m->altitude};
-  try_ins(t);
+  if (auto pair = ins_pairs_.add_first(t, {m->latitude, m->longitude, m->altitude}))
+    take_ins(*pair);
 }
 
 void NavigatorRos::take_imu(const sensor_msgs::Imu& msg) {
@@ -388,9 +374,8 @@ void NavigatorRos::take_imu(const sensor_msgs::Imu& msg) {
     ++nan_inputs_;
     return;
   }
-  attitudes_[t] = ned_attitude(q.normalized());
-  orientations_[t] = q.normalized();
-  try_ins(t);
+  if (auto pair = ins_pairs_.add_second(t, {ned_attitude(q.normalized()), q.normalized()}))
+    take_ins(*pair);
 }
 
 void NavigatorRos::take_truth(const sensor_msgs::NavSatFix& msg) {
@@ -416,30 +401,21 @@ void NavigatorRos::take_truth(const sensor_msgs::NavSatFix& msg) {
   }
 }
 
-void NavigatorRos::try_ins(double t) {
-  auto f = fixes_.find(t);
-  auto a = attitudes_.find(t);
-  if (f == fixes_.end() || a == attitudes_.end()) return;
+void NavigatorRos::take_ins(const InsPairs::Pair& pair) {
+  const double t = pair.t_s;
   nav::InsSample s;
   s.t_s = t;
-  s.lat_rad = f->second.x() * kDegToRad;
-  s.lon_rad = f->second.y() * kDegToRad;
-  s.alt_m = f->second.z();
-  s.roll_rad = a->second.x();
-  s.pitch_rad = a->second.y();
-  s.yaw_rad = a->second.z();
+  s.lat_rad = pair.first.x() * kDegToRad;
+  s.lon_rad = pair.first.y() * kDegToRad;
+  s.alt_m = pair.first.z();
+  s.roll_rad = pair.second.rpy_rad.x();
+  s.pitch_rad = pair.second.rpy_rad.y();
+  s.yaw_rad = pair.second.rpy_rad.z();
   if (!nav::invalid_ins_reason(s).empty()) {  // a pole, an altitude off the Earth: refused
     ++ins_refused_;
-    fixes_.erase(t);
-    attitudes_.erase(t);
     return;
   }
-  // Halves older than this sample never found their pair.
-  for (auto it = attitudes_.begin(); it != attitudes_.end() && it->first < t;)
-    it = attitudes_.erase(it), ++imu_without_fix_dropped_;
-  prune_before(fixes_, t);
-  fixes_.erase(t);
-  attitudes_.erase(t);
+  orientations_[t] = pair.second.q_enu_flu;  // the step's output is published with it
   if (!nav_) {
     nav::FilterSettings fs = nav::filter_model(dt_s_, s.lat_rad, sigmas_);
     if (online_) nav::set_coefficient_prior(*model_, prior_.get(), prior_settings_, &fs);

@@ -12,11 +12,11 @@
 #include <set>
 
 #include "magcomp/core/error.h"
+#include "magcomp/core/geo/attitude.h"
 #include "magcomp/core/math/constants.h"
 #include "magcomp/core/nav/nav_model.h"
 #include "magcomp/core/nav/online_calibration.h"
 #include "magcomp/ros/callback_guard.h"
-#include "magcomp/ros/ins_attitude.h"
 #include "magcomp/ros/params.h"
 
 namespace magcomp::rosio {
@@ -58,7 +58,8 @@ void NavigatorRos::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) {
   stat.add("out_of_order_dropped", c.out_of_order);
   stat.add("time_jumps_back", jumps_back_);
   stat.add("nan_inputs", nan_inputs_);
-  stat.add("imu_without_fix_dropped", imu_without_fix_dropped_);
+  stat.add("imu_without_fix_dropped", ins_pairs_.counts().second_dropped);
+  stat.add("fix_without_imu_dropped", ins_pairs_.counts().first_dropped);
   stat.add("ins_no_fix_dropped", ins_no_fix_);
   stat.add("ins_refused", ins_refused_ + c.invalid_ins);
   stat.add("measurements_refused", c.invalid_measurements);
@@ -72,7 +73,9 @@ void NavigatorRos::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) {
   }
   if (online_) {
     stat.add("online_columns_mismatched", columns_mismatched_);
-    stat.add("online_halves_waiting", static_cast<long>(online_parts_.size()));
+    stat.add("online_halves_waiting", static_cast<long>(online_pairs_.waiting()));
+    stat.add("online_halves_dropped",
+             online_pairs_.counts().first_dropped + online_pairs_.counts().second_dropped);
   }
   stat.add("pending", nav_ ? static_cast<long>(nav_->pending()) : 0L);
   if (nis_n_ > 0) stat.add("nis_mean", nis_sum_ / static_cast<double>(nis_n_));

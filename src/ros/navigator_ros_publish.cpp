@@ -13,11 +13,11 @@
 
 #include "held_samples.h"
 #include "magcomp/core/error.h"
+#include "magcomp/core/geo/attitude.h"
 #include "magcomp/core/math/constants.h"
 #include "magcomp/core/nav/nav_model.h"
 #include "magcomp/core/nav/online_calibration.h"
 #include "magcomp/ros/callback_guard.h"
-#include "magcomp/ros/ins_attitude.h"
 #include "magcomp/ros/params.h"
 
 namespace magcomp::rosio {
@@ -89,16 +89,14 @@ void NavigatorRos::publish(const std::vector<nav::NavigatorOutput>& steps) {
     const ros::Time stamp(o.t_s);
     const Eigen::Vector3d pos =
         enu_->forward(o.lat_rad * kRadToDeg, o.lon_rad * kRadToDeg, o.alt_m);
-    // Covariance NED -> ENU (x east, y north, z up).
-    const Eigen::Matrix3d swap = LocalEnu::ned_to_enu();
-    const Eigen::Matrix3d cov = swap * o.position_cov_ned_m2 * swap.transpose();
+    const Eigen::Matrix3d cov = ned_to_enu_covariance(o.position_cov_ned_m2);
     Eigen::Quaterniond q = Eigen::Quaterniond::Identity();
     auto qi = orientations_.find(o.t_s);
     if (qi != orientations_.end()) q = qi->second;
     prune_before(orientations_, o.t_s);
     const geometry_msgs::PoseWithCovariance pose = pose_of(pos, q, cov);
     if (pub_odom_.getNumSubscribers() > 0)
-      publish_odometry(stamp, pose, q, swap * o.velocity_ned_mps);
+      publish_odometry(stamp, pose, q, LocalEnu::ned_to_enu() * o.velocity_ned_mps);
     geometry_msgs::PoseWithCovarianceStamped ps;
     ps.header.stamp = stamp;
     ps.header.frame_id = map_frame_;

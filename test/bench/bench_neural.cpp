@@ -3,7 +3,9 @@
 // script (scripts/bench_neural_torch.py); (2) batch-1 streaming inference per sample (MLP, CNN,
 // LSTM). Usage: magcomp_bench_neural N_WINDOWS DATA_OUT.bin     (simulate, write the data, time,
 // latency)
-//        magcomp_bench_neural --epoch DATA.bin           (time one epoch on a written file)
+//        magcomp_bench_neural --epoch DATA.bin [cnn|lstm]  (time one epoch of that architecture,
+//                                                         as its model file sets it, on a
+//                                                         written file)
 #include <torch/torch.h>
 #include <algorithm>
 #include <chrono>
@@ -48,14 +50,15 @@ void put(std::ofstream& o, const T* p, size_t n) {
 
 void print_epoch(const NeuralSpec& s, const TrainingData& d, double epoch_s) {
   std::printf(
-      "cpp_libtorch cnn_epoch windows %zu features %ld window %d batch %d threads %d seconds "
+      "cpp_libtorch %s_epoch windows %zu features %ld window %d batch %d threads %d seconds "
       "%.2f\n",
-      d.ends.size(), static_cast<long>(d.features.cols()), s.window, s.training.batch,
-      s.training.threads, epoch_s);
+      architecture_name(s.architecture), d.ends.size(), static_cast<long>(d.features.cols()),
+      s.window, s.training.batch, s.training.threads, epoch_s);
 }
 
-/// One CNN epoch on the data file another run wrote (the same bytes PyTorch reads).
-int epoch_from_file(const std::string& path) {
+/// One epoch of `arch` (cnn or lstm, its layers and batch from its model file, every window) on
+/// the data file another run wrote (the same bytes PyTorch reads).
+int epoch_from_file(const std::string& path, const std::string& arch) {
   std::ifstream in(path, std::ios::binary);
   std::int64_t head[5];
   in.read(reinterpret_cast<char*>(head), sizeof(head));
@@ -72,8 +75,9 @@ int epoch_from_file(const std::string& path) {
     std::fprintf(stderr, "%s: short or unreadable benchmark data file\n", path.c_str());
     return 2;
   }
-  NeuralSpec s = *model_of("cnn").neural;
+  NeuralSpec s = *model_of(arch).neural;
   s.training.threads = 2;
+  s.window = static_cast<int>(head[2]);
   s.feature_mean = Eigen::VectorXd::Zero(head[1]);
   const double epoch_s = time_one_epoch(s, d);
   print_epoch(s, d, epoch_s);
@@ -81,7 +85,14 @@ int epoch_from_file(const std::string& path) {
 }
 
 int main(int argc, char** argv) {
-  if (argc == 3 && std::string(argv[1]) == "--epoch") return epoch_from_file(argv[2]);
+  if ((argc == 3 || argc == 4) && std::string(argv[1]) == "--epoch") {
+    const std::string arch = argc == 4 ? argv[3] : "cnn";
+    if (arch != "cnn" && arch != "lstm") {
+      std::fprintf(stderr, "--epoch: architecture '%s': cnn or lstm\n", arch.c_str());
+      return 2;
+    }
+    return epoch_from_file(argv[2], arch);
+  }
   if (argc < 3) {
     std::fprintf(stderr, "usage: %s N_WINDOWS DATA_OUT.bin\n", argv[0]);
     return 2;

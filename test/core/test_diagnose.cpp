@@ -422,7 +422,7 @@ TEST(Diagnose, ARippleOfUnrecordedPhaseIsNeverCompleteAndItsAmplitudeChannelIsNa
   EXPECT_EQ(f.amplitude_channel, "cur_acpwr");
   EXPECT_NE(r.stop_reason.find("its amplitude follows cur_acpwr"), std::string::npos);
   // Nothing of the position channels was added as a term.
-  for (const auto& t : r.model.terms) {
+  for (const std::string& t : r.model.terms) {
     for (const char* p : {"lat", "lon", "utm_", "ins_lat", "ins_lon", "baro"})
       EXPECT_EQ(t.find(p), std::string::npos) << t;
   }
@@ -591,7 +591,7 @@ TEST(Diagnose, AFreePlayWidthWrittenInTheModelIsEstimatedByTheFit) {
     return t.rfind("field:cur_acpwr|play(", 0) == 0;
   });
   ASSERT_NE(it, m.terms.end());
-  EXPECT_NEAR(std::stod(it->substr(it->find('(') + 1)), 1.5, 0.15) << *it;
+  EXPECT_NEAR(std::stod(it->text().substr(it->text().find('(') + 1)), 1.5, 0.15) << *it;
 }
 
 }  // namespace

@@ -14,7 +14,7 @@
 #include "magcomp/core/model/model.h"
 #include "magcomp/core/nav/flight_navigation.h"
 #include "magcomp/core/nav/nav_model.h"
-#include "magcomp/ros/ins_attitude.h"
+#include "magcomp/core/geo/attitude.h"
 #include "rostest_util.h"
 
 namespace {
@@ -67,9 +67,9 @@ TEST(Navigator, ReplayedFlightEqualsOfflineNavigation) {
     lat[i] = ins_lat[i] * kRadToDeg * kDegToRad;
     lon[i] = ins_lon[i] * kRadToDeg * kDegToRad;
     const Eigen::Quaterniond q =
-        rosio::enu_orientation(r[i] * kDegToRad, p[i] * kDegToRad, y[i] * kDegToRad);
+        enu_orientation(r[i] * kDegToRad, p[i] * kDegToRad, y[i] * kDegToRad);
     const Eigen::Vector3d a =
-        rosio::ned_attitude(Eigen::Quaterniond(q.w(), q.x(), q.y(), q.z()).normalized());
+        ned_attitude(Eigen::Quaterniond(q.w(), q.x(), q.y(), q.z()).normalized());
     roll[i] = a.x();
     pitch[i] = a.y();
     yaw[i] = a.z();

@@ -20,7 +20,7 @@
 #include "magcomp/core/nav/flight_run.h"
 #include "magcomp/core/nav/nav_model.h"
 #include "magcomp/core/nav/online_calibration.h"
-#include "magcomp/ros/ins_attitude.h"
+#include "magcomp/core/geo/attitude.h"
 #include "rostest_util.h"
 
 namespace {
@@ -69,9 +69,9 @@ TEST(NavigatorOnline, LearnsAsTheCoreDoesAndSavesWhatItLearned) {
     s.lon_rad = lon[j] * kRadToDeg * kDegToRad;
     s.alt_m = alt[j];
     const Eigen::Quaterniond q =
-        rosio::enu_orientation(r[j] * kDegToRad, p[j] * kDegToRad, y[j] * kDegToRad);
+        enu_orientation(r[j] * kDegToRad, p[j] * kDegToRad, y[j] * kDegToRad);
     const Eigen::Vector3d att =
-        rosio::ned_attitude(Eigen::Quaterniond(q.w(), q.x(), q.y(), q.z()).normalized());
+        ned_attitude(Eigen::Quaterniond(q.w(), q.x(), q.y(), q.z()).normalized());
     s.roll_rad = att.x();
     s.pitch_rad = att.y();
     s.yaw_rad = att.z();

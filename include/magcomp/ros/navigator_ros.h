@@ -30,6 +30,7 @@
 #include "magcomp/core/nav/nav_model.h"
 #include "magcomp/core/nav/online_calibration.h"
 #include "magcomp/core/nav/streaming_navigator.h"
+#include "magcomp/core/stream/stamp_pairer.h"
 
 namespace magcomp::rosio {
 
@@ -60,15 +61,18 @@ class NavigatorRos {
     Eigen::VectorXd columns;
   };
   void feed_measurement(double t_s, const EarlyMeasurement& m);
-  /// Online: the anomaly and the columns of stamp t_s, once both are in.
-  void try_online(double t_s);
   /// A stamp ROS time cannot carry back out (seconds at 2^32 - 1): counted, true.
   bool refuse_stamp(const ros::Time& stamp);
   void on_timer();
   /// The anomaly map as a latched nav_msgs/OccupancyGrid (rviz's Map display).
   void publish_map();
-  /// An INS fix and attitude with the same stamp: one sample for the navigator.
-  void try_ins(double t_s);
+  /// An INS fix (deg, deg, m) and attitude with the same stamp: one sample for the navigator.
+  struct InsAttitude {
+    Eigen::Vector3d rpy_rad;       ///< roll, pitch, yaw (rad, NED/FRD)
+    Eigen::Quaterniond q_enu_flu;  ///< the Imu's orientation (ENU/FLU)
+  };
+  using InsPairs = StampPairer<Eigen::Vector3d, InsAttitude>;
+  void take_ins(const InsPairs::Pair& pair);
   /// A stamp earlier than the last of its own stream (`last_s`) by more than jump_back_s: a new
   /// flight (a looped bag); everything restarts.
   bool jumped_back(double t_s, double* last_s);
@@ -101,9 +105,8 @@ class NavigatorRos {
   /// Made at the first INS sample: the filter's initial covariance is about its latitude.
   std::unique_ptr<nav::StreamingNavigator> nav_;
   std::unique_ptr<LocalEnu> enu_;
-  // INS halves waiting for their other half, by stamp (s): position (deg, deg, m), attitude.
-  std::map<double, Eigen::Vector3d> fixes_;
-  std::map<double, Eigen::Vector3d> attitudes_;        // roll, pitch, yaw (rad, NED/FRD)
+  // INS halves waiting for their other half, by stamp: the fix and the attitude.
+  InsPairs ins_pairs_;
   std::map<double, Eigen::Quaterniond> orientations_;  // the Imu's (ENU/FLU)
   std::map<double, Eigen::Vector2d> truth_;
   std::map<double, EarlyMeasurement> early_;  // measurements before the first INS sample
@@ -113,12 +116,10 @@ class NavigatorRos {
   std::unique_ptr<Model> model_, prior_;
   nav::CoefficientPriorSettings prior_settings_;
   std::vector<std::string> column_names_;
-  struct OnlinePart {
-    double z_nT = NAN, var_nT2 = NAN;
-    bool has_z = false;
-    Eigen::VectorXd columns;
+  struct AnomalyHalf {
+    double z_nT = NAN, var_nT2 = NAN;  ///< the raw anomaly and its variance (NaN: the settings')
   };
-  std::map<double, OnlinePart> online_parts_;
+  StampPairer<AnomalyHalf, Eigen::VectorXd> online_pairs_;  // the anomaly and the model's columns
   long columns_mismatched_ = 0;
   std::string learned_model_path_;
   ros::Subscriber sub_columns_;
@@ -128,7 +129,7 @@ class NavigatorRos {
   double last_input_wall_s_ = 0.0;
   // Counters and the latest state, for diagnostics.
   long truth_seen_ = 0;  // reference fixes received (every path_stride-th is a path point)
-  long published_ = 0, jumps_back_ = 0, imu_without_fix_dropped_ = 0, nan_inputs_ = 0;
+  long published_ = 0, jumps_back_ = 0, nan_inputs_ = 0;
   long ins_no_fix_ = 0, ins_refused_ = 0, bad_stamps_ = 0, callback_errors_ = 0;
   std::optional<nav::NavigatorOutput> last_;
   double nis_sum_ = 0.0;

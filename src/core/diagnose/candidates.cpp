@@ -44,8 +44,8 @@ std::vector<Job> make_jobs(const Model& model, const std::vector<std::string>& s
   std::vector<Job> jobs;
   std::set<std::string> have(model.terms.begin(), model.terms.end());
   std::set<std::string> shapes;  // a term of the model is re-estimated with ?, not searched again
-  for (const auto& t : model.terms) {
-    if (const auto e = parse_expr_term(t)) shapes.insert(e->shape());
+  for (const TermSpec& t : model.terms) {
+    if (const ExprTerm* e = t.expr()) shapes.insert(e->shape());
   }
   std::set<std::string> families;
   for (const auto& t : model.terms) families.insert(family_of_tl(t));

@@ -82,7 +82,7 @@ Model prepared_model(const Model& model_in, const FlightData& data, const std::s
   }
   Model model = model_in;
   for (const auto& t : model.terms) {
-    if (t.find('?') != std::string::npos) {
+    if (t.text().find('?') != std::string::npos) {
       fit_model(model, {&data});
       break;
     }

@@ -60,8 +60,8 @@ std::vector<Job> refined_jobs(const Model& model, const Search& search,
   }
   std::sort(order.begin(), order.end());
   std::set<std::string> shapes;  // a model term's shape is re-estimated, not grown
-  for (const auto& t : model.terms)
-    if (const auto e = parse_expr_term(t)) shapes.insert(e->shape());
+  for (const TermSpec& t : model.terms)
+    if (const ExprTerm* e = t.expr()) shapes.insert(e->shape());
   std::vector<Job> out;
   size_t parents = 0;
   for (const auto& entry : order) {

@@ -228,7 +228,8 @@ void add_candidate_term(const std::string& term, bool slow, const std::string& t
 // `m` without `term` (and out of its slow and black-box lists), unfitted.
 Model without_term(const Model& m, const std::string& term) {
   Model out = m;
-  for (auto* list : {&out.terms, &out.slow_terms, &out.black_box_terms})
+  out.terms.erase(std::remove(out.terms.begin(), out.terms.end(), term), out.terms.end());
+  for (auto* list : {&out.slow_terms, &out.black_box_terms})
     list->erase(std::remove(list->begin(), list->end(), term), list->end());
   out.coefficients.resize(0);
   return out;

@@ -60,13 +60,13 @@ std::vector<TermSupport> term_support(const Model& model, const Model& start,
   Eigen::Index first = 0;
   for (size_t k = 0; k < terms.size(); ++k) {
     const Eigen::Index n = static_cast<Eigen::Index>(terms[k]->column_names().size());
-    const std::string& spec = model.terms[k];
+    const TermSpec& spec = model.terms[k];
     const Eigen::Index from = first;
     first += n;
     if (std::find(start.terms.begin(), start.terms.end(), spec) != start.terms.end()) continue;
     TermSupport s;
     s.term = spec;
-    const auto e = parse_expr_term(spec);
+    const ExprTerm* e = spec.expr();
     if (e && !e->signal().sources.empty()) s.channel = e->signal().sources.front();
     out.push_back(s);
     Sums m;

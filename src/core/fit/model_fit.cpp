@@ -191,7 +191,7 @@ void add_runs(const FitSettings& s, double dt_s, const Eigen::MatrixXd& a, const
 }
 
 CalibrationBlocks calibration_blocks(const Model& model,
-                                     const std::vector<std::unique_ptr<Term>>& terms,
+                                     const std::vector<TermPtr>& terms,
                                      const std::vector<const FlightData*>& flights,
                                      FitReport* report) {
   const FitSettings& s = model.fit;
@@ -320,7 +320,7 @@ void add_column_warnings(const Model& model, const Eigen::MatrixXd& g,
 // The slow stage (Model::slow_terms): after the band-pass stage has set the other coefficients,
 // the slow columns are fitted to the scalar minus fit.reference minus that stage's correction on
 // the calibration segments of every flight, unfiltered, each segment's mean removed.
-void fit_slow_stage(Model& model, const std::vector<std::unique_ptr<Term>>& terms,
+void fit_slow_stage(Model& model, const std::vector<TermPtr>& terms,
                     const std::vector<const FlightData*>& flights,
                     const std::vector<Eigen::Index>& slow, FitReport* report) {
   const FitSettings& s = model.fit;

@@ -261,7 +261,7 @@ double initial_guess(TransformKind k) {
 }
 
 // The design of `model` on one flight, restricted to the columns its fit method can fit.
-Eigen::MatrixXd fittable_design(const Model& model, const std::vector<std::unique_ptr<Term>>& terms,
+Eigen::MatrixXd fittable_design(const Model& model, const std::vector<TermPtr>& terms,
                                 const FlightData& f) {
   const Eigen::MatrixXd a = design_matrix(model, terms, f);
   const std::vector<Eigen::Index> keep = fittable_columns(model.fit.method, terms);
@@ -275,15 +275,15 @@ Eigen::MatrixXd fittable_design(const Model& model, const std::vector<std::uniqu
 std::vector<std::string> estimate_free_parameters(Model& model,
                                                   const std::vector<const FlightData*>& flights) {
   std::vector<FreeRef> refs;
-  std::vector<std::unique_ptr<ExprTerm>> free_terms(model.terms.size());
+  std::vector<std::shared_ptr<const ExprTerm>> free_terms(model.terms.size());
   for (size_t t = 0; t < model.terms.size(); ++t) {
-    auto e = parse_expr_term(model.terms[t]);
+    const ExprTerm* e = model.terms[t].expr();
     if (!e || !e->signal().has_free()) continue;
     size_t ord = 0;
     for (const auto& tr : e->signal().transforms) {
       if (tr.free) refs.push_back({t, ord++, tr.kind});
     }
-    free_terms[t] = std::move(e);
+    free_terms[t] = std::shared_ptr<const ExprTerm>(model.terms[t].shared(), e);
   }
   if (refs.empty()) return {};
   if (flights.empty()) throw Error("fit: no flight to estimate the free parameters on");
@@ -309,12 +309,12 @@ std::vector<std::string> estimate_free_parameters(Model& model,
       base.terms.clear();
       for (size_t u = 0; u < model.terms.size(); ++u) {
         if (u == t) continue;
-        base.terms.push_back(free_terms[u] ? spec_of(u) : model.terms[u]);
+        base.terms.push_back(free_terms[u] ? spec_of(u) : model.terms[u].text());
       }
       base.coefficients.resize(0);
       const FitRowSet rows(base, flights, nullptr);
       if (rows.rows() == 0) {
-        throw Error("fit: no usable fit sample to estimate '" + model.terms[t] + "'");
+        throw Error("fit: no usable fit sample to estimate '" + model.terms[t].text() + "'");
       }
       // The base's fittable columns, stacked.
       const auto base_terms = base.make_terms();
@@ -340,21 +340,20 @@ std::vector<std::string> estimate_free_parameters(Model& model,
         profile.solve(rows.stack(cols), &rss);
         return std::isfinite(rss) ? rss : std::numeric_limits<double>::infinity();
       };
-      const auto term_now = make_term(model.terms[t]);  // owns what `expr` points into
-      const auto* expr = dynamic_cast<const ExprTerm*>(term_now.get());
+      const ExprTerm* expr = free_terms[t].get();
       const SignalRange range = in_signal_units(refs[i].kind) && expr && !flights.empty()
                                     ? signal_range(expr->signal(), *flights.front())
                                     : SignalRange{};
       const std::vector<double> grid =
           parameter_grid(refs[i].kind, dt, span, range.hi - range.lo, range.lo);
       if (grid.empty())
-        throw Error("fit: '" + model.terms[t] + "': no range of the signal to scan its " +
+        throw Error("fit: '" + model.terms[t].text() + "': no range of the signal to scan its " +
                     Transform{refs[i].kind, 0.0, true}.str() + " over");
       value[i] = scan_parameter(refs[i].kind, grid, objective);
       if (sweep == sweeps - 1) {
         char buf[256];
         std::snprintf(buf, sizeof(buf), "'%s': %s estimated %.3g (scanned %.3g to %.3g)",
-                      model.terms[t].c_str(),
+                      model.terms[t].text().c_str(),
                       Transform{refs[i].kind, 0.0, false}.param_meaning().c_str(), value[i],
                       grid.front(), grid.back());
         lines.push_back(buf);

@@ -17,7 +17,7 @@ Eigen::MatrixXd design_matrix(const Model& model, const FlightData& data) {
   return design_matrix(model, model.make_terms(), data);
 }
 
-Eigen::MatrixXd design_matrix(const Model& model, const std::vector<std::unique_ptr<Term>>& terms,
+Eigen::MatrixXd design_matrix(const Model& model, const std::vector<TermPtr>& terms,
                               const FlightData& data) {
   for (const auto& t : terms) {
     for (const auto& f : t->fields()) {
@@ -45,7 +45,7 @@ Eigen::MatrixXd design_matrix(const Model& model, const std::vector<std::unique_
   return a;
 }
 
-Eigen::Index slice_margin(const Model& model, const std::vector<std::unique_ptr<Term>>& terms,
+Eigen::Index slice_margin(const Model& model, const std::vector<TermPtr>& terms,
                           double dt_s) {
   int reach = 0;
   for (const auto& t : terms) {

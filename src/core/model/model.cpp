@@ -11,9 +11,10 @@
 
 namespace magcomp {
 
-std::vector<std::unique_ptr<Term>> Model::make_terms() const {
-  std::vector<std::unique_ptr<Term>> out;
-  for (const std::string& spec : terms) out.push_back(make_term(spec));
+std::vector<TermPtr> Model::make_terms() const {
+  std::vector<TermPtr> out;
+  out.reserve(terms.size());
+  for (const TermSpec& t : terms) out.push_back(t.shared());
   return out;
 }
 
@@ -42,14 +43,14 @@ Eigen::VectorXd aligned_scalar(const Model& model, const FlightData& data, doubl
 }
 
 bool Model::add_term(const std::string& spec) {
-  const std::string canonical = make_term(spec)->spec();
+  const TermSpec canonical(TermSpec(spec).term().spec());
   if (std::find(terms.begin(), terms.end(), canonical) != terms.end()) return false;
-  if (const auto e = parse_expr_term(canonical)) {
+  if (const ExprTerm* e = canonical.expr()) {
     for (auto& t : terms) {
-      const auto old = parse_expr_term(t);
+      const ExprTerm* old = t.expr();
       if (old && old->shape() == e->shape() && old->spec().find('(') != std::string::npos) {
         for (auto* list : {&slow_terms, &black_box_terms}) {  // they name it by its spec
-          std::replace(list->begin(), list->end(), t, canonical);
+          std::replace(list->begin(), list->end(), t.text(), canonical.text());
         }
         t = canonical;  // the same expression with new parameter values
         coefficients.resize(0);
@@ -57,9 +58,9 @@ bool Model::add_term(const std::string& spec) {
       }
     }
   }
-  if (canonical.rfind("lag:", 0) == 0) {  // one lag per model: a new one replaces the old
+  if (canonical.text().rfind("lag:", 0) == 0) {  // one lag per model: a new one replaces the old
     terms.erase(std::remove_if(terms.begin(), terms.end(),
-                               [](const std::string& t) { return t.rfind("lag:", 0) == 0; }),
+                               [](const TermSpec& t) { return t.text().rfind("lag:", 0) == 0; }),
                 terms.end());
   }
   terms.push_back(canonical);
@@ -80,8 +81,7 @@ void Model::add_slow_term(const std::string& spec, const std::string& reference)
   if (fit.reference.empty()) fit.reference = reference;
 }
 
-std::vector<Eigen::Index> fittable_columns(FitMethod method,
-                                           const std::vector<std::unique_ptr<Term>>& terms) {
+std::vector<Eigen::Index> fittable_columns(FitMethod method, const std::vector<TermPtr>& terms) {
   const bool bandpass = method == FitMethod::kBandpass;
   std::vector<Eigen::Index> out;
   Eigen::Index c = 0;
@@ -95,7 +95,7 @@ std::vector<Eigen::Index> fittable_columns(FitMethod method,
 
 namespace {
 // Per column of `terms`: whether its term is one of `slow_terms`.
-std::vector<bool> slow_mask(const std::vector<std::unique_ptr<Term>>& terms,
+std::vector<bool> slow_mask(const std::vector<TermPtr>& terms,
                             const std::vector<std::string>& slow_terms) {
   std::vector<bool> out;
   for (const auto& t : terms) {
@@ -107,8 +107,7 @@ std::vector<bool> slow_mask(const std::vector<std::unique_ptr<Term>>& terms,
 }
 }  // namespace
 
-std::vector<Eigen::Index> fittable_columns(FitMethod method,
-                                           const std::vector<std::unique_ptr<Term>>& terms,
+std::vector<Eigen::Index> fittable_columns(FitMethod method, const std::vector<TermPtr>& terms,
                                            const std::vector<std::string>& slow_terms) {
   std::vector<Eigen::Index> out = fittable_columns(method, terms);
   if (method != FitMethod::kBandpass || slow_terms.empty()) return out;
@@ -119,8 +118,7 @@ std::vector<Eigen::Index> fittable_columns(FitMethod method,
   return out;
 }
 
-std::vector<Eigen::Index> slow_columns(FitMethod method,
-                                       const std::vector<std::unique_ptr<Term>>& terms,
+std::vector<Eigen::Index> slow_columns(FitMethod method, const std::vector<TermPtr>& terms,
                                        const std::vector<std::string>& slow_terms) {
   std::vector<Eigen::Index> out;
   if (method != FitMethod::kBandpass || slow_terms.empty()) return out;

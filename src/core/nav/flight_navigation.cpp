@@ -107,7 +107,11 @@ Eigen::VectorXd measured_anomaly_nT(const FlightData& f, const Model& m, bool un
   require_model_fields_in_range(m, f);
   const Eigen::VectorXd total =
       uncompensated ? column(f, {m.scalar}, "the model's scalar") : compensate(m, f);
-  return anomaly_nT(total, igrf_total_nT(f, Igrf::installed()),
+  return flight_anomaly_nT(f, total);
+}
+
+Eigen::VectorXd flight_anomaly_nT(const FlightData& f, const Eigen::VectorXd& total_nT) {
+  return anomaly_nT(total_nT, igrf_total_nT(f, Igrf::installed()),
                     f.has("diurnal") ? Eigen::VectorXd(f.column("diurnal")) : Eigen::VectorXd());
 }
 

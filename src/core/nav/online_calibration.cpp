@@ -6,8 +6,7 @@
 #include <cmath>
 
 #include "magcomp/core/error.h"
-#include "magcomp/core/geo/igrf.h"
-#include "magcomp/core/geo/igrf_track.h"
+#include "magcomp/core/nav/flight_navigation.h"
 
 namespace magcomp::nav {
 
@@ -51,8 +50,7 @@ void set_coefficient_prior(const Model& model, const Model* prior,
 
 OnlineMeasurement online_measurement(const FlightData& f, const Model& model) {
   OnlineMeasurement m;
-  m.raw_anomaly_nT = aligned_scalar(model, f) - igrf_total_nT(f, Igrf::installed());
-  if (f.has("diurnal")) m.raw_anomaly_nT -= Eigen::VectorXd(f.column("diurnal"));
+  m.raw_anomaly_nT = flight_anomaly_nT(f, aligned_scalar(model, f));
   m.columns = design_matrix(model, f);
   return m;
 }

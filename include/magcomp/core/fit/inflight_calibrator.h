@@ -49,7 +49,7 @@ class InflightCalibrator {
   Model model_;
   double forgetting_;
   std::vector<std::string> channels_;
-  std::vector<std::unique_ptr<Term>> terms_;  // built once: rls_step() runs per sample
+  std::vector<TermPtr> terms_;  // built once: rls_step() runs per sample
   std::vector<StreamSample> collected_;       // every segment's samples, in order, with one context
                                          // sample before and after each (segment 0: not fitted)
   std::vector<int> segment_of_;             // segment index of each collected sample (0: context)

@@ -13,6 +13,7 @@
 #include "magcomp/core/io/flight_data.h"
 #include "magcomp/core/model/neural_spec.h"
 #include "magcomp/core/model/term.h"
+#include "magcomp/core/model/term_spec.h"
 
 namespace magcomp {
 
@@ -65,11 +66,12 @@ struct FitReport {
   }
 };
 
-/// A compensation model. Terms are held as specs; the model builds them on demand.
+/// A compensation model. Its terms are parsed once (TermSpec) and shared by the designs built
+/// from them.
 struct Model {
   std::string scalar = "mag_5_uc";  ///< field of the scalar magnetometer, nT
   std::string vector = "flux_c";    ///< vector magnetometer prefix: <vector>_x/_y/_z, nT
-  std::vector<std::string> terms = {"permanent", "induced", "eddy"};
+  std::vector<TermSpec> terms = {"permanent", "induced", "eddy"};
   /// The terms (among `terms`) that make up a learned law: hinges of a channel whose sum is a
   /// fitted shape, not a physical law (diagnose adds them when no term of the language passes).
   /// Written as `black_box_terms` in the model file.
@@ -89,8 +91,8 @@ struct Model {
   std::optional<NeuralSpec> neural;
 
   bool fitted() const { return coefficients.size() > 0; }
-  /// The term objects, in order.
-  std::vector<std::unique_ptr<Term>> make_terms() const;
+  /// The term objects, in order (shared with `terms`: nothing is parsed again).
+  std::vector<TermPtr> make_terms() const;
   /// Names of all columns the terms build, in order.
   std::vector<std::string> make_column_names() const;
   /// Scalar lag behind the vector sensor the terms declare (lag:<s>), s.
@@ -124,23 +126,23 @@ void save_model_yaml(const Model& model, const std::string& path,
 /// file and the missing field.
 Eigen::MatrixXd design_matrix(const Model& model, const FlightData& data);
 /// The same with the model's terms already built (per-sample callers build them once).
-Eigen::MatrixXd design_matrix(const Model& model, const std::vector<std::unique_ptr<Term>>& terms,
+Eigen::MatrixXd design_matrix(const Model& model, const std::vector<TermPtr>& terms,
                               const FlightData& data);
 
 /// Indices of the design-matrix columns of `terms` that a fit by `method` can fit: all of them
 /// for a reference fit; for a band-pass fit only those of bandpass_observable() terms (a bias,
 /// say, is filtered away).
 std::vector<Eigen::Index> fittable_columns(FitMethod method,
-                                           const std::vector<std::unique_ptr<Term>>& terms);
+                                           const std::vector<TermPtr>& terms);
 /// The same, without the columns of `slow_terms` when `method` is bandpass (the slow stage
 /// fits those).
 std::vector<Eigen::Index> fittable_columns(FitMethod method,
-                                           const std::vector<std::unique_ptr<Term>>& terms,
+                                           const std::vector<TermPtr>& terms,
                                            const std::vector<std::string>& slow_terms);
 /// Indices of the design-matrix columns of the model's slow terms (Model::slow_terms) that a fit
 /// by `method` fits after its band-pass stage: empty for a reference fit (it fits every column).
 std::vector<Eigen::Index> slow_columns(FitMethod method,
-                                       const std::vector<std::unique_ptr<Term>>& terms,
+                                       const std::vector<TermPtr>& terms,
                                        const std::vector<std::string>& slow_terms);
 
 /// Samples of margin that make rows of the design matrix and of the aligned scalar built on a
@@ -148,7 +150,7 @@ std::vector<Eigen::Index> slow_columns(FitMethod method,
 /// terms' row reach plus the lag's shift plus the interpolation's (and the columns' lag round
 /// trip, timeseries.h); -1 when a term depends on the
 /// whole history (a causal filter), so only the whole flight gives its values.
-Eigen::Index slice_margin(const Model& model, const std::vector<std::unique_ptr<Term>>& terms,
+Eigen::Index slice_margin(const Model& model, const std::vector<TermPtr>& terms,
                           double dt_s);
 
 /// Calls `block(first, a)` for consecutive blocks of rows covering the flight, `a` being rows

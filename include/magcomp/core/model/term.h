@@ -80,6 +80,9 @@ class Term {
   mutable std::vector<std::string> fields_;
 };
 
+/// A term shared read-only between the models and designs that use it (terms are immutable).
+using TermPtr = std::shared_ptr<const Term>;
+
 /// Parses a term spec. Known: permanent, induced, induced5, induced3, eddy, eddy8, eddy3, fdm,
 /// bias, second_order, lag:<seconds>, and the term language (terms_expr.h): field:, induced:,
 /// scalar:<signal> with the shorthands current:, dcurrent:, rate:<channel>. Throws

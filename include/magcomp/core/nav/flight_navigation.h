@@ -41,6 +41,10 @@ struct FlightSamples {
 };
 FlightSamples flight_samples(const FlightData& flight);
 
+/// The anomaly of a total field along the flight, nT: total_nT (one per row) less the IGRF at the
+/// true position and, when the flight has it, the diurnal field (geo/anomaly.h).
+Eigen::VectorXd flight_anomaly_nT(const FlightData& flight, const Eigen::VectorXd& total_nT);
+
 /// The measured anomaly, nT: the model's compensated field (its raw scalar when `uncompensated`)
 /// less the IGRF at the true position and, when the flight has it, the diurnal field.
 Eigen::VectorXd measured_anomaly_nT(const FlightData& flight, const Model& model,

@@ -84,7 +84,7 @@ class StreamingCompensator {
     std::vector<std::string> columns;    // window column names (ExprTerm::stream_column)
   };
   Model model_;
-  std::vector<std::unique_ptr<Term>> terms_;  // built once: emit() runs per sample
+  std::vector<TermPtr> terms_;  // built once: emit() runs per sample
   double lag_s_ = 0.0;
   std::vector<std::string> channels_;
   std::unique_ptr<FeaturePlan> plan_;         // neural stage only

@@ -1,10 +1,12 @@
-// magcomp ROS layer: INS attitude conventions (ins_attitude.h).
-#include "magcomp/ros/ins_attitude.h"
+// magcomp: INS attitude conventions (attitude.h).
+#include "magcomp/core/geo/attitude.h"
 
 #include <algorithm>
 #include <cmath>
 
-namespace magcomp::rosio {
+#include "magcomp/core/geo/local_enu.h"
+
+namespace magcomp {
 
 Eigen::Quaterniond enu_orientation(double roll, double pitch, double yaw) {
   // yaw_enu = 90 deg - yaw (counter-clockwise from east), pitch negated (y axis to the left).
@@ -14,11 +16,15 @@ Eigen::Quaterniond enu_orientation(double roll, double pitch, double yaw) {
 }
 
 Eigen::Vector3d ned_attitude(const Eigen::Quaterniond& q) {
-  Eigen::Matrix3d swap;
-  swap << 0, 1, 0, 1, 0, 0, 0, 0, -1;  // ENU <-> NED
+  const Eigen::Matrix3d swap = LocalEnu::ned_to_enu();  // its own inverse
   const Eigen::Matrix3d c = swap * q.toRotationMatrix() * Eigen::Vector3d(1, -1, -1).asDiagonal();
   return {std::atan2(c(2, 1), c(2, 2)), -std::asin(std::clamp(c(2, 0), -1.0, 1.0)),
           std::atan2(c(1, 0), c(0, 0))};
 }
 
-}  // namespace magcomp::rosio
+Eigen::Matrix3d ned_to_enu_covariance(const Eigen::Matrix3d& cov_ned) {
+  const Eigen::Matrix3d swap = LocalEnu::ned_to_enu();
+  return swap * cov_ned * swap.transpose();
+}
+
+}  // namespace magcomp

@@ -1,0 +1,14 @@
+// magcomp: a term parsed once (term_spec.h).
+#include "magcomp/core/model/term_spec.h"
+
+#include "magcomp/core/model/terms_expr.h"
+
+namespace magcomp {
+
+TermSpec::TermSpec(const std::string& text) : text_(text), term_(make_term(text)) {}
+
+TermSpec::TermSpec(const char* text) : TermSpec(std::string(text)) {}
+
+const ExprTerm* TermSpec::expr() const { return dynamic_cast<const ExprTerm*>(term_.get()); }
+
+}  // namespace magcomp
