@@ -6,6 +6,7 @@
 #include <fstream>
 
 #include "magcomp/core/neural/network.h"
+#include "magcomp/neural/fused_lstm.h"
 
 namespace magcomp {
 
@@ -56,6 +57,9 @@ torch::Tensor CompensatorNetImpl::forward(const torch::Tensor& x, const torch::T
     z = torch::max_pool1d(torch::relu(conv1->forward(z)), 2);
     z = torch::max_pool1d(torch::relu(conv2->forward(z)), 2);
     y = cnn_fc2->forward(torch::relu(cnn_fc1->forward(z.flatten(1))));
+  } else if (fused_lstm && x.scalar_type() == torch::kFloat32) {
+    // Training and validation (float32): one autograd node for the whole recurrence.
+    y = lstm_fc->forward(fused_lstm_last(x, lstm->all_weights()));
   } else {
     auto out = std::get<0>(lstm->forward(x));
     y = lstm_fc->forward(out.select(1, out.size(1) - 1));

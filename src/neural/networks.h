@@ -19,6 +19,9 @@ struct CompensatorNetImpl : torch::nn::Module {
   torch::nn::Conv1d conv1{nullptr}, conv2{nullptr};
   torch::nn::Linear cnn_fc1{nullptr}, cnn_fc2{nullptr};
   torch::nn::LSTM lstm{nullptr};
+  /// The LSTM on float32 windows (training, validation) through fused_lstm_last; false: through
+  /// torch::nn::LSTM (the same function; double-precision inference always takes torch's).
+  bool fused_lstm = true;
   torch::nn::Linear lstm_fc{nullptr};
   torch::nn::Linear tl_linear{nullptr};  // joint mode: weights on the scaled TL columns
 };

@@ -196,10 +196,11 @@ TrainResult train_network(const NeuralSpec& spec, const TrainingData& train,
   return r;
 }
 
-double time_one_epoch(const NeuralSpec& spec, const TrainingData& data) {
+double time_one_epoch(const NeuralSpec& spec, const TrainingData& data, bool torch_lstm) {
   torch::manual_seed(spec.training.seed);
   torch::set_num_threads(spec.training.threads);
   CompensatorNet net(spec, static_cast<int>(data.features.cols()), 0);
+  net->fused_lstm = !torch_lstm;
   net->train();
   torch::optim::Adam opt(net->parameters(), torch::optim::AdamOptions(spec.training.learning_rate)
                                                 .weight_decay(spec.training.weight_decay));

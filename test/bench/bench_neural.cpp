@@ -3,9 +3,9 @@
 // script (scripts/bench_neural_torch.py); (2) batch-1 streaming inference per sample (MLP, CNN,
 // LSTM). Usage: magcomp_bench_neural N_WINDOWS DATA_OUT.bin     (simulate, write the data, time,
 // latency)
-//        magcomp_bench_neural --epoch DATA.bin [cnn|lstm]  (time one epoch of that architecture,
-//                                                         as its model file sets it, on a
-//                                                         written file)
+//        magcomp_bench_neural --epoch DATA.bin [cnn|lstm|lstm-torch [BATCH]]  (time one epoch
+//          of that architecture, as its model file sets it, on a written file; lstm-torch: the
+//          LSTM through torch::nn::LSTM's own backward)
 #include <torch/torch.h>
 #include <algorithm>
 #include <chrono>
@@ -48,20 +48,28 @@ void put(std::ofstream& o, const T* p, size_t n) {
 
 }  // namespace
 
-void print_epoch(const NeuralSpec& s, const TrainingData& d, double epoch_s) {
+void print_epoch(const NeuralSpec& s, const TrainingData& d, double epoch_s,
+                 const char* variant = "") {
   std::printf(
-      "cpp_libtorch %s_epoch windows %zu features %ld window %d batch %d threads %d seconds "
+      "cpp_libtorch %s%s_epoch windows %zu features %ld window %d batch %d threads %d seconds "
       "%.2f\n",
-      architecture_name(s.architecture), d.ends.size(), static_cast<long>(d.features.cols()),
-      s.window, s.training.batch, s.training.threads, epoch_s);
+      architecture_name(s.architecture), variant, d.ends.size(),
+      static_cast<long>(d.features.cols()), s.window, s.training.batch, s.training.threads,
+      epoch_s);
 }
 
 /// One epoch of `arch` (cnn or lstm, its layers and batch from its model file, every window) on
 /// the data file another run wrote (the same bytes PyTorch reads).
-int epoch_from_file(const std::string& path, const std::string& arch) {
+int epoch_from_file(const std::string& path, const std::string& arch, int batch) {
   std::ifstream in(path, std::ios::binary);
-  std::int64_t head[5];
+  std::int64_t head[5] = {0, 0, 0, 0, 0};
   in.read(reinterpret_cast<char*>(head), sizeof(head));
+  if (!in || head[0] <= 0 || head[1] <= 0 || head[2] <= 0 || head[3] <= 0 || head[3] > head[0] ||
+      head[0] > (std::int64_t{1} << 32) || head[1] > 4096) {
+    std::fprintf(stderr, "%s: not a benchmark data file (missing, short or bad header)\n",
+                 path.c_str());
+    return 2;
+  }
   TrainingData d;
   d.features.resize(head[0], head[1]);
   d.target.resize(head[0]);
@@ -75,23 +83,25 @@ int epoch_from_file(const std::string& path, const std::string& arch) {
     std::fprintf(stderr, "%s: short or unreadable benchmark data file\n", path.c_str());
     return 2;
   }
-  NeuralSpec s = *model_of(arch).neural;
+  const bool torch_lstm = arch == "lstm-torch";
+  NeuralSpec s = *model_of(torch_lstm ? "lstm" : arch).neural;
   s.training.threads = 2;
+  if (batch > 0) s.training.batch = batch;
   s.window = static_cast<int>(head[2]);
   s.feature_mean = Eigen::VectorXd::Zero(head[1]);
-  const double epoch_s = time_one_epoch(s, d);
-  print_epoch(s, d, epoch_s);
+  const double epoch_s = time_one_epoch(s, d, torch_lstm);
+  print_epoch(s, d, epoch_s, torch_lstm ? "-torch" : "");
   return 0;
 }
 
 int main(int argc, char** argv) {
-  if ((argc == 3 || argc == 4) && std::string(argv[1]) == "--epoch") {
-    const std::string arch = argc == 4 ? argv[3] : "cnn";
-    if (arch != "cnn" && arch != "lstm") {
-      std::fprintf(stderr, "--epoch: architecture '%s': cnn or lstm\n", arch.c_str());
+  if (argc >= 3 && argc <= 5 && std::string(argv[1]) == "--epoch") {
+    const std::string arch = argc >= 4 ? argv[3] : "cnn";
+    if (arch != "cnn" && arch != "lstm" && arch != "lstm-torch") {
+      std::fprintf(stderr, "--epoch: architecture '%s': cnn, lstm or lstm-torch\n", arch.c_str());
       return 2;
     }
-    return epoch_from_file(argv[2], arch);
+    return epoch_from_file(argv[2], arch, argc == 5 ? std::atoi(argv[4]) : 0);
   }
   if (argc < 3) {
     std::fprintf(stderr, "usage: %s N_WINDOWS DATA_OUT.bin\n", argv[0]);

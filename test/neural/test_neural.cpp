@@ -19,6 +19,7 @@
 #include "magcomp/core/neural/network.h"
 #include "magcomp/core/sim/simulator.h"
 #include "magcomp/core/stream/streaming_compensator.h"
+#include "magcomp/neural/fused_lstm.h"
 #include "magcomp/neural/trainer.h"
 #include "test_util.h"
 
@@ -387,6 +388,48 @@ TEST(Neural, TrainPrintsWhatTheNetworkLeansOnOnTheValidationFlight) {
   }
   EXPECT_EQ(first, "cur_strb") << out;
   EXPECT_NEAR(total, 100.0, 0.5) << out;
+}
+
+// The LSTM with its backward written out is torch::nn::LSTM's function: the same output and the
+// same gradients of a loss in every weight and in the input, in float32 and float64, for one and
+// for three layers (a batch of 70 windows of 13 steps: three parallel chunks, the last short).
+void expect_fused_lstm_equals_torchs(torch::ScalarType type, int layers, double tol) {
+  torch::manual_seed(5);
+  torch::nn::LSTM lstm(torch::nn::LSTMOptions(5, 6).num_layers(layers).batch_first(true));
+  lstm->to(type);
+  const torch::Tensor x0 = torch::randn({70, 13, 5}, torch::TensorOptions().dtype(type));
+  const torch::Tensor w = torch::randn({70, 6}, torch::TensorOptions().dtype(type));
+  auto grads_of = [&](bool fused) {
+    lstm->zero_grad();
+    torch::Tensor x = x0.clone().requires_grad_(true);
+    torch::Tensor last;
+    if (fused) {
+      last = fused_lstm_last(x, lstm->all_weights());
+    } else {
+      const torch::Tensor out = std::get<0>(lstm->forward(x));
+      last = out.select(1, out.size(1) - 1);
+    }
+    (last * w).pow(2).sum().backward();
+    std::vector<torch::Tensor> g = {last.detach().clone(), x.grad().clone()};
+    for (const torch::Tensor& p : lstm->all_weights()) g.push_back(p.grad().clone());
+    return g;
+  };
+  const std::vector<torch::Tensor> ref = grads_of(false), got = grads_of(true);
+  ASSERT_EQ(ref.size(), got.size());
+  ASSERT_EQ(ref.size(), static_cast<size_t>(2 + 4 * layers));
+  for (size_t k = 0; k < ref.size(); ++k) {
+    const double scale = ref[k].abs().max().item<double>();
+    EXPECT_GT(scale, 0.0) << k;
+    EXPECT_LT((got[k] - ref[k]).abs().max().item<double>(), tol * scale)
+        << "tensor " << k << " (0: output, 1: input gradient, then per layer w_ih, w_hh, b_ih, "
+        << "b_hh), layers " << layers;
+  }
+}
+
+TEST(Neural, TheFusedLstmHasTorchsOutputAndGradients) {
+  expect_fused_lstm_equals_torchs(torch::kFloat64, 1, 1e-12);
+  expect_fused_lstm_equals_torchs(torch::kFloat64, 3, 1e-12);
+  expect_fused_lstm_equals_torchs(torch::kFloat32, 2, 1e-5);
 }
 
 }  // namespace

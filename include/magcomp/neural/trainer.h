@@ -8,8 +8,8 @@
 #include <vector>
 
 #include "magcomp/core/model/model.h"
-#include "magcomp/core/neural/dataset.h"
 #include "magcomp/core/model/neural_spec.h"
+#include "magcomp/core/neural/dataset.h"
 
 namespace magcomp {
 
@@ -30,8 +30,9 @@ TrainResult train_network(const NeuralSpec& spec, const TrainingData& train,
                           const TrainingData& validation, const std::string& weights_path,
                           bool progress);
 
-/// One epoch of training over `data` with the spec's settings, timed (the benchmark).
-double time_one_epoch(const NeuralSpec& spec, const TrainingData& data);
+/// One epoch of training over `data` with the spec's settings, timed, s (the benchmark).
+/// `torch_lstm`: an LSTM through torch::nn::LSTM's own backward instead of fused_lstm_last.
+double time_one_epoch(const NeuralSpec& spec, const TrainingData& data, bool torch_lstm = false);
 
 }  // namespace magcomp
 
