@@ -14,11 +14,8 @@
 namespace magcomp::rosio {
 namespace {
 
-const std::set<std::string> kKnownParams = {
-    "calibration_model", "calibration_out", "forgetting",  "auto_segments", "imu_topic",
-    "scalar_topic",      "vector_topic",    "aux_topic",   "fix_topic",     "end_of_stream_topic",
-    "max_gap_s",         "max_wait_s",      "jump_back_s", "buffer_s",      "base_frame",
-    "tcp_nodelay",       "queue_size"};
+const std::set<std::string> kKnownParams = with_input_params(
+    {"calibration_model", "calibration_out", "forgetting", "auto_segments", "imu_topic"});
 
 constexpr double kStatusPeriod_s = 1.0;
 constexpr double kProcessPeriod_s = 0.25;  // held inputs are let out in wall time too
@@ -44,31 +41,8 @@ CalibratorRos::CalibratorRos(ros::NodeHandle nh, ros::NodeHandle pnh)
     reject_param("calibration_model", e.what());
   }
   pnh_.param("auto_segments", auto_segments_, false);
-  AlignerSettings a;
-  pnh_.param("max_gap_s", a.max_gap_s, a.max_gap_s);
-  pnh_.param("max_wait_s", a.max_wait_s, a.max_wait_s);
-  pnh_.param("jump_back_s", a.jump_back_s, a.jump_back_s);
-  pnh_.param("buffer_s", a.buffer_s, a.buffer_s);
-  for (const auto& [v, k] : {std::pair{a.max_gap_s, "max_gap_s"},
-                             {a.max_wait_s, "max_wait_s"},
-                             {a.jump_back_s, "jump_back_s"},
-                             {a.buffer_s, "buffer_s"}}) {
-    require_positive(v, k);
-  }
-  int queue = 1000;
-  pnh_.param("queue_size", queue, 1000);
-  if (queue < 1) reject_param("queue_size", "must be >= 1");
-  bool nodelay = true;
-  pnh_.param("tcp_nodelay", nodelay, true);
-  std::string base_frame;
-  pnh_.param<std::string>("base_frame", base_frame, "base_link");
   const Model& m = calibrator_->model();
-  InputStream::Topics topics;
-  pnh_.param<std::string>("scalar_topic", topics.scalar, "magcomp/scalar/" + m.scalar);
-  pnh_.param<std::string>("vector_topic", topics.vector, "magcomp/fluxgate/" + m.vector);
-  pnh_.param<std::string>("aux_topic", topics.aux, "magcomp/aux");
-  pnh_.param<std::string>("fix_topic", topics.fix, "magcomp/ins/fix");
-  pnh_.param<std::string>("end_of_stream_topic", topics.end_of_stream, "magcomp/end_of_stream");
+  const InputParams in = read_input_params(pnh_, m.scalar, m.vector);
   InputStream::Callbacks cb;
   auto process = [this] {
     input_->aligner().process(ros::WallTime::now().toSec(), ending_, false,
@@ -84,8 +58,9 @@ CalibratorRos::CalibratorRos(ros::NodeHandle nh, ros::NodeHandle pnh)
     ending_ = true;
     process();
   };
-  input_ = std::make_unique<InputStream>(nh_, topics, a, static_cast<uint32_t>(queue), nodelay,
-                                         base_frame, cb);
+  input_ = std::make_unique<InputStream>(nh_, in.topics, in.aligner,
+                                         static_cast<uint32_t>(in.queue_size), in.tcp_nodelay,
+                                         in.base_frame, cb);
   // Each sample carries the template's channels, then `line` (a selection by line needs that
   // very sample's line: the sample waits for its aux message).
   std::vector<std::string> channels = calibrator_->channels();
@@ -95,8 +70,9 @@ CalibratorRos::CalibratorRos(ros::NodeHandle nh, ros::NodeHandle pnh)
   if (auto_segments_) {
     std::string imu_topic;
     pnh_.param<std::string>("imu_topic", imu_topic, "magcomp/ins/imu");
-    sub_imu_ = nh_.subscribe(imu_topic, static_cast<uint32_t>(queue), &CalibratorRos::on_imu, this,
-                             ros::TransportHints().tcpNoDelay(nodelay));
+    sub_imu_ =
+        nh_.subscribe(imu_topic, static_cast<uint32_t>(in.queue_size), &CalibratorRos::on_imu, this,
+                      ros::TransportHints().tcpNoDelay(in.tcp_nodelay));
   }
   pub_status_ = pnh_.advertise<magcomp::CalibrationStatus>("calibration_status", 10, true);
   srv_start_ = pnh_.advertiseService("start_segment", &CalibratorRos::on_start, this);

@@ -16,12 +16,9 @@
 namespace magcomp::rosio {
 namespace {
 
-const std::set<std::string> kKnownParams = {
-    "model_path",       "scalar_topic",   "vector_topic", "aux_topic",     "fix_topic",
-    "reference_topic",  "output_topic",   "frame_id",     "max_gap_s",     "max_wait_s",
-    "jump_back_s",      "buffer_s",       "watch_model",  "marker_stride", "expected_rate_hz",
-    "flush_after_s",    "base_frame",     "tcp_nodelay",  "queue_size",    "end_of_stream_topic",
-    "publish_track_tf", "publish_columns"};
+const std::set<std::string> kKnownParams =
+    with_input_params({"model_path", "output_topic", "frame_id", "watch_model", "marker_stride",
+                       "expected_rate_hz", "flush_after_s", "publish_track_tf", "publish_columns"});
 
 constexpr double kTimerPeriod_s = 0.25;  // model-file watch, held inputs, end of stream
 constexpr double kDiagnosticsPeriod_s = 1.0;
@@ -49,15 +46,6 @@ CompensatorRos::CompensatorRos(ros::NodeHandle nh, ros::NodeHandle pnh)
   } catch (const std::exception& e) {
     ROS_ERROR("magcomp: %s: the anomaly output will be NaN", e.what());
   }
-  AlignerSettings a;
-  pnh_.param("max_gap_s", a.max_gap_s, a.max_gap_s);
-  pnh_.param("max_wait_s", a.max_wait_s, a.max_wait_s);
-  pnh_.param("jump_back_s", a.jump_back_s, a.jump_back_s);
-  pnh_.param("buffer_s", a.buffer_s, a.buffer_s);
-  require_positive(a.max_gap_s, "max_gap_s");
-  require_positive(a.max_wait_s, "max_wait_s");
-  require_positive(a.jump_back_s, "jump_back_s");
-  require_positive(a.buffer_s, "buffer_s");
   pnh_.param("watch_model", watch_model_, true);
   pnh_.param("flush_after_s", flush_after_s_, 1.0);
   if (!(flush_after_s_ >= 0)) {
@@ -69,30 +57,17 @@ CompensatorRos::CompensatorRos(ros::NodeHandle nh, ros::NodeHandle pnh)
   pnh_.param<std::string>("frame_id", frame_id_, "magcomp_track");
   pnh_.param("publish_track_tf", publish_track_tf_, false);
   pnh_.param("publish_columns", publish_columns_, false);
-  pnh_.param<std::string>("base_frame", base_frame_, "base_link");
   double rate = 10.0;
   pnh_.param("expected_rate_hz", rate, 10.0);
   require_positive(rate, "expected_rate_hz");
   min_freq_ = 0.5 * rate;
   max_freq_ = 2.0 * rate;
-  int queue = 1000;
-  pnh_.param("queue_size", queue, 1000);
-  if (queue < 1) reject_param("queue_size", "must be >= 1, got " + std::to_string(queue));
-  bool nodelay = true;
-  pnh_.param("tcp_nodelay", nodelay, true);
 
   if (!load_model("start-up")) ROS_ERROR("%s", model_error_.c_str());
   const std::string scalar = comp_ ? comp_->model().scalar : "mag_5_uc";
   const std::string vector = comp_ ? comp_->model().vector : "flux_c";
-  // Topics are relative by default: a namespaced launch moves them all (magcomp convert's bags,
-  // played in the root namespace, use these names).
-  InputStream::Topics topics;
-  pnh_.param<std::string>("scalar_topic", topics.scalar, "magcomp/scalar/" + scalar);
-  pnh_.param<std::string>("vector_topic", topics.vector, "magcomp/fluxgate/" + vector);
-  pnh_.param<std::string>("aux_topic", topics.aux, "magcomp/aux");
-  pnh_.param<std::string>("fix_topic", topics.fix, "magcomp/ins/fix");
-  pnh_.param<std::string>("reference_topic", topics.reference, "");
-  pnh_.param<std::string>("end_of_stream_topic", topics.end_of_stream, "magcomp/end_of_stream");
+  const InputParams in = read_input_params(pnh_, scalar, vector);
+  base_frame_ = in.base_frame;
   std::string out_topic;
   pnh_.param<std::string>("output_topic", out_topic, "magcomp/compensated");
 
@@ -114,7 +89,8 @@ CompensatorRos::CompensatorRos(ros::NodeHandle nh, ros::NodeHandle pnh)
     ending_ = true;
     process(false);
   };
-  input_ = std::make_unique<InputStream>(nh_, topics, a, static_cast<uint32_t>(queue), nodelay,
+  input_ = std::make_unique<InputStream>(nh_, in.topics, in.aligner,
+                                         static_cast<uint32_t>(in.queue_size), in.tcp_nodelay,
                                          base_frame_, cb);
   if (comp_) {
     input_->aligner().select_channels(comp_->required_channels());
@@ -132,7 +108,7 @@ CompensatorRos::CompensatorRos(ros::NodeHandle nh, ros::NodeHandle pnh)
   diag_timer_ =
       nh_.createWallTimer(ros::WallDuration(kDiagnosticsPeriod_s),
                           [this](const ros::WallTimerEvent&) { updater_.force_update(); });
-  ROS_INFO("magcomp compensator: %s -> %s (model %s)", topics.scalar.c_str(), out_topic.c_str(),
+  ROS_INFO("magcomp compensator: %s -> %s (model %s)", in.topics.scalar.c_str(), out_topic.c_str(),
            model_path_.c_str());
 }
 

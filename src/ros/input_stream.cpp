@@ -6,6 +6,7 @@
 #include <cmath>
 
 #include "magcomp/ros/callback_guard.h"
+#include "magcomp/ros/params.h"
 
 namespace magcomp::rosio {
 namespace {
@@ -128,6 +129,42 @@ void InputStream::on_end(const std_msgs::Time::ConstPtr& m) {
   guarded("magcomp input", &callback_errors_, [&] {
     if (cb_.ended) cb_.ended(m->data.toSec());
   });
+}
+
+InputParams read_input_params(const ros::NodeHandle& pnh, const std::string& scalar,
+                              const std::string& vector) {
+  InputParams p;
+  AlignerSettings& a = p.aligner;
+  pnh.param("max_gap_s", a.max_gap_s, a.max_gap_s);
+  pnh.param("max_wait_s", a.max_wait_s, a.max_wait_s);
+  pnh.param("jump_back_s", a.jump_back_s, a.jump_back_s);
+  pnh.param("buffer_s", a.buffer_s, a.buffer_s);
+  require_positive(a.max_gap_s, "max_gap_s");
+  require_positive(a.max_wait_s, "max_wait_s");
+  require_positive(a.jump_back_s, "jump_back_s");
+  require_positive(a.buffer_s, "buffer_s");
+  pnh.param("queue_size", p.queue_size, p.queue_size);
+  if (p.queue_size < 1)
+    reject_param("queue_size", "must be >= 1, got " + std::to_string(p.queue_size));
+  pnh.param("tcp_nodelay", p.tcp_nodelay, p.tcp_nodelay);
+  pnh.param<std::string>("base_frame", p.base_frame, p.base_frame);
+  // Topics are relative by default: a namespaced launch moves them all (magcomp convert's bags,
+  // played in the root namespace, use these names).
+  InputStream::Topics& t = p.topics;
+  pnh.param<std::string>("scalar_topic", t.scalar, "magcomp/scalar/" + scalar);
+  pnh.param<std::string>("vector_topic", t.vector, "magcomp/fluxgate/" + vector);
+  pnh.param<std::string>("aux_topic", t.aux, "magcomp/aux");
+  pnh.param<std::string>("fix_topic", t.fix, "magcomp/ins/fix");
+  pnh.param<std::string>("reference_topic", t.reference, "");
+  pnh.param<std::string>("end_of_stream_topic", t.end_of_stream, "magcomp/end_of_stream");
+  return p;
+}
+
+std::set<std::string> with_input_params(std::set<std::string> own) {
+  own.insert({"max_gap_s", "max_wait_s", "jump_back_s", "buffer_s", "queue_size", "tcp_nodelay",
+              "base_frame", "scalar_topic", "vector_topic", "aux_topic", "fix_topic",
+              "reference_topic", "end_of_stream_topic"});
+  return own;
 }
 
 }  // namespace magcomp::rosio

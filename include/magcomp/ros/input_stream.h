@@ -13,6 +13,7 @@
 #include <Eigen/Core>
 #include <functional>
 #include <memory>
+#include <set>
 #include <string>
 
 #include "magcomp/core/stream/stream_aligner.h"
@@ -78,5 +79,22 @@ class InputStream {
   std::unique_ptr<tf2_ros::TransformListener> tf_listener_;
   ros::Subscriber sub_scalar_, sub_vector_, sub_aux_, sub_fix_, sub_ref_, sub_end_;
 };
+
+/// The private parameters every node with an InputStream reads the same way: the aligner's
+/// settings (s), the subscriptions' queue and TCP_NODELAY, the body frame, the topics (defaults:
+/// magcomp/scalar/<scalar>, magcomp/fluxgate/<vector>, magcomp/aux, magcomp/ins/fix, no
+/// reference, magcomp/end_of_stream). A bad value fails start-up naming its key (reject_param).
+struct InputParams {
+  AlignerSettings aligner;
+  int queue_size = 1000;
+  bool tcp_nodelay = true;
+  std::string base_frame = "base_link";
+  InputStream::Topics topics;
+};
+InputParams read_input_params(const ros::NodeHandle& pnh, const std::string& scalar,
+                              const std::string& vector);
+
+/// The names read_input_params reads, with a node's own (for warn_unknown_params).
+std::set<std::string> with_input_params(std::set<std::string> own);
 
 }  // namespace magcomp::rosio
