@@ -298,7 +298,7 @@ void NavigatorRos::take_anomaly(const magcomp::CompensatedField& msg) {
   // Online: the raw anomaly (the compensator's anomaly with its aircraft field put back), paired
   // with the model's columns of the same stamp.
   if (auto pair = online_pairs_.add_first(t, {m->anomaly_nT + m->aircraft_correction_nT, var}))
-    feed_measurement(t, {pair->first.z_nT, pair->first.var_nT2, pair->second});
+    take_online(*pair);
 }
 
 void NavigatorRos::on_columns(const magcomp::AuxChannels::ConstPtr& m) {
@@ -311,9 +311,12 @@ void NavigatorRos::on_columns(const magcomp::AuxChannels::ConstPtr& m) {
     const double t = m->header.stamp.toSec();
     const Eigen::VectorXd columns = Eigen::Map<const Eigen::VectorXd>(
         m->values.data(), static_cast<Eigen::Index>(m->values.size()));
-    if (auto pair = online_pairs_.add_second(t, columns))
-      feed_measurement(t, {pair->first.z_nT, pair->first.var_nT2, pair->second});
+    if (auto pair = online_pairs_.add_second(t, columns)) take_online(*pair);
   });
+}
+
+void NavigatorRos::take_online(const OnlinePairs::Pair& pair) {
+  feed_measurement(pair.t_s, {pair.first.z_nT, pair.first.var_nT2, pair.second});
 }
 
 void NavigatorRos::feed_measurement(double t, const EarlyMeasurement& m) {

@@ -119,7 +119,10 @@ class NavigatorRos {
   struct AnomalyHalf {
     double z_nT = NAN, var_nT2 = NAN;  ///< the raw anomaly and its variance (NaN: the settings')
   };
-  StampPairer<AnomalyHalf, Eigen::VectorXd> online_pairs_;  // the anomaly and the model's columns
+  using OnlinePairs = StampPairer<AnomalyHalf, Eigen::VectorXd>;
+  OnlinePairs online_pairs_;  // the anomaly and the model's columns
+  /// Online: the anomaly and the model's columns of one stamp, one measurement for the filter.
+  void take_online(const OnlinePairs::Pair& pair);
   long columns_mismatched_ = 0;
   std::string learned_model_path_;
   ros::Subscriber sub_columns_;
