@@ -42,12 +42,12 @@ void print_diagnosis(const Model& model, const Diagnosis& dx, int top, const std
               "explained", "selection", "confirm", "estimate", "effect");
   for (size_t k = 0; k < dx.candidates.size() && static_cast<int>(k) < top; ++k) {
     const Candidate& c = dx.candidates[k];
-    std::printf("%-4zu %-34s %9.3f %8.1f%% %8.1f%% %7.1f%%  %-40s %s%s\n", k + 1, c.term.c_str(),
-                c.std_after_nT, 100 * c.explained_fraction, 100 * c.explained_selection,
-                100 * c.explained_confirmation, c.estimate.c_str(), c.effect.c_str(),
-                c.accepted
-                    ? (c.chosen_on_confirmation ? "  [chosen on the confirmation lines]" : "")
-                    : "  [rejected: not confirmed]");
+    std::printf(
+        "%-4zu %-34s %9.3f %8.1f%% %8.1f%% %7.1f%%  %-40s %s%s\n", k + 1, c.term.text().c_str(),
+        c.std_after_nT, 100 * c.explained_fraction, 100 * c.explained_selection,
+        100 * c.explained_confirmation, c.estimate.c_str(), c.effect.c_str(),
+        c.accepted ? (c.chosen_on_confirmation ? "  [chosen on the confirmation lines]" : "")
+                   : "  [rejected: not confirmed]");
   }
   const ExplainableShare& x = dx.explainable;
   if (x.computed) {
@@ -74,7 +74,7 @@ void print_diagnosis(const Model& model, const Diagnosis& dx, int top, const std
       dx.candidates.front().explained_fraction >= 0.05) {
     std::printf("to add it:\n  magcomp calibrate --data %s --model %s --%s '%s' --out NEW.yaml\n",
                 data.c_str(), model_path.c_str(), dx.candidates.front().slow ? "slow-term" : "term",
-                dx.candidates.front().term.c_str());
+                dx.candidates.front().term.text().c_str());
   }
   std::printf("\nresidual vs channel (held-out, line means removed), strongest first:\n");
   std::printf("  %-14s %8s %9s %8s\n", "channel", "pearson", "spearman", "MI_bits");
@@ -112,7 +112,7 @@ nlohmann::json to_json(const Diagnosis& dx) {
   for (const auto& c : dx.candidates) {
     nlohmann::json p = nlohmann::json::object();
     for (const auto& [k, v] : c.parameters) p[k] = v;
-    j["candidates"].push_back({{"term", c.term},
+    j["candidates"].push_back({{"term", c.term.text()},
                                {"effect", c.effect},
                                {"channel", c.channel},
                                {"family", c.family},
@@ -192,7 +192,7 @@ void diagnose_several(const Model& model_in, const std::vector<std::string>& pat
     std::printf("flight %s: held-out std %.3f nT; top:", path.c_str(), dx.baseline_std_nT);
     for (size_t k = 0; k < dx.candidates.size() && k < 3; ++k) {
       const Candidate& c = dx.candidates[k];
-      std::printf(" %s %.1f%%%s", c.term.c_str(), 100 * c.explained_fraction,
+      std::printf(" %s %.1f%%%s", c.term.text().c_str(), 100 * c.explained_fraction,
                   c.accepted ? "" : " [rejected]");
     }
     std::printf("\n  verdict: %s\n", dx.verdict.c_str());
@@ -210,7 +210,7 @@ void diagnose_several(const Model& model_in, const std::vector<std::string>& pat
     const SeasonCandidate& c = season.candidates[k];
     nlohmann::json per = nlohmann::json::array();
     for (double e : c.explained) per.push_back(json_figure(e));
-    candidates.push_back({{"term", c.term},
+    candidates.push_back({{"term", c.term.text()},
                           {"shape", c.shape},
                           {"accepted_on", c.accepted_on},
                           {"scored_on", c.scored_on},
@@ -219,7 +219,7 @@ void diagnose_several(const Model& model_in, const std::vector<std::string>& pat
                           {"explained", per},
                           {"slow", c.slow}});
     if (static_cast<int>(k) >= top) continue;
-    std::printf("%-4zu %-34s %5d/%-3zu %13.1f%% ", k + 1, c.term.c_str(), c.accepted_on,
+    std::printf("%-4zu %-34s %5d/%-3zu %13.1f%% ", k + 1, c.term.text().c_str(), c.accepted_on,
                 paths.size(), 100 * c.mean_explained);
     for (double e : c.explained) {
       if (std::isfinite(e)) {
@@ -237,7 +237,7 @@ void diagnose_several(const Model& model_in, const std::vector<std::string>& pat
     const SeasonCandidate& top_term = season.candidates.front();
     std::printf("to add it:\n  magcomp calibrate --data %s --model %s %s '%s' --out NEW.yaml\n",
                 all.c_str(), model_path.c_str(), top_term.slow ? "--slow-term" : "--term",
-                top_term.term.c_str());
+                top_term.term.text().c_str());
   }
   j["season"] = {{"candidates", candidates}, {"verdict", season.verdict}};
   j["verdict"] = season.verdict;
@@ -262,11 +262,11 @@ void print_round_progress(int round, size_t f, const std::vector<std::string>& p
   else
     std::printf("== round %d, flight %zu of %zu (%s)\n", round, f + 1, flights, paths[f].c_str());
   std::printf("  held-out std %.3f nT; top: %s\n", dx.baseline_std_nT,
-              dx.candidates.empty() ? "(none)" : dx.candidates.front().term.c_str());
+              dx.candidates.empty() ? "(none)" : dx.candidates.front().term.text().c_str());
   for (size_t k = 0; k < dx.candidates.size() && static_cast<int>(k) < std::min(top, 5); ++k) {
     const Candidate& c = dx.candidates[k];
     std::printf("    %-34s %6.1f%% (selection %5.1f%%, confirmation %5.1f%%) %s%s\n",
-                c.term.c_str(), 100 * c.explained_fraction, 100 * c.explained_selection,
+                c.term.text().c_str(), 100 * c.explained_fraction, 100 * c.explained_selection,
                 100 * c.explained_confirmation, c.estimate.c_str(),
                 c.accepted ? "" : " [rejected]");
   }

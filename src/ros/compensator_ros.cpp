@@ -11,6 +11,7 @@
 #include "magcomp/core/geo/anomaly.h"
 #include "magcomp/core/geo/igrf.h"
 #include "magcomp/core/io/time_base.h"
+#include "magcomp/ros/diagnostic_counts.h"
 #include "magcomp/ros/params.h"
 
 namespace magcomp::rosio {
@@ -295,16 +296,6 @@ void CompensatorRos::publish(const StreamOutput& o) {
 
 void CompensatorRos::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) {
   const AlignerCounts& c = input_->aligner().counts();
-  const long faults = c.jumps_back + c.gaps + c.out_of_order + c.duplicate_stamps + c.nan_scalar +
-                      c.stale_inputs_held + c.late_inputs + c.aux_mismatch + n_premature_flushes_;
-  if (!comp_) {
-    stat.summary(diagnostic_msgs::DiagnosticStatus::ERROR, "no model: " + model_error_);
-  } else if (faults > 0) {
-    stat.summary(diagnostic_msgs::DiagnosticStatus::WARN,
-                 "running; input faults seen (see counts)");
-  } else {
-    stat.summary(diagnostic_msgs::DiagnosticStatus::OK, "running");
-  }
   stat.add("model_path", model_path_);
   stat.add("model_error", model_error_);
   if (comp_) {
@@ -324,24 +315,33 @@ void CompensatorRos::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat)
   stat.add("model_reloads", n_reloads_);
   stat.add("fluxgate_frame",
            input_->vector_frame().empty() ? std::string("(as given)") : input_->vector_frame());
-  stat.add("fluxgate_vectors_without_tf", input_->vectors_without_tf());
-  stat.add("callback_errors", input_->callback_errors());
-  stat.add("scalar_in", c.scalar_in);
-  stat.add("published", n_out_);
-  stat.add("nan_scalar", c.nan_scalar);
-  stat.add("duplicate_stamps", c.duplicate_stamps);
-  stat.add("out_of_order_dropped", c.out_of_order);
-  stat.add("time_jumps_back", c.jumps_back);
-  stat.add("gaps", c.gaps);
-  stat.add("stale_inputs_held", c.stale_inputs_held);
-  stat.add("late_inputs_dropped", c.late_inputs);
-  stat.add("aux_length_mismatch_dropped", c.aux_mismatch);
-  stat.add("premature_flushes", n_premature_flushes_);
+  const long faults =
+      add_counts(stat, {{"fluxgate_vectors_without_tf", input_->vectors_without_tf()},
+                        {"callback_errors", input_->callback_errors()},
+                        {"scalar_in", c.scalar_in},
+                        {"published", n_out_},
+                        {"nan_scalar", c.nan_scalar, true},
+                        {"duplicate_stamps", c.duplicate_stamps, true},
+                        {"out_of_order_dropped", c.out_of_order, true},
+                        {"time_jumps_back", c.jumps_back, true},
+                        {"gaps", c.gaps, true},
+                        {"stale_inputs_held", c.stale_inputs_held, true},
+                        {"late_inputs_dropped", c.late_inputs, true},
+                        {"aux_length_mismatch_dropped", c.aux_mismatch, true},
+                        {"premature_flushes", n_premature_flushes_, true}});
   stat.add("pending", static_cast<long>(input_->aligner().pending()) +
                           (comp_ ? static_cast<long>(comp_->pending()) : 0));
   const double lv = input_->aligner().last_vector_t();
   stat.add("scalar_minus_vector_stamp_s",
            std::isfinite(lv) ? input_->aligner().last_scalar_t() - lv : NAN);
+  if (!comp_) {
+    stat.summary(diagnostic_msgs::DiagnosticStatus::ERROR, "no model: " + model_error_);
+  } else if (faults > 0) {
+    stat.summary(diagnostic_msgs::DiagnosticStatus::WARN,
+                 "running; input faults seen (see counts)");
+  } else {
+    stat.summary(diagnostic_msgs::DiagnosticStatus::OK, "running");
+  }
 }
 
 }  // namespace magcomp::rosio

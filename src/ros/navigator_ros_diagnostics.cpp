@@ -17,6 +17,7 @@
 #include "magcomp/core/nav/nav_model.h"
 #include "magcomp/core/nav/online_calibration.h"
 #include "magcomp/ros/callback_guard.h"
+#include "magcomp/ros/diagnostic_counts.h"
 #include "magcomp/ros/params.h"
 
 namespace magcomp::rosio {
@@ -28,45 +29,43 @@ constexpr long kOffMapWarnSteps = 10;  // consecutive steps off the map: a warni
 
 void NavigatorRos::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) {
   const nav::NavigatorCounts c = nav_ ? nav_->counts() : nav::NavigatorCounts{};
+  stat.add("map_path", map_path_);
+  const long faults =
+      add_counts(stat, {{"ins_samples_in", c.ins_in},
+                        {"measurements_in", c.measurements_in},
+                        {"steps", c.steps},
+                        {"published", published_},
+                        {"updates", c.updates},
+                        {"missing_measurements", c.missing_measurements, true},
+                        {"unmatched_measurements_dropped", c.unmatched_measurements},
+                        {"off_map_measurements", c.off_map},
+                        {"gated_measurements", c.gated},
+                        {"nan_measurements", c.nan_measurements},
+                        {"ins_gaps", c.gaps, true},
+                        {"out_of_order_dropped", c.out_of_order, true},
+                        {"time_jumps_back", jumps_back_, true},
+                        {"nan_inputs", nan_inputs_, true},
+                        {"imu_without_fix_dropped", ins_pairs_.counts().second_dropped},
+                        {"fix_without_imu_dropped", ins_pairs_.counts().first_dropped},
+                        {"ins_no_fix_dropped", ins_no_fix_, true},
+                        {"ins_refused", ins_refused_ + c.invalid_ins, true},
+                        {"measurements_refused", c.invalid_measurements, true},
+                        {"filter_restarts", c.filter_restarts, true},
+                        {"ins_jumps", c.ins_jumps, true},
+                        {"stamps_out_of_range", bad_stamps_, true},
+                        {"callback_errors", callback_errors_}});
   if (consecutive_off_map_ >= kOffMapWarnSteps) {
     stat.summary(diagnostic_msgs::DiagnosticStatus::WARN,
                  "off the map: navigating on the INS alone");
   } else if (callback_errors_ > 0) {
     stat.summary(diagnostic_msgs::DiagnosticStatus::ERROR,
                  "messages dropped on an internal error (see callback_errors)");
-  } else if (c.gaps + c.out_of_order + jumps_back_ + nan_inputs_ + c.missing_measurements +
-                 c.invalid_ins + c.invalid_measurements + c.filter_restarts + c.ins_jumps +
-                 bad_stamps_ + ins_no_fix_ + ins_refused_ >
-             0) {
+  } else if (faults > 0) {
     stat.summary(diagnostic_msgs::DiagnosticStatus::WARN,
                  "running; input faults seen (see counts)");
   } else {
     stat.summary(diagnostic_msgs::DiagnosticStatus::OK, "running");
   }
-  stat.add("map_path", map_path_);
-  stat.add("ins_samples_in", c.ins_in);
-  stat.add("measurements_in", c.measurements_in);
-  stat.add("steps", c.steps);
-  stat.add("published", published_);
-  stat.add("updates", c.updates);
-  stat.add("missing_measurements", c.missing_measurements);
-  stat.add("unmatched_measurements_dropped", c.unmatched_measurements);
-  stat.add("off_map_measurements", c.off_map);
-  stat.add("gated_measurements", c.gated);
-  stat.add("nan_measurements", c.nan_measurements);
-  stat.add("ins_gaps", c.gaps);
-  stat.add("out_of_order_dropped", c.out_of_order);
-  stat.add("time_jumps_back", jumps_back_);
-  stat.add("nan_inputs", nan_inputs_);
-  stat.add("imu_without_fix_dropped", ins_pairs_.counts().second_dropped);
-  stat.add("fix_without_imu_dropped", ins_pairs_.counts().first_dropped);
-  stat.add("ins_no_fix_dropped", ins_no_fix_);
-  stat.add("ins_refused", ins_refused_ + c.invalid_ins);
-  stat.add("measurements_refused", c.invalid_measurements);
-  stat.add("filter_restarts", c.filter_restarts);
-  stat.add("ins_jumps", c.ins_jumps);
-  stat.add("stamps_out_of_range", bad_stamps_);
-  stat.add("callback_errors", callback_errors_);
   if (cold_start_) {
     stat.add("cold_start_particle_steps", c.particle_steps);
     stat.add("cold_start_handed_over", nav_ && !nav_->in_cold_start());

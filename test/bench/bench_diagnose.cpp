@@ -45,7 +45,8 @@ int main(int argc, char** argv) {
         "samples %ld fields %zu candidates %zu terms_fitted %ld seconds %.2f peak_MB %.0f "
         "top %s\n",
         static_cast<long>(f.size()), f.names().size(), dx.candidates.size(), dx.candidates_tried, s,
-        ru.ru_maxrss / 1024.0, dx.candidates.empty() ? "-" : dx.candidates.front().term.c_str());
+        ru.ru_maxrss / 1024.0,
+        dx.candidates.empty() ? "-" : dx.candidates.front().term.text().c_str());
     return 0;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "error: %s\n", e.what());

@@ -89,8 +89,8 @@ TEST(Diagnose, EveryShippedHiddenEffectIsRankedFirstAndAddingItRemovesTheExcess)
     ASSERT_FALSE(dx.candidates.empty());
     const Candidate& top = dx.candidates.front();
     if (expected.rfind("lag:", 0) == 0) {  // the lag to 0.02 s
-      ASSERT_EQ(top.term.rfind("lag:", 0), 0u) << top.term;
-      EXPECT_NEAR(std::stod(top.term.substr(4)), std::stod(expected.substr(4)), 0.02);
+      ASSERT_EQ(top.term.text().rfind("lag:", 0), 0u) << top.term;
+      EXPECT_NEAR(std::stod(top.term.text().substr(4)), std::stod(expected.substr(4)), 0.02);
     } else {
       EXPECT_EQ(top.term, expected) << name;
     }
@@ -100,8 +100,9 @@ TEST(Diagnose, EveryShippedHiddenEffectIsRankedFirstAndAddingItRemovesTheExcess)
     std::printf(
         "  %-18s top %-18s explains %5.1f%% (selection %5.1f%%, confirmation %5.1f%%): "
         "std %.3f -> %.3f nT (floor %.3f); %ld terms fitted\n",
-        name.c_str(), top.term.c_str(), 100 * top.explained_fraction, 100 * top.explained_selection,
-        100 * top.explained_confirmation, before, after, floor, dx.candidates_tried);
+        name.c_str(), top.term.text().c_str(), 100 * top.explained_fraction,
+        100 * top.explained_selection, 100 * top.explained_confirmation, before, after, floor,
+        dx.candidates_tried);
     EXPECT_TRUE(after * 5.0 <= before || after <= 1.5 * floor) << name;
     // The best candidate of another channel explains far less: the ranking is not a coin toss.
     // (For the lag, the other timing errors are its near-equivalents: a first-order response

@@ -51,8 +51,9 @@ std::vector<Job> make_jobs(const Model& model, const std::vector<std::string>& s
   for (const auto& t : model.terms) families.insert(family_of_tl(t));
   auto add = [&](const std::string& spec, const std::string& family, const std::string& ch) {
     if (have.count(spec)) return;
-    if (const auto e = parse_expr_term(spec); e && shapes.count(e->shape())) return;
-    jobs.push_back({spec, family, ch});
+    TermSpec term(spec);
+    if (const ExprTerm* e = term.expr(); e && shapes.count(e->shape())) return;
+    jobs.push_back({std::move(term), family, ch});
   };
   for (const char* f : {"permanent", "induced", "eddy"}) {
     if (!families.count(f)) add(f, "tolles-lawson", "");
@@ -88,7 +89,7 @@ std::vector<Scored> run_jobs(const Search& search, const std::vector<Job>& jobs,
         out[k] = search.run(jobs[k]);
       } catch (const std::exception& e) {
         out[k].ok = false;
-        out[k].note = "candidate '" + jobs[k].spec + "' skipped: " + e.what();
+        out[k].note = "candidate '" + jobs[k].term.text() + "' skipped: " + e.what();
       }
     }
   };
@@ -135,10 +136,10 @@ void add_candidates(const std::vector<Job>& jobs, const std::vector<Scored>& sco
   for (size_t k = 0; k < jobs.size(); ++k) {
     dx->candidates_tried += std::max(scored[k].fits, 1L);
     if (!scored[k].note.empty()) dx->notes.push_back(scored[k].note);
-    if (!scored[k].ok || !seen.insert(scored[k].spec).second) continue;
-    const auto term = make_term(scored[k].spec);
+    if (!scored[k].ok || !seen.insert(scored[k].term->spec()).second) continue;
+    const TermPtr& term = scored[k].term;
     Candidate c;
-    c.term = term->spec();
+    c.term = TermSpec(term);
     c.effect = term->effect();
     c.channel = jobs[k].channel;
     c.family = jobs[k].family;

@@ -28,8 +28,8 @@ bool is_electrical(const std::string& channel) {
 }
 
 // How much a term says: its sources and transforms (a shorthand or TL family counts 1).
-int term_complexity(const std::string& spec) {
-  const auto e = parse_expr_term(spec);
+int term_complexity(const TermSpec& term) {
+  const ExprTerm* e = term.expr();
   if (!e) return 1;
   int n = static_cast<int>(e->signal().sources.size() + e->signal().transforms.size());
   for (const auto& t : e->signal().transforms) n += t.has_param();
@@ -123,13 +123,14 @@ Diagnosis diagnose(const Model& model_in, const FlightData& data, const std::str
   }
   {  // the grammar search, best-first: two levels
     std::set<std::string> seen;
-    for (const auto& j : jobs) seen.insert(j.spec);
-    for (const auto& x : scored) seen.insert(x.spec);
+    for (const auto& j : jobs) seen.insert(j.term.text());
+    for (const auto& x : scored)
+      if (x.term) seen.insert(x.term->spec());
     std::vector<Job> grown = refined_jobs(model, search, jobs, scored, &seen);
     for (int level = 0; level < 2 && !grown.empty(); ++level) {
       std::vector<Scored> more = run_jobs(search, grown, options.threads);
       for (auto& x : more)
-        if (x.ok && at_slow_edge(x.spec, search)) x.ok = false;
+        if (x.ok && at_slow_edge(*x.term, search)) x.ok = false;
       jobs.insert(jobs.end(), grown.begin(), grown.end());
       scored.insert(scored.end(), more.begin(), more.end());
       grown = level == 0 ? refined_jobs(model, search, grown, more, &seen) : std::vector<Job>{};

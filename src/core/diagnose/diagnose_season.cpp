@@ -10,13 +10,10 @@
 
 namespace magcomp {
 
-std::string term_shape(const std::string& spec) {
-  if (spec.rfind("lag:", 0) == 0) return "lag";
-  try {
-    if (const auto e = parse_expr_term(spec)) return e->shape();
-  } catch (const std::exception&) {
-  }
-  return spec;
+std::string term_shape(const TermSpec& term) {
+  if (term.text().rfind("lag:", 0) == 0) return "lag";
+  if (const ExprTerm* e = term.expr()) return e->shape();
+  return term.text();
 }
 
 SeasonDiagnosis merge_diagnoses(const std::vector<Diagnosis>& flights) {
@@ -78,7 +75,7 @@ SeasonDiagnosis merge_diagnoses(const std::vector<Diagnosis>& flights) {
       std::snprintf(buf, sizeof(buf),
                     "add %s: accepted on %d of %zu flights, explaining %.1f%% of their held-out "
                     "error on average",
-                    top.term.c_str(), top.accepted_on, n, 100 * top.mean_explained);
+                    top.term.text().c_str(), top.accepted_on, n, 100 * top.mean_explained);
       out.verdict = buf;
       return out;
     }

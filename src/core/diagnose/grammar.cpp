@@ -30,8 +30,8 @@ constexpr size_t kMaxChain = 3;
 // True when a time constant of the term sits at the top of its scan: the flight cannot tell it
 // from a slower one, so it stands for a drift, not an estimated response. Neither grown from nor
 // kept as a grown chain.
-bool at_slow_edge(const std::string& spec, const Search& search) {
-  const auto e = parse_expr_term(spec);
+bool at_slow_edge(const Term& term, const Search& search) {
+  const auto* e = dynamic_cast<const ExprTerm*>(&term);
   if (!e) return false;
   for (const auto& t : e->signal().transforms) {
     if (t.kind != TransformKind::LowPass && t.kind != TransformKind::HighPass) continue;
@@ -67,9 +67,9 @@ std::vector<Job> refined_jobs(const Model& model, const Search& search,
   for (const auto& entry : order) {
     const size_t k = entry.second;  // a plain variable: lambdas may not capture a binding (C++17)
     if (parents >= kRefineParents) break;
-    const auto e = parse_expr_term(scored[k].spec);
+    const auto* e = dynamic_cast<const ExprTerm*>(scored[k].term.get());
     if (!e || e->signal().has_free() || e->signal().transforms.size() >= kMaxChain ||
-        at_slow_edge(scored[k].spec, search))
+        at_slow_edge(*e, search))
       continue;
     ++parents;
     const SignalExpr& sig = e->signal();
@@ -82,10 +82,9 @@ std::vector<Job> refined_jobs(const Model& model, const Search& search,
       } else {
         c.transforms.push_back(t);
       }
-      const ExprTerm term(e->projection(), c);
-      const std::string spec = term.spec();
-      if (shapes.count(term.shape()) || !seen->insert(spec).second) return;
-      out.push_back({spec, "chain (grammar search)", jobs[k].channel});
+      auto term = std::make_shared<const ExprTerm>(e->projection(), c);
+      if (shapes.count(term->shape()) || !seen->insert(term->spec()).second) return;
+      out.push_back({TermSpec(std::move(term)), "chain (grammar search)", jobs[k].channel});
     };
     child({TransformKind::LowPass, 0.0, true}, false);
     child({TransformKind::Derivative, 0.0, false}, false);

@@ -154,16 +154,14 @@ bool linear(TransformKind k) {
 // below its 1 % quantile, of which a closed form (|I|, I², tanh, a step) is one guess. Empty
 // when the channel is not a current or a voltage, barely moves on the calibration rows, or holds
 // fewer than three distinct knots there (a two-level channel: a linear term says everything).
-std::vector<std::string> learned_law(const std::string& channel, const Candidate* shape,
-                                     const Model& model, const FlightData& data) {
-  std::unique_ptr<ExprTerm> e;
-  if (shape) {
-    try {
-      e = parse_expr_term(shape->term);
-    } catch (const Error&) {
-    }
+std::vector<TermSpec> learned_law(const std::string& channel, const Candidate* shape,
+                                  const Model& model, const FlightData& data) {
+  const ExprTerm* e = shape ? shape->term.expr() : nullptr;
+  std::unique_ptr<ExprTerm> plain;
+  if (!e || e->projection() == Projection::Induced) {
+    plain = parse_expr_term("field:" + channel);
+    e = plain.get();
   }
-  if (!e || e->projection() == Projection::Induced) e = parse_expr_term("field:" + channel);
   // Aircraft sources only (currents and voltages): a residual that follows the trajectory
   // (velocities, heading, position) is leakage of the map or the reference, not a law to learn.
   if (!is_electrical(channel) || !data.has(channel)) return {};
@@ -202,20 +200,20 @@ std::vector<std::string> learned_law(const std::string& channel, const Candidate
   for (const Transform& t : e->signal().transforms)
     if (linear(t.kind)) tail.push_back(t);
   const char* projection = e->projection() == Projection::Field ? "field:" : "scalar:";
-  std::vector<std::string> law;
+  std::vector<TermSpec> law;
   for (double k : knots) {
     SignalExpr s;
     s.sources = {channel};
     s.transforms = {Transform{TransformKind::Ramp, std::stod(format_param(k)), false}};
     s.transforms.insert(s.transforms.end(), tail.begin(), tail.end());
-    law.push_back(make_term(projection + s.str())->spec());
+    law.emplace_back(TermPtr(make_term(projection + s.str())));
   }
   return law;
 }
 
 // Adds a candidate's term to `m`; a slow one (Candidate::slow) joins Model::slow_terms, fitted
 // against `truth` unless the model names its own reference.
-void add_candidate_term(const std::string& term, bool slow, const std::string& truth, Model* m) {
+void add_candidate_term(const TermSpec& term, bool slow, const std::string& truth, Model* m) {
   if (slow && m->fit.method == FitMethod::kBandpass) {
     m->add_slow_term(term, truth);
     return;
@@ -226,7 +224,7 @@ void add_candidate_term(const std::string& term, bool slow, const std::string& t
 }
 
 // `m` without `term` (and out of its slow and black-box lists), unfitted.
-Model without_term(const Model& m, const std::string& term) {
+Model without_term(const Model& m, const TermSpec& term) {
   Model out = m;
   out.terms.erase(std::remove(out.terms.begin(), out.terms.end(), term), out.terms.end());
   for (auto* list : {&out.slow_terms, &out.black_box_terms})
@@ -237,7 +235,7 @@ Model without_term(const Model& m, const std::string& term) {
 
 // True when `term` was added to `start` purely: adding it again to `start` grows it by one term
 // (it replaced nothing of the start model: not a lag, not a re-estimated term of its shape).
-bool removable(const Model& start, const std::string& term) {
+bool removable(const Model& start, const TermSpec& term) {
   if (std::find(start.terms.begin(), start.terms.end(), term) != start.terms.end()) return false;
   Model probe = start;
   try {

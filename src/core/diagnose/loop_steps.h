@@ -48,18 +48,18 @@ std::string refusal(const LoopRound& next, const LoopRound& now);
 
 /// A learned law of `channel` on `data` (hinges at its quantiles through the linear transforms
 /// of `shape`); empty when the channel cannot carry one (loop_steps.cpp says when).
-std::vector<std::string> learned_law(const std::string& channel, const Candidate* shape,
-                                     const Model& model, const FlightData& data);
+std::vector<TermSpec> learned_law(const std::string& channel, const Candidate* shape,
+                                  const Model& model, const FlightData& data);
 
 /// Adds a candidate's term to `m`; a slow one (Candidate::slow) joins Model::slow_terms, fitted
 /// against `truth` unless the model names its own reference.
-void add_candidate_term(const std::string& term, bool slow, const std::string& truth, Model* m);
+void add_candidate_term(const TermSpec& term, bool slow, const std::string& truth, Model* m);
 
 /// `m` without `term` (and out of its slow and black-box lists), unfitted.
-Model without_term(const Model& m, const std::string& term);
+Model without_term(const Model& m, const TermSpec& term);
 
 /// True when `term` was added to `start` purely (it replaced nothing of the start model).
-bool removable(const Model& start, const std::string& term);
+bool removable(const Model& start, const TermSpec& term);
 
 /// The share of `with`'s error variance that a change to `without` would add (negative when the
 /// change lowers the error).
@@ -67,7 +67,7 @@ double variance_share(double with_nT, double without_nT);
 
 // A candidate the loop may add.
 struct Eligible {
-  std::string term;
+  TermSpec term;
   bool slow = false;
   double explained = 0.0;  ///< its conservative explained share (on the flight it is taken from)
   double base_span_share = NAN;  ///< Candidate::base_span_share (on that flight)

@@ -63,7 +63,7 @@ std::vector<Job> screened_products(const Search& search, const std::vector<std::
     if (sd > 0) col /= sd;
   }
   std::set<std::string> already;
-  for (const Job& j : taken) already.insert(j.spec);
+  for (const Job& j : taken) already.insert(j.term.text());
   const auto n = static_cast<Eigen::Index>(sources.size());
   auto screen = [&](int part) {
     std::vector<std::pair<double, std::pair<Eigen::Index, Eigen::Index>>> out;
@@ -99,9 +99,9 @@ std::vector<Job> screened_products(const Search& search, const std::vector<std::
     if (jobs.size() >= keep) break;
     const std::string& xa = sources[static_cast<size_t>(pair.first)];
     const std::string& xb = sources[static_cast<size_t>(pair.second)];
-    Job j{"field:" + xa + "*" + xb, "product of two channels", xa + "*" + xb};
-    if (already.count(j.spec)) continue;
-    jobs.push_back(j);
+    const std::string spec = "field:" + xa + "*" + xb;
+    if (already.count(spec)) continue;
+    jobs.push_back({TermSpec(spec), "product of two channels", xa + "*" + xb});
   }
   return jobs;
 }

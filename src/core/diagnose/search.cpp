@@ -263,7 +263,7 @@ Scored Search::score(const Eigen::MatrixXd& cols, bool slow_ok) const {
 }
 
 Scored Search::run(const Job& job) const {
-  auto term = make_term(job.spec);
+  TermPtr term = job.term.shared();
   auto columns = [&](const Term& t) { return columns_of(t); };
   long fits = 0;
   const auto* expr = dynamic_cast<const ExprTerm*>(term.get());
@@ -311,13 +311,13 @@ Scored Search::run(const Job& job) const {
           ++fits;
           return slow_rss(columns(*make_term(expr->with_parameters({x}))));
         });
-        auto slow_term = make_term(expr->with_parameters({vs}));
+        TermPtr slow_term = make_term(expr->with_parameters({vs}));
         Scored ss = score_slow(columns(*slow_term));
-        ss.spec = slow_term->spec();
-        auto band_term = make_term(expr->with_parameters({v}));
+        ss.term = slow_term;
+        TermPtr band_term = make_term(expr->with_parameters({v}));
         const Eigen::MatrixXd band_cols = columns(*band_term);
         Scored sb = score(band_cols, true);
-        sb.spec = band_term->spec();
+        sb.term = band_term;
         if (!(band_cols.array().isFinite().any())) sb.ok = false;
         Scored& best = ss.ok && (!sb.ok || ss.sel < sb.sel) ? ss : sb;
         best.fits = fits + 2;
@@ -333,7 +333,7 @@ Scored Search::run(const Job& job) const {
   }
   const Eigen::MatrixXd cols = columns(*term);
   Scored s = score(cols, slow_ok);
-  s.spec = term->spec();
+  s.term = term;
   s.fits = fits + 1;
   if (!(cols.array().isFinite().any())) s.ok = false;
   return s;

@@ -21,6 +21,7 @@
 #include "magcomp/core/math/timeseries.h"
 #include "magcomp/core/model/model.h"
 #include "magcomp/core/model/term.h"
+#include "magcomp/core/model/term_spec.h"
 
 namespace magcomp::diagnose_search {
 
@@ -33,9 +34,9 @@ std::string plain_spec(const std::string& x);
 // The TL family a term belongs to (permanent, induced, eddy), else the term itself.
 std::string family_of_tl(const std::string& spec);
 
-// One term to try: its spec (free parameters as ?), what kind of effect, which channel.
+// One term to try: the term (free parameters as ?), what kind of effect, which channel.
 struct Job {
-  std::string spec;
+  TermSpec term;
   std::string family;
   std::string channel;
 };
@@ -43,7 +44,7 @@ struct Job {
 // Result of one job.
 struct Scored {
   bool ok = false;
-  std::string spec;  // parameters as numbers
+  TermPtr term;  // parameters as numbers (null for the lag, scored before its value is a term)
   double sel = 0, conf = 0, held = 0;
   Eigen::VectorXd coef;  // the candidate's coefficients
   long fits = 0;
@@ -103,9 +104,6 @@ class Search {
     if (with_lag) lag_round_trip(c, model.scalar_lag_s() / dt);
     return c;
   }
-  Eigen::MatrixXd columns_of(const std::string& spec, bool with_lag = true) const {
-    return columns_of(*make_term(spec), with_lag);
-  }
 
   const Model& model;
   const FlightData& data;
@@ -163,7 +161,7 @@ std::vector<Job> screened_products(const Search& search, const std::vector<std::
                                    const std::vector<Job>& taken, size_t keep, int threads);
 // The grammar growth (grammar.cpp): whether a term's time constant sits at the top of its scan,
 // and the children of the best electrical terms.
-bool at_slow_edge(const std::string& spec, const Search& search);
+bool at_slow_edge(const Term& term, const Search& search);
 std::vector<Job> refined_jobs(const Model& model, const Search& search,
                               const std::vector<Job>& jobs, const std::vector<Scored>& scored,
                               std::set<std::string>* seen);

@@ -118,7 +118,6 @@ Scored Search::lag_scored(double tau, Eigen::MatrixXd x, Eigen::Index partners) 
          c.tail(partners);
   }
   Scored s;
-  s.spec = "lag";
   s.sel = fold_std(e, held, fold, line, 0);
   s.conf = fold_std(e, held, fold, line, 1);
   s.held = fold_std(e, held, fold, line, -1);
@@ -129,16 +128,17 @@ Scored Search::lag_scored(double tau, Eigen::MatrixXd x, Eigen::Index partners) 
 }
 
 // A channel's term without a delay of its own (the partner a scalar lag is judged with).
-std::string undelayed(const std::string& term) {
-  const auto e = parse_expr_term(term);
+TermSpec undelayed(const TermSpec& term) {
+  const ExprTerm* e = term.expr();
   if (!e) return term;
   SignalExpr sig = e->signal();
   sig.transforms.erase(
       std::remove_if(sig.transforms.begin(), sig.transforms.end(),
                      [](const Transform& t) { return t.kind == TransformKind::Delay; }),
       sig.transforms.end());
-  if (sig.transforms.empty() && sig.sources.size() == 1) return plain_spec(sig.sources[0]);
-  return ExprTerm(e->projection(), sig).spec();
+  if (sig.transforms.empty() && sig.sources.size() == 1)
+    return TermSpec(plain_spec(sig.sources[0]));
+  return TermSpec(ExprTerm(e->projection(), sig).spec());
 }
 
 // The lag, alone; and, when the best candidate so far is a channel's term, together with that
@@ -150,22 +150,23 @@ void add_lag_candidate(const Model& model, const FlightData& data, const Search&
   Scored lag = search.lag_candidate(&tau, Eigen::MatrixXd(data.size(), 0));
   dx->candidates_tried += lag.fits;
   double lag_pair_share = NAN;
-  std::string partner_note, partner_term;
+  std::string partner_note;
+  TermSpec partner_term;
   const Candidate* best = nullptr;
   for (const auto& c : dx->candidates) {
     if (!best || c.explained_selection > best->explained_selection) best = &c;
   }
   if (best && !best->channel.empty() && best->channel != model.scalar) {
-    const std::string partner = undelayed(best->term);
+    const TermSpec partner = undelayed(best->term);
     double tau2 = 0;
-    const Scored pair = search.lag_candidate(&tau2, search.columns_of(partner, false));
+    const Scored pair = search.lag_candidate(&tau2, search.columns_of(partner.term(), false));
     dx->candidates_tried += pair.fits;
     const double pair_share = share(pair.sel, search.base_std[0]);
     if (pair.ok && pair_share > best->explained_selection + 0.01) {
       lag = search.lag_at(tau2, Eigen::MatrixXd(data.size(), 0));  // the lag by itself there
       tau = tau2;
       char buf[160];
-      std::snprintf(buf, sizeof(buf), "; with %s next: %.1f%% together", partner.c_str(),
+      std::snprintf(buf, sizeof(buf), "; with %s next: %.1f%% together", partner.text().c_str(),
                     100 * pair_share);
       partner_note = buf;
       partner_term = partner;
@@ -173,9 +174,10 @@ void add_lag_candidate(const Model& model, const FlightData& data, const Search&
     }
   }
   if (!lag.ok) return;
-  const auto term = make_term("lag:" + std::to_string(tau));
+  // The lag as its spec writes it (fewer digits than tau's): the model is given that text.
+  const TermPtr term = make_term("lag:" + std::to_string(tau));
   Candidate c;
-  c.term = term->spec();
+  c.term = TermSpec(term->spec());
   c.effect = term->effect();
   c.family = "scalar lag";
   c.std_after_nT = lag.held;

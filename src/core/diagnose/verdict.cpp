@@ -120,14 +120,15 @@ std::string verdict_of(const Diagnosis& dx, double resolution_nT) {
                     "add %s: it explains %.1f%% of the held-out error on the confirmation lines "
                     "(where it ranks first) and %.1f%% on the selection lines; the held-out "
                     "error falls from %.3f to %.3f nT",
-                    c.term.c_str(), 100 * c.explained_confirmation, 100 * c.explained_selection,
-                    dx.baseline_std_nT, c.std_after_nT);
+                    c.term.text().c_str(), 100 * c.explained_confirmation,
+                    100 * c.explained_selection, dx.baseline_std_nT, c.std_after_nT);
       return buf;
     }
     std::snprintf(buf, sizeof(buf),
                   "add %s: it explains %.1f%% of the held-out error on the selection lines and "
                   "%.1f%% on the confirmation lines",
-                  c.term.c_str(), 100 * c.explained_selection, 100 * c.explained_confirmation);
+                  c.term.text().c_str(), 100 * c.explained_selection,
+                  100 * c.explained_confirmation);
     return buf;
   }
   const ResidualFloor& f = dx.floor;

@@ -42,8 +42,18 @@ Eigen::VectorXd aligned_scalar(const Model& model, const FlightData& data, doubl
   return shift_samples(s, -lag / data.dt_s());
 }
 
-bool Model::add_term(const std::string& spec) {
-  const TermSpec canonical(TermSpec(spec).term().spec());
+namespace {
+// The term written canonically (Term::spec), with the tree of that text: a spec may round a
+// parameter given with more digits, and a model holds what its file will say. A term already
+// written so is kept as parsed.
+TermSpec canonical_of(const TermSpec& term) {
+  std::string text = term.term().spec();
+  return text == term.text() ? term : TermSpec(text);
+}
+}  // namespace
+
+bool Model::add_term(const TermSpec& term) {
+  const TermSpec canonical = canonical_of(term);
   if (std::find(terms.begin(), terms.end(), canonical) != terms.end()) return false;
   if (const ExprTerm* e = canonical.expr()) {
     for (auto& t : terms) {
@@ -67,13 +77,13 @@ bool Model::add_term(const std::string& spec) {
   return true;
 }
 
-void require_slow_term(const std::string& spec) {
-  if (const auto e = parse_expr_term(spec); e && e->signal().has_free())
-    throw Error("'" + spec + "' has a free parameter (?): give its value");
+void require_slow_term(const TermSpec& term) {
+  if (const ExprTerm* e = term.expr(); e && e->signal().has_free())
+    throw Error("'" + term.text() + "' has a free parameter (?): give its value");
 }
 
-void Model::add_slow_term(const std::string& spec, const std::string& reference) {
-  const std::string canonical = make_term(spec)->spec();
+void Model::add_slow_term(const TermSpec& term, const std::string& reference) {
+  const TermSpec canonical = canonical_of(term);
   require_slow_term(canonical);
   add_term(canonical);
   if (std::find(slow_terms.begin(), slow_terms.end(), canonical) == slow_terms.end())

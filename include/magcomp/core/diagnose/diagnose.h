@@ -20,7 +20,7 @@ namespace magcomp {
 
 /// One candidate effect, evaluated by adding its term to the model and refitting on the fit rows.
 struct Candidate {
-  std::string term;           ///< exactly what `--term` accepts (estimated parameters as numbers)
+  TermSpec term;  ///< written as exactly what `--term` accepts (estimated parameters as numbers)
   std::string effect;         ///< its physics in words
   std::string channel;        ///< the channel(s) it uses ("" if none)
   std::string family;         ///< the kind of effect searched: tl, current, rate, thermal, lag, ...
@@ -33,8 +33,8 @@ struct Candidate {
   /// The share it is ranked by: its selection share, or for a lag the selection share of the lag
   /// together with the channel term whose timing it explains (added in the next round).
   double ranking_share = NAN;
-  /// The term ranking_share was measured with (a lag's channel term), "" when none.
-  std::string partner;
+  /// The term ranking_share was measured with (a lag's channel term), empty when none.
+  TermSpec partner;
   /// True when it improves the selection lines (where it was ranked) and also the confirmation
   /// lines (used neither to fit nor to choose it) by at least DiagnoseOptions::accept_fraction
   /// of the variance and DiagnoseOptions::resolution_nT of the std; or, for the one candidate
@@ -115,7 +115,7 @@ bool is_electrical(const std::string& channel);
 
 /// How much a term says: its sources, transforms and their parameters (a shorthand or TL
 /// family counts 1). Between terms that explain as much, the simpler is preferred.
-int term_complexity(const std::string& spec);
+int term_complexity(const TermSpec& term);
 
 /// Moves to the front the simplest of the ranked items (each with a `term`) that tie with the
 /// first: the leading run of items for which tied(first, item) holds.

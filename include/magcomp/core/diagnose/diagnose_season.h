@@ -11,7 +11,7 @@ namespace magcomp {
 
 /// One candidate effect across the flights.
 struct SeasonCandidate {
-  std::string term;     ///< as diagnosed on the flight where it explained most (--term accepts it)
+  TermSpec term;        ///< as diagnosed on the flight where it explained most (--term accepts it)
   std::string shape;    ///< what is matched between flights: the term without its parameter values
   int accepted_on = 0;  ///< flights whose diagnosis accepted it
   int scored_on = 0;    ///< flights whose diagnosis scored it
@@ -35,9 +35,9 @@ struct SeasonDiagnosis {
   std::string verdict;
 };
 
-/// The shape of a term spec: a language term's expression with its parameters free (e.g.
+/// The shape of a term: a language term's expression with its parameters free (e.g.
 /// field:cur_heat|lp(?)), "lag" for a lag, the spec itself otherwise.
-std::string term_shape(const std::string& spec);
+std::string term_shape(const TermSpec& term);
 
 /// Ranks the candidates of per-flight diagnoses of one model across the flights (in order).
 SeasonDiagnosis merge_diagnoses(const std::vector<Diagnosis>& flights);

@@ -99,17 +99,18 @@ struct Model {
   double scalar_lag_s() const;
   /// Adds a term spec if not yet present (validated). Returns false if it was already there. A
   /// lag replaces the model's lag; a language term replaces one of the same shape (the same
-  /// expression with other parameter values, e.g. field:cur_heat|lp(80) replaces |lp(60)).
-  bool add_term(const std::string& spec);
+  /// expression with other parameter values, e.g. field:cur_heat|lp(80) replaces |lp(60)). A
+  /// parsed term is kept as it is (written canonically), not parsed again.
+  bool add_term(const TermSpec& term);
   /// Adds a term (add_term) as a slow term (slow_terms), fitted against fit.reference, which
   /// gets `reference` when the model names none. Throws magcomp::Error for a term with a free
   /// parameter (require_slow_term).
-  void add_slow_term(const std::string& spec, const std::string& reference);
+  void add_slow_term(const TermSpec& term, const std::string& reference);
 };
 
-/// Throws magcomp::Error when `spec` cannot be a slow term: one with a free parameter (?), which
+/// Throws magcomp::Error when `term` cannot be a slow term: one with a free parameter (?), which
 /// the slow stage, fitting coefficients only, cannot estimate.
-void require_slow_term(const std::string& spec);
+void require_slow_term(const TermSpec& term);
 
 /// Loads a model YAML (a plain or a fitted one), or a bundle directory holding model.yaml (and
 /// the neural stage's weights). Throws magcomp::Error naming file and key.
@@ -132,17 +133,14 @@ Eigen::MatrixXd design_matrix(const Model& model, const std::vector<TermPtr>& te
 /// Indices of the design-matrix columns of `terms` that a fit by `method` can fit: all of them
 /// for a reference fit; for a band-pass fit only those of bandpass_observable() terms (a bias,
 /// say, is filtered away).
-std::vector<Eigen::Index> fittable_columns(FitMethod method,
-                                           const std::vector<TermPtr>& terms);
+std::vector<Eigen::Index> fittable_columns(FitMethod method, const std::vector<TermPtr>& terms);
 /// The same, without the columns of `slow_terms` when `method` is bandpass (the slow stage
 /// fits those).
-std::vector<Eigen::Index> fittable_columns(FitMethod method,
-                                           const std::vector<TermPtr>& terms,
+std::vector<Eigen::Index> fittable_columns(FitMethod method, const std::vector<TermPtr>& terms,
                                            const std::vector<std::string>& slow_terms);
 /// Indices of the design-matrix columns of the model's slow terms (Model::slow_terms) that a fit
 /// by `method` fits after its band-pass stage: empty for a reference fit (it fits every column).
-std::vector<Eigen::Index> slow_columns(FitMethod method,
-                                       const std::vector<TermPtr>& terms,
+std::vector<Eigen::Index> slow_columns(FitMethod method, const std::vector<TermPtr>& terms,
                                        const std::vector<std::string>& slow_terms);
 
 /// Samples of margin that make rows of the design matrix and of the aligned scalar built on a
@@ -150,8 +148,7 @@ std::vector<Eigen::Index> slow_columns(FitMethod method,
 /// terms' row reach plus the lag's shift plus the interpolation's (and the columns' lag round
 /// trip, timeseries.h); -1 when a term depends on the
 /// whole history (a causal filter), so only the whole flight gives its values.
-Eigen::Index slice_margin(const Model& model, const std::vector<TermPtr>& terms,
-                          double dt_s);
+Eigen::Index slice_margin(const Model& model, const std::vector<TermPtr>& terms, double dt_s);
 
 /// Calls `block(first, a)` for consecutive blocks of rows covering the flight, `a` being rows
 /// [first, first + a.rows()) of the design matrix. Each block is built on a slice with the

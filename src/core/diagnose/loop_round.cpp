@@ -1,0 +1,284 @@
+// magcomp: one round of diagnose_loop (loop_round.h).
+#include "loop_round.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <optional>
+
+#include "magcomp/core/error.h"
+#include "magcomp/core/fit/model_fit.h"
+#include "magcomp/core/model/terms_expr.h"
+
+namespace magcomp::loop_steps {
+
+bool Round::try_model(Model next, const std::string& added, double explained, bool black_box) {
+  next.coefficients.resize(0);
+  fit_model(next, c_.flights);
+  LoopRound lr = score(next, c_.flights, c_.truth, c_.held_out, c_.validation);
+  const LoopRound& now = r_->rounds.back();
+  std::string why = refusal(lr, now);
+  // A learned law has many columns: it must also explain the accepted share of the held-out
+  // variance, as every candidate must on each split.
+  const double share_left = std::pow(lr.heldout_std_nT / now.heldout_std_nT, 2.0);
+  if (why.empty() && black_box && 1.0 - share_left < c_.options.accept_fraction) {
+    char buf[160];
+    std::snprintf(buf, sizeof(buf),
+                  "the held-out error would fall by less than %.0f%% of its variance "
+                  "(%.3f -> %.3f nT)",
+                  100 * c_.options.accept_fraction, now.heldout_std_nT, lr.heldout_std_nT);
+    why = buf;
+  }
+  if (!why.empty()) {
+    rejected_.emplace_back(added, why);
+    return false;
+  }
+  lr.round = round_;
+  lr.added = added;
+  lr.explained = explained;
+  lr.black_box = black_box;
+  lr.rejected = std::move(rejected_);
+  rejected_.clear();
+  r_->rounds.push_back(std::move(lr));
+  r_->model = std::move(next);
+  return true;
+}
+
+std::pair<Model, LoopRound> Round::fit_score(Model m) const {
+  m.coefficients.resize(0);
+  fit_model(m, c_.flights);
+  LoopRound lr = score(m, c_.flights, c_.truth, c_.held_out, c_.validation);
+  return std::make_pair(std::move(m), std::move(lr));
+}
+
+bool Round::passes(double with_nT, double without_nT) const {
+  return variance_share(with_nT, without_nT) >= c_.options.accept_fraction &&
+         without_nT - with_nT >= c_.options.resolution_nT;
+}
+
+bool Round::pair_passes(const LoopRound& lr, const LoopRound& alone_a,
+                        const LoopRound& alone_b) const {
+  const LoopRound& now = r_->rounds.back();
+  const double accept = c_.options.accept_fraction;
+  return refusal(lr, now).empty() && passes(lr.selection_std_nT, now.selection_std_nT) &&
+         passes(lr.confirmation_std_nT, now.confirmation_std_nT) &&
+         variance_share(lr.heldout_std_nT, alone_a.heldout_std_nT) >= accept &&
+         variance_share(lr.heldout_std_nT, alone_b.heldout_std_nT) >= accept;
+}
+
+void Round::keep_pair(std::pair<Model, LoopRound> fitted, const std::string& a,
+                      const std::string& b, double alone_a_nT, double alone_b_nT) {
+  LoopRound lr = std::move(fitted.second);
+  lr.round = round_;
+  lr.added = a + " + " + b;
+  lr.explained = variance_share(lr.heldout_std_nT, r_->rounds.back().heldout_std_nT);
+  lr.together = true;
+  lr.alone_std_nT = {alone_a_nT, alone_b_nT};
+  lr.rejected = std::move(rejected_);
+  rejected_.clear();
+  r_->rounds.push_back(std::move(lr));
+  r_->model = std::move(fitted.first);
+}
+
+bool Round::lag_with_partner(const std::vector<Diagnosis>& dxs,
+                             const std::vector<Eligible>& eligible) {
+  std::optional<std::pair<Model, LoopRound>> partnered;
+  std::string partnered_a, partnered_b;
+  double partnered_alone[2] = {NAN, NAN};
+  for (const Diagnosis& d : dxs) {
+    if (d.candidates.empty()) continue;
+    const Candidate& top = d.candidates.front();
+    if (top.partner.empty() || (top.accepted && top.explained_fraction >= c_.min_share)) continue;
+    try {
+      Model with_a = r_->model, with_b = r_->model, with_both = r_->model;
+      add_candidate_term(top.term, top.slow, c_.truth, &with_a);
+      add_candidate_term(top.partner, false, c_.truth, &with_b);
+      add_candidate_term(top.term, top.slow, c_.truth, &with_both);
+      add_candidate_term(top.partner, false, c_.truth, &with_both);
+      const LoopRound alone_a = fit_score(std::move(with_a)).second;
+      const LoopRound alone_b = fit_score(std::move(with_b)).second;
+      auto both = fit_score(std::move(with_both));
+      if (!pair_passes(both.second, alone_a, alone_b)) continue;
+      if (partnered && !(both.second.heldout_std_nT < partnered->second.heldout_std_nT)) continue;
+      partnered.emplace(std::move(both));
+      partnered_a = top.term.text();
+      partnered_b = top.partner.text();
+      partnered_alone[0] = alone_a.heldout_std_nT;
+      partnered_alone[1] = alone_b.heldout_std_nT;
+    } catch (const Error&) {
+    }
+  }
+  if (!partnered) return false;
+  double single_nT = INFINITY;  // the first single term that passes
+  for (size_t k = 0; k < eligible.size() && k < kTriesPerRound; ++k) {
+    Model next = r_->model;
+    add_candidate_term(eligible[k].term, eligible[k].slow, c_.truth, &next);
+    const LoopRound lr = fit_score(std::move(next)).second;
+    if (refusal(lr, r_->rounds.back()).empty()) {
+      single_nT = lr.heldout_std_nT;
+      break;
+    }
+  }
+  if (!(partnered->second.heldout_std_nT < single_nT)) return false;
+  keep_pair(std::move(*partnered), partnered_a, partnered_b, partnered_alone[0],
+            partnered_alone[1]);
+  return true;
+}
+
+bool Round::first_single(const std::vector<Eligible>& eligible) {
+  for (size_t k = 0; k < eligible.size() && k < kTriesPerRound; ++k) {
+    Model next = r_->model;
+    add_candidate_term(eligible[k].term, eligible[k].slow, c_.truth, &next);
+    if (try_model(std::move(next), eligible[k].term, eligible[k].explained, false)) return true;
+  }
+  return false;
+}
+
+bool Round::pair_acting_together(const std::vector<Diagnosis>& dxs) {
+  // The pool: for each of the three channels that predict most of the residual (and that the
+  // search gives terms of), its plain term and its first ranked term, whatever their share
+  // alone: effects that cancel one another show in the residual's channels, not in each term's
+  // share.
+  constexpr size_t kResidualChannels = 3;
+  std::vector<Candidate> pool;
+  std::set<std::string> in_pool;
+  const auto take = [&](const Candidate& c) {
+    if (in_pool.insert(c.term.text()).second) pool.push_back(c);
+  };
+  for (const Diagnosis& d : dxs) {
+    const ExplainableShare& ex0 = d.explainable;
+    if (ex0.within_noise) continue;
+    for (size_t k = 0; k < ex0.channels.size() && k < kResidualChannels; ++k) {
+      const std::string& channel = ex0.channels[k].first;
+      const auto first = std::find_if(d.candidates.begin(), d.candidates.end(),
+                                      [&](const Candidate& c) { return c.channel == channel; });
+      if (first == d.candidates.end()) continue;
+      Candidate plain;
+      plain.term = TermSpec((is_electrical(channel) ? "current:" : "field:") + channel);
+      plain.channel = channel;
+      take(plain);
+      take(*first);
+    }
+  }
+  std::vector<LoopRound> alone(pool.size());
+  for (size_t a = 0; a < pool.size(); ++a) {
+    alone[a].heldout_std_nT = NAN;  // a term that cannot be fitted here is left out
+    try {
+      Model next = r_->model;
+      add_candidate_term(pool[a].term, pool[a].slow, c_.truth, &next);
+      alone[a] = fit_score(std::move(next)).second;
+    } catch (const Error&) {
+    }
+  }
+  const LoopRound& now = r_->rounds.back();
+  double best_std = INFINITY;
+  std::optional<std::pair<Model, LoopRound>> best;
+  size_t best_a = 0, best_b = 0;
+  for (size_t a = 0; a < pool.size(); ++a) {
+    for (size_t b = a + 1; b < pool.size(); ++b) {
+      if (pool[a].channel == pool[b].channel || !std::isfinite(alone[a].heldout_std_nT) ||
+          !std::isfinite(alone[b].heldout_std_nT))
+        continue;
+      if (refusal(alone[a], now).empty() && refusal(alone[b], now).empty())
+        continue;  // both lower the error alone: not a pair that only acts together
+      Model next = r_->model;
+      add_candidate_term(pool[a].term, pool[a].slow, c_.truth, &next);
+      add_candidate_term(pool[b].term, pool[b].slow, c_.truth, &next);
+      auto [fitted, lr] = fit_score(std::move(next));
+      if (!pair_passes(lr, alone[a], alone[b])) continue;
+      if (lr.heldout_std_nT < best_std) {
+        best_std = lr.heldout_std_nT;
+        best.emplace(std::move(fitted), std::move(lr));
+        best_a = a;
+        best_b = b;
+      }
+    }
+  }
+  if (!best) return false;
+  keep_pair(std::move(*best), pool[best_a].term, pool[best_b].term, alone[best_a].heldout_std_nT,
+            alone[best_b].heldout_std_nT);
+  return true;
+}
+
+bool Round::learned_law_of_channel(const std::vector<Diagnosis>& dxs,
+                                   std::set<std::string>* learned_channels) {
+  // The flight whose residual is predictable (the first such), and its data. The channel must be
+  // a current or a voltage (learned_law): a residual that follows position or motion first is
+  // leakage, not a law.
+  size_t law_flight = 0;
+  while (law_flight + 1 < dxs.size() && dxs[law_flight].explainable.within_noise) ++law_flight;
+  const Diagnosis& law_dx = dxs[law_flight];
+  const ExplainableShare& ex = law_dx.explainable;
+  if (ex.within_noise || ex.channels.empty() || !(ex.channels.front().second > ex.noise_floor) ||
+      !learned_channels->insert(ex.channels.front().first).second)
+    return false;
+  const std::string& channel = ex.channels.front().first;
+  const double share = ex.channels.front().second;
+  const Candidate* shape = nullptr;  // the best ranked one-channel term of the channel
+  for (const Candidate& c : law_dx.candidates) {
+    const ExprTerm* e = c.channel == channel ? c.term.expr() : nullptr;
+    if (e && e->signal().sources.size() == 1) {
+      shape = &c;
+      break;
+    }
+  }
+  const std::vector<TermSpec> law = learned_law(channel, shape, r_->model, *c_.flights[law_flight]);
+  if (law.empty()) return false;
+  Model next = r_->model;
+  for (const auto& t : law) {
+    if (next.add_term(t)) next.black_box_terms.push_back(t);
+  }
+  std::string added;
+  for (const auto& t : law) added += (added.empty() ? "" : " + ") + t.text();
+  return try_model(std::move(next), added, share, true);
+}
+
+void Round::backward_pass() {
+  if (r_->rounds.size() < 2) return;
+  const double accept = c_.options.accept_fraction;
+  const LoopRound before = r_->rounds[r_->rounds.size() - 2];
+  std::set<std::string> added_now;  // this round's terms (" + " joins a pair or a law)
+  for (size_t from = 0;;) {
+    const std::string& a = r_->rounds.back().added;
+    const size_t to = a.find(" + ", from);
+    added_now.insert(a.substr(from, to == std::string::npos ? std::string::npos : to - from));
+    if (to == std::string::npos) break;
+    from = to + 3;
+  }
+  for (;;) {
+    const LoopRound& now = r_->rounds.back();
+    std::optional<std::pair<Model, LoopRound>> drop;
+    std::string drop_term;
+    double drop_share = INFINITY;
+    for (const TermSpec& t : r_->model.terms) {
+      if (!removable(c_.start, t) || added_now.count(t.text())) continue;
+      auto [m, lr] = fit_score(without_term(r_->model, t));
+      const double share = -variance_share(now.heldout_std_nT, lr.heldout_std_nT);
+      const bool validation_ok =
+          !std::isfinite(now.validation_std_nT) ||
+          -variance_share(now.validation_std_nT, lr.validation_std_nT) < 0.25 * accept;
+      if (share < 0.25 * accept && validation_ok && lr.heldout_std_nT < before.heldout_std_nT &&
+          share < drop_share) {
+        drop_share = share;
+        drop_term = t.text();
+        drop.emplace(std::move(m), std::move(lr));
+      }
+    }
+    if (!drop) break;
+    char why[200];
+    std::snprintf(why, sizeof(why),
+                  "made redundant by later terms: without it the held-out error %.4f -> %.4f nT",
+                  now.heldout_std_nT, drop->second.heldout_std_nT);
+    LoopRound& last = r_->rounds.back();
+    last.removed.emplace_back(drop_term, why);
+    last.heldout_std_nT = drop->second.heldout_std_nT;
+    last.all_std_nT = drop->second.all_std_nT;
+    last.selection_std_nT = drop->second.selection_std_nT;
+    last.confirmation_std_nT = drop->second.confirmation_std_nT;
+    last.fom_nT = drop->second.fom_nT;
+    last.validation_std_nT = drop->second.validation_std_nT;
+    r_->model = std::move(drop->first);
+  }
+}
+
+}  // namespace magcomp::loop_steps

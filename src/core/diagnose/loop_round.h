@@ -1,0 +1,86 @@
+// magcomp: one round of diagnose_loop (internal to src/core/diagnose): the ways a round may change
+// the model, tried in order (a lag with the channel term it was judged with, the first single
+// term that passes, a pair of terms that act together, a learned law), each under the loop's
+// checks on the held-out lines, then the backward pass. diagnose_loop.cpp runs them.
+#pragma once
+
+#include <set>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "loop_steps.h"
+#include "magcomp/core/diagnose/diagnose.h"
+#include "magcomp/core/diagnose/diagnose_loop.h"
+#include "magcomp/core/io/flight_data.h"
+#include "magcomp/core/model/model.h"
+
+namespace magcomp::loop_steps {
+
+// Eligible candidates tried per round, in rank order.
+constexpr size_t kTriesPerRound = 3;
+
+// What every step of a round reads: the loop's start model, its flights and their held-out
+// halves, the validation flight (or nullptr) and the options.
+struct LoopContext {
+  const Model& start;
+  const std::vector<const FlightData*>& flights;
+  const std::string& truth;
+  const std::vector<HeldOut>& held_out;
+  const FlightData* validation;
+  const DiagnoseOptions& options;
+  double min_share;
+};
+
+// One round: each step returns true when it kept a change (appended to the result's rounds and
+// made its model).
+class Round {
+ public:
+  Round(const LoopContext& context, int round, LoopResult* result)
+      : c_(context), round_(round), r_(result) {}
+
+  // A lag ranked first by the share it explains with the channel term it was judged with
+  // (Candidate::partner), but not eligible alone: the two together, kept if they pass a pair's
+  // checks and lower the held-out error below the first single term that passes (a scalar lag
+  // delays every channel's signature; a delayed channel term stands in for it on that channel
+  // only).
+  bool lag_with_partner(const std::vector<Diagnosis>& dxs, const std::vector<Eligible>& eligible);
+  // The eligible candidates in rank order (at most kTriesPerRound): the first that passes every
+  // check is kept.
+  bool first_single(const std::vector<Eligible>& eligible);
+  // Effects that act together: when no term passes alone while the residual stays predictable,
+  // pairs of terms of distinct channels, fitted together; the best pair by held-out error that
+  // passes a pair's checks, of which at least one term fails alone.
+  bool pair_acting_together(const std::vector<Diagnosis>& dxs);
+  // When no term of the language passes while the residual stays predictable: a learned law of
+  // the channel that predicts most of it (one per channel over the loop: `learned_channels`).
+  bool learned_law_of_channel(const std::vector<Diagnosis>& dxs,
+                              std::set<std::string>* learned_channels);
+  // An earlier round's term that the model no longer needs leaves (the least needed first, one
+  // at a time), so long as the round still lowers the error of the round before it.
+  void backward_pass();
+  // The changes refused this round that no kept change carried: (what, why).
+  const std::vector<std::pair<std::string, std::string>>& rejected() const { return rejected_; }
+
+ private:
+  // Fits `next` and keeps it if it passes every check; else records why in rejected_.
+  bool try_model(Model next, const std::string& added, double explained, bool black_box);
+  // `m` fitted on the flights and scored.
+  std::pair<Model, LoopRound> fit_score(Model m) const;
+  // On one half of the held-out lines: the accepted share of the variance and the resolution.
+  bool passes(double with_nT, double without_nT) const;
+  // A pair fitted together (`lr`): every check of a single term, passes() on each half, and
+  // each of its terms needed (the pair lowers the error variance of each alone by the accepted
+  // share).
+  bool pair_passes(const LoopRound& lr, const LoopRound& alone_a, const LoopRound& alone_b) const;
+  // Keeps a pair fitted together as this round.
+  void keep_pair(std::pair<Model, LoopRound> fitted, const std::string& a, const std::string& b,
+                 double alone_a_nT, double alone_b_nT);
+
+  const LoopContext& c_;
+  int round_;
+  LoopResult* r_;
+  std::vector<std::pair<std::string, std::string>> rejected_;
+};
+
+}  // namespace magcomp::loop_steps
