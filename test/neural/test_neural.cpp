@@ -393,12 +393,13 @@ TEST(Neural, TrainPrintsWhatTheNetworkLeansOnOnTheValidationFlight) {
 // The LSTM with its backward written out is torch::nn::LSTM's function: the same output and the
 // same gradients of a loss in every weight and in the input, in float32 and float64, for one and
 // for three layers (a batch of 70 windows of 13 steps: three parallel chunks, the last short).
-void expect_fused_lstm_equals_torchs(torch::ScalarType type, int layers, double tol) {
+void expect_fused_lstm_equals_torchs(torch::ScalarType type, int layers, double tol,
+                                     int64_t batch = 70, int64_t steps = 13) {
   torch::manual_seed(5);
   torch::nn::LSTM lstm(torch::nn::LSTMOptions(5, 6).num_layers(layers).batch_first(true));
   lstm->to(type);
-  const torch::Tensor x0 = torch::randn({70, 13, 5}, torch::TensorOptions().dtype(type));
-  const torch::Tensor w = torch::randn({70, 6}, torch::TensorOptions().dtype(type));
+  const torch::Tensor x0 = torch::randn({batch, steps, 5}, torch::TensorOptions().dtype(type));
+  const torch::Tensor w = torch::randn({batch, 6}, torch::TensorOptions().dtype(type));
   auto grads_of = [&](bool fused) {
     lstm->zero_grad();
     torch::Tensor x = x0.clone().requires_grad_(true);
@@ -430,6 +431,10 @@ TEST(Neural, TheFusedLstmHasTorchsOutputAndGradients) {
   expect_fused_lstm_equals_torchs(torch::kFloat64, 1, 1e-12);
   expect_fused_lstm_equals_torchs(torch::kFloat64, 3, 1e-12);
   expect_fused_lstm_equals_torchs(torch::kFloat32, 2, 1e-5);
+  // Several chunks: 300 windows are three chunks of the recurrence (128 rows each, the last
+  // short), and their 17 steps' 5100 rows two chunks of the weights' products (4096 rows), whose
+  // boundary falls inside a step.
+  expect_fused_lstm_equals_torchs(torch::kFloat64, 2, 1e-12, 300, 17);
 }
 
 }  // namespace

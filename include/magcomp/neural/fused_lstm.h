@@ -4,9 +4,9 @@
 // The function is torch::nn::LSTM's (batch first, torch's gate order input, forget, cell, output,
 // zero initial state), returning the top layer's output at the last step. libtorch's CPU LSTM
 // records about ten autograd nodes per step and layer and runs each as a separate small kernel;
-// here each layer is two large matrix products over every step (the input projection, then the
-// weights' gradients) around a recurrence that runs in one pass per batch chunk, the chunks in
-// parallel on torch's intra-op threads.
+// here each layer, held time-major, is two large matrix products over every step (the input
+// projection, then the weights' gradients) around a recurrence that runs in one pass per batch
+// chunk, the chunks in parallel on torch's intra-op threads.
 #pragma once
 
 #include <torch/torch.h>
