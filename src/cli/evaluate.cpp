@@ -13,6 +13,7 @@
 #include "magcomp/core/error.h"
 #include "magcomp/core/evaluate/evaluation.h"
 #include "magcomp/core/evaluate/flight_conditions.h"
+#include "magcomp/core/evaluate/network_gain.h"
 #include "magcomp/core/io/file_io.h"
 #include "magcomp/core/io/output_guard.h"
 #include "magcomp/core/neural/attribution.h"
@@ -148,6 +149,21 @@ void print_evaluation(const Evaluation& ev, const Evaluation* base) {
   std::printf("\n");
 }
 
+// With a trained network: whether its gain carries over to this flight (printed, and in the JSON
+// as `network_gain`); nothing for a model without one.
+void add_network_gain(const Model& model, const FlightData& flight, const std::string& truth,
+                      const Evaluation& ev, nlohmann::json* j) {
+  if (!model.neural || !model.neural->trained()) return;
+  const NetworkGain g = network_gain(model, flight, truth, ev);
+  std::printf("%s\n", g.verdict.c_str());
+  (*j)["network_gain"] = {{"physics_rmse_nT", json_figure(g.physics.rmse_nT)},
+                          {"physics_std_nT", json_figure(g.physics.std_nT)},
+                          {"gain_std", json_figure(g.gain_std)},
+                          {"carries_over", g.carries_over},
+                          {"worse", g.worse},
+                          {"verdict", g.verdict}};
+}
+
 // One flight: the table, the JSON and the report.
 void evaluate_one(const std::string& data, const Model& model, const Model* baseline_model,
                   const std::string& model_path, const std::string& baseline_path,
@@ -168,6 +184,7 @@ void evaluate_one(const std::string& data, const Model& model, const Model* base
   guard.check_inputs_unchanged();
   print_evaluation(ev, base.get());
   nlohmann::json j = to_json(ev);
+  add_network_gain(model, flight, truth, ev, &j);
   if (attribution) {
     print_attribution(*attribution);
     j["attribution"] = attribution_json(*attribution);
@@ -211,6 +228,7 @@ void evaluate_several(const EvaluateArgs& a, const std::vector<std::string>& pat
       base = std::make_unique<Evaluation>(evaluate_model(*baseline_model, flight, a.truth, false));
     print_evaluation(ev, base.get());
     nlohmann::json f = to_json(ev);
+    add_network_gain(model, flight, a.truth, ev, &f);
     if (a.explain) {
       const Attribution at = permutation_importance(model, flight);
       print_attribution(at);

@@ -11,6 +11,7 @@
 #include "common.h"
 #include "magcomp/core/apply/apply.h"
 #include "magcomp/core/error.h"
+#include "magcomp/core/evaluate/network_gain.h"
 #include "magcomp/core/model/model.h"
 #include "magcomp/core/neural/attribution.h"
 #include "magcomp/core/neural/network.h"
@@ -31,7 +32,7 @@ double rms(const Eigen::VectorXd& v) {
 // What `magcomp_train` is asked, as given on the command line.
 struct TrainArgs {
   std::vector<std::string> data, validation;
-  std::string model_path, out;
+  std::string model_path, neural_from, out;
   int epochs = 0;
   long long seed = -1;
   bool quiet = false;
@@ -40,11 +41,16 @@ struct TrainArgs {
 // The model whose neural stage is trained, with --epochs and --seed applied and validated.
 Model model_to_train(const TrainArgs& a) {
   Model model = load_model_yaml(a.model_path);
+  if (!a.neural_from.empty()) {  // physics from --model, the network from this file
+    const Model donor = load_model_yaml(a.neural_from);
+    if (!donor.neural) throw Error(a.neural_from + ": key 'neural' missing: no network to take");
+    model.neural = donor.neural;
+  }
   if (!model.neural) throw Error(a.model_path + ": key 'neural' missing: nothing to train");
   NeuralSpec& spec = *model.neural;
   if (a.epochs > 0) spec.training.epochs = a.epochs;
   if (a.seed >= 0) spec.training.seed = static_cast<std::uint64_t>(a.seed);
-  validate_neural_spec(spec, a.model_path);
+  validate_neural_spec(spec, a.neural_from.empty() ? a.model_path : a.neural_from);
   return model;
 }
 
@@ -75,6 +81,9 @@ void print_training(const Model& model, const BundleReport& rep,
       const Eigen::VectorXd nn_err = nc.compensated_nT - f.column(s.reference);
       std::cout << "\n  " << s.validation_flights[i] << ": TL rmse " << rms(tl_err)
                 << " nT, with the network " << rms(nn_err) << " nT";
+      const NetworkGain g =
+          network_gain(model, f, s.reference, evaluate_model(model, f, s.reference, false));
+      std::cout << "\n  " << g.verdict;
     }
   }
   std::cout << "\nwrote " << rep.yaml_path << " and " << rep.weights_path << "\n";
@@ -110,6 +119,9 @@ int run(int argc, char** argv) {
       ->delimiter(',');
   app.add_option("--model", a.model_path, "model YAML with a neural: block (TL fitted or not)")
       ->required();
+  app.add_option("--neural-from", a.neural_from,
+                 "model YAML whose neural: block is trained on --model's terms (e.g. the model "
+                 "diagnose --apply wrote, any terms): the network learns what they leave");
   app.add_option("--out", a.out,
                  "OUT.yaml (weights in OUT.pt beside it) or a bundle directory (model.yaml + "
                  "weights.pt)")
@@ -121,6 +133,7 @@ int run(int argc, char** argv) {
 
   // Every file read and written, checked before the work (outputs never over an input).
   std::vector<OutputGuard::File> inputs = {{"--model", a.model_path}};
+  if (!a.neural_from.empty()) inputs.push_back({"--neural-from", a.neural_from});
   for (const auto& p : a.data) inputs.push_back({"--data", p});
   for (const auto& p : a.validation) inputs.push_back({"--validation", p});
   OutputGuard guard(inputs);

@@ -12,6 +12,7 @@
 #include "magcomp/core/apply/apply.h"
 #include "magcomp/core/error.h"
 #include "magcomp/core/evaluate/evaluation.h"
+#include "magcomp/core/evaluate/network_gain.h"
 #include "magcomp/core/fit/model_fit.h"
 #include "magcomp/core/io/flight_data.h"
 #include "magcomp/core/neural/attribution.h"
@@ -388,6 +389,78 @@ TEST(Neural, TrainPrintsWhatTheNetworkLeansOnOnTheValidationFlight) {
   }
   EXPECT_EQ(first, "cur_strb") << out;
   EXPECT_NEAR(total, 100.0, 0.5) << out;
+}
+
+TEST(Neural, TrainTakesTheNetworkFromAnotherFileOnTheModelsOwnTerms) {
+  // magcomp_train --model PHYSICS --neural-from NET: the physics (TL plus the hidden wire's
+  // current and the 0.3 s lag, fitted on the training flight) keeps its terms and coefficients,
+  // NET's network learns what they leave, and on the validation flight the hybrid is not worse
+  // than its physics alone, which evaluate reports. A NET without a neural block is refused in
+  // one line naming it.
+  const std::string dir = test::temp_dir("neural_from");
+  write_flight_h5(flight(11), dir + "/f11.h5");
+  write_flight_h5(flight(13), dir + "/f13.h5");
+  Model physics = load_model_yaml(test::source_dir() + "/config/models/tl_sim.yaml");
+  physics.add_term("current:cur_strb");
+  physics.add_term("lag:0.3");
+  fit_model(physics, {&flight(11)});
+  save_model_yaml(physics, dir + "/physics.yaml");
+  Model net = neural_model("mlp", "residual", 5, 8);
+  save_model_yaml(net, dir + "/net.yaml");
+  const std::string train = std::string(MAGCOMP_TRAIN) + " --quiet --data " + dir +
+                            "/f11.h5 --validation " + dir + "/f13.h5 --model " + dir +
+                            "/physics.yaml";
+  std::string out;
+  ASSERT_EQ(test::run(train + " --neural-from " + dir + "/net.yaml --out " + dir + "/b", &out), 0)
+      << out;
+  const Model trained = load_model_yaml(dir + "/b/model.yaml");
+  ASSERT_TRUE(trained.neural && trained.neural->trained());
+  ASSERT_EQ(trained.terms.size(), physics.terms.size());
+  for (size_t k = 0; k < physics.terms.size(); ++k) EXPECT_EQ(trained.terms[k], physics.terms[k]);
+  ASSERT_EQ(trained.coefficients.size(), physics.coefficients.size());
+  EXPECT_LT((trained.coefficients - physics.coefficients).cwiseAbs().maxCoeff(),
+            1e-9 * physics.coefficients.cwiseAbs().maxCoeff());
+  // The error's std (its mean removed: the band-pass leaves the level to the network).
+  const FlightData& val = flight(13);
+  const auto ref = val.column("mag_1_c");
+  const auto std_of = [](Eigen::VectorXd e) {
+    double sum = 0;
+    int n = 0;
+    for (Eigen::Index i = 0; i < e.size(); ++i)
+      if (std::isfinite(e[i])) sum += e[i], ++n;
+    return rms((e.array() - sum / n).matrix());
+  };
+  const double physics_nT = std_of(compensate(physics, val) - ref);
+  const double hybrid_nT = std_of(neural_compensate(trained, val).compensated_nT - ref);
+  std::printf("  validation flight std: physics %.3f nT, physics + network %.3f nT\n", physics_nT,
+              hybrid_nT);
+  EXPECT_LE(hybrid_nT, physics_nT * 1.02);
+  // Whether the network's gain carries over, as evaluate says it: the physics alone scored on the
+  // same samples, the gain in std, the verdict printed and in the JSON.
+  const Evaluation with = evaluate_model(trained, val, "mag_1_c", false);
+  const NetworkGain g = network_gain(trained, val, "mag_1_c", with);
+  const Evaluation alone = evaluate_model(physics, val, "mag_1_c", false);
+  EXPECT_NEAR(g.physics.std_nT, alone.std_nT, 1e-12 * alone.std_nT);
+  EXPECT_NEAR(g.gain_std, 1.0 - with.std_nT / alone.std_nT, 1e-12);
+  EXPECT_EQ(g.carries_over, with.std_nT <= 0.99 * alone.std_nT);
+  ASSERT_EQ(test::run(test::cli() + " evaluate --data " + dir + "/f13.h5 --model " + dir +
+                          "/b --json " + dir + "/e.json",
+                      &out),
+            0)
+      << out;
+  const std::string said = g.carries_over ? "the network's gain carries over to "
+                           : g.worse      ? "the network's gain does not carry over to "
+                                          : "the network gains nothing on ";
+  EXPECT_NE(out.find(said + dir + "/f13.h5"), std::string::npos) << out;
+  nlohmann::json j;
+  std::ifstream(dir + "/e.json") >> j;
+  EXPECT_NEAR(j["network_gain"]["physics_std_nT"].get<double>(), alone.std_nT, 1e-9 * alone.std_nT);
+  EXPECT_EQ(j["network_gain"]["carries_over"].get<bool>(), g.carries_over);
+  EXPECT_THROW(network_gain(physics, val, "mag_1_c", alone), Error);
+  ASSERT_NE(test::run(train + " --neural-from " + dir + "/physics.yaml --out " + dir + "/c", &out),
+            0);
+  EXPECT_NE(out.find(dir + "/physics.yaml: key 'neural' missing"), std::string::npos) << out;
+  EXPECT_EQ(std::count(out.begin(), out.end(), '\n'), 1) << out;
 }
 
 // The LSTM with its backward written out is torch::nn::LSTM's function: the same output and the
