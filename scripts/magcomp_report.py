@@ -2,7 +2,8 @@
 """magcomp report: turns `magcomp evaluate --report DIR` output (series.h5, evaluation.json) into
 DIR/index.html with PNG plots: model vs measurement vs reference over time with the error below,
 error by line / flight condition / heading sector, the error along the track, the error's spectrum
-against the aircraft signal's, and the error against the auxiliary channels."""
+against the aircraft signal's, the error against the auxiliary channels, and for a model with a
+trained network, what it leans on (evaluate --explain) and whether its gain carries over."""
 import html
 import json
 import os
@@ -148,6 +149,19 @@ def main(folder):
         save(fig, "channels.png", "The error against the auxiliary channels most associated with it "
              "(black: binned mean). A step with a current means a current-carrying source.")
 
+    # 4. What a network leans on (evaluate --explain): each input's share, largest first.
+    att = ev.get("attribution")
+    if att and att.get("inputs"):
+        inputs = att["inputs"][:15]
+        fig, a = plt.subplots(figsize=(9, 0.32 * len(inputs) + 1.3))
+        a.barh([x["feature"] for x in inputs][::-1], [100 * x["share"] for x in inputs][::-1],
+               color="C0")
+        a.set_xlabel("share of the rise in the network's error when the input is shuffled, %")
+        a.set_title("what the network leans on (%s, %d samples)" % (att["method"], att["samples"]),
+                    fontsize=10)
+        save(fig, "attribution.png", "Each input's share of what the network's prediction rests on "
+             "(%s on this flight; correlated inputs share an effect)." % att["method"])
+
     rows = "".join("<tr><td>%.2f</td><td>%d</td><td>%.3f</td><td>%s</td></tr>" % (
         r["line"], r["n"], r["rmse_nT"], "n/a" if r["std_nT"] is None else "%.3f" % r["std_nT"])
         for r in ev["per_line"])
@@ -157,6 +171,8 @@ def main(folder):
     if "baseline" in ev:
         base_line = "<p>Baseline model <code>%s</code>: std %.3f nT &rarr; this model: <b>%.3f nT</b>.</p>" % (
             html.escape(ev["baseline"]["model"]), ev["baseline"]["std_nT"], ev["std_nT"])
+    if "network_gain" in ev:
+        base_line += "<p>%s.</p>" % html.escape(ev["network_gain"]["verdict"])
     body = "".join('<figure><img src="%s"><figcaption>%s</figcaption></figure>' % (n, html.escape(c))
                    for n, c in figs)
     page = f"""<!doctype html><html><head><meta charset="utf-8"><title>magcomp evaluation</title>
