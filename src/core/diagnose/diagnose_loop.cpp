@@ -4,7 +4,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <map>
 #include <optional>
 #include <set>
 
@@ -12,9 +11,7 @@
 #include "loop_steps.h"
 #include "magcomp/core/diagnose/diagnose_season.h"
 #include "magcomp/core/error.h"
-#include "magcomp/core/evaluate/evaluation.h"
 #include "magcomp/core/fit/model_fit.h"
-#include "magcomp/core/model/terms_expr.h"
 
 namespace magcomp {
 
