@@ -22,6 +22,11 @@ struct NetworkGain {
 /// A change in std below this share (1 %) is no gain nor loss.
 constexpr double kNetworkGainResolution = 0.01;
 
+/// The verdict on `flight` from the two scores already made on the same samples: the physical
+/// terms alone and the whole model with its network (their std_nT, nT).
+NetworkGain network_gain(const Evaluation& physics, const Evaluation& with_network,
+                         const std::string& flight);
+
 /// Scores `model`'s physical terms alone against `truth` on `data` and compares them with
 /// `with_network` (evaluate_model of the whole model there). Throws magcomp::Error when the model
 /// has no trained neural stage.
