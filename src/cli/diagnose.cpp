@@ -69,6 +69,22 @@ void print_diagnosis(const Model& model, const Diagnosis& dx, int top, const std
     }
     std::printf("\n");
   }
+  const JointSet& js = dx.joint;
+  if (!js.terms.empty()) {
+    std::printf(
+        "\nchosen together (%zu terms of a pool of %d, the same set in %.0f%% of %d "
+        "resamplings of the held-out lines):\n  ",
+        js.terms.size(), js.pool_size, 100 * js.stability, kJointResamples);
+    for (size_t k = 0; k < js.terms.size(); ++k)
+      std::printf("%s%s", k ? " + " : "", js.terms[k].text().c_str());
+    std::printf("\n  held-out %.3f nT (selection %.3f, confirmation %.3f); each alone:",
+                js.heldout_std_nT, js.selection_std_nT, js.confirmation_std_nT);
+    for (double v : js.alone_std_nT) std::printf(" %.3f", v);
+    if (!js.best_single.empty())
+      std::printf(" nT; the best single term, %s: %.3f nT", js.best_single.c_str(),
+                  js.best_single_std_nT);
+    std::printf("\n");
+  }
   std::printf("\nverdict: %s\n", dx.verdict.c_str());
   if (!dx.candidates.empty() && dx.candidates.front().accepted &&
       dx.candidates.front().explained_fraction >= 0.05) {
@@ -153,6 +169,22 @@ nlohmann::json to_json(const Diagnosis& dx) {
                          {"amplitude_correlation", f.amplitude_correlation},
                          {"amplitude_windows", f.amplitude_windows}};
   j["verdict"] = dx.verdict;
+  if (!dx.joint.terms.empty()) {
+    const JointSet& js = dx.joint;
+    nlohmann::json t = nlohmann::json::array();
+    for (const TermSpec& term : js.terms) t.push_back(term.text());
+    j["joint_set"] = {{"terms", t},
+                      {"selection_std_nT", js.selection_std_nT},
+                      {"confirmation_std_nT", js.confirmation_std_nT},
+                      {"heldout_std_nT", js.heldout_std_nT},
+                      {"alone_heldout_std_nT", js.alone_std_nT},
+                      {"stability", js.stability},
+                      {"pool_size", js.pool_size}};
+    if (!js.best_single.empty()) {
+      j["joint_set"]["best_single"] = js.best_single;
+      j["joint_set"]["best_single_heldout_std_nT"] = js.best_single_std_nT;
+    }
+  }
   j["associations"] = nlohmann::json::array();
   for (const auto& a : dx.associations) {
     j["associations"].push_back({{"channel", a.channel},
@@ -302,9 +334,11 @@ void print_rounds_table(const LoopResult& r, bool validation, size_t flights) {
           "own columns, so its gain is the ridge's hold on them, not an effect of its "
           "channel\n",
           lr.in_place_of.c_str(), 100 * lr.in_place_of_span_share);
-    if (lr.together && lr.alone_std_nT.size() == 2)
-      std::printf("       together: held-out %.3f nT; alone %.3f and %.3f nT (each is needed)\n",
-                  lr.heldout_std_nT, lr.alone_std_nT[0], lr.alone_std_nT[1]);
+    if (lr.together && !lr.alone_std_nT.empty()) {
+      std::printf("       together: held-out %.3f nT; each alone:", lr.heldout_std_nT);
+      for (double v : lr.alone_std_nT) std::printf(" %.3f", v);
+      std::printf(" nT (each is needed)\n");
+    }
     for (const auto& [term, why] : lr.removed)
       std::printf("       removed %s: %s\n", term.c_str(), why.c_str());
   }
@@ -494,7 +528,9 @@ void add_diagnose(CLI::App& app) {
       "with --apply: each round first chooses fit.lambda on the held-out lines (1/10, "
       "1/100 or 1/1000 of the model's, or back to it, if the error falls on both halves)");
   cmd->add_flag("--channels-only", a->quick,
-                "search only the cur_/vol_ and attitude-rate channels (faster)");
+                "search only the aircraft's state channels (currents, voltages and any recorded "
+                "channel that is not motion, air data or position) and the attitude rates "
+                "(faster)");
   cmd->callback([a] { run_diagnose(*a); });
 }
 

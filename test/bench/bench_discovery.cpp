@@ -11,9 +11,11 @@
 // Usage: magcomp_bench_discovery SCENARIO.yaml TL_MODEL.yaml [runs] [first_seed] [options]
 // options: one-at-a-time (no pairs, no backward pass); choose-lambda (each round first chooses
 // fit.lambda on the held-out lines); no-span-ridge (a term within the model's span is added as
-// any other, without the ridge step first); half-several (runs alternate one effect
-// and two or three, instead of 60 % one, 30 % two, 10 % three); draws=N (each run on N aircraft:
-// the same effects, other aircraft and flights).
+// any other, without the ridge step first); no-joint (no set of terms chosen together,
+// Diagnosis::joint); states (the aircraft's non-electrical states recorded, and effects of a
+// switched current times one of them drawn among the others); half-several (runs alternate one
+// effect and two or three, instead of 60 % one, 30 % two, 10 % three); draws=N (each run on N
+// aircraft: the same effects, other aircraft and flights).
 #include <array>
 #include <chrono>
 #include <cstdio>
@@ -30,12 +32,12 @@ int main(int argc, char** argv) {
     return 2;
   }
   try {
-    const magcomp::sim::Scenario base = magcomp::sim::load_scenario(argv[1]);
+    magcomp::sim::Scenario base = magcomp::sim::load_scenario(argv[1]);
     const magcomp::Model tl = magcomp::load_model_yaml(argv[2]);
     const int runs = argc > 3 ? std::atoi(argv[3]) : 50;
     const unsigned first = argc > 4 ? static_cast<unsigned>(std::atoi(argv[4])) : 1;
     magcomp::DiagnoseOptions options;
-    bool half_several = false;
+    bool half_several = false, states = false;
     unsigned draws = 1;
     for (int a = 5; a < argc; ++a) {
       const std::string opt = argv[a];
@@ -45,19 +47,23 @@ int main(int argc, char** argv) {
         options.choose_lambda = true;
       } else if (opt == "no-span-ridge") {
         options.ridge_for_span_terms = false;
+      } else if (opt == "no-joint") {
+        options.joint_selection = false;
+      } else if (opt == "states") {
+        states = true;
       } else if (opt == "half-several") {
         half_several = true;
       } else if (opt.rfind("draws=", 0) == 0 && std::atoi(opt.c_str() + 6) >= 1) {
         draws = static_cast<unsigned>(std::atoi(opt.c_str() + 6));
       } else {
-        std::fprintf(
-            stderr,
-            "error: option '%s': one-at-a-time, choose-lambda, no-span-ridge, half-several or "
-            "draws=N\n",
-            opt.c_str());
+        std::fprintf(stderr,
+                     "error: option '%s': one-at-a-time, choose-lambda, no-span-ridge, no-joint, "
+                     "states, half-several or draws=N\n",
+                     opt.c_str());
         return 2;
       }
     }
+    base.aircraft_states = base.aircraft_states || states;
     int predictable = 0, near = 0, near_true = 0, worse = 0, complete_above = 0, total = 0;
     std::map<std::string, std::pair<int, int>> named;  // kind -> (runs naming the truth, runs)
     // Per number of effects: predictable runs, near the oracle, near the true terms, named.

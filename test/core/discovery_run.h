@@ -115,6 +115,10 @@ inline DiscoveryRun discovery_run(unsigned r, int count, sim::Scenario base, con
       if (!c.empty()) out.true_channels.insert(c);
   }
   out.kind = effects.size() == 1 ? effects.front().type : "several";
+  const auto& states = sim::simulated_state_channels();
+  if (effects.size() == 1 &&
+      std::find(states.begin(), states.end(), effects.front().channel2) != states.end())
+    out.kind = "product with a state";
   sim::Scenario a = base, b = base;
   a.hidden.insert(a.hidden.end(), effects.begin(), effects.end());
   b.hidden = a.hidden;

@@ -7,6 +7,7 @@
 #include <fstream>
 #include <limits>
 #include <nlohmann/json.hpp>
+#include <random>
 #include <set>
 
 #include "magcomp/core/diagnose/diagnose.h"
@@ -14,6 +15,7 @@
 #include "magcomp/core/error.h"
 #include "magcomp/core/fit/model_fit.h"
 #include "magcomp/core/fit/parameter_fit.h"
+#include "magcomp/core/io/flight_data.h"
 #include "magcomp/core/model/terms_expr.h"
 #include "scenario_cache.h"
 
@@ -561,6 +563,184 @@ TEST(Diagnose, TwoWiresThatOnlyHelpTogetherAreAddedTogether) {
   one_at_a_time.joint_steps = false;
   const LoopResult single = diagnose_loop(start, f, "mag_1_c", 5, 0.05, one_at_a_time);
   EXPECT_GT(std_on(single.model, f, held), 1.5 * truth + 0.05);
+}
+
+// A bus current and the two loads it feeds: the bus reads the sum of the loads' currents (and
+// its sensor's own noise), and the two loads' wires carry the effect, each with its own
+// direction. The bus alone explains more than either load alone, so one term at a time takes
+// the bus first and then one load, which together span the same columns: the model carries
+// over but names a channel that carries no effect. Chosen as a set, the two loads are exact
+// and each is needed: the loop adds them together and names them alone.
+TEST(Diagnose, TheLoadsOfABusAreChosenTogetherOverTheBus) {
+  FlightData f = test::scenario("tl_only").flight;
+  const Eigen::VectorXd t = f.tt();
+  const auto on = [](double t_s, double period_s, double phase_s) {
+    return std::fmod(t_s + phase_s, period_s) < 0.5 * period_s ? 1.5 : 0.0;
+  };
+  std::mt19937 rng(7);
+  std::normal_distribution<double> noise(0.0, 0.05);
+  Eigen::VectorXd a(t.size()), b(t.size()), bus(t.size());
+  for (Eigen::Index i = 0; i < t.size(); ++i) {
+    a[i] = on(t[i], 37.0, 0.0);
+    b[i] = on(t[i], 23.0, 5.0);
+    bus[i] = a[i] + b[i] + noise(rng);
+  }
+  f.set("cur_load_a", a);
+  f.set("cur_load_b", b);
+  f.set("cur_bus", bus);
+  Model wires = test::calibrated_tl(f);
+  wires.terms = {"current:cur_load_a", "current:cur_load_b"};
+  const Eigen::MatrixXd cols = design_matrix(wires, f);
+  ASSERT_EQ(cols.cols(), 6);
+  Eigen::VectorXd c(6);
+  c << 0.8, -0.5, 1.1, 0.7, 0.3, 0.9;  // nT per A per unit of field
+  f.mutable_column("mag_5_uc") += cols * c;
+  const Model start = test::calibrated_tl(f);
+  Model truth_model = start;
+  truth_model.terms.insert(truth_model.terms.end(), wires.terms.begin(), wires.terms.end());
+  truth_model.coefficients.resize(0);
+  fit_model(truth_model, {&f});
+  const auto channels_of = [](const Model& m) {
+    std::set<std::string> out;
+    for (const auto& term : m.terms) {
+      const auto e = parse_expr_term(term);
+      if (e)
+        for (const auto& src : e->signal().sources) out.insert(src);
+    }
+    return out;
+  };
+  // The first diagnosis: the bus ranks first alone; the set is the two loads, stable.
+  const Diagnosis dx = diagnose(start, f, "mag_1_c");
+  ASSERT_FALSE(dx.candidates.empty());
+  EXPECT_EQ(dx.candidates.front().channel, "cur_bus") << dx.candidates.front().term;
+  ASSERT_EQ(dx.joint.terms.size(), 2u) << "pool " << dx.joint.pool_size;
+  std::set<std::string> joint_channels;
+  for (const TermSpec& term : dx.joint.terms)
+    for (const auto& src : term.expr()->signal().sources) joint_channels.insert(src);
+  EXPECT_EQ(joint_channels, (std::set<std::string>{"cur_load_a", "cur_load_b"}));
+  std::printf(
+      "  first diagnosis: %s first (%.3f nT held out); chosen together (pool %d, %.0f%% "
+      "of the resamplings): %.3f nT, each alone %.3f and %.3f nT\n",
+      dx.joint.best_single.c_str(), dx.joint.best_single_std_nT, dx.joint.pool_size,
+      100 * dx.joint.stability, dx.joint.heldout_std_nT, dx.joint.alone_std_nT[0],
+      dx.joint.alone_std_nT[1]);
+  EXPECT_GE(dx.joint.stability, kJointStability);
+  EXPECT_LT(dx.joint.heldout_std_nT, dx.joint.best_single_std_nT);
+  {  // The CLI says so, and writes it in the JSON.
+    const std::string dir = test::temp_dir("joint");
+    write_flight_h5(f, dir + "/f.h5");
+    save_model_yaml(start, dir + "/start.yaml");
+    std::string out;
+    ASSERT_EQ(test::run(test::cli() + " diagnose --data " + dir + "/f.h5 --model " + dir +
+                            "/start.yaml --json " + dir + "/d.json",
+                        &out),
+              0)
+        << out;
+    EXPECT_NE(out.find("chosen together (2 terms"), std::string::npos) << out;
+    const nlohmann::json j = nlohmann::json::parse(std::ifstream(dir + "/d.json"));
+    ASSERT_TRUE(j.contains("joint_set")) << j.dump();
+    EXPECT_EQ(j["joint_set"]["terms"].size(), 2u);
+    EXPECT_EQ(j["joint_set"]["best_single"], dx.joint.best_single);
+    EXPECT_NEAR(j["joint_set"]["heldout_std_nT"].get<double>(), dx.joint.heldout_std_nT, 1e-9);
+  }
+  const LoopResult r = diagnose_loop(start, f, "mag_1_c", 5, 0.05, {});
+  const std::vector<double> held = unfitted_lines(start, r.model, f);
+  const double tl = std_on(start, f, held), truth = std_on(truth_model, f, held);
+  const double final_err = std_on(r.model, f, held);
+  DiagnoseOptions no_joint;
+  no_joint.joint_selection = false;
+  const LoopResult greedy = diagnose_loop(start, f, "mag_1_c", 5, 0.05, no_joint);
+  std::printf("  bus and loads: TL %.3f nT, both loads %.3f; loop %.3f:", tl, truth, final_err);
+  for (const auto& lr : r.rounds)
+    if (lr.round > 0) std::printf(" [%s%s]", lr.together ? "together " : "", lr.added.c_str());
+  std::printf("\n  without the joint selection %.3f:", std_on(greedy.model, f, held));
+  for (const auto& lr : greedy.rounds)
+    if (lr.round > 0) std::printf(" [%s]", lr.added.c_str());
+  std::printf("\n");
+  EXPECT_LE(final_err, 1.5 * truth + 0.05);
+  EXPECT_EQ(channels_of(r.model), (std::set<std::string>{"cur_load_a", "cur_load_b"}));
+  ASSERT_GE(r.rounds.size(), 2u);
+  EXPECT_TRUE(r.rounds[1].together);
+  // The premise: one term at a time names the bus.
+  EXPECT_TRUE(channels_of(greedy.model).count("cur_bus"));
+}
+
+// Which channels are states of the aircraft (a slow term, a grown chain or a learned law may
+// follow them): currents, voltages and any recorded channel that is not motion, air data,
+// position, a magnetometer or bookkeeping.
+TEST(Diagnose, EveryRecordedStateOfTheAircraftCanBeAFactor) {
+  for (const char* state :
+       {"cur_strb", "vol_bat_1", "flap_deg", "eng_rpm", "oat_degC", "valve_fuel", "sw_pitot_heat"})
+    EXPECT_TRUE(is_aircraft_state(state)) << state;
+  for (const char* other :
+       {"ins_vn", "ins_pitch", "roll_rate", "pitch_rt", "nrml_acc", "tas", "total_p", "static_p",
+        "lat", "utm_x", "baro", "mag_1_c", "flux_c_x", "diurnal", "tt", "line", "ogs_mag"})
+    EXPECT_FALSE(is_aircraft_state(other)) << other;
+  EXPECT_TRUE(is_motion_channel("ins_roll"));
+  EXPECT_FALSE(is_motion_channel("flap_deg"));
+}
+
+// Effects through recorded states that are neither currents nor voltages: a switched light's
+// wire whose field grows with the flap setting (a product of a current and a slowly stepping
+// surface position), and the magnetometer's reading drifting with its electronics' temperature
+// (slow: only the slow stage, which follows states of the aircraft, can size it). The loop
+// finds each, names its channels and nothing else, and reaches the true terms' error.
+TEST(Diagnose, EffectsOfNonElectricalStatesAreFoundAndNamed) {
+  const FlightData base = test::scenario("tl_only").flight;
+  const Eigen::VectorXd t = base.tt();
+  Eigen::VectorXd light(t.size()), flap(t.size()), temp(t.size());
+  for (Eigen::Index i = 0; i < t.size(); ++i) {
+    light[i] = std::fmod(t[i], 30.0) < 15.0 ? 1.5 : 0.0;
+    flap[i] = 10.0 * std::floor(std::fmod(t[i] / 170.0, 3.0));  // 0, 10, 20 deg
+    temp[i] = 20.0 + 4.0 * std::sin(2 * M_PI * t[i] / 500.0);
+  }
+  struct Case {
+    std::string term;
+    double gain;
+    std::set<std::string> channels;
+  };
+  for (const Case& c : {Case{"field:cur_light*flap_deg", 0.1, {"cur_light", "flap_deg"}},
+                        Case{"scalar:tmp_sensor_degC|lp(60)", 0.5, {"tmp_sensor_degC"}}}) {
+    FlightData f = base;
+    f.set("cur_light", light);
+    f.set("flap_deg", flap);
+    f.set("tmp_sensor_degC", temp);
+    Model effect = test::calibrated_tl(f);
+    effect.terms = {c.term};
+    const Eigen::MatrixXd cols = design_matrix(effect, f);
+    Eigen::VectorXd coef = Eigen::VectorXd::Constant(cols.cols(), c.gain);
+    if (cols.cols() == 3) coef << c.gain, -0.6 * c.gain, 0.8 * c.gain;
+    f.mutable_column("mag_5_uc") += cols * coef;
+    const Model start = test::calibrated_tl(f);
+    Model truth_model = start;
+    truth_model.add_term(c.term);
+    if (c.term.rfind("scalar:", 0) == 0) truth_model.add_slow_term(c.term, "mag_1_c");
+    truth_model.coefficients.resize(0);
+    fit_model(truth_model, {&f});
+    const LoopResult r = diagnose_loop(start, f, "mag_1_c", 5, 0.05, {});
+    const std::vector<double> held = unfitted_lines(start, r.model, f);
+    const double tl = std_on(start, f, held), truth = std_on(truth_model, f, held);
+    const double final_err = std_on(r.model, f, held);
+    std::set<std::string> named;
+    for (const auto& term : r.model.terms) {
+      if (std::find(start.terms.begin(), start.terms.end(), term) != start.terms.end()) continue;
+      const auto e = parse_expr_term(term);
+      if (e)
+        for (const auto& src : e->signal().sources) named.insert(src);
+    }
+    std::printf("  %s: TL %.3f nT, true term %.3f; loop %.3f:", c.term.c_str(), tl, truth,
+                final_err);
+    for (const auto& lr : r.rounds)
+      if (lr.round > 0) std::printf(" [%s]", lr.added.c_str());
+    std::printf("\n");
+    EXPECT_LT(final_err, 0.5 * tl) << c.term;
+    EXPECT_LE(final_err, 1.5 * truth + 0.05) << c.term;
+    EXPECT_EQ(named, c.channels) << c.term << ": " << r.stop_reason;
+    // The temperature's drift is sized by the slow stage.
+    if (c.term.rfind("scalar:", 0) == 0) {
+      EXPECT_EQ(r.model.slow_terms.size(), 1u);
+    }
+  }
 }
 
 TEST(Diagnose, HysteresisIsFoundAsAPlayOfTheCurrentWithItsWidth) {

@@ -98,6 +98,48 @@ TEST(Simulator, SameSeedSameFlightAndTheSchemaReadsBack) {
   EXPECT_LT(igrf_total, 56000.0);
 }
 
+// The aircraft's non-electrical states (aircraft.states): recorded beside the electrical
+// channels from their own random stream, so that every other channel and the scalar are the
+// same; the outside air temperature follows the altitude (15 degC - 6.5 degC/km, lagged 20 s),
+// the flaps sit at 0, 10 or 20 deg, the switch is 0 or 1; a product with a state is an effect
+// the scenario file accepts.
+TEST(Simulator, TheAircraftsStatesAreRecordedWithoutChangingTheRestOfTheFlight) {
+  sim::Scenario s = sim::load_scenario(test::source_dir() + "/config/scenarios/lag.yaml");
+  const sim::Simulation plain = sim::simulate(s, Igrf::installed());
+  s.aircraft_states = true;
+  const sim::Simulation with = sim::simulate(s, Igrf::installed());
+  for (const std::string& c : sim::simulated_state_channels()) {
+    EXPECT_FALSE(plain.flight.has(c)) << c;
+    ASSERT_TRUE(with.flight.has(c)) << c;
+  }
+  for (const char* c : {"cur_strb", "vol_bat_1", "mag_5_uc", "flux_c_x", "ins_roll"})
+    EXPECT_EQ(Eigen::VectorXd(plain.flight.column(c)), Eigen::VectorXd(with.flight.column(c))) << c;
+  const FlightData& f = with.flight;
+  const auto oat = f.column("oat_degC"), msl = f.column("msl"), flap = f.column("flap_deg");
+  const auto sw = f.column("sw_pitot_heat");
+  double worst = 0, lo = INFINITY, hi = -INFINITY;
+  for (Eigen::Index i = 600; i < f.size(); ++i) {  // past the probe's start-up
+    worst = std::max(worst, std::abs(oat[i] - (15.0 - 6.5e-3 * msl[i])));
+    lo = std::min(lo, flap[i]);
+    hi = std::max(hi, flap[i]);
+    EXPECT_TRUE(sw[i] == 0.0 || sw[i] == 1.0);
+  }
+  // The probe's 20 s lag at a 5 m/s climb: 0.65 degC; msl is above the geoid, the model's
+  // altitude above the ellipsoid (tens of metres here): under 1.5 degC in all.
+  EXPECT_LT(worst, 1.5);
+  EXPECT_GT(lo, -0.5);
+  EXPECT_LT(hi, 20.5);
+  const std::string dir = test::temp_dir("states");
+  std::ofstream(dir + "/s.yaml")
+      << "seed: 3\naircraft: {states: true}\nplan:\n  - {type: line, line: 1.0, duration_s: 60}\n"
+         "hidden:\n  - {type: product, channel: cur_strb, channel2: flap_deg, gain: 0.1}\n";
+  EXPECT_TRUE(sim::load_scenario(dir + "/s.yaml").aircraft_states);
+  std::ofstream(dir + "/t.yaml")
+      << "seed: 3\nplan:\n  - {type: line, line: 1.0, duration_s: 60}\n"
+         "hidden:\n  - {type: product, channel: cur_strb, channel2: flap_deg, gain: 0.1}\n";
+  EXPECT_THROW(sim::load_scenario(dir + "/t.yaml"), Error);
+}
+
 TEST(Simulator, IdealTollesLawsonReachesTheSensorFloorOnTheTlOnlyFlight) {
   // With every coefficient known from the truth (a reference fit on the whole flight), TL leaves
   // only the sensor noise: mag_5 and mag_1_c cesium noise (0.005 nT each), fluxgate noise

@@ -68,6 +68,9 @@ std::vector<Job> make_jobs(const Model& model, const std::vector<std::string>& s
     add("field:" + x + "|lp(?)", "slow response (thermal)", x);
     add("field:" + x + "|delay(?)", "delayed response", x);
     add("scalar:" + x + "|lp(?)", "drift of the reading", x);
+    if (!is_electrical(x) && is_aircraft_state(x)) {  // a switch, a valve, a surface, ...
+      add("field:" + x + "|step(?)", "a load switched with a state (on above a level of it)", x);
+    }
     if (is_current(x)) {
       add("field:" + x + "|pow(2)|lp(?)", "heating (I²) response", x);
       add("field:" + x + "|int", "state (integral of a current)", x);

@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "magcomp/core/diagnose/residual_floor.h"
 #include "magcomp/core/error.h"
 #include "magcomp/core/evaluate/evaluation.h"
 #include "magcomp/core/fit/model_fit.h"
@@ -25,6 +26,26 @@ const std::set<std::string> kBookkeeping = {"tt", "line", "flight", "year", "doy
 
 bool is_electrical(const std::string& channel) {
   return channel.rfind("cur_", 0) == 0 || channel.rfind("vol_", 0) == 0;
+}
+
+bool is_motion_channel(const std::string& n) {
+  static const std::set<std::string> kNamed = {"vn",      "ve",      "vw",       "vu",      "vd",
+                                               "pitch",   "roll",    "yaw",      "heading", "tas",
+                                               "true_as", "pitot_p", "static_p", "total_p"};
+  const auto ends_with = [&](const char* tail) {
+    const std::string t(tail);
+    return n.size() > t.size() && n.compare(n.size() - t.size(), t.size(), t) == 0;
+  };
+  return n.rfind("ins_", 0) == 0 || is_rate(n) || ends_with("_rt") || ends_with("_acc") ||
+         kNamed.count(n) > 0;
+}
+
+bool is_aircraft_state(const std::string& n) {
+  if (n.empty()) return false;
+  if (is_electrical(n)) return true;
+  return !is_motion_channel(n) && !is_position_channel(n) && !kBookkeeping.count(n) &&
+         n.rfind("mag_", 0) != 0 && n.rfind("flux_", 0) != 0 && n.rfind("ogs_", 0) != 0 &&
+         n != "diurnal" && n.front() != '~';
 }
 
 // How much a term says: its sources and transforms (a shorthand or TL family counts 1).
@@ -46,7 +67,7 @@ std::vector<std::string> source_fields(const Model& model, const FlightData& dat
         name.rfind("ogs_", 0) == 0 || name == "drape" || name.front() == '~') {
       continue;
     }
-    if (!full_search && !is_electrical(name) && !is_rate(name)) continue;
+    if (!full_search && !is_aircraft_state(name) && !is_rate(name)) continue;
     const FlightData::Column x = data.column(name);
     double lo = INFINITY, hi = -INFINITY;
     Eigen::Index finite = 0;
@@ -147,6 +168,8 @@ Diagnosis diagnose(const Model& model_in, const FlightData& data, const std::str
     dx.explainable =
         remaining_share(data, search, sources, dx.baseline_std_nT, options.resolution_nT);
   }
+  if (options.joint_selection)
+    dx.joint = joint_selection(search, dx.candidates, dx.explainable, options);
   dx.floor = floor_of(data, search, sources);
   data.drop_mapped_pages();
   dx.verdict = verdict_of(dx, options.resolution_nT);

@@ -129,6 +129,7 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
     // round, then the backward pass.
     loop_steps::Round step(context, round, &r);
     bool kept = options.joint_steps && step.lag_with_partner(dxs, eligible);
+    kept = kept || (options.joint_steps && step.joint_set(dxs, eligible));
     kept = kept || step.first_single(eligible);
     // Pairs only while some flight's residual stays predictable (the learned law checks its own
     // flight).

@@ -46,11 +46,12 @@ std::vector<Job> refined_jobs(const Model& model, const Search& search,
                               std::set<std::string>* seen) {
   std::vector<std::pair<double, size_t>> order;
   for (size_t k = 0; k < jobs.size(); ++k) {
-    // Chains are the laws of electrical loads (heating, saturation, switching): grown from
-    // terms of currents and voltages only (and their products). An attitude or velocity grown
-    // into |x| through a slow low-pass becomes a proxy of when the aircraft turned.
+    // Chains are the laws of the aircraft's loads and states (heating, saturation, switching):
+    // grown from terms of its state channels only (currents, voltages, temperatures, positions
+    // of its surfaces, ...; and their products). An attitude or velocity grown into |x| through
+    // a slow low-pass becomes a proxy of when the aircraft turned.
     if (!scored[k].ok || jobs[k].channel.empty() || jobs[k].channel == model.scalar ||
-        !is_electrical(jobs[k].channel.substr(0, jobs[k].channel.find('*'))))
+        !is_aircraft_state(jobs[k].channel.substr(0, jobs[k].channel.find('*'))))
       continue;
     // Grown from the terms that explain most on both folds (the smaller share), so a term
     // that only fits the selection lines does not take the budget.

@@ -66,18 +66,79 @@ bool Round::pair_passes(const LoopRound& lr, const LoopRound& alone_a,
          variance_share(lr.heldout_std_nT, alone_b.heldout_std_nT) >= accept;
 }
 
-void Round::keep_pair(std::pair<Model, LoopRound> fitted, const std::string& a,
-                      const std::string& b, double alone_a_nT, double alone_b_nT) {
+void Round::keep_together(std::pair<Model, LoopRound> fitted, const std::vector<std::string>& terms,
+                          const std::vector<double>& alone_nT) {
   LoopRound lr = std::move(fitted.second);
   lr.round = round_;
-  lr.added = a + " + " + b;
+  lr.added.clear();
+  for (const std::string& t : terms) lr.added += (lr.added.empty() ? "" : " + ") + t;
   lr.explained = variance_share(lr.heldout_std_nT, r_->rounds.back().heldout_std_nT);
   lr.together = true;
-  lr.alone_std_nT = {alone_a_nT, alone_b_nT};
+  lr.alone_std_nT = alone_nT;
   lr.rejected = std::move(rejected_);
   rejected_.clear();
   r_->rounds.push_back(std::move(lr));
   r_->model = std::move(fitted.first);
+}
+
+double Round::first_single_nT(const std::vector<Eligible>& eligible) const {
+  for (size_t k = 0; k < eligible.size() && k < kTriesPerRound; ++k) {
+    Model next = r_->model;
+    add_candidate_term(eligible[k].term, eligible[k].slow, c_.truth, &next);
+    const LoopRound lr = fit_score(std::move(next)).second;
+    if (refusal(lr, r_->rounds.back()).empty()) return lr.heldout_std_nT;
+  }
+  return INFINITY;
+}
+
+bool Round::joint_set(const std::vector<Diagnosis>& dxs, const std::vector<Eligible>& eligible) {
+  const LoopRound& now = r_->rounds.back();
+  const double accept = c_.options.accept_fraction;
+  std::optional<std::pair<Model, LoopRound>> best;
+  std::vector<std::string> best_terms;
+  std::vector<double> best_alone;
+  for (const Diagnosis& d : dxs) {
+    const std::vector<TermSpec>& terms = d.joint.terms;
+    if (terms.size() < 2) continue;
+    try {
+      const auto with = [&](size_t skip, size_t only) {
+        Model m = r_->model;
+        for (size_t k = 0; k < terms.size(); ++k)
+          if (k != skip && (only >= terms.size() || k == only))
+            add_candidate_term(terms[k], false, c_.truth, &m);
+        return fit_score(std::move(m));
+      };
+      const size_t none = terms.size();
+      auto all = with(none, none);
+      const LoopRound& lr = all.second;
+      if (!refusal(lr, now).empty() || !passes(lr.selection_std_nT, now.selection_std_nT) ||
+          !passes(lr.confirmation_std_nT, now.confirmation_std_nT))
+        continue;
+      if (best && !(lr.heldout_std_nT < best->second.heldout_std_nT)) continue;
+      // Each term needed: without it, each half's error variance rises by the accepted share.
+      bool needed = true;
+      std::vector<double> without(terms.size());
+      for (size_t k = 0; needed && k < terms.size(); ++k) {
+        const LoopRound rest = with(k, none).second;
+        without[k] = rest.heldout_std_nT;
+        needed = variance_share(lr.selection_std_nT, rest.selection_std_nT) >= accept &&
+                 variance_share(lr.confirmation_std_nT, rest.confirmation_std_nT) >= accept;
+      }
+      if (!needed) continue;
+      std::vector<double> alone(terms.size());  // of a pair: the pair without the other
+      for (size_t k = 0; k < terms.size(); ++k)
+        alone[k] = terms.size() == 2 ? without[1 - k] : with(none, k).second.heldout_std_nT;
+      best.emplace(std::move(all));
+      best_terms.clear();
+      for (const TermSpec& t : terms) best_terms.push_back(t.text());
+      best_alone = std::move(alone);
+    } catch (const Error&) {
+    }
+  }
+  if (!best) return false;
+  if (variance_share(best->second.heldout_std_nT, first_single_nT(eligible)) < accept) return false;
+  keep_together(std::move(*best), best_terms, best_alone);
+  return true;
 }
 
 bool Round::lag_with_partner(const std::vector<Diagnosis>& dxs,
@@ -109,19 +170,9 @@ bool Round::lag_with_partner(const std::vector<Diagnosis>& dxs,
     }
   }
   if (!partnered) return false;
-  double single_nT = INFINITY;  // the first single term that passes
-  for (size_t k = 0; k < eligible.size() && k < kTriesPerRound; ++k) {
-    Model next = r_->model;
-    add_candidate_term(eligible[k].term, eligible[k].slow, c_.truth, &next);
-    const LoopRound lr = fit_score(std::move(next)).second;
-    if (refusal(lr, r_->rounds.back()).empty()) {
-      single_nT = lr.heldout_std_nT;
-      break;
-    }
-  }
-  if (!(partnered->second.heldout_std_nT < single_nT)) return false;
-  keep_pair(std::move(*partnered), partnered_a, partnered_b, partnered_alone[0],
-            partnered_alone[1]);
+  if (!(partnered->second.heldout_std_nT < first_single_nT(eligible))) return false;
+  keep_together(std::move(*partnered), {partnered_a, partnered_b},
+                {partnered_alone[0], partnered_alone[1]});
   return true;
 }
 
@@ -195,15 +246,15 @@ bool Round::pair_acting_together(const std::vector<Diagnosis>& dxs) {
     }
   }
   if (!best) return false;
-  keep_pair(std::move(*best), pool[best_a].term, pool[best_b].term, alone[best_a].heldout_std_nT,
-            alone[best_b].heldout_std_nT);
+  keep_together(std::move(*best), {pool[best_a].term.text(), pool[best_b].term.text()},
+                {alone[best_a].heldout_std_nT, alone[best_b].heldout_std_nT});
   return true;
 }
 
 bool Round::learned_law_of_channel(const std::vector<Diagnosis>& dxs,
                                    std::set<std::string>* learned_channels) {
   // The flight whose residual is predictable (the first such), and its data. The channel must be
-  // a current or a voltage (learned_law): a residual that follows position or motion first is
+  // a state of the aircraft (learned_law): a residual that follows position or motion first is
   // leakage, not a law.
   size_t law_flight = 0;
   while (law_flight + 1 < dxs.size() && dxs[law_flight].explainable.within_noise) ++law_flight;

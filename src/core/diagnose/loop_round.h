@@ -45,6 +45,11 @@ class Round {
   // delays every channel's signature; a delayed channel term stands in for it on that channel
   // only).
   bool lag_with_partner(const std::vector<Diagnosis>& dxs, const std::vector<Eligible>& eligible);
+  // A set of terms a flight's diagnosis chose together (Diagnosis::joint): fitted on the loop's
+  // flights, kept if it passes a pair's checks (each of its terms lowers the set's held-out error
+  // variance by the accepted share) and lowers the held-out error variance below the first
+  // single term that passes by the accepted share too. Over several flights, the best such set.
+  bool joint_set(const std::vector<Diagnosis>& dxs, const std::vector<Eligible>& eligible);
   // The eligible candidates in rank order (at most kTriesPerRound): the first that passes every
   // check is kept.
   bool first_single(const std::vector<Eligible>& eligible);
@@ -73,9 +78,12 @@ class Round {
   // each of its terms needed (the pair lowers the error variance of each alone by the accepted
   // share).
   bool pair_passes(const LoopRound& lr, const LoopRound& alone_a, const LoopRound& alone_b) const;
-  // Keeps a pair fitted together as this round.
-  void keep_pair(std::pair<Model, LoopRound> fitted, const std::string& a, const std::string& b,
-                 double alone_a_nT, double alone_b_nT);
+  // Keeps terms fitted together as this round, with each one's held-out error alone (nT).
+  void keep_together(std::pair<Model, LoopRound> fitted, const std::vector<std::string>& terms,
+                     const std::vector<double>& alone_nT);
+  // The held-out error of the first of the eligible candidates (at most kTriesPerRound) that
+  // passes refusal() alone, nT; infinity when none does.
+  double first_single_nT(const std::vector<Eligible>& eligible) const;
 
   const LoopContext& c_;
   int round_;

@@ -152,8 +152,9 @@ bool linear(TransformKind k) {
 // best ranked term of that channel, projected as it is; its static laws and its play dropped:
 // the hinges stand for them). Their fitted sum is a piecewise-linear law of the channel, flat
 // below its 1 % quantile, of which a closed form (|I|, I², tanh, a step) is one guess. Empty
-// when the channel is not a current or a voltage, barely moves on the calibration rows, or holds
-// fewer than three distinct knots there (a two-level channel: a linear term says everything).
+// when the channel is not a state of the aircraft (is_aircraft_state), barely moves on the
+// calibration rows, or holds fewer than three distinct knots there (a two-level channel: a linear
+// term says everything).
 std::vector<TermSpec> learned_law(const std::string& channel, const Candidate* shape,
                                   const Model& model, const FlightData& data) {
   const ExprTerm* e = shape ? shape->term.expr() : nullptr;
@@ -162,9 +163,10 @@ std::vector<TermSpec> learned_law(const std::string& channel, const Candidate* s
     plain = parse_expr_term("field:" + channel);
     e = plain.get();
   }
-  // Aircraft sources only (currents and voltages): a residual that follows the trajectory
-  // (velocities, heading, position) is leakage of the map or the reference, not a law to learn.
-  if (!is_electrical(channel) || !data.has(channel)) return {};
+  // The aircraft's state channels only (is_aircraft_state): a residual that follows the
+  // trajectory (velocities, heading, position) is leakage of the map or the reference, not a
+  // law to learn.
+  if (!is_aircraft_state(channel) || !data.has(channel)) return {};
   // The knots where the fit sees the channel: its calibration rows (all rows for a fit without
   // a selection), so that no piece of the law rests on samples the fit never had; and the
   // calibration must see the channel move over at least a quarter of its 1-99 % range in flight.

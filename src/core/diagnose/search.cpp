@@ -231,7 +231,8 @@ Scored Search::score(const Eigen::MatrixXd& cols, bool slow_ok) const {
   const Eigen::Index p = a0.cols(), k = cols.cols();
   Eigen::VectorXd e = Eigen::VectorXd::Constant(data.size(), NAN);
   for (Eigen::Index i : held) {
-    double v = scalar[i] - truth[i] - a0.row(i).dot(coef.head(p));
+    // The base's slow terms as the base fitted them (e0 holds the same correction).
+    double v = scalar[i] - truth[i] - slow0[i] - a0.row(i).dot(coef.head(p));
     for (Eigen::Index j = 0; j < k; ++j) {
       if (std::isfinite(cols(i, j))) v -= cols(i, j) * coef[p + j];  // no data: no correction
     }
@@ -267,12 +268,12 @@ Scored Search::run(const Job& job) const {
   auto columns = [&](const Term& t) { return columns_of(t); };
   long fits = 0;
   const auto* expr = dynamic_cast<const ExprTerm*>(term.get());
-  // The slow stage sizes what heats or drifts with a current or a voltage; a slow fit of
-  // position, attitude or the field itself against the reference is where map and trajectory
-  // leakage would hide.
+  // The slow stage sizes what heats or drifts with a state of the aircraft (a current, a
+  // voltage, a temperature, ...); a slow fit of position, attitude or the field itself against
+  // the reference is where map and trajectory leakage would hide.
   bool slow_ok = expr && has_slow_stage() && !expr->signal().sources.empty();
   if (expr) {
-    for (const auto& src : expr->signal().sources) slow_ok = slow_ok && is_electrical(src);
+    for (const auto& src : expr->signal().sources) slow_ok = slow_ok && is_aircraft_state(src);
   }
   if (expr && expr->signal().has_free()) {
     TransformKind kind = TransformKind::LowPass;

@@ -96,6 +96,9 @@ class Search {
   Scored lag_candidate(double* tau_out, const Eigen::MatrixXd& partner) const;
   // The lag fixed at tau (s), with partner columns (built without a lag).
   Scored lag_at(double tau, const Eigen::MatrixXd& partner) const;
+  // Columns (N x k) as the fit reads them: each calibration run band-passed and trimmed (or as
+  // they are for a reference fit), stacked; NaN read as 0.
+  Eigen::MatrixXd band(const Eigen::MatrixXd& cols) const { return stacked(cols); }
   // The columns of a term on this flight, N x k; with `with_lag`, carrying the model's lag
   // round trip as the base columns do (design_matrix).
   Eigen::MatrixXd columns_of(const Term& t, bool with_lag = true) const {
@@ -174,6 +177,10 @@ void add_lag_candidate(const Model& model, const FlightData& data, const Search&
 // Acceptance on both halves, then the ranking (judge.cpp).
 void judge_and_rank(const Search& search, const DiagnoseOptions& options,
                     std::vector<Candidate>* candidates);
+// The terms chosen together from the ranked candidates and the remaining residual's channels
+// (joint_selection.cpp; JointSet in diagnose.h).
+JointSet joint_selection(const Search& search, const std::vector<Candidate>& candidates,
+                         const ExplainableShare& explainable, const DiagnoseOptions& options);
 // What remains, its floor and the verdict (verdict.cpp).
 ExplainableShare remaining_share(const FlightData& data, const Search& search,
                                  const std::vector<std::string>& sources, double baseline_std_nT,

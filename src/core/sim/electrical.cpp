@@ -54,9 +54,49 @@ Eigen::VectorXd smooth(const Eigen::VectorXd& x, double tau_s, double dt_s) {
   return y;
 }
 
+// The non-electrical states (simulated_state_channels()), from their own random stream.
+void add_states(const Track& tr, unsigned seed, double dt,
+                std::map<std::string, Eigen::VectorXd>* c) {
+  std::mt19937_64 rng(seed * 7919ULL + 29);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  const Eigen::Index n = tr.size();
+  auto noise = [&](double sigma) {
+    Eigen::VectorXd v(n);
+    for (Eigen::Index i = 0; i < n; ++i) v[i] = sigma * normal(rng);
+    return v;
+  };
+  // A setting held for exponentially distributed durations (mean `hold_s`), each drawn from
+  // `levels`.
+  auto setting = [&](const std::vector<double>& levels, double hold_s) {
+    std::exponential_distribution<double> hold(1.0 / hold_s);
+    std::uniform_int_distribution<size_t> level(0, levels.size() - 1);
+    Eigen::VectorXd x(n);
+    double value = levels[level(rng)];
+    double next = n ? tr.t_s[0] + hold(rng) : 0;
+    for (Eigen::Index i = 0; i < n; ++i) {
+      while (tr.t_s[i] >= next) {
+        value = levels[level(rng)];
+        next += hold(rng);
+      }
+      x[i] = value;
+    }
+    return x;
+  };
+  // Flaps: 0, 10 or 20 deg, moved by the motor over about 3 s.
+  (*c)["flap_deg"] = smooth(setting({0.0, 10.0, 20.0}, 300.0), 1.5, dt) + noise(0.05);
+  // Engine speed: a power setting changed now and then, the engine following in about 2 s.
+  (*c)["eng_rpm"] = smooth(setting({2300.0, 2400.0, 2500.0, 2600.0}, 200.0), 2.0, dt) + noise(5.0);
+  // Outside air temperature: 15 degC at sea level, 6.5 degC colder per km, the probe lagging.
+  Eigen::VectorXd oat(n);
+  for (Eigen::Index i = 0; i < n; ++i) oat[i] = 15.0 - 6.5e-3 * tr.alt_m[i];
+  (*c)["oat_degC"] = smooth(oat, 20.0, dt) + noise(0.05);
+  (*c)["sw_pitot_heat"] = on_off(tr.t_s, 400.0, 400.0, rng);
+}
+
 }  // namespace
 
-std::map<std::string, Eigen::VectorXd> simulate_channels(const Track& tr, unsigned seed) {
+std::map<std::string, Eigen::VectorXd> simulate_channels(const Track& tr, unsigned seed,
+                                                         bool states) {
   std::mt19937_64 rng(seed * 6151ULL + 11);
   std::normal_distribution<double> normal(0.0, 1.0);
   const Eigen::Index n = tr.size();
@@ -134,6 +174,7 @@ std::map<std::string, Eigen::VectorXd> simulate_channels(const Track& tr, unsign
   c["vol_cabt"] =
       (2.0 + 0.3 * smooth(c["cur_heat"], 600.0, dt).array() / 5.0).matrix() + noise(0.002);
   c["vol_fan"] = (12.0 * fan_on.array()).matrix() + noise(0.02);
+  if (states) add_states(tr, seed, dt, &c);
   return c;
 }
 

@@ -48,10 +48,29 @@ double quantile(Eigen::VectorXd v, double q) {
   return x[k];
 }
 
-// One effect's kind and shape (unit gain); thresholds filled from the pilot flight later.
-HiddenEffect draw(std::mt19937_64& rng) {
+// The currents that switch (a product of one with a slowly stepping state is the case the
+// loop's product screen must not mistake for two currents).
+const std::vector<std::string> kSwitchedCurrents = {"cur_com_1", "cur_ac_hi", "cur_tank",
+                                                    "cur_flap",  "cur_strb",  "cur_heat"};
+
+// One effect's kind and shape (unit gain); thresholds filled from the pilot flight later. With
+// the aircraft's states recorded (Scenario::aircraft_states), one kind more: a switched current
+// times a state (a wire whose field a surface, a valve or a temperature scales), drawn from
+// another stream after the kind, so that the other kinds' draws stay as they are.
+HiddenEffect draw(std::mt19937_64& rng, bool states) {
   HiddenEffect e;
-  e.type = pick(kKinds, rng);
+  const size_t kinds = kKinds.size() + (states ? 1 : 0);
+  const size_t kind = std::uniform_int_distribution<size_t>(0, kinds - 1)(rng);
+  if (kind == kKinds.size()) {
+    e.type = "product";
+    e.sensors = {kSensor};
+    e.direction = unit_vector(rng);
+    e.gain = 1.0;
+    e.channel = pick(kSwitchedCurrents, rng);
+    e.channel2 = pick(simulated_state_channels(), rng);
+    return e;
+  }
+  e.type = kKinds[kind];
   e.sensors = {kSensor};
   e.direction = unit_vector(rng);
   e.gain = 1.0;
@@ -134,14 +153,14 @@ std::vector<HiddenEffect> random_effects(const Scenario& base, unsigned seed, in
   std::mt19937_64 rng(seed * 2654435761ULL + 17);
   std::vector<HiddenEffect> drawn;
   for (int k = 0; k < count; ++k) {
-    HiddenEffect e = draw(rng);
+    HiddenEffect e = draw(rng, base.aircraft_states);
     // One lag at most (two would act as one), and no kind twice on one channel.
     const auto taken = [&](const HiddenEffect& x) {
       for (const auto& d : drawn)
         if (d.type == x.type && (x.type == "lag" || d.channel == x.channel)) return true;
       return false;
     };
-    while (taken(e)) e = draw(rng);
+    while (taken(e)) e = draw(rng, base.aircraft_states);
     drawn.push_back(e);
   }
   std::vector<double> target;

@@ -25,6 +25,12 @@ const std::vector<std::string>& simulated_channels() {
   return kChannels;
 }
 
+const std::vector<std::string>& simulated_state_channels() {
+  static const std::vector<std::string> kStates = {"flap_deg", "eng_rpm", "oat_degC",
+                                                   "sw_pitot_heat"};
+  return kStates;
+}
+
 const std::vector<SensorMount>& sensor_mounts() {
   // DATA.md positions (m from the front seat rail, x forward, y left, z up). flux_a is not given
   // there; the simulator assumes it beside mag 4 on the cabin floor.
@@ -180,10 +186,11 @@ void read_settings(const Reader& r, const YAML::Node& root, Scenario* out) {
     r.range(s.origin_lon_deg, -360, 360, "origin.lon_deg");
   }
   if (const YAML::Node a = root["aircraft"]) {
-    r.check_keys(
-        a,
-        {"speed_mps", "turn_bank_deg", "climb_rate_mps", "field_scale", "turbulence_deg", "seed"},
-        "aircraft");
+    r.check_keys(a,
+                 {"speed_mps", "turn_bank_deg", "climb_rate_mps", "field_scale", "turbulence_deg",
+                  "seed", "states"},
+                 "aircraft");
+    r.get(a, "states", "aircraft", &s.aircraft_states);
     r.get(a, "speed_mps", "aircraft", &s.speed_mps);
     r.get(a, "turn_bank_deg", "aircraft", &s.turn_bank_deg);
     r.get(a, "climb_rate_mps", "aircraft", &s.climb_rate_mps);
@@ -343,6 +350,8 @@ HiddenEffect read_hidden_effect(const Reader& r, const YAML::Node& e, const std:
 void read_hidden(const Reader& r, const YAML::Node& root, Scenario* out) {
   const std::string& path = r.path;
   std::set<std::string> channels(simulated_channels().begin(), simulated_channels().end());
+  if (out->aircraft_states)
+    channels.insert(simulated_state_channels().begin(), simulated_state_channels().end());
   std::set<std::string> sensors;
   for (const auto& m : sensor_mounts()) sensors.insert(m.name);
   const YAML::Node h = root["hidden"];

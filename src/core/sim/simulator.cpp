@@ -284,6 +284,8 @@ void Simulator::reference_and_survey_fields() {
   f.set("pitot_p", pitot_p);
   f.set("total_p", total_p);
   for (const std::string& c : simulated_channels()) f.set(c, channels_.at(c));
+  if (s_.aircraft_states)
+    for (const std::string& c : simulated_state_channels()) f.set(c, channels_.at(c));
 }
 
 void Simulator::ins_fields() {

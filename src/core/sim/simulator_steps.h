@@ -62,7 +62,7 @@ class Simulator {
 
   Simulation run() {
     earth_field();
-    channels_ = simulate_channels(tr_, s_.seed);
+    channels_ = simulate_channels(tr_, s_.seed, s_.aircraft_states);
     ins_ = ins_quantities();
     begin_truth();
     draw_aircraft();

@@ -62,7 +62,9 @@ struct Candidate {
 
 /// Settings of a diagnosis (defaults: the full search).
 struct DiagnoseOptions {
-  bool full_search = true;        ///< every field, every transform family; false: cur_/vol_ only
+  /// Every field, every transform family; false: the aircraft's state channels
+  /// (is_aircraft_state) and the attitude rates only.
+  bool full_search = true;
   double accept_fraction = 0.02;  ///< the share a term must explain on both nested splits
   /// The smallest error that counts, nT: a term must lower the held-out error std by this much on
   /// both splits, and a predictable remainder smaller than this (rms) is called noise.
@@ -79,7 +81,45 @@ struct DiagnoseOptions {
   /// (Candidate::base_span_share), choose the ridge strength as choose_lambda does before adding
   /// it (false: add such a term as any other).
   bool ridge_for_span_terms = true;
+  /// diagnose: choose a set of terms together (Diagnosis::joint, joint_selection.cpp), which
+  /// diagnose_loop tries before the first single term (false: single terms and pairs only).
+  bool joint_selection = true;
 };
+
+/// A set of candidate terms chosen together (diagnose's joint selection): every subset of up to
+/// kJointMaxTerms terms of a pool of the round's candidates (kJointPool in rank order, fitted by
+/// the band-pass, of at most kJointMaxComplexity (a channel through one transform, or a product
+/// of two: a grown chain is one effect's refinement, which the one-at-a-time search judges
+/// alone), at most two per channel, and the plain term of each of the three channels the
+/// remaining residual follows most), each fitted with the model's columns on the fit rows and
+/// scored on the held-out lines. It answers a look-alike: the first ranked candidate (the lead,
+/// accepted alone, which the one-at-a-time search would take first) standing for effects of
+/// other channels. A set of two or more terms is admissible when it leaves out the lead, beats it
+/// on each half of the held-out lines by the accepted share of the error variance, lowers each
+/// half's error against the model by the accepted share and the resolution, and each of its
+/// terms is needed (without it, each half's error variance rises by the accepted share). The
+/// admissible set with the lowest held-out error is chosen (within the accepted share of it, the
+/// fewest and simplest terms), and kept only if the same set is chosen again in at least
+/// kJointStability of kJointResamples bootstrap resamplings of each half's lines. None when no
+/// candidate is accepted (pairs that act together are the loop's pair step's) or the lead is not
+/// in the pool (a slow term, the lag: left to the one-at-a-time search).
+struct JointSet {
+  std::vector<TermSpec> terms;  ///< empty: no set is chosen
+  double selection_std_nT = NAN, confirmation_std_nT = NAN, heldout_std_nT = NAN;
+  /// Each term alone (with the model), held-out error std, nT (in the order of `terms`).
+  std::vector<double> alone_std_nT;
+  /// The lead it replaces and its held-out error std, nT.
+  std::string best_single;
+  double best_single_std_nT = NAN;
+  /// The share of the resamplings that choose the same set (0..1).
+  double stability = 0.0;
+  int pool_size = 0;  ///< terms in the pool
+};
+constexpr size_t kJointPool = 8;
+constexpr size_t kJointMaxTerms = 3;
+constexpr int kJointMaxComplexity = 3;  ///< term_complexity
+constexpr int kJointResamples = 20;
+constexpr double kJointStability = 0.6;
 
 struct Diagnosis {
   double baseline_std_nT = 0.0;  ///< held-out error std of the model refitted as it is
@@ -99,6 +139,8 @@ struct Diagnosis {
   ExplainableShare explainable;                  ///< what remains predictable, and where
   ResidualFloor
       floor;  ///< the held-out residual against its own noise floor; what its power follows
+  /// The terms chosen together (DiagnoseOptions::joint_selection); no terms when none.
+  JointSet joint;
   std::string verdict;             ///< "add <term>", "structure remains", "complete"
   std::vector<std::string> notes;  ///< skipped channels and why
 };
@@ -109,9 +151,22 @@ std::vector<std::string> source_fields(const Model& model, const FlightData& dat
                                        const std::string& truth, bool full_search,
                                        std::vector<std::string>* notes);
 
-/// Whether a channel is one of the aircraft's electrical sources (cur_*, vol_*): the channels a
-/// slow term or a learned law may follow (motion and position would be leakage).
+/// Whether a channel is one of the aircraft's electrical sources (cur_*, vol_*): written with the
+/// current: shorthand.
 bool is_electrical(const std::string& channel);
+
+/// Whether a channel is motion or air data: the INS's (ins_*), an angular rate (*_rate, *_rt),
+/// an acceleration (*_acc), a velocity (vn, ve, vw, vu, vd), the attitude (pitch, roll, yaw,
+/// heading), the airspeed and the air pressures (tas, true_as, pitot_p, static_p, total_p).
+bool is_motion_channel(const std::string& channel);
+
+/// Whether a channel is a recorded state of the aircraft: a current or a voltage, or any other
+/// recorded channel that is not motion or air data (is_motion_channel), a position
+/// (is_position_channel), a magnetometer, a fluxgate, the diurnal or map reference or
+/// bookkeeping -- a surface or valve position, a temperature, an engine speed, a switch. These
+/// are the channels a slow term, a grown chain or a learned law may follow (a slow term or law
+/// of motion or position would be leakage of the map or the trajectory).
+bool is_aircraft_state(const std::string& channel);
 
 /// How much a term says: its sources, transforms and their parameters (a shorthand or TL
 /// family counts 1). Between terms that explain as much, the simpler is preferred.

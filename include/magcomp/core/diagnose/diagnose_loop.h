@@ -28,12 +28,14 @@ struct LoopRound {
   /// The terms tried in this round and refused, each with why (a term is kept only if it lowers
   /// the held-out error and, with a validation flight, the error there).
   std::vector<std::pair<std::string, std::string>> rejected;
-  /// The round added two terms together (`added` joins them by " + "): neither passed alone,
-  /// both together did, and each lowers the pair's error by the accepted share; or a lag ranked
-  /// first with the channel term it was judged with (Candidate::partner), not eligible alone,
-  /// whose pair lowers the error below the first single term that passes.
+  /// The round added terms together (`added` joins them by " + "): a set a diagnosis chose
+  /// together (Diagnosis::joint), each of its terms needed and the set better than the first
+  /// single term that passes by the accepted share; two terms of which one or both failed alone
+  /// and each lowers the pair's error by the accepted share; or a lag ranked first with the
+  /// channel term it was judged with (Candidate::partner), not eligible alone, whose pair lowers
+  /// the error below the first single term that passes.
   bool together = false;
-  /// The held-out error std of each term of a `together` pair alone, nT (same order as `added`).
+  /// The held-out error std of each `together` term alone, nT (same order as `added`).
   std::vector<double> alone_std_nT;
   /// Terms of earlier rounds that this round's terms made redundant (the backward pass), each
   /// with why; the round's scores are those of the model without them.

@@ -12,7 +12,10 @@ namespace magcomp::sim {
 /// Every channel of simulated_channels(), sampled on the track: strobe pulse trains, fuel-pump
 /// cycling, flap-motor bursts, radio transmit bursts, fan levels, heater thermostat, servo currents
 /// following the attitude rates, bus and battery voltages drifting and sagging with the loads.
-std::map<std::string, Eigen::VectorXd> simulate_channels(const Track& track, unsigned seed);
+/// With `states`, also simulated_state_channels() (flap setting, engine speed, outside air
+/// temperature, heater switch), from their own random stream: the others are the same.
+std::map<std::string, Eigen::VectorXd> simulate_channels(const Track& track, unsigned seed,
+                                                         bool states = false);
 
 /// Magnetic field in nT at `point_m` of a straight wire segment from `a_m` to `b_m` carrying
 /// 1 A from a to b (Biot-Savart, closed form for a finite segment). Frame: base_link.

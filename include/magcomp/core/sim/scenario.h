@@ -78,10 +78,14 @@ struct Scenario {
   double terrain_m = 80.0;  ///< ground height above the ellipsoid
   double diurnal_amplitude_nT = 15.0;
   // Aircraft and sensors
-  double aircraft_scale = 1.0;     ///< multiplies every aircraft-field coefficient
-  long long aircraft_seed = -1;    ///< draws the aircraft field (same value: same aircraft across
-                                   ///< flights); -1: from the flight's own random stream
-  double turbulence_deg = 0.3;     ///< rms attitude turbulence
+  double aircraft_scale = 1.0;   ///< multiplies every aircraft-field coefficient
+  long long aircraft_seed = -1;  ///< draws the aircraft field (same value: same aircraft across
+                                 ///< flights); -1: from the flight's own random stream
+  double turbulence_deg = 0.3;   ///< rms attitude turbulence
+  /// Record the aircraft's non-electrical states too (simulated_state_channels(): flap setting,
+  /// engine speed, outside air temperature, a heater switch; YAML aircraft.states). Drawn from
+  /// their own random stream: every other channel and field of the flight is unchanged.
+  bool aircraft_states = false;
   double scalar_noise_nT = 0.005;  ///< cesium white noise rms
   double fluxgate_noise_nT = 0.3;  ///< fluxgate white noise rms per axis
   std::vector<HiddenEffect> hidden;
@@ -98,6 +102,11 @@ Scenario load_scenario(const std::string& path);
 
 /// The electrical channels the simulator produces (currents cur_*, voltages vol_*).
 const std::vector<std::string>& simulated_channels();
+
+/// The non-electrical state channels it adds with Scenario::aircraft_states: flap_deg (the flap
+/// setting, 0/10/20 deg), eng_rpm (engine speed), oat_degC (outside air temperature, with the
+/// altitude) and sw_pitot_heat (the pitot heater's switch, 0/1).
+const std::vector<std::string>& simulated_state_channels();
 
 /// The scalar and vector sensors and their positions in base_link (m), DATA.md.
 struct SensorMount {
