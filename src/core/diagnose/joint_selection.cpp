@@ -87,21 +87,30 @@ double variance_gain(double with_nT, double without_nT) {
 // channel, kJointPool in rank order; then
 // the plain term of each of the three channels the remaining residual follows most (effects
 // that cancel one another show in the residual's channels, not in each term's own share).
+std::set<std::string> model_shapes(const Search& search) {
+  std::set<std::string> out;
+  for (const TermSpec& t : search.model.terms)
+    if (const ExprTerm* e = t.expr()) out.insert(e->shape());
+  return out;
+}
+
+// Whether a candidate may join the pool (see pool_of).
+bool poolable(const Candidate& c, const std::set<std::string>& model_shapes) {
+  return !c.slow && !c.term.empty() && c.term.expr() && !c.channel.empty() &&
+         std::isfinite(c.std_after_nT) && !c.term.expr()->signal().has_free() &&
+         term_complexity(c.term) <= kJointMaxComplexity &&
+         !model_shapes.count(c.term.expr()->shape());
+}
+
 std::vector<PoolTerm> pool_of(const Search& search, const std::vector<Candidate>& candidates,
                               const ExplainableShare& ex) {
-  std::set<std::string> model_shapes;
-  for (const TermSpec& t : search.model.terms)
-    if (const ExprTerm* e = t.expr()) model_shapes.insert(e->shape());
+  const std::set<std::string> shapes = model_shapes(search);
   std::vector<std::pair<TermSpec, std::string>> chosen;
   std::set<std::string> texts;
   std::map<std::string, int> per_channel;
   for (const Candidate& c : candidates) {
     if (chosen.size() >= kJointPool) break;
-    if (c.slow || c.term.empty() || !c.term.expr() || c.channel.empty() ||
-        !std::isfinite(c.std_after_nT) || c.term.expr()->signal().has_free() ||
-        term_complexity(c.term) > kJointMaxComplexity ||
-        model_shapes.count(c.term.expr()->shape()) || per_channel[c.channel] >= 2)
-      continue;
+    if (!poolable(c, shapes) || per_channel[c.channel] >= 2) continue;
     ++per_channel[c.channel];
     texts.insert(c.term.text());
     chosen.emplace_back(c.term, c.channel);
@@ -112,7 +121,7 @@ std::vector<PoolTerm> pool_of(const Search& search, const std::vector<Candidate>
     if (is_position_channel(ch) || ch == search.model.scalar || !search.data.has(ch)) continue;
     try {
       TermSpec plain(plain_spec(ch));
-      if (model_shapes.count(plain.expr() ? plain.expr()->shape() : plain.text()) ||
+      if (shapes.count(plain.expr() ? plain.expr()->shape() : plain.text()) ||
           !texts.insert(plain.text()).second)
         continue;
       chosen.emplace_back(std::move(plain), ch);
@@ -140,6 +149,10 @@ std::vector<PoolTerm> pool_of(const Search& search, const std::vector<Candidate>
 JointSet joint_selection(const Search& search, const std::vector<Candidate>& candidates,
                          const ExplainableShare& explainable, const DiagnoseOptions& options) {
   JointSet out;
+  // Nothing to answer: no candidate accepted alone, or a lead the pool cannot hold.
+  if (candidates.empty() || !candidates.front().accepted ||
+      !poolable(candidates.front(), model_shapes(search)))
+    return out;
   const std::vector<PoolTerm> pool = pool_of(search, candidates, explainable);
   out.pool_size = static_cast<int>(pool.size());
   if (pool.size() < 2) return out;
@@ -154,13 +167,19 @@ JointSet joint_selection(const Search& search, const std::vector<Candidate>& can
     a0.row(r) = search.a0.row(i);
   }
   // Every subset of up to kJointMaxTerms terms (subset 0: none), fitted and scored.
+  // A set holds one term per channel: each effect by a term of its own channel.
   std::vector<std::vector<int>> subsets = {{}};
   const int k = static_cast<int>(pool.size());
+  const auto apart = [&](int a, int b) {
+    return pool[static_cast<size_t>(a)].channel != pool[static_cast<size_t>(b)].channel;
+  };
   for (int a = 0; a < k; ++a) {
     subsets.push_back({a});
     for (int b = a + 1; b < k; ++b) {
+      if (!apart(a, b)) continue;
       subsets.push_back({a, b});
-      for (int c = b + 1; kJointMaxTerms >= 3 && c < k; ++c) subsets.push_back({a, b, c});
+      for (int c = b + 1; kJointMaxTerms >= 3 && c < k; ++c)
+        if (apart(a, c) && apart(b, c)) subsets.push_back({a, b, c});
     }
   }
   std::map<std::vector<int>, size_t> index;
@@ -204,10 +223,10 @@ JointSet joint_selection(const Search& search, const std::vector<Candidate>& can
     const auto on = [&](double with, double without) {
       return variance_gain(with, without) >= accept && without - with >= resolution;
     };
-    // `s` lowers each half's error variance by the accepted share against subset `than`.
+    // `s` lowers each half's error against subset `than` by the accepted share of the variance
+    // and the resolution.
     const auto beats = [&](size_t s, size_t than) {
-      return variance_gain(sel[s], sel[than]) >= accept &&
-             variance_gain(conf[s], conf[than]) >= accept;
+      return on(sel[s], sel[than]) && on(conf[s], conf[than]);
     };
     const int lead_term = subsets[lead].front();
     std::vector<size_t> admissible;

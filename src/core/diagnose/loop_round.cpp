@@ -115,14 +115,15 @@ bool Round::joint_set(const std::vector<Diagnosis>& dxs, const std::vector<Eligi
           !passes(lr.confirmation_std_nT, now.confirmation_std_nT))
         continue;
       if (best && !(lr.heldout_std_nT < best->second.heldout_std_nT)) continue;
-      // Each term needed: without it, each half's error variance rises by the accepted share.
+      // Each term needed: without it, each half's error rises by the accepted share of the
+      // variance and the resolution.
       bool needed = true;
       std::vector<double> without(terms.size());
       for (size_t k = 0; needed && k < terms.size(); ++k) {
         const LoopRound rest = with(k, none).second;
         without[k] = rest.heldout_std_nT;
-        needed = variance_share(lr.selection_std_nT, rest.selection_std_nT) >= accept &&
-                 variance_share(lr.confirmation_std_nT, rest.confirmation_std_nT) >= accept;
+        needed = passes(lr.selection_std_nT, rest.selection_std_nT) &&
+                 passes(lr.confirmation_std_nT, rest.confirmation_std_nT);
       }
       if (!needed) continue;
       std::vector<double> alone(terms.size());  // of a pair: the pair without the other
@@ -136,7 +137,10 @@ bool Round::joint_set(const std::vector<Diagnosis>& dxs, const std::vector<Eligi
     }
   }
   if (!best) return false;
-  if (variance_share(best->second.heldout_std_nT, first_single_nT(eligible)) < accept) return false;
+  const double single_nT = first_single_nT(eligible);
+  if (variance_share(best->second.heldout_std_nT, single_nT) < accept ||
+      single_nT - best->second.heldout_std_nT < c_.options.resolution_nT)
+    return false;
   keep_together(std::move(*best), best_terms, best_alone);
   return true;
 }

@@ -46,9 +46,10 @@ class Round {
   // only).
   bool lag_with_partner(const std::vector<Diagnosis>& dxs, const std::vector<Eligible>& eligible);
   // A set of terms a flight's diagnosis chose together (Diagnosis::joint): fitted on the loop's
-  // flights, kept if it passes a pair's checks (each of its terms lowers the set's held-out error
-  // variance by the accepted share) and lowers the held-out error variance below the first
-  // single term that passes by the accepted share too. Over several flights, the best such set.
+  // flights, kept if it passes a single term's checks, each of its terms is needed (without it,
+  // each half's error rises by the accepted share of the variance and the resolution), and it
+  // lowers the held-out error below the first single term that passes by the same. Over several
+  // flights, the best such set.
   bool joint_set(const std::vector<Diagnosis>& dxs, const std::vector<Eligible>& eligible);
   // The eligible candidates in rank order (at most kTriesPerRound): the first that passes every
   // check is kept.

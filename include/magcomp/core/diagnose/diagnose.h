@@ -86,23 +86,23 @@ struct DiagnoseOptions {
   bool joint_selection = true;
 };
 
-/// A set of candidate terms chosen together (diagnose's joint selection): every subset of up to
-/// kJointMaxTerms terms of a pool of the round's candidates (kJointPool in rank order, fitted by
-/// the band-pass, of at most kJointMaxComplexity (a channel through one transform, or a product
-/// of two: a grown chain is one effect's refinement, which the one-at-a-time search judges
-/// alone), at most two per channel, and the plain term of each of the three channels the
-/// remaining residual follows most), each fitted with the model's columns on the fit rows and
-/// scored on the held-out lines. It answers a look-alike: the first ranked candidate (the lead,
-/// accepted alone, which the one-at-a-time search would take first) standing for effects of
-/// other channels. A set of two or more terms is admissible when it leaves out the lead, beats it
-/// on each half of the held-out lines by the accepted share of the error variance, lowers each
-/// half's error against the model by the accepted share and the resolution, and each of its
-/// terms is needed (without it, each half's error variance rises by the accepted share). The
-/// admissible set with the lowest held-out error is chosen (within the accepted share of it, the
-/// fewest and simplest terms), and kept only if the same set is chosen again in at least
-/// kJointStability of kJointResamples bootstrap resamplings of each half's lines. None when no
-/// candidate is accepted (pairs that act together are the loop's pair step's) or the lead is not
-/// in the pool (a slow term, the lag: left to the one-at-a-time search).
+/// A set of candidate terms chosen together (diagnose's joint selection). The pool: the round's
+/// candidates fitted by the band-pass, kJointPool in rank order, at most two per channel and of
+/// at most kJointMaxComplexity (a channel through one transform, or a product of two: a grown
+/// chain is one effect's refinement, which the one-at-a-time search judges alone); and the plain
+/// term of each of the three channels the remaining residual follows most. Every subset of up to
+/// kJointMaxTerms of them, one term per channel, is fitted with the model's columns on the fit
+/// rows and scored on the held-out lines. A set answers a look-alike: the first ranked candidate
+/// (the lead, accepted alone, which the one-at-a-time search would take first) standing for
+/// effects of other channels. A set of two or more terms is admissible when it leaves out the
+/// lead, beats it on each half of the held-out lines by the accepted share of the error variance
+/// and the resolution, lowers each half's error against the model by the same, and each of its
+/// terms is needed (without it, each half's error rises by the same). The admissible set with
+/// the lowest held-out error is chosen (within the accepted share of it, the fewest and simplest
+/// terms), and kept only if the same set is chosen again in at least kJointStability of
+/// kJointResamples bootstrap resamplings of each half's lines. None when no candidate is
+/// accepted (pairs that act together are the loop's pair step's) or the lead is not in the pool
+/// (a slow term, the lag: left to the one-at-a-time search).
 struct JointSet {
   std::vector<TermSpec> terms;  ///< empty: no set is chosen
   double selection_std_nT = NAN, confirmation_std_nT = NAN, heldout_std_nT = NAN;
