@@ -6,17 +6,17 @@
 #include <magcomp/CompensatedField.h>
 #include <ros/ros.h>
 
-#include <chrono>
-#include <deque>
-#include <condition_variable>
 #include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <deque>
 #include <functional>
-#include <map>
-#include <random>
-#include <thread>
 #include <limits>
+#include <map>
 #include <mutex>
+#include <random>
 #include <string>
+#include <thread>
 #include <vector>
 
 namespace magcomp::rostest_util {
@@ -113,8 +113,8 @@ class DiagnosticsCollector {
 template <typename M>
 class DelayRelay {
  public:
-  DelayRelay(ros::NodeHandle& nh, const std::string& in, const std::string& out,
-             double max_delay_s, unsigned seed)
+  DelayRelay(ros::NodeHandle& nh, const std::string& in, const std::string& out, double max_delay_s,
+             unsigned seed)
       : max_delay_s_(max_delay_s), rng_(seed) {
     pub_ = nh.advertise<M>(out, 100000);
     const ros::WallTime t0 = ros::WallTime::now();
@@ -139,9 +139,9 @@ class DelayRelay {
   using Clock = std::chrono::steady_clock;
   void on(const typename M::ConstPtr& msg) {
     std::lock_guard<std::mutex> lock(mutex_);
-    auto at = Clock::now() + std::chrono::duration_cast<Clock::duration>(
-                                 std::chrono::duration<double>(
-                                     std::uniform_real_distribution<double>(0, max_delay_s_)(rng_)));
+    auto at =
+        Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(
+                           std::uniform_real_distribution<double>(0, max_delay_s_)(rng_)));
     if (!queue_.empty() && at < queue_.back().first) at = queue_.back().first;  // keep order
     queue_.emplace_back(at, msg);
     cv_.notify_all();
@@ -177,11 +177,13 @@ class DelayRelay {
 };
 
 /// Polls count() every poll_s (wall time) until it reaches `expected`, or it has not grown for
-/// quiet_s after it first became non-zero, or limit_s has passed. Calls tick(count) after each
+/// quiet_s after it first became non-zero and stream_ended() (when given) holds, or limit_s has
+/// passed. Calls tick(count) after each
 /// poll. Returns the last count.
 inline size_t wait_until_settled(const std::function<size_t()>& count, size_t expected,
                                  double quiet_s, double limit_s, double poll_s,
-                                 const std::function<void(size_t)>& tick = {}) {
+                                 const std::function<void(size_t)>& tick = {},
+                                 const std::function<bool()>& stream_ended = {}) {
   const ros::WallTime start = ros::WallTime::now();
   size_t last = 0;
   ros::WallTime last_change = start;
@@ -194,9 +196,21 @@ inline size_t wait_until_settled(const std::function<size_t()>& count, size_t ex
       last_change = ros::WallTime::now();
     }
     if (last >= expected) break;
-    if (last > 0 && (ros::WallTime::now() - last_change).toSec() > quiet_s) break;
+    // Quiet only ends the wait once the input stream has ended: a node or player starved of
+    // CPU for a while mid-flight is waited for.
+    const bool ended = !stream_ended || stream_ended();
+    if (!ended) last_change = ros::WallTime::now();  // quiet is counted from the stream's end
+    if (ended && last > 0 && (ros::WallTime::now() - last_change).toSec() > quiet_s) break;
   }
   return last;
+}
+
+/// Under simulated time (a `rosbag play --clock` replay): true once the clock has reached
+/// `last_stamp` (the replayed flight's last sample time, s). Without simulated time there is no
+/// clock to read the replay's progress from, and it returns true.
+inline bool replay_reached(const ros::Time& last_stamp) {
+  if (!ros::Time::isSimTime()) return true;
+  return ros::Time::now() >= last_stamp;
 }
 
 /// The test node's main: gtest, ros::init and an asynchronous spinner for the subscriptions.

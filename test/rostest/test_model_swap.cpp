@@ -11,6 +11,7 @@
 
 #include "magcomp/core/apply/apply.h"
 #include "magcomp/core/model/model.h"
+#include "magcomp/ros/bag_converter.h"
 #include "rostest_util.h"
 
 namespace {
@@ -48,6 +49,11 @@ TEST(ModelSwap, TakesEffectAtOneStampWithNoSampleLost) {
           copy_atomically(new_path, live);  // as `magcomp calibrate --out` does: temp + rename
           swapped = true;
         }
+      },
+      [&] {
+        return magcomp::rostest_util::replay_reached(
+            magcomp::rosio::stamp_of(static_cast<int>(f.column("year")[0]),
+                                     static_cast<int>(f.column("doy")[0]), f.tt()[f.size() - 1]));
       });
   const std::vector<magcomp::CompensatedField> g_out = collector.outputs();
   ASSERT_TRUE(swapped);

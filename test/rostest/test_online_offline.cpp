@@ -45,9 +45,15 @@ TEST(OnlineOffline, WholeReplayedFlightEqualsOfflineWithNoSampleLost) {
   if (!relay_in.empty()) {
     relay = std::make_unique<FluxgateRelay>(nh, relay_in, relay_out, relay_max_delay_s, 7u);
   }
-  // Wait for the whole flight (the node flushes its last samples when the bag ends).
-  magcomp::rostest_util::wait_until_settled([&] { return collector.size(); },
-                                            static_cast<size_t>(f.size()), 8.0, 200.0, 0.2);
+  // Wait for the whole flight (the node flushes its last samples when the bag ends). Under the
+  // replay's clock, a pause in the outputs ends the wait only after the bag has reached its last
+  // sample, so a node starved of CPU mid-flight is waited for, not taken as samples lost.
+  const int year0 = static_cast<int>(f.column("year")[0]),
+            doy0 = static_cast<int>(f.column("doy")[0]);
+  const ros::Time last_stamp = magcomp::rosio::stamp_of(year0, doy0, f.tt()[f.size() - 1]);
+  magcomp::rostest_util::wait_until_settled(
+      [&] { return collector.size(); }, static_cast<size_t>(f.size()), 8.0, 200.0, 0.2, {},
+      [&] { return magcomp::rostest_util::replay_reached(last_stamp); });
   const std::vector<magcomp::CompensatedField> g_out = collector.outputs();
   ros::WallDuration(1.2).sleep();  // one more diagnostics period after the last output
   for (const char* k : {"scalar_in", "published", "stale_inputs_held", "late_inputs_dropped",
