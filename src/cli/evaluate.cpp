@@ -160,6 +160,7 @@ void add_network_gain(const Model& model, const FlightData& flight, const std::s
                           {"physics_std_nT", json_figure(g.physics.std_nT)},
                           {"gain_std", json_figure(g.gain_std)},
                           {"carries_over", g.carries_over},
+                          {"output_gain", model.neural->output_gain},
                           {"worse", g.worse},
                           {"verdict", g.verdict}};
 }

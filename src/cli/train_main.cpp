@@ -87,6 +87,16 @@ void print_training(const Model& model, const BundleReport& rep,
       std::cout << "\n  " << g.verdict;
     }
   }
+  const OutputGainFit& og = rep.output_gain;
+  if (og.samples > 0) {
+    std::cout << "\nthe network's share of the correction, fitted on the validation flight(s): "
+              << og.gain << " (terms alone " << og.physics_std_nT << " nT, the network as trained "
+              << og.trained_std_nT << " nT, with this share " << og.blended_std_nT
+              << " nT; each line's mean removed)";
+    if (og.gain == 0.0)
+      std::cout << "\n  the network's gain does not carry over to a flight it was not trained "
+                   "on: the model's terms alone are kept (output_gain 0)";
+  }
   std::cout << "\nwrote " << rep.yaml_path << " and " << rep.weights_path << "\n";
 }
 

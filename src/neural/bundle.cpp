@@ -8,6 +8,10 @@
 #include "magcomp/core/fit/model_fit.h"
 #include "magcomp/neural/trainer.h"
 
+// Defined in networks.cpp (this library): the trained network, without going through dlopen.
+extern "C" magcomp::NeuralNetwork* magcomp_create_network(const magcomp::NeuralSpec* spec,
+                                                          int n_features, std::string* error);
+
 namespace magcomp {
 namespace {
 
@@ -84,6 +88,17 @@ BundleReport train_bundle(Model& model, const std::vector<FlightData>& train_fli
       rep.result.validation_rmse_nT.empty()
           ? 0.0
           : rep.result.validation_rmse_nT[static_cast<size_t>(rep.result.best_epoch - 1)];
+  // The network's share of the correction, fitted on the flights it was not trained on: the
+  // hybrid is then no worse there than its terms alone.
+  s.output_gain = 1.0;
+  if (s.training.fit_output_gain && !validation_flights.empty()) {
+    std::string error;
+    std::shared_ptr<NeuralNetwork> network(
+        magcomp_create_network(&s, static_cast<int>(s.feature_mean.size()), &error));
+    if (!network) throw Error(rep.weights_path + ": " + error);
+    rep.output_gain = fit_output_gain(model, validation_flights, network);
+    if (rep.output_gain.samples > 0) s.output_gain = rep.output_gain.gain;
+  }
   save_model_yaml(model, rep.yaml_path);
   return rep;
 }

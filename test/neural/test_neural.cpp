@@ -101,7 +101,22 @@ TEST(Neural, SpecRoundTripsThroughTheModelYaml) {
   EXPECT_EQ(r.neural->tl_delta, m.neural->tl_delta);
   EXPECT_EQ(r.neural->target_std, 8.125);
   EXPECT_EQ(r.neural->weights_path, dir + "/w.pt");
+  EXPECT_EQ(r.neural->output_gain, 1.0);  // not fitted: the network as trained
+  EXPECT_TRUE(r.neural->training.fit_output_gain);
+  m.neural->output_gain = 0.375;
+  m.neural->training.fit_output_gain = false;
+  save_model_yaml(m, dir + "/model.yaml");
+  EXPECT_EQ(load_model_yaml(dir).neural->output_gain, 0.375);
+  EXPECT_FALSE(load_model_yaml(dir).neural->training.fit_output_gain);
   // Bad values name the key.
+  std::ofstream(dir + "/gain.yaml") << "scalar: mag_5_uc\nvector: flux_c\nneural: {output_gain: "
+                                       "1.5, features: [cur_strb]}\n";
+  try {
+    load_model_yaml(dir + "/gain.yaml");
+    FAIL() << "an output gain of 1.5 was accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("neural.output_gain"), std::string::npos) << e.what();
+  }
   std::ofstream(dir + "/bad.yaml") << "scalar: mag_5_uc\nvector: flux_c\nneural: {architecture: "
                                       "gru, features: [cur_strb]}\n";
   try {
@@ -170,6 +185,100 @@ TEST(Neural, ResidualNetworkHalvesTheTlErrorOnAHeldOutFlightAndIsReproducible) {
   EXPECT_NEAR(tl.rmse_nT, nn_rmse, 1e-9);  // evaluate runs the network
   EXPECT_LT(nn_rmse, 0.5 * tle.rmse_nT);
   EXPECT_LT(tl.std_nT, 0.6 * tle.std_nT);
+}
+
+// The network's share of the correction is the blend factor that minimises the validation
+// flight's error (each line's mean removed): a grid of shares applied through the model
+// (neural_compensate) finds the same minimum, the hybrid is there no worse than its physics part
+// or the network as trained, and share 0 is the physics alone. A network that learns a missing
+// wire keeps its share; one beside whole physics that learns an interference present on the
+// training flight only (its gain does not carry over) keeps less, and is no worse than the
+// physics on the validation flight.
+TEST(Neural, TheNetworksShareIsFittedOnTheValidationFlight) {
+  const std::string dir = test::temp_dir("neural_gain");
+  const auto line_std = [](const FlightData& f, const Eigen::VectorXd& e) {
+    Eigen::VectorXd a = e;
+    std::map<double, std::pair<double, long>> m;
+    const Eigen::VectorXd line = f.column("line");
+    for (Eigen::Index i = 0; i < e.size(); ++i)
+      if (std::isfinite(e[i])) m[line[i]].first += e[i], ++m[line[i]].second;
+    for (Eigen::Index i = 0; i < e.size(); ++i)
+      if (std::isfinite(e[i])) a[i] -= m[line[i]].first / m[line[i]].second;
+    return rms(a);
+  };
+  // The training flight with 3 nT more on the scalar wherever the roll is high: an interference
+  // of that flight only (e.g. a device carried on it alone).
+  FlightData only_there = flight(11);
+  {
+    const Eigen::VectorXd roll = only_there.column("ins_roll");
+    const double mean = roll.mean();
+    const double sd = std::sqrt((roll.array() - mean).square().mean());
+    only_there.mutable_column("mag_5_uc").array() += 3.0 * ((roll.array() - mean) / sd).tanh();
+    only_there.set_source("rostest_short_seed11_interference.h5");
+  }
+  const FlightData& val = flight(13);
+  const auto ref = val.column("mag_1_c");
+  double shares[2] = {NAN, NAN};
+  for (int spurious = 0; spurious < 2; ++spurious) {
+    const FlightData& train = spurious ? only_there : flight(11);
+    Model m = neural_model("mlp", "residual", 5, 12);
+    if (spurious) {  // the physics is whole (the wire and the lag): the network learns the rest
+      m.add_term("current:cur_strb");
+      m.add_term("lag:0.3");
+    }
+    fit_model(m, {&flight(11)});  // the physics on the clean flight, the network on `train`
+    const std::string out = dir + (spurious ? "/spurious" : "/wire");
+    const BundleReport rep = train_bundle(m, {train}, {val}, out, false);
+    const Model trained = load_model_yaml(out);
+    ASSERT_GT(rep.output_gain.samples, 0);
+    const double g = trained.neural->output_gain;
+    EXPECT_EQ(g, rep.output_gain.gain);
+    EXPECT_GE(g, 0.0);
+    EXPECT_LE(g, 1.0);
+    shares[spurious] = g;
+    Model physics = trained;
+    physics.neural.reset();
+    const Eigen::VectorXd physics_c = compensate(physics, val);
+    double best_grid = INFINITY, best_share = NAN;
+    for (int k = 0; k <= 20; ++k) {
+      Model at = trained;
+      at.neural->output_gain = k / 20.0;
+      const Eigen::VectorXd c = neural_compensate(at, val).compensated_nT;
+      const double s = line_std(val, c - ref);
+      if (k == 0) {
+        EXPECT_LT((c - physics_c).cwiseAbs().maxCoeff(), 1e-9);
+        EXPECT_NEAR(s, rep.output_gain.physics_std_nT, 1e-9);
+      }
+      if (k == 20) {
+        EXPECT_NEAR(s, rep.output_gain.trained_std_nT, 1e-9);
+      }
+      if (s < best_grid) best_grid = s, best_share = k / 20.0;
+    }
+    const double fitted = line_std(val, neural_compensate(trained, val).compensated_nT - ref);
+    std::printf(
+        "  %s: share %.3f (least squares %.3f, grid %.2f); validation std: terms alone "
+        "%.4f nT, network as trained %.4f nT, with the share %.4f nT\n",
+        spurious ? "whole physics, an interference on the training flight only"
+                 : "TL, the wire missing",
+        g, rep.output_gain.unclipped_gain, best_share, rep.output_gain.physics_std_nT,
+        rep.output_gain.trained_std_nT, fitted);
+    EXPECT_NEAR(fitted, rep.output_gain.blended_std_nT, 1e-9);
+    EXPECT_LE(fitted, best_grid + 1e-12);
+    EXPECT_NEAR(g, best_share, 0.05 + 1e-12);
+    EXPECT_LE(fitted, rep.output_gain.physics_std_nT + 1e-12);
+    EXPECT_LE(fitted, rep.output_gain.trained_std_nT + 1e-12);
+    if (spurious) {  // as trained, the network is worse than the physics on this flight
+      EXPECT_GT(rep.output_gain.trained_std_nT, rep.output_gain.physics_std_nT);
+    }
+  }
+  EXPECT_GT(shares[0], 0.9);   // the missing wire is the network's to learn: kept
+  EXPECT_LT(shares[1], 0.75);  // the interference's part is not
+  // With the fit turned off, the network is kept as trained.
+  Model m = neural_model("mlp", "residual", 5, 2);
+  m.neural->training.fit_output_gain = false;
+  const BundleReport off = train_bundle(m, {flight(11)}, {val}, dir + "/off", false);
+  EXPECT_EQ(off.output_gain.samples, 0);
+  EXPECT_EQ(load_model_yaml(dir + "/off").neural->output_gain, 1.0);
 }
 
 TEST(Neural, PredictionsAreCausalAndStreamingEqualsOffline) {
@@ -389,6 +498,13 @@ TEST(Neural, TrainPrintsWhatTheNetworkLeansOnOnTheValidationFlight) {
   }
   EXPECT_EQ(first, "cur_strb") << out;
   EXPECT_NEAR(total, 100.0, 0.5) << out;
+  // The network's share of the correction, fitted on the validation flight, as written.
+  const Model trained = load_model_yaml(dir + "/bundle");
+  char said[96];
+  std::snprintf(said, sizeof(said),
+                "share of the correction, fitted on the validation flight(s): %.3f",
+                trained.neural->output_gain);
+  EXPECT_NE(out.find(said), std::string::npos) << out;
 }
 
 TEST(Neural, TrainTakesTheNetworkFromAnotherFileOnTheModelsOwnTerms) {

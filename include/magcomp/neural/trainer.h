@@ -10,6 +10,7 @@
 #include "magcomp/core/model/model.h"
 #include "magcomp/core/model/neural_spec.h"
 #include "magcomp/core/neural/dataset.h"
+#include "magcomp/core/neural/output_gain.h"
 
 namespace magcomp {
 
@@ -44,11 +45,15 @@ struct BundleReport {
   std::string yaml_path, weights_path;
   Eigen::Index train_windows = 0, validation_windows = 0;
   bool tl_fitted_here = false;
+  /// The network's share of the correction fitted on the validation flights (samples 0 when it
+  /// was not fitted: no validation flight, or neural.training.fit_output_gain false).
+  OutputGainFit output_gain;
 };
 
 /// The whole of `magcomp train`: calibrates TL on the training flights if the model is not
 /// fitted, computes features and target (corrections first), fits the normalisation on the
-/// training flights only, trains, and writes the bundle (weights first, then the model YAML,
+/// training flights only, trains, fits the network's share of the correction on the validation
+/// flights (NeuralSpec::output_gain), and writes the bundle (weights first, then the model YAML,
 /// both atomically). `out`: OUT.yaml (weights OUT.pt beside it) or a directory (model.yaml +
 /// weights.pt). Updates `model` to the trained one. Throws magcomp::Error on bad input.
 BundleReport train_bundle(Model& model, const std::vector<FlightData>& train_flights,

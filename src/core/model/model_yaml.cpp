@@ -60,7 +60,7 @@ NeuralTraining parse_neural_training(const YAML::Node& t, const std::string& pat
   if (!t.IsMap()) throw Error(path + ": key 'neural.training' must be a map");
   warn_unknown(t,
                {"epochs", "batch", "learning_rate", "lr_decay", "weight_decay", "patience", "seed",
-                "stride", "threads"},
+                "stride", "threads", "fit_output_gain"},
                path, "neural.training.");
   if (t["epochs"]) r.epochs = get<int>(t["epochs"], path, "neural.training.epochs");
   if (t["batch"]) r.batch = get<int>(t["batch"], path, "neural.training.batch");
@@ -73,6 +73,8 @@ NeuralTraining parse_neural_training(const YAML::Node& t, const std::string& pat
   if (t["seed"]) r.seed = get<std::uint64_t>(t["seed"], path, "neural.training.seed");
   if (t["stride"]) r.stride = get<int>(t["stride"], path, "neural.training.stride");
   if (t["threads"]) r.threads = get<int>(t["threads"], path, "neural.training.threads");
+  if (t["fit_output_gain"])
+    r.fit_output_gain = get<bool>(t["fit_output_gain"], path, "neural.training.fit_output_gain");
   return r;
 }
 
@@ -105,7 +107,7 @@ NeuralSpec parse_neural(const YAML::Node& n, const std::string& path, size_t tl_
   warn_unknown(n,
                {"architecture", "mode", "features", "window", "hidden", "reference", "training",
                 "normalisation", "tl_delta", "weights", "version", "train_flights",
-                "validation_flights", "epochs_run", "validation_rmse_nT"},
+                "validation_flights", "epochs_run", "validation_rmse_nT", "output_gain"},
                path, "neural.");
   NeuralSpec s;
   if (n["architecture"]) {
@@ -153,6 +155,7 @@ NeuralSpec parse_neural(const YAML::Node& n, const std::string& path, size_t tl_
   if (n["epochs_run"]) s.epochs_run = get<int>(n["epochs_run"], path, "neural.epochs_run");
   if (n["validation_rmse_nT"])
     s.validation_rmse_nT = get<double>(n["validation_rmse_nT"], path, "neural.validation_rmse_nT");
+  if (n["output_gain"]) s.output_gain = get<double>(n["output_gain"], path, "neural.output_gain");
   validate_neural_spec(s, path);
   return s;
 }
@@ -177,6 +180,7 @@ void emit_neural(YAML::Emitter& out, const NeuralSpec& s) {
   out << YAML::Key << "seed" << YAML::Value << t.seed;
   out << YAML::Key << "stride" << YAML::Value << t.stride;
   out << YAML::Key << "threads" << YAML::Value << t.threads;
+  out << YAML::Key << "fit_output_gain" << YAML::Value << t.fit_output_gain;
   out << YAML::EndMap;
   if (s.feature_mean.size() > 0) {
     out << YAML::Key << "normalisation" << YAML::Value << YAML::BeginMap;
@@ -198,6 +202,7 @@ void emit_neural(YAML::Emitter& out, const NeuralSpec& s) {
     out << YAML::Key << "epochs_run" << YAML::Value << s.epochs_run;
     out << YAML::Key << "validation_rmse_nT" << YAML::Value << s.validation_rmse_nT;
   }
+  if (!s.weights.empty()) out << YAML::Key << "output_gain" << YAML::Value << s.output_gain;
   out << YAML::EndMap;
 }
 

@@ -78,6 +78,8 @@ void validate_neural_spec(const NeuralSpec& s, const std::string& where) {
   if (t.patience < 1) throw Error(p + "training.patience' must be >= 1");
   if (t.stride < 1) throw Error(p + "training.stride' must be >= 1");
   if (t.threads < 1) throw Error(p + "training.threads' must be >= 1");
+  if (!(s.output_gain >= 0.0 && s.output_gain <= 1.0))
+    throw Error(p + "output_gain' must be in [0, 1] (the network's share of the correction)");
 }
 
 }  // namespace magcomp

@@ -56,8 +56,11 @@ std::shared_ptr<NeuralNetwork> load_neural_network(const Model& model, int n_fea
 
 double neural_correction_nT(const NeuralSpec& spec, double scalar_nT, double tl_correction_nT,
                             double tl_delta_nT, double igrf_nT, double diurnal_nT, double y_nT) {
-  if (spec.mode == NeuralMode::kAnomaly) return scalar_nT - (igrf_nT + diurnal_nT + y_nT);
-  return tl_correction_nT + tl_delta_nT + y_nT;
+  const double trained = spec.mode == NeuralMode::kAnomaly
+                             ? scalar_nT - (igrf_nT + diurnal_nT + y_nT)
+                             : tl_correction_nT + tl_delta_nT + y_nT;
+  if (spec.output_gain == 1.0) return trained;
+  return tl_correction_nT + spec.output_gain * (trained - tl_correction_nT);
 }
 
 Eigen::MatrixXd standardised_inputs(const NeuralSpec& s, const Eigen::MatrixXd& features) {

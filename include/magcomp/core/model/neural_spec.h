@@ -9,8 +9,8 @@
 
 namespace magcomp {
 
-/// Training settings (`neural.training`). Defaults are those of Laoué's report (Adam, batch 256, lr 1e-3
-/// decayed by 0.9 per epoch, MSE).
+/// Training settings (`neural.training`). Defaults are those of Laoué's report (Adam, batch 256, lr
+/// 1e-3 decayed by 0.9 per epoch, MSE).
 struct NeuralTraining {
   int epochs = 25;              ///< maximum epochs
   int batch = 256;              ///< windows per batch
@@ -21,10 +21,14 @@ struct NeuralTraining {
   std::uint64_t seed = 1;       ///< torch and shuffling seed: same seed, same weights
   int stride = 1;               ///< a training window ends every `stride` samples
   int threads = 2;              ///< torch intra-op threads
+  /// After training, scale the network's part of the correction by the factor in [0, 1] that
+  /// minimises the error on the validation flights (NeuralSpec::output_gain).
+  bool fit_output_gain = true;
 };
 
 /// The neural stage. Modes:
-/// - `anomaly`: the networks of Laoué's report: predict the reference anomaly (reference - IGRF - diurnal)
+/// - `anomaly`: the networks of Laoué's report: predict the reference anomaly (reference - IGRF -
+/// diurnal)
 ///   from the features; compensated = IGRF + diurnal + prediction.
 /// - `residual`: TL fixed, the network predicts what TL leaves (TL-compensated - reference);
 ///   correction = A c + prediction (MagNav.jl's "model 2b" idea).
@@ -64,6 +68,11 @@ struct NeuralSpec {
   std::vector<std::string> train_flights, validation_flights;  ///< provenance
   int epochs_run = 0;
   double validation_rmse_nT = 0.0;
+  /// The network's share of the correction, in [0, 1]: correction = physics + output_gain ×
+  /// (network's correction - physics), where physics is the model's terms alone (A c). Fitted on
+  /// the validation flights (each line's mean removed): 0 when the network's gain does not carry
+  /// over to a flight it was not trained on, 1 as trained (and for bundles without the key).
+  double output_gain = 1.0;
 
   bool trained() const { return !weights.empty() && feature_mean.size() > 0; }
   /// Hidden sizes, or the architecture's default (mlp 16,4; cnn 16,32; lstm 32,32).

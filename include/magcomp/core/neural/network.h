@@ -52,7 +52,8 @@ Eigen::VectorXd network_output_nT(const NeuralSpec& spec, const Eigen::MatrixXd&
                                   NeuralNetwork& network);
 
 /// Maps the network's prediction y (nT) to the total correction, given the sample's realigned
-/// scalar, TL correction A c, A·tl_delta, IGRF and diurnal (nT).
+/// scalar, TL correction A c, A·tl_delta, IGRF and diurnal (nT); the spec's output_gain blends it
+/// with the terms' correction A c (1: the network as trained).
 double neural_correction_nT(const NeuralSpec& spec, double scalar_nT, double tl_correction_nT,
                             double tl_delta_nT, double igrf_nT, double diurnal_nT, double y_nT);
 
