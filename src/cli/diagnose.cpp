@@ -341,6 +341,11 @@ void print_rounds_table(const LoopResult& r, bool validation, size_t flights) {
     }
     for (const auto& [term, why] : lr.removed)
       std::printf("       removed %s: %s\n", term.c_str(), why.c_str());
+    for (const auto& [term, std_nT] : lr.look_alikes)
+      std::printf(
+          "       look-alike %s: held-out %.3f nT in its place; these flights cannot tell its "
+          "channel from %s's\n",
+          term.c_str(), std_nT, lr.added.c_str());
   }
 }
 
@@ -373,6 +378,9 @@ nlohmann::json loop_json(const LoopResult& r, const std::vector<TermSupport>& su
     jr["removed"] = nlohmann::json::array();
     for (const auto& [term, why] : lr.removed)
       jr["removed"].push_back({{"term", term}, {"why", why}});
+    jr["look_alikes"] = nlohmann::json::array();
+    for (const auto& [term, std_nT] : lr.look_alikes)
+      jr["look_alikes"].push_back({{"term", term}, {"heldout_std_nT", std_nT}});
   }
   j["stop"] = r.stop_reason;
   j["warnings"] = r.warnings;

@@ -69,6 +69,7 @@ int main(int argc, char** argv) {
     // Per number of effects: predictable runs, near the oracle, near the true terms, named.
     std::map<int, std::array<int, 4>> by_count;
     int runs_all_draws_near = 0, runs_predictable = 0;  // runs near the true terms on every draw
+    int named_among_look_alikes = 0;  // predictable runs naming the truth among the look-alikes
     const auto t0 = std::chrono::steady_clock::now();
     std::printf("%4s %8s %8s %8s %8s %6s %6s %5s %7s %7s  %-8s %s\n", "run", "TL nT", "loop nT",
                 "oracle", "true", "near", "near_t", "names", "eff nT", "next nT", "verdict",
@@ -101,13 +102,18 @@ int main(int argc, char** argv) {
         if (d.predictable) {
           named[d.kind].first += d.names_truth();
           named[d.kind].second += 1;
+          named_among_look_alikes += d.names_truth_among_look_alikes();
         }
+        // "alike": the truth among the look-alikes the loop reports, not its kept terms alone.
+        const char* names = !d.predictable                      ? "-"
+                            : d.names_truth()                   ? "yes"
+                            : d.names_truth_among_look_alikes() ? "alike"
+                                                                : "NO";
         std::printf("%4u%s %8.3f %8.3f %8.3f %8.3f %6s %6s %5s %7.3f %7.3f  %-8s %s -> %s%s%s\n", r,
                     draws > 1 ? ("/" + std::to_string(draw)).c_str() : "", d.tl_next_nT,
                     d.loop_next_nT, d.oracle_next_nT, d.true_terms_next_nT,
                     d.predictable ? (d.near_oracle() ? "yes" : "NO") : "-",
-                    d.predictable ? (d.near_true_terms() ? "yes" : "NO") : "-",
-                    d.predictable ? (d.names_truth() ? "yes" : "NO") : "-", d.effect_nT,
+                    d.predictable ? (d.near_true_terms() ? "yes" : "NO") : "-", names, d.effect_nT,
                     d.effect_next_nT, d.verdict.substr(0, d.verdict.find(':')).substr(0, 8).c_str(),
                     d.effects.c_str(), kept.empty() ? "(none)" : kept.c_str(),
                     d.worse_than_tl() ? "  WORSE THAN TL" : "",
@@ -136,6 +142,9 @@ int main(int argc, char** argv) {
     }
     std::printf(" all %d/%d (%.0f %%)\n", named_all, named_runs,
                 named_runs ? 100.0 * named_all / named_runs : 0.0);
+    std::printf("names the effects' channels among the look-alikes it reports: %d/%d (%.0f %%)\n",
+                named_among_look_alikes, named_runs,
+                named_runs ? 100.0 * named_among_look_alikes / named_runs : 0.0);
     for (const auto& [count, c] : by_count)
       std::printf(
           "%d effect(s): %d predictable runs, within 1.5x the oracle %d, within 1.5x the true "

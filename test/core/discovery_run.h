@@ -45,11 +45,32 @@ struct DiscoveryRun {
   /// The kind of the run's effect (sim::HiddenEffect::type), "several" for two or more.
   std::string kind;
   /// The channels the hidden effects act through (each effect's channel and a product's second
-  /// one), and the channels the final model's added terms read (their sources; the total field
-  /// B, which TL and an eddy decay read, is not a channel).
+  /// one), and the channels the final model's added terms read (their data fields,
+  /// ExprTerm::required_fields: the vector sensor's field B and its magnitude Bt, which TL and an
+  /// eddy decay read, are not channels).
   std::set<std::string> true_channels, named_channels;
   /// The final model names the truth: its added terms read exactly the effects' channels.
   bool names_truth() const { return named_channels == true_channels; }
+  /// Each added term of the final model: the channels it reads, and those of each look-alike
+  /// the loop reported beside it (LoopRound::look_alikes).
+  std::vector<std::pair<std::set<std::string>, std::vector<std::set<std::string>>>> named_terms;
+  /// The truth among what the loop names: every added term reads only effects' channels or has
+  /// a look-alike that does, and every effect's channel is read by one of these.
+  bool names_truth_among_look_alikes() const {
+    std::set<std::string> covered;
+    const auto within = [&](const std::set<std::string>& c) {
+      return std::includes(true_channels.begin(), true_channels.end(), c.begin(), c.end());
+    };
+    for (const auto& [channels, alikes] : named_terms) {
+      if (channels.empty()) continue;
+      const std::set<std::string>* hit = within(channels) ? &channels : nullptr;
+      for (size_t k = 0; !hit && k < alikes.size(); ++k)
+        if (within(alikes[k])) hit = &alikes[k];
+      if (!hit) return false;
+      covered.insert(hit->begin(), hit->end());
+    }
+    return covered == true_channels;
+  }
   /// Within 1.5x the oracle (+0.05 nT) on the next flight.
   bool near_oracle() const { return loop_next_nT <= 1.5 * oracle_next_nT + 0.05; }
   /// Within 1.5x TL plus the effects' own terms (+0.05 nT) on the next flight (issue 20's rule);
@@ -131,12 +152,21 @@ inline DiscoveryRun discovery_run(unsigned r, int count, sim::Scenario base, con
   out.loop_next_nT = evaluate_model(loop.model, fb.flight, "mag_1_c", false).std_nT;
   for (size_t k = 1; k < loop.rounds.size(); ++k) out.added.push_back(loop.rounds[k].added);
   out.slow_terms = loop.model.slow_terms;
+  const auto channels_of = [](const std::string& term) {
+    std::set<std::string> out;
+    if (const auto e = parse_expr_term(term))
+      for (const std::string& c : e->required_fields()) out.insert(c);
+    return out;
+  };
   for (const std::string& t : loop.model.terms) {
     if (std::find(start.terms.begin(), start.terms.end(), t) != start.terms.end()) continue;
-    const auto e = parse_expr_term(t);
-    if (!e) continue;
-    for (const std::string& c : e->signal().sources)
-      if (c != "B") out.named_channels.insert(c);
+    const std::set<std::string> channels = channels_of(t);
+    out.named_channels.insert(channels.begin(), channels.end());
+    std::vector<std::set<std::string>> alikes;
+    for (const LoopRound& lr : loop.rounds)
+      if (lr.added == t)
+        for (const auto& la : lr.look_alikes) alikes.push_back(channels_of(la.first));
+    out.named_terms.emplace_back(channels, std::move(alikes));
   }
   out.verdict = loop.last.verdict;
   out.residual_nT = loop.last.floor.residual_std_nT;

@@ -665,6 +665,72 @@ TEST(Diagnose, TheLoadsOfABusAreChosenTogetherOverTheBus) {
   EXPECT_TRUE(channels_of(greedy.model).count("cur_bus"));
 }
 
+// A channel the flight cannot tell from another: a lamp's wire carries the effect, and a monitor
+// of the same lamp records its current again with 0.03 A of noise. Either term lowers the error
+// alike, so the loop keeps one and names the other as its look-alike (rounds table and JSON); a
+// pump switched on its own pattern, which carries no effect, is not named. Without the monitor
+// the lamp's channel is told apart: no look-alike.
+TEST(Diagnose, AChannelTheFlightCannotTellApartIsNamedAsALookAlike) {
+  FlightData f = test::scenario("tl_only").flight;
+  const Eigen::VectorXd t = f.tt();
+  std::mt19937 rng(11);
+  std::normal_distribution<double> noise(0.0, 0.03);
+  Eigen::VectorXd lamp(t.size()), monitor(t.size()), pump(t.size());
+  for (Eigen::Index i = 0; i < t.size(); ++i) {
+    lamp[i] = std::fmod(t[i], 37.0) < 18.5 ? 1.5 : 0.0;
+    monitor[i] = lamp[i] + noise(rng);
+    pump[i] = std::fmod(t[i] + 5.0, 23.0) < 11.5 ? 2.0 : 0.0;
+  }
+  f.set("cur_lamp", lamp);
+  f.set("cur_pump", pump);
+  Model wire = test::calibrated_tl(f);
+  wire.terms = {"current:cur_lamp"};
+  const Eigen::MatrixXd cols = design_matrix(wire, f);
+  ASSERT_EQ(cols.cols(), 3);
+  f.mutable_column("mag_5_uc") += cols * Eigen::Vector3d(0.9, -0.6, 1.2);
+  const Model start = test::calibrated_tl(f);
+  const auto fields = [](const std::string& term) {
+    const std::vector<std::string> v = TermSpec(term).term().required_fields();
+    return std::set<std::string>(v.begin(), v.end());
+  };
+  // Without the monitor: the lamp is found and told apart.
+  const LoopResult alone = diagnose_loop(start, f, "mag_1_c", 1, 0.05, {});
+  ASSERT_GE(alone.rounds.size(), 2u);
+  EXPECT_EQ(fields(alone.rounds[1].added), std::set<std::string>{"cur_lamp"});
+  EXPECT_TRUE(alone.rounds[1].look_alikes.empty()) << alone.rounds[1].look_alikes.front().first;
+  // With it, through the CLI: one of the two kept, the other named beside it.
+  f.set("cur_lamp_mon", monitor);
+  const std::string dir = test::temp_dir("look_alike");
+  write_flight_h5(f, dir + "/f.h5");
+  save_model_yaml(start, dir + "/start.yaml");
+  std::string out;
+  ASSERT_EQ(test::run(test::cli() + " diagnose --apply --rounds 1 --data " + dir +
+                          "/f.h5 --model " + dir + "/start.yaml --truth mag_1_c --out " + dir +
+                          "/d.yaml --json " + dir + "/d.json",
+                      &out),
+            0)
+      << out;
+  const nlohmann::json j = nlohmann::json::parse(std::ifstream(dir + "/d.json"));
+  ASSERT_GE(j["rounds"].size(), 2u) << j.dump();
+  const nlohmann::json& r1 = j["rounds"][1];
+  std::set<std::string> named = fields(r1["added"].get<std::string>());
+  ASSERT_EQ(named.size(), 1u);
+  const std::string kept = *named.begin();
+  EXPECT_TRUE(kept == "cur_lamp" || kept == "cur_lamp_mon") << kept;
+  std::printf("  kept %s (held-out %.3f nT); look-alikes:", r1["added"].get<std::string>().c_str(),
+              r1["heldout_std_nT"].get<double>());
+  for (const auto& la : r1["look_alikes"]) {
+    std::printf(" %s %.3f nT", la["term"].get<std::string>().c_str(),
+                la["heldout_std_nT"].get<double>());
+    for (const std::string& x : fields(la["term"].get<std::string>())) named.insert(x);
+  }
+  std::printf("\n");
+  EXPECT_TRUE(named.count("cur_lamp") && named.count("cur_lamp_mon")) << out;
+  EXPECT_FALSE(named.count("cur_pump")) << out;
+  EXPECT_NE(out.find("look-alike "), std::string::npos) << out;
+  EXPECT_NE(out.find("these flights cannot tell its channel from"), std::string::npos) << out;
+}
+
 // Which channels are states of the aircraft (a slow term, a grown chain or a learned law may
 // follow them): currents, voltages and any recorded channel that is not motion, air data,
 // position, a magnetometer or bookkeeping.

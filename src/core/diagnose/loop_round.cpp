@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <optional>
+#include <set>
 
 #include "magcomp/core/error.h"
 #include "magcomp/core/fit/model_fit.h"
@@ -182,11 +183,47 @@ bool Round::lag_with_partner(const std::vector<Diagnosis>& dxs,
 
 bool Round::first_single(const std::vector<Eligible>& eligible) {
   for (size_t k = 0; k < eligible.size() && k < kTriesPerRound; ++k) {
-    Model next = r_->model;
+    const Model before = r_->model;
+    Model next = before;
     add_candidate_term(eligible[k].term, eligible[k].slow, c_.truth, &next);
-    if (try_model(std::move(next), eligible[k].term, eligible[k].explained, false)) return true;
+    if (try_model(std::move(next), eligible[k].term, eligible[k].explained, false)) {
+      look_alikes(before, eligible, k);
+      return true;
+    }
   }
   return false;
+}
+
+void Round::look_alikes(const Model& before, const std::vector<Eligible>& eligible, size_t kept) {
+  const auto fields_of = [](const TermSpec& t) {
+    const std::vector<std::string> f = t.term().required_fields();
+    return std::set<std::string>(f.begin(), f.end());
+  };
+  const std::set<std::string> kept_fields = fields_of(eligible[kept].term);
+  if (kept_fields.empty() || r_->rounds.size() < 2) return;  // a lag names no channel
+  LoopRound& now = r_->rounds.back();
+  const LoopRound previous = r_->rounds[r_->rounds.size() - 2];
+  std::set<std::string> named = kept_fields;  // one look-alike per channel set
+  for (size_t j = 0, tried = 0; j < eligible.size() && tried < kLookAlikeTries; ++j) {
+    if (j == kept) continue;
+    const std::set<std::string> fields = fields_of(eligible[j].term);
+    if (fields.empty()) continue;
+    bool shares_a_channel = false;
+    for (const std::string& x : fields) shares_a_channel = shares_a_channel || named.count(x) > 0;
+    if (shares_a_channel) continue;
+    ++tried;
+    try {
+      Model m = before;
+      add_candidate_term(eligible[j].term, eligible[j].slow, c_.truth, &m);
+      const LoopRound lr = fit_score(std::move(m)).second;
+      if (!refusal(lr, previous).empty()) continue;
+      // Not told apart: the kept term is not better by the accepted share and the resolution.
+      if (passes(now.heldout_std_nT, lr.heldout_std_nT)) continue;
+      now.look_alikes.emplace_back(eligible[j].term.text(), lr.heldout_std_nT);
+      named.insert(fields.begin(), fields.end());
+    } catch (const Error&) {
+    }
+  }
 }
 
 bool Round::pair_acting_together(const std::vector<Diagnosis>& dxs) {

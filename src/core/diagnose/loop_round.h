@@ -19,6 +19,8 @@ namespace magcomp::loop_steps {
 
 // Eligible candidates tried per round, in rank order.
 constexpr size_t kTriesPerRound = 3;
+/// Eligible candidates (in rank order, after the kept one) tried as look-alikes of a kept term.
+constexpr size_t kLookAlikeTries = 6;
 
 // What every step of a round reads: the loop's start model, its flights and their held-out
 // halves, the validation flight (or nullptr) and the options.
@@ -52,7 +54,7 @@ class Round {
   // flights, the best such set.
   bool joint_set(const std::vector<Diagnosis>& dxs, const std::vector<Eligible>& eligible);
   // The eligible candidates in rank order (at most kTriesPerRound): the first that passes every
-  // check is kept.
+  // check is kept, with its look-alikes (look_alikes()).
   bool first_single(const std::vector<Eligible>& eligible);
   // Effects that act together: when no term passes alone while the residual stays predictable,
   // pairs of terms of distinct channels, fitted together; the best pair by held-out error that
@@ -85,6 +87,10 @@ class Round {
   // The held-out error of the first of the eligible candidates (at most kTriesPerRound) that
   // passes refusal() alone, nT; infinity when none does.
   double first_single_nT(const std::vector<Eligible>& eligible) const;
+  // After eligible[kept] was kept in place of `before`: the eligible terms of other channels
+  // that, each in its place, pass the same checks and leave a held-out error within the
+  // resolution and the accepted share of the kept one's (LoopRound::look_alikes).
+  void look_alikes(const Model& before, const std::vector<Eligible>& eligible, size_t kept);
 
   const LoopContext& c_;
   int round_;

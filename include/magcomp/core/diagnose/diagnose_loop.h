@@ -52,6 +52,12 @@ struct LoopRound {
   /// model's columns span (Candidate::base_span_share). Empty otherwise.
   std::string in_place_of;
   double in_place_of_span_share = NAN;
+  /// Terms of other channels that, each in place of this round's single term, pass the same
+  /// checks and leave a held-out error the kept term does not beat by the accepted share and
+  /// the resolution: the flights cannot tell their channels from the kept one's. Each with its
+  /// held-out error std, nT; empty when the kept term's channel is told apart (or for a step
+  /// that is not a single term).
+  std::vector<std::pair<std::string, double>> look_alikes;
 };
 
 struct LoopResult {
