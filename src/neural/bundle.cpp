@@ -46,11 +46,13 @@ BundleReport train_bundle(Model& model, const std::vector<FlightData>& train_fli
   }
   NeuralSpec& s = *model.neural;
   s.tl_delta.resize(0);
+  s.column_scale.resize(0);
   const std::vector<FlightSamples> tr = flight_samples(model, train_flights);
   const std::vector<FlightSamples> va = flight_samples(model, validation_flights);
   fit_normalisation(s, tr);  // training flights only
-  const Eigen::VectorXd tl_scale =
-      s.mode == NeuralMode::kJoint ? tl_column_scale(tr) : Eigen::VectorXd();
+  const bool with_columns = s.mode == NeuralMode::kJoint || s.mode == NeuralMode::kCoefficients;
+  const Eigen::VectorXd tl_scale = with_columns ? tl_column_scale(tr) : Eigen::VectorXd();
+  if (s.mode == NeuralMode::kCoefficients) s.column_scale = tl_scale;
   const TrainingData td = make_training_data(s, tr, tl_scale, s.training.stride);
   // Validation windows on the same stride (early stopping needs a score, not every sample).
   const TrainingData vd = make_training_data(s, va, tl_scale, s.training.stride);

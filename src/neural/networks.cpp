@@ -11,8 +11,13 @@
 namespace magcomp {
 
 CompensatorNetImpl::CompensatorNetImpl(const NeuralSpec& spec, int n_feat, int n_tl)
-    : architecture(spec.architecture), window(spec.window), n_features(n_feat) {
+    : architecture(spec.architecture),
+      coefficients(spec.mode == NeuralMode::kCoefficients),
+      window(spec.window),
+      n_features(n_feat) {
   const std::vector<int> h = spec.hidden_or_default();
+  // The body's outputs: one value, or one coefficient correction per model column.
+  const int outputs = coefficients ? std::max(n_tl, 1) : 1;
   if (architecture == NeuralArchitecture::kMlp) {
     // The MLP of Laoué's report: the window flattened, ReLU layers (16, 4), one output.
     mlp = torch::nn::Sequential();
@@ -22,7 +27,7 @@ CompensatorNetImpl::CompensatorNetImpl(const NeuralSpec& spec, int n_feat, int n
       mlp->push_back(torch::nn::ReLU());
       in = width;
     }
-    mlp->push_back(torch::nn::Linear(in, 1));
+    mlp->push_back(torch::nn::Linear(in, outputs));
     register_module("mlp", mlp);
   } else if (architecture == NeuralArchitecture::kCnn) {
     // Two 1-D convolutions over time (filters h[0], h[1], kernel 5), each halved by max pooling.
@@ -32,15 +37,25 @@ CompensatorNetImpl::CompensatorNetImpl(const NeuralSpec& spec, int n_feat, int n
                             torch::nn::Conv1d(torch::nn::Conv1dOptions(h[0], h[1], 5).padding(2)));
     const int len = window / 4;
     cnn_fc1 = register_module("cnn_fc1", torch::nn::Linear(h[1] * len, 32));
-    cnn_fc2 = register_module("cnn_fc2", torch::nn::Linear(32, 1));
+    cnn_fc2 = register_module("cnn_fc2", torch::nn::Linear(32, outputs));
   } else {
     // LSTM layers of h[0] units (h.size() layers), the last step's output to one value.
     lstm = register_module("lstm", torch::nn::LSTM(torch::nn::LSTMOptions(n_features, h[0])
                                                        .num_layers(static_cast<int64_t>(h.size()))
                                                        .batch_first(true)));
-    lstm_fc = register_module("lstm_fc", torch::nn::Linear(h[0], 1));
+    lstm_fc = register_module("lstm_fc", torch::nn::Linear(h[0], outputs));
   }
-  if (n_tl > 0) {
+  if (coefficients) {
+    // Start from the model's own coefficients: every correction zero.
+    torch::NoGradGuard g;
+    const std::shared_ptr<torch::nn::LinearImpl> last =
+        architecture == NeuralArchitecture::kMlp ? mlp->ptr<torch::nn::LinearImpl>(mlp->size() - 1)
+        : architecture == NeuralArchitecture::kCnn ? cnn_fc2.ptr()
+                                                   : lstm_fc.ptr();
+    last->weight.mul_(0.01);
+    last->bias.zero_();
+  }
+  if (n_tl > 0 && !coefficients) {
     tl_linear = register_module("tl_linear",
                                 torch::nn::Linear(torch::nn::LinearOptions(n_tl, 1).bias(false)));
     torch::NoGradGuard g;
@@ -64,6 +79,7 @@ torch::Tensor CompensatorNetImpl::forward(const torch::Tensor& x, const torch::T
     auto out = std::get<0>(lstm->forward(x));
     y = lstm_fc->forward(out.select(1, out.size(1) - 1));
   }
+  if (coefficients) return (y * tl).sum(1);  // A(t) δc(t), on the scaled columns
   y = y.squeeze(1);
   if (tl_linear && tl.defined()) y = y + tl_linear->forward(tl).squeeze(1);
   return y;
@@ -75,14 +91,17 @@ namespace {
 class TorchNetwork : public NeuralNetwork {
  public:
   TorchNetwork(const NeuralSpec& spec, int n_features)
-      : net_(spec, n_features, 0), k_(spec.window), f_(n_features) {
+      : net_(spec, n_features, columns_of(spec)),
+        k_(spec.window),
+        f_(n_features),
+        p_(columns_of(spec)) {
     std::ifstream probe(spec.weights_path);
     if (!probe) throw std::runtime_error("neural weights file not found or not readable");
     // Saved with the TL layer in joint mode: load into a net that has it, then drop it (the core
     // applies tl_delta itself).
-    CompensatorNet full(
-        spec, n_features,
-        spec.mode == NeuralMode::kJoint ? static_cast<int>(spec.tl_delta.size()) : 0);
+    CompensatorNet full(spec, n_features,
+                        spec.mode == NeuralMode::kJoint ? static_cast<int>(spec.tl_delta.size())
+                                                        : columns_of(spec));
     torch::load(full, spec.weights_path);
     auto src = full->named_parameters();
     torch::NoGradGuard g;
@@ -92,15 +111,21 @@ class TorchNetwork : public NeuralNetwork {
     net_->eval();
     if (spec.architecture == NeuralArchitecture::kLstm) export_lstm();
   }
-  void predict(const double* windows, std::int64_t count, double* out) override {
+  void predict(const double* windows, std::int64_t count, double* out,
+               const double* columns) override {
+    if (p_ > 0 && !columns) throw std::runtime_error("the coefficients mode needs the columns");
     if (!lstm_.empty() && count == 1) {  // batch 1: a plain loop beats libtorch's per-step ops
-      out[0] = lstm_one(windows);
+      const Eigen::VectorXd y = lstm_one(windows);
+      out[0] = p_ > 0 ? y.dot(Eigen::Map<const Eigen::VectorXd>(columns, p_)) : y[0];
       return;
     }
     torch::InferenceMode guard;
     const torch::Tensor x =
         torch::from_blob(const_cast<double*>(windows), {count, k_, f_}, torch::kFloat64);
-    const torch::Tensor y = net_->forward(x, torch::Tensor()).contiguous();
+    const torch::Tensor tl =
+        p_ > 0 ? torch::from_blob(const_cast<double*>(columns), {count, p_}, torch::kFloat64)
+               : torch::Tensor();
+    const torch::Tensor y = net_->forward(x, tl).contiguous();
     std::copy(y.data_ptr<double>(), y.data_ptr<double>() + count, out);
   }
 
@@ -110,6 +135,11 @@ class TorchNetwork : public NeuralNetwork {
     Eigen::MatrixXd w_ih, w_hh;  // [4H, in], [4H, H]
     Eigen::VectorXd bias;        // b_ih + b_hh
   };
+
+  /// The body's outputs in coefficients mode (one per model column), else 0.
+  static int columns_of(const NeuralSpec& spec) {
+    return spec.mode == NeuralMode::kCoefficients ? static_cast<int>(spec.column_scale.size()) : 0;
+  }
 
   static Eigen::MatrixXd to_eigen(const torch::Tensor& t) {
     const torch::Tensor c = t.to(torch::kFloat64).contiguous();
@@ -130,12 +160,13 @@ class TorchNetwork : public NeuralNetwork {
       layer.bias = to_eigen(p["lstm.bias_ih_l" + n]) + to_eigen(p["lstm.bias_hh_l" + n]);
       lstm_.push_back(std::move(layer));
     }
-    fc_w_ = to_eigen(p["lstm_fc.weight"]).row(0).transpose();
-    fc_b_ = p["lstm_fc.bias"].item<double>();
+    fc_w_ = to_eigen(p["lstm_fc.weight"]);  // [outputs, H]
+    fc_b_ = to_eigen(p["lstm_fc.bias"]).col(0);
   }
 
-  /// The LSTM over one window [k, F] from zero state, in double precision (as torch does).
-  double lstm_one(const double* window) const {
+  /// The LSTM over one window [k, F] from zero state, in double precision (as torch does): its
+  /// outputs (one, or one per model column).
+  Eigen::VectorXd lstm_one(const double* window) const {
     const Eigen::Index hsize = lstm_[0].w_hh.cols();
     std::vector<Eigen::VectorXd> h(lstm_.size(), Eigen::VectorXd::Zero(hsize)),
         c(lstm_.size(), Eigen::VectorXd::Zero(hsize));
@@ -157,14 +188,15 @@ class TorchNetwork : public NeuralNetwork {
         in = h[l];
       }
     }
-    return h.back().dot(fc_w_) + fc_b_;
+    return fc_w_ * h.back() + fc_b_;
   }
 
   CompensatorNet net_;
   std::int64_t k_, f_;
+  std::int64_t p_;  // model columns in coefficients mode, else 0
   std::vector<LstmLayer> lstm_;
-  Eigen::VectorXd fc_w_;
-  double fc_b_ = 0.0;
+  Eigen::MatrixXd fc_w_;
+  Eigen::VectorXd fc_b_;
 };
 
 }  // namespace

@@ -8,11 +8,14 @@
 namespace magcomp {
 
 /// One network of any architecture: forward(windows [B, k, F], tl [B, P] or undefined) -> [B].
+/// n_tl_columns: in joint mode, the TL columns' linear layer (tl_linear); in coefficients mode,
+/// the body's outputs (one coefficient correction per model column), dotted with tl.
 struct CompensatorNetImpl : torch::nn::Module {
   CompensatorNetImpl(const NeuralSpec& spec, int n_features, int n_tl_columns);
   torch::Tensor forward(const torch::Tensor& windows, const torch::Tensor& tl);
 
   NeuralArchitecture architecture;
+  bool coefficients = false;  ///< the body's outputs are coefficient corrections
   int window = 1;
   int n_features = 0;
   torch::nn::Sequential mlp{nullptr};

@@ -180,7 +180,7 @@ TrainResult train_network(const NeuralSpec& spec, const TrainingData& train,
     for (size_t i = 0; i < params.size(); ++i) params[i].copy_(best_state[i]);
   }
   r.seconds = since(t0);
-  if (n_tl > 0) {
+  if (n_tl > 0 && net->tl_linear) {
     const torch::Tensor w = net->tl_linear->weight.detach().to(torch::kFloat64).contiguous();
     r.tl_weights = Eigen::Map<const Eigen::VectorXd>(w.data_ptr<double>(), n_tl);
   }
@@ -199,7 +199,8 @@ TrainResult train_network(const NeuralSpec& spec, const TrainingData& train,
 double time_one_epoch(const NeuralSpec& spec, const TrainingData& data, bool torch_lstm) {
   torch::manual_seed(spec.training.seed);
   torch::set_num_threads(spec.training.threads);
-  CompensatorNet net(spec, static_cast<int>(data.features.cols()), 0);
+  CompensatorNet net(spec, static_cast<int>(data.features.cols()),
+                     static_cast<int>(data.tl_columns.cols()));
   net->fused_lstm = !torch_lstm;
   net->train();
   torch::optim::Adam opt(net->parameters(), torch::optim::AdamOptions(spec.training.learning_rate)

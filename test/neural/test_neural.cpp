@@ -108,6 +108,21 @@ TEST(Neural, SpecRoundTripsThroughTheModelYaml) {
   save_model_yaml(m, dir + "/model.yaml");
   EXPECT_EQ(load_model_yaml(dir).neural->output_gain, 0.375);
   EXPECT_FALSE(load_model_yaml(dir).neural->training.fit_output_gain);
+  // The coefficients mode keeps each column's scale; a bundle without it is refused by name.
+  m.neural->mode = NeuralMode::kCoefficients;
+  m.neural->tl_delta.resize(0);
+  m.neural->column_scale = Eigen::VectorXd::LinSpaced(m.coefficients.size(), 0.5, 2.0);
+  save_model_yaml(m, dir + "/model.yaml");
+  EXPECT_EQ(load_model_yaml(dir).neural->column_scale, m.neural->column_scale);
+  m.neural->column_scale.resize(3);
+  save_model_yaml(m, dir + "/model.yaml");
+  try {
+    load_model_yaml(dir);
+    FAIL() << "3 column scales for " << m.coefficients.size() << " columns were accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("neural.normalisation.column_scale"), std::string::npos)
+        << e.what();
+  }
   // Bad values name the key.
   std::ofstream(dir + "/gain.yaml") << "scalar: mag_5_uc\nvector: flux_c\nneural: {output_gain: "
                                        "1.5, features: [cur_strb]}\n";
@@ -283,45 +298,48 @@ TEST(Neural, TheNetworksShareIsFittedOnTheValidationFlight) {
 
 TEST(Neural, PredictionsAreCausalAndStreamingEqualsOffline) {
   const std::string dir = test::temp_dir("neural_stream");
-  for (const char* arch : {"mlp", "cnn", "lstm"}) {
-    SCOPED_TRACE(arch);
-    Model m = neural_model(arch, "anomaly", std::string(arch) == "mlp" ? 5 : 8, 1);
-    train_bundle(m, {flight(11)}, {}, dir + "/" + arch, false);
-    const Model model = load_model_yaml(dir + "/" + arch);
-    const FlightData& f = flight(12);
-    const NeuralCompensation off = neural_compensate(model, f);
-    // Causal: changing the inputs after sample j leaves every output up to j unchanged.
-    FlightData g = f;
-    const Eigen::Index j = f.size() / 2;
-    g.mutable_column("cur_strb").tail(f.size() - j - 1).array() += 50.0;
-    g.mutable_column("ins_roll").tail(f.size() - j - 1).array() += 10.0;
-    const NeuralCompensation changed = neural_compensate(model, g);
-    EXPECT_EQ(changed.network_nT.head(j + 1), off.network_nT.head(j + 1));
-    EXPECT_NE(changed.network_nT[j + 1], off.network_nT[j + 1]);
-    // Streaming at batch 1 through a ring buffer = offline, sample for sample.
-    StreamingCompensator sc(model);
-    ASSERT_TRUE(sc.has_network());
-    ASSERT_TRUE(sc.needs_igrf());
-    const Eigen::VectorXd igrf = igrf_total_nT(f, Igrf::installed());
-    std::vector<StreamOutput> out;
-    for (Eigen::Index i = 0; i < f.size(); ++i) {
-      for (const auto& o : sc.push(sample_of(f, igrf, i, sc.required_channels()))) out.push_back(o);
+  for (const std::string mode : {"anomaly", "coefficients"})
+    for (const char* arch : {"mlp", "cnn", "lstm"}) {
+      SCOPED_TRACE(mode + " " + arch);
+      Model m = neural_model(arch, mode, std::string(arch) == "mlp" ? 5 : 8, 1);
+      const std::string out_dir = dir + "/" + mode + "_" + arch;
+      train_bundle(m, {flight(11)}, {}, out_dir, false);
+      const Model model = load_model_yaml(out_dir);
+      const FlightData& f = flight(12);
+      const NeuralCompensation off = neural_compensate(model, f);
+      // Causal: changing the inputs after sample j leaves every output up to j unchanged.
+      FlightData g = f;
+      const Eigen::Index j = f.size() / 2;
+      g.mutable_column("cur_strb").tail(f.size() - j - 1).array() += 50.0;
+      g.mutable_column("ins_roll").tail(f.size() - j - 1).array() += 10.0;
+      const NeuralCompensation changed = neural_compensate(model, g);
+      EXPECT_EQ(changed.network_nT.head(j + 1), off.network_nT.head(j + 1));
+      EXPECT_NE(changed.network_nT[j + 1], off.network_nT[j + 1]);
+      // Streaming at batch 1 through a ring buffer = offline, sample for sample.
+      StreamingCompensator sc(model);
+      ASSERT_TRUE(sc.has_network());
+      ASSERT_TRUE(sc.needs_igrf());
+      const Eigen::VectorXd igrf = igrf_total_nT(f, Igrf::installed());
+      std::vector<StreamOutput> out;
+      for (Eigen::Index i = 0; i < f.size(); ++i) {
+        for (const auto& o : sc.push(sample_of(f, igrf, i, sc.required_channels())))
+          out.push_back(o);
+      }
+      for (const auto& o : sc.flush()) out.push_back(o);
+      ASSERT_EQ(static_cast<Eigen::Index>(out.size()), f.size());
+      double worst = 0;
+      int compared = 0;
+      for (Eigen::Index i = 0; i < f.size(); ++i) {
+        const double a = out[static_cast<size_t>(i)].compensated_nT, b = off.compensated_nT[i];
+        if (std::isnan(b)) continue;
+        worst = std::max(worst, std::abs(a - b));
+        ++compared;
+      }
+      std::printf("  %s %s: streaming vs offline max |diff| %.3g nT over %d samples\n",
+                  mode.c_str(), arch, worst, compared);
+      EXPECT_GT(compared, f.size() - 10);
+      EXPECT_LT(worst, 1e-6);
     }
-    for (const auto& o : sc.flush()) out.push_back(o);
-    ASSERT_EQ(static_cast<Eigen::Index>(out.size()), f.size());
-    double worst = 0;
-    int compared = 0;
-    for (Eigen::Index i = 0; i < f.size(); ++i) {
-      const double a = out[static_cast<size_t>(i)].compensated_nT, b = off.compensated_nT[i];
-      if (std::isnan(b)) continue;
-      worst = std::max(worst, std::abs(a - b));
-      ++compared;
-    }
-    std::printf("  %s: streaming vs offline max |diff| %.3g nT over %d samples\n", arch, worst,
-                compared);
-    EXPECT_GT(compared, f.size() - 10);
-    EXPECT_LT(worst, 1e-6);
-  }
 }
 
 TEST(Neural, EveryApplyEntryPointRunsTheNetworkAndGivesTheSameNumbers) {
@@ -363,6 +381,45 @@ TEST(Neural, JointModeMovesTheTlCoefficientsAndAppliesThem) {
       EXPECT_NEAR(nc.correction_nT[i], expect[i], 1e-6) << i;
     }
   }
+}
+
+// The coefficients mode (MagNav.jl's "2d" idea, the report's proposal): the network corrects
+// every model coefficient at every sample from its window. On TL with the strobe's wire missing
+// (a field along a fixed direction scaled by its current: coefficients that move with cur_strb),
+// it lowers TL's error on a flight it never saw below the residual network's with the same body
+// and training, and its prediction is A(t) δc(t) plus the target's mean.
+TEST(Neural, TheCoefficientsModeCorrectsTheModelsCoefficientsAtEverySample) {
+  const std::string dir = test::temp_dir("neural_coefficients");
+  Model m = neural_model("mlp", "coefficients", 5, 12);
+  train_bundle(m, {flight(11)}, {flight(13)}, dir + "/c", false);
+  Model r = neural_model("mlp", "residual", 5, 12);
+  train_bundle(r, {flight(11)}, {flight(13)}, dir + "/r", false);
+  const Model c = load_model_yaml(dir + "/c");
+  ASSERT_EQ(c.neural->mode, NeuralMode::kCoefficients);
+  ASSERT_EQ(c.neural->column_scale.size(), c.coefficients.size());
+  const FlightData& f = flight(12);
+  const NeuralCompensation nc = neural_compensate(c, f);
+  const Eigen::MatrixXd dc = coefficient_corrections(c, f);
+  const Eigen::MatrixXd a = design_matrix(c, f);
+  double worst = 0;
+  for (Eigen::Index i = 0; i < f.size(); ++i)
+    if (std::isfinite(nc.network_nT[i]))
+      worst = std::max(
+          worst, std::abs(nc.network_nT[i] - (a.row(i).dot(dc.row(i)) + c.neural->target_mean)));
+  EXPECT_LT(worst, 1e-6);
+  Model tl = c;
+  tl.neural.reset();
+  const Evaluation tle = evaluate_model(tl, f, "mag_1_c");
+  const Evaluation coef = evaluate_model(c, f, "mag_1_c");
+  const Evaluation resid = evaluate_model(load_model_yaml(dir + "/r"), f, "mag_1_c");
+  std::printf(
+      "  held-out flight std: TL %.3f nT, residual MLP %.3f nT, TL's coefficients "
+      "corrected by the MLP %.3f nT; A dc = the prediction to %.1e nT\n",
+      tle.std_nT, resid.std_nT, coef.std_nT, worst);
+  EXPECT_LT(coef.std_nT, 0.6 * tle.std_nT);
+  EXPECT_LT(coef.std_nT, resid.std_nT);
+  // Another mode has no coefficient corrections to read.
+  EXPECT_THROW(coefficient_corrections(load_model_yaml(dir + "/r"), f), Error);
 }
 
 TEST(Neural, MissingFeatureOrWeightsFailWithTheName) {

@@ -80,8 +80,9 @@ NeuralTraining parse_neural_training(const YAML::Node& t, const std::string& pat
 
 // `neural.normalisation`: each feature's mean and std and the target's, one per feature.
 void parse_neural_normalisation(const YAML::Node& z, const std::string& path, NeuralSpec* s) {
-  warn_unknown(z, {"feature_mean", "feature_std", "target_mean_nT", "target_std_nT"}, path,
-               "neural.normalisation.");
+  warn_unknown(z,
+               {"feature_mean", "feature_std", "target_mean_nT", "target_std_nT", "column_scale"},
+               path, "neural.normalisation.");
   for (const char* k : {"feature_mean", "feature_std", "target_mean_nT", "target_std_nT"}) {
     if (!z[k]) throw Error(path + ": key 'neural.normalisation." + k + "' missing");
   }
@@ -99,6 +100,12 @@ void parse_neural_normalisation(const YAML::Node& z, const std::string& path, Ne
   }
   if (!(s->target_std > 0) || !(s->feature_std.array() > 0).all()) {
     throw Error(path + ": key 'neural.normalisation' holds a non-positive std");
+  }
+  if (z["column_scale"]) {
+    s->column_scale = to_vector(
+        get<std::vector<double>>(z["column_scale"], path, "neural.normalisation.column_scale"));
+    if (!(s->column_scale.array() > 0).all())
+      throw Error(path + ": key 'neural.normalisation.column_scale' holds a non-positive scale");
   }
 }
 
@@ -132,6 +139,12 @@ NeuralSpec parse_neural(const YAML::Node& n, const std::string& path, size_t tl_
       throw Error(path + ": key 'neural.tl_delta' has " + std::to_string(s.tl_delta.size()) +
                   " values, the terms have " + std::to_string(tl_columns) + " columns");
     }
+  }
+  if (s.mode == NeuralMode::kCoefficients && s.feature_mean.size() > 0 &&
+      static_cast<size_t>(s.column_scale.size()) != tl_columns) {
+    throw Error(path + ": key 'neural.normalisation.column_scale' has " +
+                std::to_string(s.column_scale.size()) + " values, the terms have " +
+                std::to_string(tl_columns) + " columns");
   }
   if (n["weights"]) {
     s.weights = get<std::string>(n["weights"], path, "neural.weights");
@@ -188,6 +201,8 @@ void emit_neural(YAML::Emitter& out, const NeuralSpec& s) {
     out << YAML::Key << "feature_std" << YAML::Value << YAML::Flow << to_std(s.feature_std);
     out << YAML::Key << "target_mean_nT" << YAML::Value << s.target_mean;
     out << YAML::Key << "target_std_nT" << YAML::Value << s.target_std;
+    if (s.column_scale.size() > 0)
+      out << YAML::Key << "column_scale" << YAML::Value << YAML::Flow << to_std(s.column_scale);
     out << YAML::EndMap;
   }
   if (s.tl_delta.size() > 0) {

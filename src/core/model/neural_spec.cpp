@@ -25,6 +25,8 @@ const char* mode_name(NeuralMode m) {
       return "anomaly";
     case NeuralMode::kJoint:
       return "joint";
+    case NeuralMode::kCoefficients:
+      return "coefficients";
     case NeuralMode::kResidual:
       break;
   }
@@ -39,10 +41,11 @@ NeuralArchitecture parse_architecture(const std::string& text, const std::string
 }
 
 NeuralMode parse_mode(const std::string& text, const std::string& where) {
-  for (auto m : {NeuralMode::kAnomaly, NeuralMode::kResidual, NeuralMode::kJoint}) {
+  for (auto m : {NeuralMode::kAnomaly, NeuralMode::kResidual, NeuralMode::kJoint,
+                 NeuralMode::kCoefficients}) {
     if (text == mode_name(m)) return m;
   }
-  throw Error(where + " must be anomaly, residual or joint, not '" + text + "'");
+  throw Error(where + " must be anomaly, residual, joint or coefficients, not '" + text + "'");
 }
 
 std::vector<int> NeuralSpec::hidden_or_default() const {

@@ -50,7 +50,8 @@ Attribution permutation_importance(const Model& model, const FlightData& data,
   Attribution a;
   a.samples = static_cast<Eigen::Index>(rows.size());
   a.repeats = repeats;
-  const Eigen::VectorXd base = squared_errors(network_output_nT(s, z, *network), target, rows);
+  const Eigen::VectorXd base =
+      squared_errors(network_output_nT(s, z, *network, &in.tl_columns), target, rows);
   a.baseline_mse_nT2 = base.mean();
   std::mt19937_64 rng(seed * 0x9E3779B97F4A7C15ULL + 11);
   std::vector<size_t> order(rows.size());
@@ -65,7 +66,8 @@ Attribution permutation_importance(const Model& model, const FlightData& data,
       std::shuffle(order.begin(), order.end(), rng);
       Eigen::MatrixXd zs = z;
       for (size_t r = 0; r < rows.size(); ++r) zs(k, rows[r]) = z(k, rows[order[r]]);
-      rise += squared_errors(network_output_nT(s, zs, *network), target, rows) - base;
+      rise +=
+          squared_errors(network_output_nT(s, zs, *network, &in.tl_columns), target, rows) - base;
     }
     rise /= repeats;
     imp.importance_nT2 = rise.mean();

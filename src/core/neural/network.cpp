@@ -73,12 +73,25 @@ Eigen::MatrixXd standardised_inputs(const NeuralSpec& s, const Eigen::MatrixXd& 
   return z;
 }
 
+// Model columns divided by the spec's column_scale, non-finite values as 0 (as in training).
+static void scale_columns(const NeuralSpec& s, const double* a, double* out) {
+  for (Eigen::Index j = 0; j < s.column_scale.size(); ++j) {
+    const double v = a[j] / s.column_scale[j];
+    out[j] = std::isfinite(v) ? v : 0.0;
+  }
+}
+
 Eigen::VectorXd network_output_nT(const NeuralSpec& s, const Eigen::MatrixXd& z,
-                                  NeuralNetwork& network) {
+                                  NeuralNetwork& network, const Eigen::MatrixXd* columns) {
   const Eigen::Index n = z.cols(), f = z.rows(), k = s.window;
+  const bool coefficients = s.mode == NeuralMode::kCoefficients;
+  const Eigen::Index p = s.column_scale.size();
+  if (coefficients && (!columns || columns->rows() != n || columns->cols() != p))
+    throw Error("neural: the coefficients mode needs the model's " + std::to_string(p) +
+                " columns at every sample");
   Eigen::VectorXd y(n);
   const Eigen::Index chunk = 2048;
-  std::vector<double> windows;
+  std::vector<double> windows, scaled;
   for (Eigen::Index start = 0; start < n; start += chunk) {
     const Eigen::Index count = std::min(chunk, n - start);
     windows.assign(static_cast<size_t>(count * k * f), 0.0);
@@ -88,7 +101,15 @@ Eigen::VectorXd network_output_nT(const NeuralSpec& s, const Eigen::MatrixXd& z,
         std::copy(z.col(src).data(), z.col(src).data() + f, windows.data() + (b * k + j) * f);
       }
     }
-    network.predict(windows.data(), count, y.data() + start);
+    if (coefficients) {
+      scaled.assign(static_cast<size_t>(count * p), 0.0);
+      for (Eigen::Index b = 0; b < count; ++b) {
+        const Eigen::RowVectorXd a = columns->row(start + b);
+        scale_columns(s, a.data(), scaled.data() + b * p);
+      }
+    }
+    network.predict(windows.data(), count, y.data() + start,
+                    coefficients ? scaled.data() : nullptr);
   }
   return y.array() * s.target_std + s.target_mean;
 }
@@ -102,7 +123,8 @@ NeuralCompensation neural_compensate(const Model& model, const FlightData& data,
   NeuralCompensation out;
   out.measured_nT = in.scalar_nT;
   out.terms_correction_nT = in.correction_nT;
-  out.network_nT = network_output_nT(s, standardised_inputs(s, in.features), *network);
+  out.network_nT =
+      network_output_nT(s, standardised_inputs(s, in.features), *network, &in.tl_columns);
   const Eigen::VectorXd delta = s.tl_delta.size() > 0 ? Eigen::VectorXd(in.tl_columns * s.tl_delta)
                                                       : Eigen::VectorXd::Zero(n);
   out.correction_nT.resize(n);
@@ -114,10 +136,30 @@ NeuralCompensation neural_compensate(const Model& model, const FlightData& data,
   return out;
 }
 
+Eigen::MatrixXd coefficient_corrections(const Model& model, const FlightData& data,
+                                        std::shared_ptr<NeuralNetwork> network) {
+  if (!model.neural || model.neural->mode != NeuralMode::kCoefficients)
+    throw Error("model: the network does not correct coefficients (neural.mode coefficients)");
+  const NeuralSpec& s = *model.neural;
+  const NeuralInputs in = neural_inputs(model, data);
+  if (!network) network = load_neural_network(model, static_cast<int>(in.features.cols()));
+  const Eigen::MatrixXd z = standardised_inputs(s, in.features);
+  const Eigen::Index n = z.cols(), p = s.column_scale.size();
+  // The prediction is linear in the scaled columns: column j's unit vector reads output j.
+  Eigen::MatrixXd out(n, p);
+  for (Eigen::Index j = 0; j < p; ++j) {
+    Eigen::MatrixXd unit = Eigen::MatrixXd::Zero(n, p);
+    unit.col(j).setConstant(s.column_scale[j]);
+    out.col(j) =
+        (network_output_nT(s, z, *network, &unit).array() - s.target_mean) / s.column_scale[j];
+  }
+  return out;
+}
+
 NeuralStreamer::NeuralStreamer(const NeuralSpec& spec, std::shared_ptr<NeuralNetwork> network)
     : spec_(spec), network_(std::move(network)) {}
 
-double NeuralStreamer::push(const double* raw_features) {
+double NeuralStreamer::push(const double* raw_features, const double* columns) {
   const size_t f = static_cast<size_t>(spec_.feature_mean.size());
   const size_t k = static_cast<size_t>(spec_.window);
   if (!filled_) {
@@ -131,8 +173,14 @@ double NeuralStreamer::push(const double* raw_features) {
     std::copy(window_.begin() + f, window_.end(), window_.begin());  // drop the oldest row
     standardise_features(spec_, raw_features, window_.data() + (k - 1) * f);
   }
+  const bool coefficients = spec_.mode == NeuralMode::kCoefficients;
+  if (coefficients) {
+    if (!columns) throw Error("neural: the coefficients mode needs the sample's model columns");
+    columns_.resize(static_cast<size_t>(spec_.column_scale.size()));
+    scale_columns(spec_, columns, columns_.data());
+  }
   double y = 0.0;
-  network_->predict(window_.data(), 1, &y);
+  network_->predict(window_.data(), 1, &y, coefficients ? columns_.data() : nullptr);
   return y * spec_.target_std + spec_.target_mean;
 }
 

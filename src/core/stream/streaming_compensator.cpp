@@ -207,7 +207,7 @@ StreamOutput StreamingCompensator::emit(Eigen::Index index) {
     const NeuralSpec& s = *model_.neural;
     plan_->row(o.measured_nT, o.tl_correction_nT, x.igrf_nT, x.vector_nT, x.channels.data(),
                feature_row_.data());
-    const double y = streamer_->push(feature_row_.data());
+    const double y = streamer_->push(feature_row_.data(), a.data());
     const double delta = s.tl_delta.size() > 0 ? a.dot(s.tl_delta) : 0.0;
     o.correction_nT = neural_correction_nT(s, o.measured_nT, o.tl_correction_nT, delta, x.igrf_nT,
                                            plan_->diurnal_nT(x.channels.data()), y);

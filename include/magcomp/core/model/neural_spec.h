@@ -34,10 +34,14 @@ struct NeuralTraining {
 ///   correction = A c + prediction (MagNav.jl's "model 2b" idea).
 /// - `joint`: as residual, but a change of the TL coefficients is trained with the network;
 ///   correction = A (c + tl_delta) + prediction (MagNav.jl's "model 2c" idea).
+/// - `coefficients`: the network corrects the model's coefficients at every sample from its
+///   window: its body outputs one value per model column, δc(t), and correction =
+///   A(t) (c + δc(t)) (MagNav.jl's "model 2d" idea, proposed in Laoué's report with a CNN or an
+///   RNN as the body).
 enum class NeuralArchitecture { kMlp, kCnn, kLstm };
-enum class NeuralMode { kAnomaly, kResidual, kJoint };
+enum class NeuralMode { kAnomaly, kResidual, kJoint, kCoefficients };
 
-/// The YAML spellings: mlp, cnn, lstm; anomaly, residual, joint.
+/// The YAML spellings: mlp, cnn, lstm; anomaly, residual, joint, coefficients.
 const char* architecture_name(NeuralArchitecture a);
 const char* mode_name(NeuralMode m);
 /// The enum of a YAML spelling; an Error naming `where` (file: key) and the choices otherwise.
@@ -62,6 +66,9 @@ struct NeuralSpec {
   double target_mean = 0.0;  ///< nT
   double target_std = 1.0;   ///< nT
   Eigen::VectorXd tl_delta;  ///< joint mode: change of the TL coefficients (model units)
+  /// coefficients mode: each model column's rms on the training flights (its units); the
+  /// network's outputs are the coefficient corrections of the columns divided by these.
+  Eigen::VectorXd column_scale;
   std::string weights;       ///< weights file, relative to the model YAML's directory
   std::string weights_path;  ///< resolved at load (not written)
   int version = 1;           ///< bundle format version

@@ -20,8 +20,12 @@ class NeuralNetwork {
  public:
   virtual ~NeuralNetwork() = default;
   /// windows: count x window x features, row-major (oldest sample first, features fastest);
-  /// out: count predictions (standardised target). Runs in double precision.
-  virtual void predict(const double* windows, std::int64_t count, double* out) = 0;
+  /// out: count predictions (standardised target). Runs in double precision. columns: in
+  /// coefficients mode, count x P model columns at each window's last sample divided by the
+  /// spec's column_scale (row-major): the prediction is the network's P outputs dotted with
+  /// them. Ignored (may be null) in the other modes.
+  virtual void predict(const double* windows, std::int64_t count, double* out,
+                       const double* columns) = 0;
 };
 
 /// Loads the network of a trained model's neural stage from its weights file, through
@@ -48,8 +52,17 @@ Eigen::MatrixXd standardised_inputs(const NeuralSpec& spec, const Eigen::MatrixX
 /// The network's output at every sample, nT (its target's units: the residual of the terms, or
 /// the anomaly), from standardised inputs z (F x N): windows end at each sample and are padded at
 /// the start by repeating the first sample, as neural_compensate does.
+/// columns: the model's design matrix A (N x P), which the coefficients mode needs (null in
+/// the others).
 Eigen::VectorXd network_output_nT(const NeuralSpec& spec, const Eigen::MatrixXd& z,
-                                  NeuralNetwork& network);
+                                  NeuralNetwork& network, const Eigen::MatrixXd* columns = nullptr);
+
+/// Coefficients mode: the network's correction of each model coefficient at every sample, δc(t)
+/// (N x P, in each coefficient's own units), so that its prediction is A(t) δc(t) plus the
+/// target's mean. What the network learned, read as physics: e.g. the permanent-field
+/// coefficients following a current are a wire. Throws for another mode.
+Eigen::MatrixXd coefficient_corrections(const Model& model, const FlightData& data,
+                                        std::shared_ptr<NeuralNetwork> network = nullptr);
 
 /// Maps the network's prediction y (nT) to the total correction, given the sample's realigned
 /// scalar, TL correction A c, A·tl_delta, IGRF and diurnal (nT); the spec's output_gain blends it
@@ -61,15 +74,17 @@ double neural_correction_nT(const NeuralSpec& spec, double scalar_nT, double tl_
 class NeuralStreamer {
  public:
   NeuralStreamer(const NeuralSpec& spec, std::shared_ptr<NeuralNetwork> network);
-  /// Adds a raw feature row and returns the network's prediction for it, nT.
-  double push(const double* raw_features);
+  /// Adds a raw feature row and returns the network's prediction for it, nT. columns: the
+  /// sample's model columns (a row of A, P values), which the coefficients mode needs.
+  double push(const double* raw_features, const double* columns = nullptr);
   /// Forgets the window (after a gap or a time jump); the next row is padded as at a start.
   void reset() { filled_ = false; }
 
  private:
   const NeuralSpec spec_;
   std::shared_ptr<NeuralNetwork> network_;
-  std::vector<double> window_;  // window x features, oldest row first
+  std::vector<double> window_;   // window x features, oldest row first
+  std::vector<double> columns_;  // the sample's model columns / column_scale (coefficients)
   bool filled_ = false;
 };
 
