@@ -38,6 +38,15 @@ CompensatorNetImpl::CompensatorNetImpl(const NeuralSpec& spec, int n_feat, int n
     const int len = window / 4;
     cnn_fc1 = register_module("cnn_fc1", torch::nn::Linear(h[1] * len, 32));
     cnn_fc2 = register_module("cnn_fc2", torch::nn::Linear(32, outputs));
+  } else if (architecture == NeuralArchitecture::kCnnLstm) {
+    // The report's stack: a convolution over time (h[0] filters, kernel 5, ReLU, max-pool 2)
+    // feeding an LSTM of h[1] units; its last step's output to the outputs.
+    conv1 = register_module(
+        "conv1", torch::nn::Conv1d(torch::nn::Conv1dOptions(n_features, h[0], 5).padding(2)));
+    lstm = register_module(
+        "lstm",
+        torch::nn::LSTM(torch::nn::LSTMOptions(h[0], h[1]).num_layers(1).batch_first(true)));
+    lstm_fc = register_module("lstm_fc", torch::nn::Linear(h[1], outputs));
   } else {
     // LSTM layers of h[0] units (h.size() layers), the last step's output to one value.
     lstm = register_module("lstm", torch::nn::LSTM(torch::nn::LSTMOptions(n_features, h[0])
@@ -51,6 +60,7 @@ CompensatorNetImpl::CompensatorNetImpl(const NeuralSpec& spec, int n_feat, int n
     const std::shared_ptr<torch::nn::LinearImpl> last =
         architecture == NeuralArchitecture::kMlp ? mlp->ptr<torch::nn::LinearImpl>(mlp->size() - 1)
         : architecture == NeuralArchitecture::kCnn ? cnn_fc2.ptr()
+                                                   // kLstm and kCnnLstm end in lstm_fc
                                                    : lstm_fc.ptr();
     last->weight.mul_(0.01);
     last->bias.zero_();
@@ -72,6 +82,15 @@ torch::Tensor CompensatorNetImpl::forward(const torch::Tensor& x, const torch::T
     z = torch::max_pool1d(torch::relu(conv1->forward(z)), 2);
     z = torch::max_pool1d(torch::relu(conv2->forward(z)), 2);
     y = cnn_fc2->forward(torch::relu(cnn_fc1->forward(z.flatten(1))));
+  } else if (architecture == NeuralArchitecture::kCnnLstm) {
+    torch::Tensor z = x.transpose(1, 2);  // [B, F, k]
+    z = torch::max_pool1d(torch::relu(conv1->forward(z)), 2).transpose(1, 2).contiguous();
+    if (fused_lstm && z.scalar_type() == torch::kFloat32) {
+      y = lstm_fc->forward(fused_lstm_last(z, lstm->all_weights()));
+    } else {
+      auto out = std::get<0>(lstm->forward(z));
+      y = lstm_fc->forward(out.select(1, out.size(1) - 1));
+    }
   } else if (fused_lstm && x.scalar_type() == torch::kFloat32) {
     // Training and validation (float32): one autograd node for the whole recurrence.
     y = lstm_fc->forward(fused_lstm_last(x, lstm->all_weights()));

@@ -54,7 +54,7 @@ Model neural_model(const std::string& arch, const std::string& mode, int window,
   s.training.weight_decay = 1e-4;
   s.training.patience = 100;
   if (arch == "lstm") s.hidden = {8};
-  if (arch == "cnn") s.hidden = {4, 8};
+  if (arch == "cnn" || arch == "cnn_lstm") s.hidden = {4, 8};
   m.neural = s;
   return m;
 }
@@ -299,7 +299,7 @@ TEST(Neural, TheNetworksShareIsFittedOnTheValidationFlight) {
 TEST(Neural, PredictionsAreCausalAndStreamingEqualsOffline) {
   const std::string dir = test::temp_dir("neural_stream");
   for (const std::string mode : {"anomaly", "coefficients"})
-    for (const char* arch : {"mlp", "cnn", "lstm"}) {
+    for (const char* arch : {"mlp", "cnn", "lstm", "cnn_lstm"}) {
       SCOPED_TRACE(mode + " " + arch);
       Model m = neural_model(arch, mode, std::string(arch) == "mlp" ? 5 : 8, 1);
       const std::string out_dir = dir + "/" + mode + "_" + arch;
@@ -420,6 +420,30 @@ TEST(Neural, TheCoefficientsModeCorrectsTheModelsCoefficientsAtEverySample) {
   EXPECT_LT(coef.std_nT, resid.std_nT);
   // Another mode has no coefficient corrections to read.
   EXPECT_THROW(coefficient_corrections(load_model_yaml(dir + "/r"), f), Error);
+}
+
+// The CNN feeding an LSTM that the report proposes (8 filters, 16 units, window 8, 40 epochs at a
+// learning rate of 1e-2): on TL with the strobe's wire missing it lowers TL's error on a flight
+// it never saw below 60 % (2.145 against 8.697 nT; the residual MLP of the test above: 4.369).
+TEST(Neural, TheCnnLstmStackLearnsAMissingWire) {
+  const std::string dir = test::temp_dir("neural_cnn_lstm");
+  Model m = neural_model("cnn_lstm", "residual", 8, 40);
+  m.neural->hidden = {8, 16};
+  m.neural->training.learning_rate = 1e-2;
+  m.neural->training.lr_decay = 0.95;
+  const BundleReport rep = train_bundle(m, {flight(11)}, {flight(13)}, dir + "/s", false);
+  const Model s = load_model_yaml(dir + "/s");
+  EXPECT_EQ(s.neural->architecture, NeuralArchitecture::kCnnLstm);
+  const FlightData& f = flight(12);
+  Model tl = s;
+  tl.neural.reset();
+  const double tl_std = evaluate_model(tl, f, "mag_1_c").std_nT;
+  const double stack_std = evaluate_model(s, f, "mag_1_c").std_nT;
+  std::printf(
+      "  held-out flight std: TL %.3f nT, CNN -> LSTM on its residual %.3f nT (%d epochs, "
+      "%.1f s)\n",
+      tl_std, stack_std, rep.result.epochs_run, rep.result.seconds);
+  EXPECT_LT(stack_std, 0.6 * tl_std);
 }
 
 TEST(Neural, MissingFeatureOrWeightsFailWithTheName) {

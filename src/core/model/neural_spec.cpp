@@ -13,6 +13,8 @@ const char* architecture_name(NeuralArchitecture a) {
       return "cnn";
     case NeuralArchitecture::kLstm:
       return "lstm";
+    case NeuralArchitecture::kCnnLstm:
+      return "cnn_lstm";
     case NeuralArchitecture::kMlp:
       break;
   }
@@ -34,10 +36,11 @@ const char* mode_name(NeuralMode m) {
 }
 
 NeuralArchitecture parse_architecture(const std::string& text, const std::string& where) {
-  for (auto a : {NeuralArchitecture::kMlp, NeuralArchitecture::kCnn, NeuralArchitecture::kLstm}) {
+  for (auto a : {NeuralArchitecture::kMlp, NeuralArchitecture::kCnn, NeuralArchitecture::kLstm,
+                 NeuralArchitecture::kCnnLstm}) {
     if (text == architecture_name(a)) return a;
   }
-  throw Error(where + " must be mlp, cnn or lstm, not '" + text + "'");
+  throw Error(where + " must be mlp, cnn, lstm or cnn_lstm, not '" + text + "'");
 }
 
 NeuralMode parse_mode(const std::string& text, const std::string& where) {
@@ -50,7 +53,8 @@ NeuralMode parse_mode(const std::string& text, const std::string& where) {
 
 std::vector<int> NeuralSpec::hidden_or_default() const {
   if (!hidden.empty()) return hidden;
-  if (architecture == NeuralArchitecture::kCnn) return {16, 32};
+  if (architecture == NeuralArchitecture::kCnn || architecture == NeuralArchitecture::kCnnLstm)
+    return {16, 32};
   if (architecture == NeuralArchitecture::kLstm) return {32, 32};
   return {16, 4};
 }
@@ -70,6 +74,11 @@ void validate_neural_spec(const NeuralSpec& s, const std::string& where) {
   }
   if (s.architecture == NeuralArchitecture::kCnn && s.hidden_or_default().size() != 2) {
     throw Error(p + "hidden' of a cnn is its two filter counts, e.g. [16, 32]");
+  }
+  if (s.architecture == NeuralArchitecture::kCnnLstm) {
+    if (s.window < 2) throw Error(p + "window' must be >= 2 for a cnn_lstm");
+    if (s.hidden_or_default().size() != 2)
+      throw Error(p + "hidden' of a cnn_lstm is its filter count and LSTM units, e.g. [16, 32]");
   }
   if (s.reference.empty()) throw Error(p + "reference' must name the target field");
   const NeuralTraining& t = s.training;

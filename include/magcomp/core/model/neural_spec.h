@@ -38,10 +38,13 @@ struct NeuralTraining {
 ///   window: its body outputs one value per model column, δc(t), and correction =
 ///   A(t) (c + δc(t)) (MagNav.jl's "model 2d" idea, proposed in Laoué's report with a CNN or an
 ///   RNN as the body).
-enum class NeuralArchitecture { kMlp, kCnn, kLstm };
+/// Architectures: Laoué's MLP, CNN and LSTM, and `cnn_lstm`, the stack the report proposes: a
+/// convolution over the window (filters hidden[0], kernel 5, ReLU, max-pool 2) feeding an LSTM
+/// of hidden[1] units whose last step gives the output.
+enum class NeuralArchitecture { kMlp, kCnn, kLstm, kCnnLstm };
 enum class NeuralMode { kAnomaly, kResidual, kJoint, kCoefficients };
 
-/// The YAML spellings: mlp, cnn, lstm; anomaly, residual, joint, coefficients.
+/// The YAML spellings: mlp, cnn, lstm, cnn_lstm; anomaly, residual, joint, coefficients.
 const char* architecture_name(NeuralArchitecture a);
 const char* mode_name(NeuralMode m);
 /// The enum of a YAML spelling; an Error naming `where` (file: key) and the choices otherwise.
@@ -82,7 +85,8 @@ struct NeuralSpec {
   double output_gain = 1.0;
 
   bool trained() const { return !weights.empty() && feature_mean.size() > 0; }
-  /// Hidden sizes, or the architecture's default (mlp 16,4; cnn 16,32; lstm 32,32).
+  /// Hidden sizes, or the architecture's default (mlp 16,4; cnn 16,32; lstm 32,32;
+  /// cnn_lstm 16,32).
   std::vector<int> hidden_or_default() const;
 };
 
