@@ -55,12 +55,12 @@ CompensatorNetImpl::CompensatorNetImpl(const NeuralSpec& spec, int n_feat, int n
     lstm_fc = register_module("lstm_fc", torch::nn::Linear(h[0], outputs));
   }
   if (coefficients) {
-    // Start from the model's own coefficients: every correction zero.
+    // Start from the model's own coefficients: every correction (nearly) zero. The last layer:
+    // the MLP's, the CNN's second dense layer, or the LSTM's (and the CNN->LSTM's) lstm_fc.
     torch::NoGradGuard g;
     const std::shared_ptr<torch::nn::LinearImpl> last =
         architecture == NeuralArchitecture::kMlp ? mlp->ptr<torch::nn::LinearImpl>(mlp->size() - 1)
         : architecture == NeuralArchitecture::kCnn ? cnn_fc2.ptr()
-                                                   // kLstm and kCnnLstm end in lstm_fc
                                                    : lstm_fc.ptr();
     last->weight.mul_(0.01);
     last->bias.zero_();

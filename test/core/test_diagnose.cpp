@@ -36,7 +36,6 @@ double std_on(const Model& m, const FlightData& f, const std::vector<double>& li
   return std::sqrt(ss / n);
 }
 
-// The lines of a flight that the starting model's fit never saw.
 // The loop's rounds that added terms (round 0 first; a round that only chose the ridge strength,
 // LoopRound::regularisation, left out).
 std::vector<LoopRound> term_rounds(const LoopResult& r) {
@@ -46,6 +45,7 @@ std::vector<LoopRound> term_rounds(const LoopResult& r) {
   return out;
 }
 
+// The lines of a flight that the starting model's fit never saw.
 std::vector<double> unfitted_lines(const Model& start, const Model& final_model,
                                    const FlightData& f) {
   std::vector<double> held;
