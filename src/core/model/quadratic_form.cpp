@@ -25,7 +25,9 @@ void per_row(const Eigen::MatrixXd& c, const Eigen::Ref<const Eigen::MatrixXd>& 
 typedef double Quad __attribute__((vector_size(32)));
 constexpr int kQuads = kLanes / 4;
 
-inline Quad load(const double* x) {
+// Always inlined: called out of line (at -O0) from the avx2 clone, a 32-byte vector would cross a
+// call between code built for AVX2 and code built without it, whose ABIs pass it differently.
+__attribute__((always_inline)) inline Quad load(const double* x) {
   Quad q;
   __builtin_memcpy(&q, x, sizeof q);
   return q;
