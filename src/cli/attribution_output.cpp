@@ -1,6 +1,7 @@
 // magcomp command line: a trained network's attribution, printed and as JSON.
 #include "attribution_output.h"
 
+#include <cmath>
 #include <cstdio>
 
 #include "common.h"
@@ -16,6 +17,26 @@ void print_attribution(const Attribution& a, const std::string& where) {
   for (const InputImportance& i : a.inputs)
     std::printf("  %-24s %12s nT^2 %7.1f%%\n", i.feature.c_str(),
                 figure(i.importance_nT2, "%.4g").c_str(), 100 * i.share);
+  if (a.channels.empty()) return;
+  std::printf(
+      "the aircraft's channels it leans on (each with every input that reads it shuffled "
+      "together; the model's own inputs left out):\n");
+  for (const ChannelImportance& c : a.channels) {
+    std::string via;
+    if (c.features.size() > 1 || (c.features.size() == 1 && c.features[0] != c.channel)) {
+      for (const auto& f : c.features) via += (via.empty() ? " (" : ", ") + f;
+      via += ")";
+    }
+    std::printf("  %-24s %12s nT^2 %7.1f%%%s\n", c.channel.c_str(),
+                figure(c.importance_nT2, "%.4g").c_str(), 100 * c.share, via.c_str());
+  }
+  if (std::isfinite(a.own_inputs_nT2))
+    std::printf("  (the model's own inputs together: %s nT^2%s)\n",
+                figure(a.own_inputs_nT2, "%.4g").c_str(),
+                a.own_inputs_nT2 > a.channels.front().importance_nT2
+                    ? ", above every channel: what it corrects is in the sensors or the terms' "
+                      "own inputs (a lag, the coefficients), not in a channel of the aircraft"
+                    : "");
 }
 
 nlohmann::json attribution_json(const Attribution& a) {
@@ -29,11 +50,19 @@ nlohmann::json attribution_json(const Attribution& a) {
                       {"share", json_figure(i.share)},
                       {"per_line", lines}});
   }
+  nlohmann::json channels = nlohmann::json::array();
+  for (const ChannelImportance& c : a.channels)
+    channels.push_back({{"channel", c.channel},
+                        {"features", c.features},
+                        {"importance_nT2", json_figure(c.importance_nT2)},
+                        {"share", json_figure(c.share)}});
   return {{"method", a.method},
           {"baseline_mse_nT2", json_figure(a.baseline_mse_nT2)},
           {"samples", static_cast<long>(a.samples)},
           {"repeats", a.repeats},
-          {"inputs", inputs}};
+          {"inputs", inputs},
+          {"channels", channels},
+          {"own_inputs_nT2", json_figure(a.own_inputs_nT2)}};
 }
 
 }  // namespace magcomp::cli

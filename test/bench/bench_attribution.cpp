@@ -3,14 +3,21 @@
 // random_base flight of one aircraft, flies it three times (train, early-stop, explain), fits TL
 // on the first, trains a residual MLP on what TL leaves with every aircraft channel as an input,
 // and ranks the inputs by permutation importance on the third flight (core/neural/attribution).
-// A run counts when the first-ranked input is a channel the effect acts through. Prints one line
-// per run and the share over the predictable runs (effects of recorded channels).
-// Usage: magcomp_bench_attribution SCENARIO.yaml TL_MODEL.yaml [runs] [first_seed] [epochs]
+// Each channel enters raw and through causal low-passes (default 100 s: effects slower
+// than the window), and the channels are ranked with all their inputs shuffled together
+// (Attribution::channels). A run counts when the first-ranked channel is one the effect acts
+// through (for an effect of no channel, a lag: when the model's own inputs together outweigh
+// every channel); the first-ranked single input is printed beside it. Prints one line per run and
+// the shares over the predictable runs (effects of recorded channels). Usage:
+// magcomp_bench_attribution SCENARIO.yaml TL_MODEL.yaml [runs] [first_seed] [epochs]
+//        [low-pass time constants, s, comma-separated, or "none"]
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <set>
+#include <sstream>
 #include <string>
 
 #include "magcomp/core/diagnose/diagnose.h"
@@ -36,14 +43,21 @@ int main(int argc, char** argv) {
     const int runs = argc > 3 ? std::atoi(argv[3]) : 20;
     const unsigned first = argc > 4 ? static_cast<unsigned>(std::atoi(argv[4])) : 1;
     const int epochs = argc > 5 ? std::atoi(argv[5]) : 20;
+    std::vector<std::string> lowpass_s;
+    {
+      std::stringstream list(argc > 6 ? argv[6] : "100");
+      for (std::string tau; std::getline(list, tau, ',');)
+        if (!tau.empty() && tau != "none") lowpass_s.push_back(tau);
+    }
     const Igrf& igrf = Igrf::installed();
     const std::string dir = std::string(std::getenv("TMPDIR") ? std::getenv("TMPDIR") : "/tmp") +
                             "/magcomp_bench_attribution";
     std::filesystem::create_directories(dir);
     int counted = 0, first_right = 0, top3_right = 0;
     const auto t0 = std::chrono::steady_clock::now();
-    std::printf("%4s %8s %8s %5s %-22s %6s  %s\n", "run", "TL nT", "MLP nT", "first", "first input",
-                "share", "effect");
+    // "own": the model's own inputs together outweigh the first channel.
+    std::printf("%4s %8s %8s %5s %-16s %6s %3s  %-22s  %s\n", "run", "TL nT", "MLP nT", "first",
+                "first channel", "share", "", "first input", "effect");
     for (int k = 0; k < runs; ++k) {
       const unsigned r = first + static_cast<unsigned>(k);
       sim::Scenario base = base0;
@@ -74,8 +88,11 @@ int main(int argc, char** argv) {
       spec.mode = parse_mode("residual", "bench");
       spec.window = 5;
       spec.features = {"tl_anomaly", "tl_correction", "dir_x", "dir_y", "dir_z"};
-      for (const std::string& c : source_fields(m, flights[0], "mag_1_c", true, nullptr))
-        if (!is_position_channel(c)) spec.features.push_back(c);
+      for (const std::string& c : source_fields(m, flights[0], "mag_1_c", true, nullptr)) {
+        if (is_position_channel(c)) continue;
+        spec.features.push_back(c);
+        for (const auto& tau : lowpass_s) spec.features.push_back(c + "|lp(" + tau + ")");
+      }
       spec.training.epochs = epochs;
       spec.training.patience = 5;
       m.neural = spec;
@@ -87,26 +104,32 @@ int main(int argc, char** argv) {
       const double tl_nT = evaluate_model(tl_only, flights[2], "mag_1_c", false).std_nT;
       const double nn_nT = evaluate_model(trained, flights[2], "mag_1_c", false).std_nT;
       const Attribution a = permutation_importance(trained, flights[2]);
-      const std::string top = a.inputs.front().feature;
-      const bool right = truth.count(top) > 0;
+      // An effect of no channel (a lag) is named when the model's own inputs together outweigh
+      // every channel of the aircraft; any other by the first-ranked channel.
+      const bool own_first =
+          std::isfinite(a.own_inputs_nT2) &&
+          (a.channels.empty() || a.own_inputs_nT2 > a.channels.front().importance_nT2);
+      const std::string top = a.channels.empty() ? "" : a.channels.front().channel;
+      const bool right = truth.empty() ? own_first : truth.count(top) > 0;
       bool in_top3 = false;
-      for (size_t i = 0; i < a.inputs.size() && i < 3; ++i)
-        in_top3 = in_top3 || truth.count(a.inputs[i].feature) > 0;
+      for (size_t i = 0; i < a.channels.size() && i < 3; ++i)
+        in_top3 = in_top3 || truth.count(a.channels[i].channel) > 0;
       if (predictable) {
         ++counted;
         first_right += right;
         top3_right += in_top3;
       }
-      std::printf("%4u %8.3f %8.3f %5s %-22s %5.1f%%  %s%s\n", r, tl_nT, nn_nT,
+      std::printf("%4u %8.3f %8.3f %5s %-16s %5.1f%% %3s  %-22s  %s%s\n", r, tl_nT, nn_nT,
                   right ? "yes" : (in_top3 ? "top3" : "no"), top.c_str(),
-                  100 * a.inputs.front().share, described.c_str(),
+                  a.channels.empty() ? 0.0 : 100 * a.channels.front().share, own_first ? "own" : "",
+                  a.inputs.front().feature.c_str(), described.c_str(),
                   predictable ? "" : " (not predictable: not counted)");
       std::fflush(stdout);
     }
     const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     std::printf(
-        "\n%d predictable runs: the first-ranked input carries the effect in %d (%.0f %%), one of "
-        "the first three in %d (%.0f %%); %.0f s\n",
+        "\n%d predictable runs: the first-ranked channel carries the effect in %d (%.0f %%), one "
+        "of the first three in %d (%.0f %%); %.0f s\n",
         counted, first_right, counted ? 100.0 * first_right / counted : 0.0, top3_right,
         counted ? 100.0 * top3_right / counted : 0.0, s);
     return 0;

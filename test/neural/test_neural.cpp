@@ -336,6 +336,87 @@ TEST(Neural, PredictionsAreCausalAndStreamingEqualsOffline) {
     }
 }
 
+TEST(Neural, ASignalOfChannelsIsAnInputWithTheSameRecursionOfflineAndOnline) {
+  // A low-pass of a channel (an effect slower than the window) and a product of two channels as
+  // inputs: offline they equal the first-order recursion and the product computed here; the
+  // node's streaming path gives the offline compensation; their channels are ranked with every
+  // input that reads them shuffled together.
+  Model m = neural_model("mlp", "residual", 5, 3);
+  m.neural->features.push_back("cur_strb|lp(30)");
+  m.neural->features.push_back("cur_strb*ins_roll");
+  fit_model(m, {&flight(11)});
+  const FlightData& f = flight(12);
+  const NeuralInputs in = neural_inputs(m, f);
+  ASSERT_EQ(in.features.cols(), 9);
+  const Eigen::VectorXd t = f.tt(), x = f.column("cur_strb"), roll = f.column("ins_roll");
+  double y = x[0], worst_lp = 0, worst_product = 0;
+  for (Eigen::Index i = 0; i < f.size(); ++i) {
+    if (i > 0) {
+      const double a = std::exp(-(t[i] - t[i - 1]) / 30.0);
+      y = a * y + (1 - a) * x[i];
+    }
+    worst_lp = std::max(worst_lp, std::abs(in.features(i, 7) - y));
+    worst_product = std::max(worst_product, std::abs(in.features(i, 8) - x[i] * roll[i]));
+  }
+  EXPECT_LT(worst_lp, 1e-12);
+  EXPECT_EQ(worst_product, 0.0);
+  // Streaming = offline through the trained bundle.
+  const std::string dir = test::temp_dir("neural_signal_features");
+  train_bundle(m, {flight(11)}, {flight(13)}, dir + "/b", false);
+  const Model model = load_model_yaml(dir + "/b");
+  ASSERT_EQ(model.neural->features, m.neural->features);
+  const NeuralCompensation off = neural_compensate(model, f);
+  StreamingCompensator sc(model);
+  const Eigen::VectorXd igrf = igrf_total_nT(f, Igrf::installed());
+  std::vector<StreamOutput> out;
+  for (Eigen::Index i = 0; i < f.size(); ++i)
+    for (const auto& o : sc.push(sample_of(f, igrf, i, sc.required_channels()))) out.push_back(o);
+  for (const auto& o : sc.flush()) out.push_back(o);
+  ASSERT_EQ(static_cast<Eigen::Index>(out.size()), f.size());
+  double worst = 0;
+  int compared = 0;
+  for (Eigen::Index i = 0; i < f.size(); ++i) {
+    if (std::isnan(off.compensated_nT[i])) continue;
+    worst = std::max(worst,
+                     std::abs(out[static_cast<size_t>(i)].compensated_nT - off.compensated_nT[i]));
+    ++compared;
+  }
+  std::printf("  lp %.2g, product %.2g; streaming vs offline max |diff| %.3g nT over %d samples\n",
+              worst_lp, worst_product, worst, compared);
+  EXPECT_GT(compared, f.size() - 10);
+  EXPECT_LT(worst, 1e-9);
+  // The channels: cur_strb read by three inputs, ins_roll by two, shuffled together.
+  const Attribution a = permutation_importance(model, f, nullptr, 2, 3);
+  ASSERT_EQ(a.channels.size(), 2u);
+  double shares = 0;
+  for (const auto& c : a.channels) {
+    std::printf("  channel %-9s %9.4f nT^2 %5.1f %% (%zu inputs)\n", c.channel.c_str(),
+                c.importance_nT2, 100 * c.share, c.features.size());
+    shares += c.share;
+    if (c.channel == "cur_strb")
+      EXPECT_EQ(c.features,
+                (std::vector<std::string>{"cur_strb", "cur_strb|lp(30)", "cur_strb*ins_roll"}));
+    else
+      EXPECT_EQ(c.features, (std::vector<std::string>{"ins_roll", "cur_strb*ins_roll"}));
+  }
+  EXPECT_NEAR(shares, 1.0, 1e-12);
+  EXPECT_EQ(a.channels.front().channel, "cur_strb");  // the strobe's wire
+  // A signal input that is not causal, has a free parameter or reads the vector sensor is
+  // refused, naming the key and the input.
+  for (const std::string bad : {"cur_strb|d", "cur_strb|lp(?)", "B|lp(30)"}) {
+    std::ofstream(dir + "/bad.yaml") << "scalar: mag_5_uc\nvector: flux_c\nneural: {features: "
+                                        "[tl_anomaly, '"
+                                     << bad << "']}\n";
+    try {
+      load_model_yaml(dir + "/bad.yaml");
+      ADD_FAILURE() << bad << " was accepted";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("neural.features': '" + bad + "'"), std::string::npos)
+          << e.what();
+    }
+  }
+}
+
 TEST(Neural, EveryApplyEntryPointRunsTheNetworkAndGivesTheSameNumbers) {
   Model m = neural_model("mlp", "residual", 5, 2);
   const std::string dir = test::temp_dir("neural_entry_points");
@@ -530,6 +611,21 @@ TEST(Neural, AttributionRanksTheHiddenWiresChannelFirstAndItsFiguresAddUp) {
   EXPECT_EQ(j["attribution"]["inputs"][0]["feature"], c.inputs.front().feature);
   EXPECT_NEAR(j["attribution"]["inputs"][0]["importance_nT2"].get<double>(),
               c.inputs.front().importance_nT2, 1e-9 * c.inputs.front().importance_nT2);
+  // The aircraft's channels: each read by one input here, so each has that input's figure; the
+  // model's own inputs are not among them.
+  EXPECT_NE(out.find("the aircraft's channels it leans on"), std::string::npos) << out;
+  ASSERT_EQ(j["attribution"]["channels"].size(), 2u);
+  EXPECT_EQ(j["attribution"]["channels"][0]["channel"], "cur_strb");
+  // The model's own five inputs shuffled together weigh less than the wire's current.
+  ASSERT_TRUE(std::isfinite(c.own_inputs_nT2));
+  EXPECT_NEAR(j["attribution"]["own_inputs_nT2"].get<double>(), c.own_inputs_nT2,
+              1e-9 * c.own_inputs_nT2);
+  EXPECT_LT(c.own_inputs_nT2, c.channels.front().importance_nT2);
+  for (const ChannelImportance& ch : c.channels) {
+    ASSERT_EQ(ch.features, std::vector<std::string>{ch.channel});
+    for (const InputImportance& i : c.inputs)
+      if (i.feature == ch.channel) EXPECT_EQ(ch.importance_nT2, i.importance_nT2);
+  }
   save_model_yaml(plain, dir + "/plain.yaml");
   EXPECT_NE(test::run(test::cli() + " evaluate --data " + dir + "/held.h5 --model " + dir +
                           "/plain.yaml --explain",

@@ -4,6 +4,7 @@
 #include <set>
 
 #include "magcomp/core/error.h"
+#include "magcomp/core/model/signal.h"
 
 namespace magcomp {
 
@@ -59,12 +60,33 @@ std::vector<int> NeuralSpec::hidden_or_default() const {
   return {16, 4};
 }
 
+bool is_signal_feature(const std::string& feature) {
+  return feature.find('|') != std::string::npos || feature.find('*') != std::string::npos;
+}
+
+SignalExpr signal_feature(const std::string& feature, const std::string& where) {
+  const std::string context = where + ": key 'neural.features': '" + feature + "'";
+  SignalExpr e = parse_signal(feature, context);
+  for (const auto& src : e.sources) {
+    if (src == "B" || src == "Bt")
+      throw Error(context +
+                  ": a feature is a product of recorded fields (the vector sensor's "
+                  "components enter as dir_x/y/z)");
+  }
+  if (e.has_free()) throw Error(context + ": a feature's parameters must be numbers, not '?'");
+  if (e.lookahead() > 0)
+    throw Error(context + ": a feature must be causal (its transforms need " +
+                std::to_string(e.lookahead()) + " sample(s) after each one)");
+  return e;
+}
+
 void validate_neural_spec(const NeuralSpec& s, const std::string& where) {
   const std::string p = where + ": key 'neural.";
   if (s.features.empty()) throw Error(p + "features' must list at least one input");
   std::set<std::string> seen;
   for (const auto& f : s.features) {
     if (!seen.insert(f).second) throw Error(p + "features' lists '" + f + "' twice");
+    if (is_signal_feature(f)) signal_feature(f, where);
   }
   if (s.window < 1 || s.window > 4096) throw Error(p + "window' must be in 1..4096 samples");
   if (s.architecture == NeuralArchitecture::kCnn && s.window < 4)

@@ -55,21 +55,27 @@ Attribution permutation_importance(const Model& model, const FlightData& data,
   a.baseline_mse_nT2 = base.mean();
   std::mt19937_64 rng(seed * 0x9E3779B97F4A7C15ULL + 11);
   std::vector<size_t> order(rows.size());
-  for (Eigen::Index k = 0; k < f; ++k) {
-    InputImportance imp;
-    imp.feature = k < static_cast<Eigen::Index>(s.features.size())
-                      ? s.features[static_cast<size_t>(k)]
-                      : "input " + std::to_string(k);
+  // The mean rise of the squared error over the scored rows when the inputs `group` are
+  // shuffled together (one permutation per repeat), per scored row.
+  const auto rise_of = [&](const std::vector<Eigen::Index>& group) {
     Eigen::VectorXd rise = Eigen::VectorXd::Zero(a.samples);
     for (int rep = 0; rep < repeats; ++rep) {
       std::iota(order.begin(), order.end(), size_t{0});
       std::shuffle(order.begin(), order.end(), rng);
       Eigen::MatrixXd zs = z;
-      for (size_t r = 0; r < rows.size(); ++r) zs(k, rows[r]) = z(k, rows[order[r]]);
+      for (Eigen::Index k : group)
+        for (size_t r = 0; r < rows.size(); ++r) zs(k, rows[r]) = z(k, rows[order[r]]);
       rise +=
           squared_errors(network_output_nT(s, zs, *network, &in.tl_columns), target, rows) - base;
     }
-    rise /= repeats;
+    return Eigen::VectorXd(rise / repeats);
+  };
+  for (Eigen::Index k = 0; k < f; ++k) {
+    InputImportance imp;
+    imp.feature = k < static_cast<Eigen::Index>(s.features.size())
+                      ? s.features[static_cast<size_t>(k)]
+                      : "input " + std::to_string(k);
+    const Eigen::VectorXd rise = rise_of({k});
     imp.importance_nT2 = rise.mean();
     for (const auto& [l, members] : by_line) {
       double sum = 0;
@@ -78,12 +84,42 @@ Attribution permutation_importance(const Model& model, const FlightData& data,
     }
     a.inputs.push_back(std::move(imp));
   }
-  double positive = 0;
-  for (const auto& i : a.inputs) positive += std::max(0.0, i.importance_nT2);
-  for (auto& i : a.inputs) i.share = positive > 0 ? std::max(0.0, i.importance_nT2) / positive : 0;
-  std::stable_sort(a.inputs.begin(), a.inputs.end(), [](const auto& x, const auto& y) {
-    return x.importance_nT2 > y.importance_nT2;
-  });
+  // The recorded channels: every input reading one is shuffled with it. A channel read by one
+  // input alone has that input's figure.
+  const FeaturePlan plan(model);
+  std::map<std::string, std::vector<Eigen::Index>> readers;
+  std::vector<std::string> channel_order;
+  for (size_t k = 0; k < plan.feature_channels().size() && static_cast<Eigen::Index>(k) < f; ++k) {
+    for (const auto& c : plan.feature_channels()[k]) {
+      if (readers.find(c) == readers.end()) channel_order.push_back(c);
+      auto& r = readers[c];
+      if (r.empty() || r.back() != static_cast<Eigen::Index>(k))
+        r.push_back(static_cast<Eigen::Index>(k));
+    }
+  }
+  for (const auto& c : channel_order) {
+    ChannelImportance ci;
+    ci.channel = c;
+    const std::vector<Eigen::Index>& group = readers[c];
+    for (Eigen::Index k : group) ci.features.push_back(a.inputs[static_cast<size_t>(k)].feature);
+    ci.importance_nT2 = group.size() == 1 ? a.inputs[static_cast<size_t>(group[0])].importance_nT2
+                                          : rise_of(group).mean();
+    a.channels.push_back(std::move(ci));
+  }
+  std::vector<Eigen::Index> own;
+  for (size_t k = 0; k < plan.feature_channels().size() && static_cast<Eigen::Index>(k) < f; ++k)
+    if (plan.feature_channels()[k].empty()) own.push_back(static_cast<Eigen::Index>(k));
+  if (!own.empty()) a.own_inputs_nT2 = rise_of(own).mean();
+  const auto shares = [](auto& items) {
+    double positive = 0;
+    for (const auto& i : items) positive += std::max(0.0, i.importance_nT2);
+    for (auto& i : items) i.share = positive > 0 ? std::max(0.0, i.importance_nT2) / positive : 0;
+    std::stable_sort(items.begin(), items.end(), [](const auto& x, const auto& y) {
+      return x.importance_nT2 > y.importance_nT2;
+    });
+  };
+  shares(a.inputs);
+  shares(a.channels);
   return a;
 }
 

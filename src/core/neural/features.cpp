@@ -13,7 +13,7 @@ FeaturePlan::FeaturePlan(const Model& model) {
   if (!model.neural) throw Error("model: no neural stage");
   const NeuralSpec& s = *model.neural;
   for (const auto& name : s.features) {
-    Item it{Kind::kField};
+    Item it{Kind::kField, -1, 0, {}, nullptr};
     if (name == "tl_anomaly") {
       it.kind = Kind::kTlAnomaly;
       needs_igrf_ = true;
@@ -31,10 +31,19 @@ FeaturePlan::FeaturePlan(const Model& model) {
                name == model.vector + "_z") {
       it.kind = Kind::kDirection;  // raw component: axis + 3 marks "not normalised"
       it.axis = 3 + (name.back() - 'x');
+    } else if (is_signal_feature(name)) {
+      it.kind = Kind::kSignal;
+      const SignalExpr e = signal_feature(name, "model");
+      for (const auto& src : e.sources) it.sources.push_back(field_index(src));
+      if (!e.transforms.empty()) it.chain = std::make_unique<TransformChain>(e.transforms);
     } else {
       it.field = field_index(name);
     }
-    items_.push_back(it);
+    std::vector<std::string> read;
+    if (it.kind == Kind::kField) read.push_back(fields_[static_cast<size_t>(it.field)]);
+    for (int k : it.sources) read.push_back(fields_[static_cast<size_t>(k)]);
+    channels_.push_back(std::move(read));
+    items_.push_back(std::move(it));
   }
   if (s.mode == NeuralMode::kAnomaly) needs_igrf_ = true;
   if (needs_igrf_) diurnal_field_ = field_index("diurnal");
@@ -67,8 +76,13 @@ double FeaturePlan::diurnal_nT(const double* channels) const {
   return std::isfinite(channels[c]) ? channels[c] : 0.0;
 }
 
-void FeaturePlan::row(double scalar_nT, double tl_correction_nT, double igrf_nT,
-                      const Eigen::Vector3d& vector_nT, const double* channels, double* out) const {
+void FeaturePlan::reset() {
+  for (auto& it : items_)
+    if (it.chain) it.chain->reset();
+}
+
+void FeaturePlan::row(double t_s, double scalar_nT, double tl_correction_nT, double igrf_nT,
+                      const Eigen::Vector3d& vector_nT, const double* channels, double* out) {
   const double diurnal = diurnal_nT(channels);
   for (size_t k = 0; k < items_.size(); ++k) {
     const Item& it = items_[k];
@@ -88,6 +102,17 @@ void FeaturePlan::row(double scalar_nT, double tl_correction_nT, double igrf_nT,
       case Kind::kDirection:
         out[k] = it.axis < 3 ? vector_nT[it.axis] / vector_nT.norm() : vector_nT[it.axis - 3];
         break;
+      case Kind::kSignal: {
+        double x = 1.0;
+        for (int src : it.sources) x *= channels[bound_[static_cast<size_t>(src)]];
+        if (!it.chain) {
+          out[k] = x;
+          break;
+        }
+        out[k] = NAN;  // causal (checked when parsed): one output per input
+        it.chain->push(t_s, x, [&](double, double y) { out[k] = y; });
+        break;
+      }
     }
   }
 }
@@ -121,9 +146,10 @@ NeuralInputs neural_inputs(const Model& model, const FlightData& data) {
   const auto bx = data.column(model.vector + "_x");
   const auto by = data.column(model.vector + "_y");
   const auto bz = data.column(model.vector + "_z");
+  const Eigen::VectorXd t = data.tt();
   for (Eigen::Index i = 0; i < n; ++i) {
     const double* chan = chr.col(i).data();
-    plan.row(in.scalar_nT[i], in.correction_nT[i], in.igrf_nT[i],
+    plan.row(t[i], in.scalar_nT[i], in.correction_nT[i], in.igrf_nT[i],
              Eigen::Vector3d(bx[i], by[i], bz[i]), chan, feat_t.col(i).data());
     in.diurnal_nT[i] = plan.diurnal_nT(chan);
   }

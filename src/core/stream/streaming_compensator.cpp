@@ -76,6 +76,7 @@ StreamingCompensator::StreamingCompensator(Model model, std::shared_ptr<NeuralNe
 
 void StreamingCompensator::reset() {
   if (streamer_) streamer_->reset();
+  if (plan_) plan_->reset();
   buffer_.clear();
   derived_.clear();
   for (auto& sig : signals_) {
@@ -205,7 +206,7 @@ StreamOutput StreamingCompensator::emit(Eigen::Index index) {
   if (streamer_) {
     const StreamSample& x = buffer_[static_cast<size_t>(index)];
     const NeuralSpec& s = *model_.neural;
-    plan_->row(o.measured_nT, o.tl_correction_nT, x.igrf_nT, x.vector_nT, x.channels.data(),
+    plan_->row(o.t_s, o.measured_nT, o.tl_correction_nT, x.igrf_nT, x.vector_nT, x.channels.data(),
                feature_row_.data());
     const double y = streamer_->push(feature_row_.data(), a.data());
     const double delta = s.tl_delta.size() > 0 ? a.dot(s.tl_delta) : 0.0;

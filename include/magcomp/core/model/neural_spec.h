@@ -9,6 +9,8 @@
 
 namespace magcomp {
 
+struct SignalExpr;
+
 /// Training settings (`neural.training`). Defaults are those of Laoué's report (Adam, batch 256, lr
 /// 1e-3 decayed by 0.9 per epoch, MSE).
 struct NeuralTraining {
@@ -56,7 +58,9 @@ struct NeuralSpec {
   NeuralMode mode = NeuralMode::kResidual;
   /// Inputs by name: a data field (cur_strb, ins_roll, baro...), `tl_anomaly` (the model's
   /// TL-compensated scalar - IGRF - diurnal, nT), `tl_correction` (A c, nT), `anomaly:<field>`
-  /// (field - IGRF - diurnal, nT), `dir_x|dir_y|dir_z` (vector-sensor direction cosines).
+  /// (field - IGRF - diurnal, nT), `dir_x|dir_y|dir_z` (vector-sensor direction cosines), or a
+  /// causal signal of fields in the terms' grammar (`cur_heat|lp(150)`, `cur_a*flap_deg`): an
+  /// effect slower than the window, seen through a low-pass of its channel.
   std::vector<std::string> features;
   int window = 5;           ///< samples per window; the window ends at the predicted sample
   std::vector<int> hidden;  ///< mlp: layer widths; cnn: conv filters; lstm: hidden size per layer
@@ -89,6 +93,13 @@ struct NeuralSpec {
   /// cnn_lstm 16,32).
   std::vector<int> hidden_or_default() const;
 };
+
+/// True when a neural feature is a signal of recorded fields (a product 'a*b' or transforms
+/// 'a|lp(100)', the terms' signal grammar) rather than one field or a named input.
+bool is_signal_feature(const std::string& feature);
+/// Parses such a feature: causal (no transform needing later samples), numeric parameters, and
+/// recorded fields only. Throws magcomp::Error naming `where`, the key and the feature.
+SignalExpr signal_feature(const std::string& feature, const std::string& where);
 
 /// Checks the spec's values (architecture, mode, window, features...). Throws magcomp::Error
 /// naming `where` (file) and the key.

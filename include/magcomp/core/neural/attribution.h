@@ -26,6 +26,15 @@ struct InputImportance {
   std::vector<std::pair<double, double>> per_line_nT2;
 };
 
+/// One recorded channel's weight: every input that reads it (the channel itself, its low-passes,
+/// its products) shuffled together with one permutation.
+struct ChannelImportance {
+  std::string channel;                ///< a data field
+  std::vector<std::string> features;  ///< the inputs that read it, in the model's order
+  double importance_nT2 = 0.0;        ///< the rise of the mean squared error, nT²
+  double share = 0.0;  ///< importance_nT2 over the sum of the channels' positive ones
+};
+
 /// A trained network's attribution on one flight.
 struct Attribution {
   std::string method = "permutation importance";
@@ -33,6 +42,14 @@ struct Attribution {
   Eigen::Index samples = 0;       ///< the samples scored (the target finite)
   int repeats = 0;                ///< shuffles averaged per input
   std::vector<InputImportance> inputs;  ///< the largest importance first
+  /// The recorded channels the inputs read, the largest importance first; the model's own
+  /// inputs (tl_anomaly, tl_correction, dir_*, anomaly:<field>, the vector components) are not
+  /// channels of the aircraft and are left out. Where a missing effect's channel is sought.
+  std::vector<ChannelImportance> channels;
+  /// The model's own inputs shuffled together, nT² (NaN when it has none): above every channel's
+  /// figure, what the network corrects lies in the sensors and the terms' own inputs (a lag, the
+  /// terms' coefficients) rather than in a channel of the aircraft.
+  double own_inputs_nT2 = NAN;
 };
 
 /// Permutation importance of every input of a model's trained neural stage on `data` (a flight
@@ -42,7 +59,8 @@ struct Attribution {
 /// error of the network's output against its training target (neural_target: the residual of
 /// the terms, or the anomaly), nT². Rows whose target is not finite are not scored. Throws
 /// magcomp::Error when the model has no trained neural stage, the data lacks an input or the
-/// target's reference, or no row can be scored.
+/// target's reference, or no row can be scored. The same for each recorded channel, its inputs
+/// shuffled together (Attribution::channels).
 Attribution permutation_importance(const Model& model, const FlightData& data,
                                    std::shared_ptr<NeuralNetwork> network = nullptr,
                                    int repeats = 2, unsigned seed = 1);

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -10,6 +11,7 @@
 #include "magcomp/core/geo/igrf_track.h"
 #include "magcomp/core/io/flight_data.h"
 #include "magcomp/core/model/model.h"
+#include "magcomp/core/model/signal.h"
 
 namespace magcomp {
 
@@ -30,24 +32,34 @@ class FeaturePlan {
   /// Throws magcomp::Error naming `where` and the first missing field.
   void bind(const std::vector<std::string>& channel_names, const std::string& where);
 
-  /// One raw feature row (units of each feature: nT, data units for fields). Inputs: the scalar
-  /// realigned by the model's lag, nT; the TL correction A c, nT; the IGRF total field, nT (NaN if
-  /// unknown); the vector sensor, nT; the channel values in bind()'s order.
-  void row(double scalar_nT, double tl_correction_nT, double igrf_nT,
-           const Eigen::Vector3d& vector_nT, const double* channels, double* out) const;
+  /// One raw feature row (units of each feature: nT, data units for fields). Inputs: the sample's
+  /// time, s; the scalar realigned by the model's lag, nT; the TL correction A c, nT; the IGRF
+  /// total field, nT (NaN if unknown); the vector sensor, nT; the channel values in bind()'s
+  /// order. Rows must come in time order: a signal feature's transforms (low-pass, decay...)
+  /// carry state from one row to the next, the same recursion offline and online.
+  void row(double t_s, double scalar_nT, double tl_correction_nT, double igrf_nT,
+           const Eigen::Vector3d& vector_nT, const double* channels, double* out);
+  /// Starts the signal features' transforms afresh (a new flight or stream).
+  void reset();
+  /// The recorded fields each feature reads (empty for the model's own inputs: tl_anomaly,
+  /// tl_correction, dir_*, anomaly:<field>, the vector components), in the features' order.
+  const std::vector<std::vector<std::string>>& feature_channels() const { return channels_; }
   /// Diurnal field at the sample, nT (0 when the data has none or it is NaN).
   double diurnal_nT(const double* channels) const;
 
  private:
-  enum class Kind { kField, kTlAnomaly, kTlCorrection, kAnomalyOf, kDirection };
+  enum class Kind { kField, kTlAnomaly, kTlCorrection, kAnomalyOf, kDirection, kSignal };
   struct Item {
     Kind kind;
     int field = -1;  // index in fields_
     int axis = 0;
+    std::vector<int> sources;               // kSignal: indices in fields_, multiplied
+    std::unique_ptr<TransformChain> chain;  // kSignal: its transforms (none: a plain product)
   };
   int field_index(const std::string& name);
   std::vector<Item> items_;
   std::vector<std::string> fields_;
+  std::vector<std::vector<std::string>> channels_;
   std::vector<int> bound_;  // fields_[k] is channel bound_[k]
   int diurnal_field_ = -1;
   bool needs_igrf_ = false;
