@@ -22,6 +22,7 @@
 #include "magcomp/core/stream/streaming_compensator.h"
 #include "magcomp/neural/fused_lstm.h"
 #include "magcomp/neural/trainer.h"
+#include "scenario_cache.h"
 #include "test_util.h"
 
 namespace magcomp {
@@ -624,7 +625,9 @@ TEST(Neural, AttributionRanksTheHiddenWiresChannelFirstAndItsFiguresAddUp) {
   for (const ChannelImportance& ch : c.channels) {
     ASSERT_EQ(ch.features, std::vector<std::string>{ch.channel});
     for (const InputImportance& i : c.inputs)
-      if (i.feature == ch.channel) EXPECT_EQ(ch.importance_nT2, i.importance_nT2);
+      if (i.feature == ch.channel) {
+        EXPECT_EQ(ch.importance_nT2, i.importance_nT2);
+      }
   }
   save_model_yaml(plain, dir + "/plain.yaml");
   EXPECT_NE(test::run(test::cli() + " evaluate --data " + dir + "/held.h5 --model " + dir +
@@ -633,6 +636,61 @@ TEST(Neural, AttributionRanksTheHiddenWiresChannelFirstAndItsFiguresAddUp) {
             0);
   EXPECT_NE(out.find("--explain"), std::string::npos) << out;
   EXPECT_EQ(std::count(out.begin(), out.end(), '\n'), 1) << out;
+}
+
+TEST(Neural, AttributionNamesTheChannelOfASlowEffectThroughItsLowPass) {
+  // thermal_heater: the heater's current squared through a 150 s thermal lag, hidden from TL,
+  // far slower than a 0.5 s window. Three flights of one aircraft (train, early-stop, explain).
+  // With the electrical channels raw, the network leans most on another current. With each
+  // channel also through a 100 s low-pass (not the effect's own law), the heater's current is
+  // the aircraft's channel it leans on most, and the network lowers TL's error on the flight it
+  // never saw.
+  std::vector<FlightData> flights;
+  for (unsigned k = 0; k < 3; ++k) {
+    sim::Scenario sc =
+        sim::load_scenario(test::source_dir() + "/config/scenarios/thermal_heater.yaml");
+    sc.aircraft_seed = 3;
+    sc.seed = 60 + k;
+    flights.push_back(sim::simulate(sc, Igrf::installed()).flight);
+    flights.back().set_source("thermal_heater_" + std::to_string(k) + ".h5");
+  }
+  const std::string dir = test::temp_dir("neural_slow_attribution");
+  for (const bool lowpass : {false, true}) {
+    Model m = test::reference_tl(flights[0]);  // TL against mag_1_c on the 1002 training lines
+    fit_model(m, {&flights[0]});
+    NeuralSpec spec;
+    spec.mode = parse_mode("residual", "test");
+    spec.window = 5;
+    spec.features = {"tl_anomaly", "tl_correction", "dir_x", "dir_y", "dir_z"};
+    for (const std::string c : {"cur_heat", "cur_strb", "cur_tank", "cur_flap", "cur_ac_lo"}) {
+      spec.features.push_back(c);
+      if (lowpass) spec.features.push_back(c + "|lp(100)");
+    }
+    spec.training.epochs = 30;
+    spec.training.patience = 5;
+    spec.training.fit_output_gain = false;
+    m.neural = spec;
+    const std::string out = dir + (lowpass ? "/lp" : "/raw");
+    train_bundle(m, {flights[0]}, {flights[1]}, out, false);
+    const Model trained = load_model_yaml(out);
+    Model terms = trained;
+    terms.neural.reset();
+    const double tl_nT = evaluate_model(terms, flights[2], "mag_1_c").std_nT;
+    const double network_nT = evaluate_model(trained, flights[2], "mag_1_c").std_nT;
+    const Attribution a = permutation_importance(trained, flights[2]);
+    std::printf("  %s: TL %.3f nT, with the network %.3f nT; channels:",
+                lowpass ? "low-passes" : "raw", tl_nT, network_nT);
+    for (const auto& c : a.channels) std::printf(" %s %.0f%%", c.channel.c_str(), 100 * c.share);
+    std::printf("\n");
+    ASSERT_EQ(a.channels.size(), 5u);
+    if (lowpass) {
+      EXPECT_EQ(a.channels.front().channel, "cur_heat");
+      EXPECT_GT(a.channels.front().share, 0.5);
+      EXPECT_LT(network_nT, 0.75 * tl_nT);
+    } else {
+      EXPECT_NE(a.channels.front().channel, "cur_heat");  // the premise
+    }
+  }
 }
 
 TEST(Neural, TrainPrintsWhatTheNetworkLeansOnOnTheValidationFlight) {
