@@ -111,7 +111,7 @@ int main(int argc, char** argv) {
           (a.channels.empty() || a.own_inputs_nT2 > a.channels.front().importance_nT2);
       const std::string top = a.channels.empty() ? "" : a.channels.front().channel;
       const bool right = truth.empty() ? own_first : truth.count(top) > 0;
-      bool in_top3 = false;
+      bool in_top3 = right;
       for (size_t i = 0; i < a.channels.size() && i < 3; ++i)
         in_top3 = in_top3 || truth.count(a.channels[i].channel) > 0;
       if (predictable) {
