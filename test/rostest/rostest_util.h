@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 #include <magcomp/CompensatedField.h>
 #include <ros/ros.h>
+#include <std_srvs/SetBool.h>
 
 #include <atomic>
 #include <chrono>
@@ -205,12 +206,34 @@ inline size_t wait_until_settled(const std::function<size_t()>& count, size_t ex
   return last;
 }
 
-/// Under simulated time (a `rosbag play --clock` replay): true once the clock has reached
-/// `last_stamp` (the replayed flight's last sample time, s). Without simulated time there is no
-/// clock to read the replay's progress from, and it returns true.
+/// Under simulated time (a `rosbag play --clock` replay): true once the clock has come within
+/// 1 s of `last_stamp` (the replayed flight's last sample time, s; the player publishes its
+/// clock at its own rate, so the last clock it sends may fall short of the last message).
+/// Without simulated time there is no clock to read the replay's progress from: true.
 inline bool replay_reached(const ros::Time& last_stamp) {
   if (!ros::Time::isSimTime()) return true;
-  return ros::Time::now() >= last_stamp;
+  return ros::Time::now() >= last_stamp - ros::Duration(1.0);
+}
+
+/// A player started paused (`rosbag play --pause`, node name `player`): waits until `ready()`
+/// holds (the node under test is up, e.g. its output has reached the test's subscriber), then
+/// `settle_s` more for its input subscriptions to connect, and starts the replay through the
+/// player's `pause_playback` service. A node slow to start (libtorch, a loaded machine) then
+/// misses no sample. Returns false if the node never came up within `limit_s` or the player
+/// offers no such service.
+inline bool start_replay_when_ready(const std::function<bool()>& ready, double limit_s,
+                                    double settle_s = 1.0,
+                                    const std::string& service = "/player/pause_playback") {
+  const ros::WallTime start = ros::WallTime::now();
+  while (!ready()) {
+    if ((ros::WallTime::now() - start).toSec() > limit_s) return false;
+    ros::WallDuration(0.05).sleep();
+  }
+  ros::WallDuration(settle_s).sleep();
+  if (!ros::service::waitForService(service, ros::Duration(limit_s))) return false;
+  std_srvs::SetBool play;
+  play.request.data = false;  // pause = false
+  return ros::service::call(service, play);
 }
 
 /// The test node's main: gtest, ros::init and an asynchronous spinner for the subscriptions.

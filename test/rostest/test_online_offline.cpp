@@ -45,6 +45,15 @@ TEST(OnlineOffline, WholeReplayedFlightEqualsOfflineWithNoSampleLost) {
   if (!relay_in.empty()) {
     relay = std::make_unique<FluxgateRelay>(nh, relay_in, relay_out, relay_max_delay_s, 7u);
   }
+  // A `rosbag play --pause` player (param player_paused): the replay begins once the node's
+  // output reaches this test. (The Player nodelet waits for the compensator by itself.)
+  bool player_paused = false;
+  pnh.param("player_paused", player_paused, false);
+  if (player_paused) {
+    ASSERT_TRUE(magcomp::rostest_util::start_replay_when_ready(
+        [&] { return collector.subscriber().getNumPublishers() > 0; }, 60.0))
+        << "the compensator never came up, or the player has no pause_playback service";
+  }
   // Wait for the whole flight (the node flushes its last samples when the bag ends). Under the
   // replay's clock, a pause in the outputs ends the wait only after the bag has reached its last
   // sample, so a node starved of CPU mid-flight is waited for, not taken as samples lost.
