@@ -27,8 +27,17 @@ void print_attribution(const Attribution& a, const std::string& where) {
       for (const auto& f : c.features) via += (via.empty() ? " (" : ", ") + f;
       via += ")";
     }
-    std::printf("  %-24s %12s nT^2 %7.1f%%%s\n", c.channel.c_str(),
-                figure(c.importance_nT2, "%.4g").c_str(), 100 * c.share, via.c_str());
+    // Channels that move with it: the network cannot tell them apart.
+    std::string alike;
+    for (const auto& [other, r] : c.look_alikes) {
+      char buf[96];
+      std::snprintf(buf, sizeof(buf), "%s%s r=%.3f", alike.empty() ? "; look-alikes: " : ", ",
+                    other.c_str(), r);
+      alike += buf;
+    }
+    std::printf("  %-24s %12s nT^2 %7.1f%%%s%s\n", c.channel.c_str(),
+                figure(c.importance_nT2, "%.4g").c_str(), 100 * c.share, via.c_str(),
+                alike.c_str());
   }
   if (std::isfinite(a.own_inputs_nT2))
     std::printf("  (the model's own inputs together: %s nT^2%s)\n",
@@ -51,11 +60,16 @@ nlohmann::json attribution_json(const Attribution& a) {
                       {"per_line", lines}});
   }
   nlohmann::json channels = nlohmann::json::array();
-  for (const ChannelImportance& c : a.channels)
+  for (const ChannelImportance& c : a.channels) {
+    nlohmann::json alikes = nlohmann::json::array();
+    for (const auto& [other, r] : c.look_alikes)
+      alikes.push_back({{"channel", other}, {"r", json_figure(r)}});
     channels.push_back({{"channel", c.channel},
                         {"features", c.features},
                         {"importance_nT2", json_figure(c.importance_nT2)},
-                        {"share", json_figure(c.share)}});
+                        {"share", json_figure(c.share)},
+                        {"look_alikes", alikes}});
+  }
   return {{"method", a.method},
           {"baseline_mse_nT2", json_figure(a.baseline_mse_nT2)},
           {"samples", static_cast<long>(a.samples)},

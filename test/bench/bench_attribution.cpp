@@ -7,7 +7,9 @@
 // than the window), and the channels are ranked with all their inputs shuffled together
 // (Attribution::channels). A run counts when the first-ranked channel is one the effect acts
 // through (for an effect of no channel, a lag: when the model's own inputs together outweigh
-// every channel); the first-ranked single input is printed beside it. Prints one line per run and
+// every channel), and also counts ("alike") when that channel is among the first-ranked
+// channel's look-alikes (channels whose values follow it, |r| >= 0.95, which the network cannot
+// tell apart); the first-ranked single input is printed beside it. Prints one line per run and
 // the shares over the predictable runs (effects of recorded channels). Usage:
 // magcomp_bench_attribution SCENARIO.yaml TL_MODEL.yaml [runs] [first_seed] [epochs]
 //        [low-pass time constants, s, comma-separated, or "none"]
@@ -53,7 +55,7 @@ int main(int argc, char** argv) {
     const std::string dir = std::string(std::getenv("TMPDIR") ? std::getenv("TMPDIR") : "/tmp") +
                             "/magcomp_bench_attribution";
     std::filesystem::create_directories(dir);
-    int counted = 0, first_right = 0, top3_right = 0;
+    int counted = 0, first_right = 0, top3_right = 0, alike_right = 0;
     const auto t0 = std::chrono::steady_clock::now();
     // "own": the model's own inputs together outweigh the first channel.
     std::printf("%4s %8s %8s %5s %-16s %6s %3s  %-22s  %s\n", "run", "TL nT", "MLP nT", "first",
@@ -111,6 +113,11 @@ int main(int argc, char** argv) {
           (a.channels.empty() || a.own_inputs_nT2 > a.channels.front().importance_nT2);
       const std::string top = a.channels.empty() ? "" : a.channels.front().channel;
       const bool right = truth.empty() ? own_first : truth.count(top) > 0;
+      // The effect's channel among the first-ranked channel's look-alikes (channels that move
+      // with it, which the network cannot tell apart).
+      bool alike = right;
+      for (size_t i = 0; !alike && !a.channels.empty() && i < a.channels[0].look_alikes.size(); ++i)
+        alike = truth.count(a.channels[0].look_alikes[i].first) > 0;
       bool in_top3 = right;
       for (size_t i = 0; i < a.channels.size() && i < 3; ++i)
         in_top3 = in_top3 || truth.count(a.channels[i].channel) > 0;
@@ -118,9 +125,10 @@ int main(int argc, char** argv) {
         ++counted;
         first_right += right;
         top3_right += in_top3;
+        alike_right += alike;
       }
       std::printf("%4u %8.3f %8.3f %5s %-16s %5.1f%% %3s  %-22s  %s%s\n", r, tl_nT, nn_nT,
-                  right ? "yes" : (in_top3 ? "top3" : "no"), top.c_str(),
+                  right ? "yes" : (alike ? "alike" : (in_top3 ? "top3" : "no")), top.c_str(),
                   a.channels.empty() ? 0.0 : 100 * a.channels.front().share, own_first ? "own" : "",
                   a.inputs.front().feature.c_str(), described.c_str(),
                   predictable ? "" : " (not predictable: not counted)");
@@ -128,9 +136,10 @@ int main(int argc, char** argv) {
     }
     const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     std::printf(
-        "\n%d predictable runs: the first-ranked channel carries the effect in %d (%.0f %%), one "
-        "of the first three in %d (%.0f %%); %.0f s\n",
-        counted, first_right, counted ? 100.0 * first_right / counted : 0.0, top3_right,
+        "\n%d predictable runs: the first-ranked channel carries the effect in %d (%.0f %%), it or "
+        "one of its look-alikes in %d (%.0f %%), one of the first three in %d (%.0f %%); %.0f s\n",
+        counted, first_right, counted ? 100.0 * first_right / counted : 0.0, alike_right,
+        counted ? 100.0 * alike_right / counted : 0.0, top3_right,
         counted ? 100.0 * top3_right / counted : 0.0, s);
     return 0;
   } catch (const std::exception& e) {

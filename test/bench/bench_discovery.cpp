@@ -15,7 +15,8 @@
 // Diagnosis::joint); states (the aircraft's non-electrical states recorded, and effects of a
 // switched current times one of them drawn among the others); half-several (runs alternate one
 // effect and two or three, instead of 60 % one, 30 % two, 10 % three); draws=N (each run on N
-// aircraft: the same effects, other aircraft and flights).
+// aircraft: the same effects, other aircraft and flights); verbose (each run's rounds with their
+// held-out errors and look-alikes).
 #include <array>
 #include <chrono>
 #include <cstdio>
@@ -37,7 +38,7 @@ int main(int argc, char** argv) {
     const int runs = argc > 3 ? std::atoi(argv[3]) : 50;
     const unsigned first = argc > 4 ? static_cast<unsigned>(std::atoi(argv[4])) : 1;
     magcomp::DiagnoseOptions options;
-    bool half_several = false, states = false;
+    bool half_several = false, states = false, verbose = false;
     unsigned draws = 1;
     for (int a = 5; a < argc; ++a) {
       const std::string opt = argv[a];
@@ -51,6 +52,8 @@ int main(int argc, char** argv) {
         options.joint_selection = false;
       } else if (opt == "states") {
         states = true;
+      } else if (opt == "verbose") {
+        verbose = true;
       } else if (opt == "half-several") {
         half_several = true;
       } else if (opt.rfind("draws=", 0) == 0 && std::atoi(opt.c_str() + 6) >= 1) {
@@ -58,7 +61,7 @@ int main(int argc, char** argv) {
       } else {
         std::fprintf(stderr,
                      "error: option '%s': one-at-a-time, choose-lambda, no-span-ridge, no-joint, "
-                     "states, half-several or draws=N\n",
+                     "states, half-several, verbose or draws=N\n",
                      opt.c_str());
         return 2;
       }
@@ -118,6 +121,17 @@ int main(int argc, char** argv) {
                     d.effects.c_str(), kept.empty() ? "(none)" : kept.c_str(),
                     d.worse_than_tl() ? "  WORSE THAN TL" : "",
                     d.complete_above_floor() ? "  COMPLETE ABOVE FLOOR" : "");
+        // Each round: what it added or removed and its held-out error, overall and per half.
+        for (size_t i = 0; verbose && i < d.rounds.size(); ++i) {
+          const magcomp::LoopRound& lr = d.rounds[i];
+          std::printf("       round %d: held out %.4f nT (halves %.4f, %.4f)  %s\n", lr.round,
+                      lr.heldout_std_nT, lr.selection_std_nT, lr.confirmation_std_nT,
+                      i == 0 ? "(start)" : lr.added.c_str());
+          for (const auto& [term, why] : lr.removed)
+            std::printf("         removed %s: %s\n", term.c_str(), why.c_str());
+          for (const auto& [term, held_nT] : lr.look_alikes)
+            std::printf("         look-alike %s: held out %.4f nT\n", term.c_str(), held_nT);
+        }
         std::fflush(stdout);
       }
       runs_predictable += run_predictable;

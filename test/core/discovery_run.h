@@ -35,6 +35,7 @@ struct DiscoveryRun {
   /// rate, in the band, follows the roll angle as TL's induced terms do).
   double true_terms_next_nT = NAN;
   std::vector<std::string> added;            ///< the terms the loop kept
+  std::vector<LoopRound> rounds;             ///< the loop's rounds, round 0 first
   std::vector<std::string> slow_terms;       ///< those of its model fitted by the slow stage
   std::string verdict;                       ///< the loop's last verdict
   double residual_nT = NAN, floor_nT = NAN;  ///< its held-out residual and noise floor
@@ -151,6 +152,7 @@ inline DiscoveryRun discovery_run(unsigned r, int count, sim::Scenario base, con
   out.tl_next_nT = evaluate_model(start, fb.flight, "mag_1_c", false).std_nT;
   out.loop_next_nT = evaluate_model(loop.model, fb.flight, "mag_1_c", false).std_nT;
   for (size_t k = 1; k < loop.rounds.size(); ++k) out.added.push_back(loop.rounds[k].added);
+  out.rounds = loop.rounds;
   out.slow_terms = loop.model.slow_terms;
   const auto channels_of = [](const std::string& term) {
     std::set<std::string> out;

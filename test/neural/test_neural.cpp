@@ -617,6 +617,8 @@ TEST(Neural, AttributionRanksTheHiddenWiresChannelFirstAndItsFiguresAddUp) {
   EXPECT_NE(out.find("the aircraft's channels it leans on"), std::string::npos) << out;
   ASSERT_EQ(j["attribution"]["channels"].size(), 2u);
   EXPECT_EQ(j["attribution"]["channels"][0]["channel"], "cur_strb");
+  // The strobe's current follows no other input's channel.
+  EXPECT_EQ(j["attribution"]["channels"][0]["look_alikes"].size(), 0u);
   // The model's own five inputs shuffled together weigh less than the wire's current.
   ASSERT_TRUE(std::isfinite(c.own_inputs_nT2));
   EXPECT_NEAR(j["attribution"]["own_inputs_nT2"].get<double>(), c.own_inputs_nT2,
@@ -636,6 +638,61 @@ TEST(Neural, AttributionRanksTheHiddenWiresChannelFirstAndItsFiguresAddUp) {
             0);
   EXPECT_NE(out.find("--explain"), std::string::npos) << out;
   EXPECT_EQ(std::count(out.begin(), out.end(), '\n'), 1) << out;
+}
+
+TEST(Neural, ChannelsThatMoveTogetherAreEachOthersLookAlikes) {
+  // A bus current and a monitor reading 0.8 of it with 1 % noise, the same current reversed, an
+  // unrelated load, a constant voltage: Pearson r computed here on the rows where both are
+  // finite, against look_alike_channels.
+  const Eigen::Index n = 2000;
+  FlightData f;
+  Eigen::VectorXd bus(n), monitor(n), reversed(n), load(n), fixed(n);
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const double t = 0.1 * static_cast<double>(i);
+    bus[i] = 10 + 3 * std::sin(0.05 * t) + std::sin(0.7 * t);
+    monitor[i] = 0.8 * bus[i] + 0.03 * std::sin(37.1 * t + 0.4);
+    reversed[i] = -bus[i];
+    load[i] = std::cos(0.013 * t) * std::sin(1.9 * t);
+    fixed[i] = 28.0;
+  }
+  monitor[7] = NAN;
+  f.set("cur_bus", bus);
+  f.set("cur_monitor", monitor);
+  f.set("cur_reversed", reversed);
+  f.set("cur_load", load);
+  f.set("vol_fixed", fixed);
+  std::vector<Eigen::Index> rows(static_cast<size_t>(n));
+  for (Eigen::Index i = 0; i < n; ++i) rows[static_cast<size_t>(i)] = i;
+  const std::vector<std::string> channels = {"cur_bus",      "cur_monitor", "cur_load",
+                                             "cur_reversed", "vol_fixed",   "cur_absent"};
+  const auto alikes = look_alike_channels(f, channels, rows);
+  ASSERT_EQ(alikes.size(), channels.size());
+  // The bus: its reversed copy (r = -1) first, then the monitor.
+  ASSERT_EQ(alikes[0].size(), 2u);
+  EXPECT_EQ(alikes[0][0].first, "cur_reversed");
+  EXPECT_NEAR(alikes[0][0].second, -1.0, 1e-12);
+  EXPECT_EQ(alikes[0][1].first, "cur_monitor");
+  double sa = 0, sb = 0, m = 0;
+  for (Eigen::Index i = 0; i < n; ++i)
+    if (std::isfinite(monitor[i])) sa += bus[i], sb += monitor[i], m += 1;
+  double saa = 0, sbb = 0, sab = 0;
+  for (Eigen::Index i = 0; i < n; ++i) {
+    if (!std::isfinite(monitor[i])) continue;
+    const double u = bus[i] - sa / m, v = monitor[i] - sb / m;
+    saa += u * u, sbb += v * v, sab += u * v;
+  }
+  const double r = sab / std::sqrt(saa * sbb);
+  EXPECT_GT(r, 0.95);
+  EXPECT_LT(r, 1.0);
+  EXPECT_NEAR(alikes[0][1].second, r, 1e-12);
+  EXPECT_EQ(alikes[1].size(), 2u);  // the monitor: the bus and its reversed copy
+  EXPECT_TRUE(alikes[2].empty());   // the unrelated load
+  EXPECT_TRUE(alikes[4].empty());   // constant: no correlation
+  EXPECT_TRUE(alikes[5].empty());   // not in the data
+  // A stricter threshold than the monitor's r leaves the exact copy alone.
+  const auto strict = look_alike_channels(f, channels, rows, 0.5 * (1 + r));
+  ASSERT_EQ(strict[0].size(), 1u);
+  EXPECT_EQ(strict[0][0].first, "cur_reversed");
 }
 
 TEST(Neural, AttributionNamesTheChannelOfASlowEffectThroughItsLowPass) {

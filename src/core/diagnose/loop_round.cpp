@@ -20,14 +20,20 @@ bool Round::try_model(Model next, const std::string& added, double explained, bo
   const LoopRound& now = r_->rounds.back();
   std::string why = refusal(lr, now);
   // A learned law has many columns: it must also explain the accepted share of the held-out
-  // variance, as every candidate must on each split.
+  // variance for each of its hinges, as every candidate must for its one term on each split
+  // (five hinges fitted to what is left explain a few percent by their freedom alone).
   const double share_left = std::pow(lr.heldout_std_nT / now.heldout_std_nT, 2.0);
-  if (why.empty() && black_box && 1.0 - share_left < c_.options.accept_fraction) {
-    char buf[160];
+  const size_t hinges = next.terms.size() > r_->model.terms.size()
+                            ? next.terms.size() - r_->model.terms.size()
+                            : size_t{1};
+  const double law_share = c_.options.accept_fraction * static_cast<double>(hinges);
+  if (why.empty() && black_box && 1.0 - share_left < law_share) {
+    char buf[200];
     std::snprintf(buf, sizeof(buf),
-                  "the held-out error would fall by less than %.0f%% of its variance "
-                  "(%.3f -> %.3f nT)",
-                  100 * c_.options.accept_fraction, now.heldout_std_nT, lr.heldout_std_nT);
+                  "the held-out error would fall by less than %.0f%% of its variance, %.0f%% for "
+                  "each of its %zu hinges (%.3f -> %.3f nT)",
+                  100 * law_share, 100 * c_.options.accept_fraction, hinges, now.heldout_std_nT,
+                  lr.heldout_std_nT);
     why = buf;
   }
   if (!why.empty()) {

@@ -283,6 +283,15 @@ Scored Search::run(const Job& job) const {
         in_signal_units(kind) ? signal_range(expr->signal(), data) : SignalRange{};
     std::vector<double> grid = parameter_grid(kind, dt, span, range.hi - range.lo, range.lo);
     if (grid.empty()) return Scored{};
+    bool motion_only = !expr->signal().sources.empty();
+    for (const auto& src : expr->signal().sources)
+      motion_only = motion_only && is_motion_channel(src);
+    if (kind == TransformKind::LowPass && motion_only) {
+      grid.erase(std::remove_if(grid.begin(), grid.end(),
+                                [](double v) { return v > kMaxMotionLowPass_s + 1e-9; }),
+                 grid.end());
+      if (grid.empty()) return Scored{};
+    }
     if (kind == TransformKind::Delay) {  // delays up to 2 s at the grid's step: a periodic
       grid.erase(std::remove_if(grid.begin(), grid.end(), [](double v) { return v > 2.0 + 1e-9; }),
                  grid.end());       // source (a strobe) makes the objective many-valleyed

@@ -59,6 +59,11 @@ struct Scored {
 // energy there (segment means removed) is one the band-pass barely sees: it is also fitted by
 // the slow stage, and the better of the two on the selection lines is kept.
 constexpr double kSlowBandFraction = 0.01;
+// The slowest low-pass of a motion channel (is_motion_channel) a candidate may take, s: a
+// structure's flex or a tank's slosh answers a rate or an acceleration within seconds; a slower
+// low-pass of motion integrates the trajectory (heading, position), where map and diurnal
+// leakage hide, and would stand in for a state's slow effect that turns follow.
+constexpr double kMaxMotionLowPass_s = 20.0;
 
 // --- the search (search.cpp; the lag's part in search_lag.cpp) ---
 

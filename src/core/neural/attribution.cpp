@@ -2,6 +2,7 @@
 #include "magcomp/core/neural/attribution.h"
 
 #include <algorithm>
+#include <cmath>
 #include <map>
 #include <numeric>
 #include <random>
@@ -24,6 +25,45 @@ Eigen::VectorXd squared_errors(const Eigen::VectorXd& y_nT, const Eigen::VectorX
 }
 
 }  // namespace
+
+std::vector<std::vector<std::pair<std::string, double>>> look_alike_channels(
+    const FlightData& data, const std::vector<std::string>& channels,
+    const std::vector<Eigen::Index>& rows, double min_abs_r) {
+  const size_t c = channels.size();
+  std::vector<std::vector<std::pair<std::string, double>>> out(c);
+  std::vector<Eigen::VectorXd> x(c);  // empty: the data lacks the channel
+  for (size_t k = 0; k < c; ++k)
+    if (data.has(channels[k])) x[k] = data.column(channels[k]);
+  for (size_t a = 0; a < c; ++a) {
+    for (size_t b = a + 1; b < c; ++b) {
+      if (x[a].size() == 0 || x[b].size() == 0) continue;
+      double n = 0, sa = 0, sb = 0;
+      for (Eigen::Index i : rows) {
+        const double u = x[a][i], v = x[b][i];
+        if (!std::isfinite(u) || !std::isfinite(v)) continue;
+        n += 1, sa += u, sb += v;
+      }
+      if (n < 3) continue;
+      const double ma = sa / n, mb = sb / n;
+      double saa = 0, sbb = 0, sab = 0;
+      for (Eigen::Index i : rows) {
+        const double u = x[a][i], v = x[b][i];
+        if (!std::isfinite(u) || !std::isfinite(v)) continue;
+        saa += (u - ma) * (u - ma), sbb += (v - mb) * (v - mb), sab += (u - ma) * (v - mb);
+      }
+      if (!(saa > 0 && sbb > 0)) continue;
+      const double r = sab / std::sqrt(saa * sbb);
+      if (std::abs(r) < min_abs_r) continue;
+      out[a].emplace_back(channels[b], r);
+      out[b].emplace_back(channels[a], r);
+    }
+  }
+  for (auto& list : out)
+    std::stable_sort(list.begin(), list.end(), [](const auto& p, const auto& q) {
+      return std::abs(p.second) > std::abs(q.second);
+    });
+  return out;
+}
 
 Attribution permutation_importance(const Model& model, const FlightData& data,
                                    std::shared_ptr<NeuralNetwork> network, int repeats,
@@ -85,11 +125,13 @@ Attribution permutation_importance(const Model& model, const FlightData& data,
     a.inputs.push_back(std::move(imp));
   }
   // The recorded channels: every input reading one is shuffled with it. A channel read by one
-  // input alone has that input's figure.
+  // input alone has that input's figure. The inputs that read no channel are the model's own.
   const FeaturePlan plan(model);
   std::map<std::string, std::vector<Eigen::Index>> readers;
   std::vector<std::string> channel_order;
+  std::vector<Eigen::Index> own;
   for (size_t k = 0; k < plan.feature_channels().size() && static_cast<Eigen::Index>(k) < f; ++k) {
+    if (plan.feature_channels()[k].empty()) own.push_back(static_cast<Eigen::Index>(k));
     for (const auto& c : plan.feature_channels()[k]) {
       if (readers.find(c) == readers.end()) channel_order.push_back(c);
       auto& r = readers[c];
@@ -97,18 +139,17 @@ Attribution permutation_importance(const Model& model, const FlightData& data,
         r.push_back(static_cast<Eigen::Index>(k));
     }
   }
-  for (const auto& c : channel_order) {
+  const auto alikes = look_alike_channels(data, channel_order, rows);
+  for (size_t j = 0; j < channel_order.size(); ++j) {
     ChannelImportance ci;
-    ci.channel = c;
-    const std::vector<Eigen::Index>& group = readers[c];
+    ci.channel = channel_order[j];
+    const std::vector<Eigen::Index>& group = readers[ci.channel];
     for (Eigen::Index k : group) ci.features.push_back(a.inputs[static_cast<size_t>(k)].feature);
     ci.importance_nT2 = group.size() == 1 ? a.inputs[static_cast<size_t>(group[0])].importance_nT2
                                           : rise_of(group).mean();
+    ci.look_alikes = alikes[j];
     a.channels.push_back(std::move(ci));
   }
-  std::vector<Eigen::Index> own;
-  for (size_t k = 0; k < plan.feature_channels().size() && static_cast<Eigen::Index>(k) < f; ++k)
-    if (plan.feature_channels()[k].empty()) own.push_back(static_cast<Eigen::Index>(k));
   if (!own.empty()) a.own_inputs_nT2 = rise_of(own).mean();
   const auto shares = [](auto& items) {
     double positive = 0;

@@ -80,8 +80,10 @@ struct LoopResult {
 /// accepted candidate is tried (up to three per round). When none passes (or none is accepted), a
 /// learned law of the channel of one of the two first ranked candidates that helped on the
 /// selection lines is tried under the same checks (hinges at the channel's quantiles through the
-/// candidate's dynamic tail, marked in Model::black_box_terms and LoopRound::black_box); the
-/// loop stops when that fails too. Before the learned law, while the residual stays predictable,
+/// candidate's dynamic tail, marked in Model::black_box_terms and LoopRound::black_box) is tried
+/// under the same checks, and as its hinges fit what is left by their freedom alone, it must
+/// also explain the accepted share of the held-out variance for each of its hinges; the loop
+/// stops when that fails too. Before the learned law, while the residual stays predictable,
 /// pairs of terms of the channels that predict the residual (each one's plain and first ranked
 /// term) are tried together (effects that act together: one or both fail alone), under the same
 /// checks plus two: the pair lowers the error on each half of the held-out lines by the accepted

@@ -33,7 +33,21 @@ struct ChannelImportance {
   std::vector<std::string> features;  ///< the inputs that read it, in the model's order
   double importance_nT2 = 0.0;        ///< the rise of the mean squared error, nT²
   double share = 0.0;  ///< importance_nT2 over the sum of the channels' positive ones
+  /// The other ranked channels whose values follow this one's on the scored samples
+  /// (|r| >= kLookAlikeCorrelation), as (channel, Pearson r), the strongest first: the network
+  /// cannot tell them apart, and their importance is shared between them.
+  std::vector<std::pair<std::string, double>> look_alikes;
 };
+
+/// The correlation above which two channels are look-alikes of one another (|r|, Pearson).
+constexpr double kLookAlikeCorrelation = 0.95;
+
+/// For each of `channels`, the others whose values on `rows` of `data` correlate with it at
+/// |r| >= min_abs_r (Pearson, over the rows where both are finite), as (channel, r), the
+/// strongest first. A channel the data lacks, or constant on those rows, has none.
+std::vector<std::vector<std::pair<std::string, double>>> look_alike_channels(
+    const FlightData& data, const std::vector<std::string>& channels,
+    const std::vector<Eigen::Index>& rows, double min_abs_r = kLookAlikeCorrelation);
 
 /// A trained network's attribution on one flight.
 struct Attribution {
@@ -60,7 +74,7 @@ struct Attribution {
 /// the terms, or the anomaly), nT². Rows whose target is not finite are not scored. Throws
 /// magcomp::Error when the model has no trained neural stage, the data lacks an input or the
 /// target's reference, or no row can be scored. The same for each recorded channel, its inputs
-/// shuffled together (Attribution::channels).
+/// shuffled together (Attribution::channels), with its look-alikes among them.
 Attribution permutation_importance(const Model& model, const FlightData& data,
                                    std::shared_ptr<NeuralNetwork> network = nullptr,
                                    int repeats = 2, unsigned seed = 1);
