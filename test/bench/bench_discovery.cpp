@@ -7,6 +7,10 @@
 // an exact term from TL), the runs worse
 // than TL (must be 0), the "complete" verdicts above 1.5x the noise floor (must be 0). Each line
 // also gives the hidden effects' std within lines on the first flight (eff) and the next (next).
+// The runs naming exactly the effects' channels: overall, among the look-alikes the loop reports,
+// and over the runs whose effects' channels move with no other recorded channel on the first
+// flight (|r| >= 0.95, look_alike_channels; a line ends "[the effects' channels move with ...]"
+// otherwise: that flight cannot tell them apart).
 // Then the same figures per number of simultaneous effects, and per run over its draws.
 // Usage: magcomp_bench_discovery SCENARIO.yaml TL_MODEL.yaml [runs] [first_seed] [options]
 // options: one-at-a-time (no pairs, no backward pass); choose-lambda (each round first chooses
@@ -73,6 +77,9 @@ int main(int argc, char** argv) {
     std::map<int, std::array<int, 4>> by_count;
     int runs_all_draws_near = 0, runs_predictable = 0;  // runs near the true terms on every draw
     int named_among_look_alikes = 0;  // predictable runs naming the truth among the look-alikes
+    // Predictable runs whose effects' channels have no look-alike on the first flight, and those
+    // of them naming the truth exactly.
+    int without_look_alike = 0, named_without_look_alike = 0;
     const auto t0 = std::chrono::steady_clock::now();
     std::printf("%4s %8s %8s %8s %8s %6s %6s %5s %7s %7s  %-8s %s\n", "run", "TL nT", "loop nT",
                 "oracle", "true", "near", "near_t", "names", "eff nT", "next nT", "verdict",
@@ -106,21 +113,31 @@ int main(int argc, char** argv) {
           named[d.kind].first += d.names_truth();
           named[d.kind].second += 1;
           named_among_look_alikes += d.names_truth_among_look_alikes();
+          if (!d.truth_has_look_alike()) {
+            ++without_look_alike;
+            named_without_look_alike += d.names_truth();
+          }
         }
+        std::string truth_alikes;
+        for (const auto& c : d.truth_look_alikes)
+          truth_alikes += (truth_alikes.empty() ? "" : ", ") + c;
         // "alike": the truth among the look-alikes the loop reports, not its kept terms alone.
         const char* names = !d.predictable                      ? "-"
                             : d.names_truth()                   ? "yes"
                             : d.names_truth_among_look_alikes() ? "alike"
                                                                 : "NO";
-        std::printf("%4u%s %8.3f %8.3f %8.3f %8.3f %6s %6s %5s %7.3f %7.3f  %-8s %s -> %s%s%s\n", r,
-                    draws > 1 ? ("/" + std::to_string(draw)).c_str() : "", d.tl_next_nT,
+        std::printf("%4u%s %8.3f %8.3f %8.3f %8.3f %6s %6s %5s %7.3f %7.3f  %-8s %s -> %s%s%s%s\n",
+                    r, draws > 1 ? ("/" + std::to_string(draw)).c_str() : "", d.tl_next_nT,
                     d.loop_next_nT, d.oracle_next_nT, d.true_terms_next_nT,
                     d.predictable ? (d.near_oracle() ? "yes" : "NO") : "-",
                     d.predictable ? (d.near_true_terms() ? "yes" : "NO") : "-", names, d.effect_nT,
                     d.effect_next_nT, d.verdict.substr(0, d.verdict.find(':')).substr(0, 8).c_str(),
                     d.effects.c_str(), kept.empty() ? "(none)" : kept.c_str(),
                     d.worse_than_tl() ? "  WORSE THAN TL" : "",
-                    d.complete_above_floor() ? "  COMPLETE ABOVE FLOOR" : "");
+                    d.complete_above_floor() ? "  COMPLETE ABOVE FLOOR" : "",
+                    truth_alikes.empty()
+                        ? ""
+                        : ("  [the effects' channels move with " + truth_alikes + "]").c_str());
         // Each round: what it added or removed and its held-out error, overall and per half.
         for (size_t i = 0; verbose && i < d.rounds.size(); ++i) {
           const magcomp::LoopRound& lr = d.rounds[i];
@@ -159,6 +176,11 @@ int main(int argc, char** argv) {
     std::printf("names the effects' channels among the look-alikes it reports: %d/%d (%.0f %%)\n",
                 named_among_look_alikes, named_runs,
                 named_runs ? 100.0 * named_among_look_alikes / named_runs : 0.0);
+    std::printf(
+        "names them exactly where no effect's channel moves with another recorded channel "
+        "(|r| >= 0.95 on the first flight): %d/%d (%.0f %%)\n",
+        named_without_look_alike, without_look_alike,
+        without_look_alike ? 100.0 * named_without_look_alike / without_look_alike : 0.0);
     for (const auto& [count, c] : by_count)
       std::printf(
           "%d effect(s): %d predictable runs, within 1.5x the oracle %d, within 1.5x the true "

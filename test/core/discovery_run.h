@@ -18,6 +18,7 @@
 #include "magcomp/core/geo/igrf.h"
 #include "magcomp/core/model/model.h"
 #include "magcomp/core/model/terms_expr.h"
+#include "magcomp/core/neural/attribution.h"
 #include "magcomp/core/sim/random_effects.h"
 #include "magcomp/core/sim/scenario.h"
 #include "magcomp/core/sim/simulator.h"
@@ -57,6 +58,10 @@ struct DiscoveryRun {
   std::vector<std::pair<std::set<std::string>, std::vector<std::set<std::string>>>> named_terms;
   /// The truth among what the loop names: every added term reads only effects' channels or has
   /// a look-alike that does, and every effect's channel is read by one of these.
+  /// A channel of the effects moves with another recorded channel of the aircraft on the flight
+  /// the loop learns from (|r| >= 0.95, look_alike_channels): that flight cannot tell them apart.
+  std::set<std::string> truth_look_alikes;
+  bool truth_has_look_alike() const { return !truth_look_alikes.empty(); }
   bool names_truth_among_look_alikes() const {
     std::set<std::string> covered;
     const auto within = [&](const std::set<std::string>& c) {
@@ -169,6 +174,19 @@ inline DiscoveryRun discovery_run(unsigned r, int count, sim::Scenario base, con
       if (lr.added == t)
         for (const auto& la : lr.look_alikes) alikes.push_back(channels_of(la.first));
     out.named_terms.emplace_back(channels, std::move(alikes));
+  }
+  {
+    std::vector<std::string> channels;  // the aircraft's states and motion, the effects' first
+    for (const std::string& c : out.true_channels) channels.push_back(c);
+    for (const std::string& f : fa.flight.names())
+      if (!out.true_channels.count(f) && (is_aircraft_state(f) || is_motion_channel(f)))
+        channels.push_back(f);
+    std::vector<Eigen::Index> rows(static_cast<size_t>(fa.flight.size()));
+    for (size_t i = 0; i < rows.size(); ++i) rows[i] = static_cast<Eigen::Index>(i);
+    const auto alikes = look_alike_channels(fa.flight, channels, rows);
+    for (size_t k = 0; k < out.true_channels.size(); ++k)
+      for (const auto& [other, r] : alikes[k])
+        if (!out.true_channels.count(other)) out.truth_look_alikes.insert(other);
   }
   out.verdict = loop.last.verdict;
   out.residual_nT = loop.last.floor.residual_std_nT;
