@@ -1,6 +1,7 @@
 // The discovery loop on hidden effects drawn at random (sim/random_effects): a fixed-seed subset
 // of scripts/bench_discovery. Each run: the loop chooses and fits its model on one flight; on
-// the aircraft's next flight it must never be worse than the TL it started from, never say
+// the aircraft's next flight it must never be worse than the TL it started from (unless TL plus
+// the effects' own terms is worse than TL there too: then within 5 % of those terms), never say
 // "complete" above 1.5x the noise floor, and here (a thermal source, a lag, a slow drift) reach
 // the oracle within 1.5x + 0.05 nT.
 #include <gtest/gtest.h>
@@ -28,10 +29,20 @@ void expect_random_effects_carry(const std::vector<unsigned>& runs) {
                 d.effects.c_str(), d.tl_next_nT, d.loop_next_nT, d.oracle_next_nT, kept.c_str(),
                 d.verdict.substr(0, d.verdict.find(':')).c_str());
     EXPECT_TRUE(d.predictable) << r;
-    EXPECT_FALSE(d.worse_than_tl()) << r;
     EXPECT_FALSE(d.complete_above_floor()) << r << ": " << d.verdict;
     EXPECT_TRUE(d.near_oracle()) << r;
-    EXPECT_LT(d.loop_next_nT, d.tl_next_nT) << r;
+    if (d.true_terms_next_nT <= d.tl_next_nT + 0.005) {
+      EXPECT_FALSE(d.worse_than_tl()) << r;
+      EXPECT_LT(d.loop_next_nT, d.tl_next_nT) << r;
+    } else {
+      // TL plus the effects' own terms is itself worse than TL on the next flight (run 5: TL
+      // fitted with a battery's drift in it carries over better than without, 0.236 against
+      // 0.316 nT): no honest model of the effect stays within TL there. The loop is held to the
+      // true terms instead.
+      std::printf("  run %u: TL + the true terms %.3f nT, worse than TL\n", r,
+                  d.true_terms_next_nT);
+      EXPECT_LE(d.loop_next_nT, 1.05 * d.true_terms_next_nT + 0.01) << r;
+    }
   }
 }
 
