@@ -80,23 +80,22 @@ struct LoopResult {
 /// accepted candidate is tried (up to three per round). When none passes (or none is accepted), a
 /// learned law of the channel of one of the two first ranked candidates that helped on the
 /// selection lines is tried under the same checks (hinges at the channel's quantiles through the
-/// candidate's dynamic tail, marked in Model::black_box_terms and LoopRound::black_box) is tried
-/// under the same checks, and as its hinges fit what is left by their freedom alone, it must
-/// also explain the accepted share of the held-out variance for each of its hinges; the loop
-/// stops when that fails too. Before the learned law, while the residual stays predictable,
-/// pairs of terms of the channels that predict the residual (each one's plain and first ranked
-/// term) are tried together (effects that act together: one or both fail alone), under the same
-/// checks plus two: the pair lowers the error on each half of the held-out lines by the accepted
-/// share and the resolution, and each of its terms lowers the pair's held-out error variance by
-/// the accepted share (DiagnoseOptions::joint_steps). After each kept round, a
-/// backward pass drops an earlier term whose removal raises the held-out variance by less than a
-/// quarter of the accepted share (and the validation error by no more), one at a time: a term
-/// that later terms made redundant leaves, and the round lists it. So the final model is never
-/// worse than the start on either. With DiagnoseOptions::choose_lambda (off by default), before
-/// each round's terms the ridge strength fit.lambda is chosen on the held-out lines among the
-/// start model's and 1/10, 1/100 and 1/1000 of it: the one with the lowest held-out error is kept
-/// if that error falls by the accepted share and the resolution, falls on each half, and (with a
-/// validation flight) falls there; the round is then diagnosed again. A ridge too strong for the
+/// candidate's dynamic tail, marked in Model::black_box_terms and LoopRound::black_box); as its
+/// hinges fit what is left by their freedom alone, it must also explain the accepted share of the
+/// held-out variance for each of its hinges. The loop stops when that fails too. Before the learned
+/// law, while the residual stays predictable, pairs of terms of the channels that predict the
+/// residual (each one's plain and first ranked term) are tried together (effects that act together:
+/// one or both fail alone), under the same checks plus two: the pair lowers the error on each half
+/// of the held-out lines by the accepted share and the resolution, and each of its terms lowers the
+/// pair's held-out error variance by the accepted share (DiagnoseOptions::joint_steps). After each
+/// kept round, a backward pass drops an earlier term whose removal raises the held-out variance by
+/// less than a quarter of the accepted share (and the validation error by no more), one at a time:
+/// a term that later terms made redundant leaves, and the round lists it. So the final model is
+/// never worse than the start on either. With DiagnoseOptions::choose_lambda (off by default),
+/// before each round's terms the ridge strength fit.lambda is chosen on the held-out lines among
+/// the start model's and 1/10, 1/100 and 1/1000 of it: the one with the lowest held-out error is
+/// kept if that error falls by the accepted share and the resolution, falls on each half, and (with
+/// a validation flight) falls there; the round is then diagnosed again. A ridge too strong for the
 /// flight biases the fit, and a term that only undoes the bias would otherwise be taken for an
 /// effect. It never exceeds the start model's: a stronger ridge hides an effect the model lacks
 /// instead of writing it.
