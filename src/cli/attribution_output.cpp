@@ -35,9 +35,15 @@ void print_attribution(const Attribution& a, const std::string& where) {
                     other.c_str(), r);
       alike += buf;
     }
-    std::printf("  %-24s %12s nT^2 %7.1f%%%s%s\n", c.channel.c_str(),
-                figure(c.importance_nT2, "%.4g").c_str(), 100 * c.share, via.c_str(),
-                alike.c_str());
+    std::printf("  %-24s %12s nT^2 %7.1f%%%s%s%s\n", c.channel.c_str(),
+                figure(c.importance_nT2, "%.4g").c_str(), 100 * c.share, via.c_str(), alike.c_str(),
+                c.trajectory ? "  [trajectory: leakage, not a source]" : "");
+  }
+  if (a.channels.front().trajectory) {
+    const ChannelImportance* first = a.first_aircraft_channel();
+    if (first)
+      std::printf("  first among the aircraft's own channels: %s (%.1f%%)\n",
+                  first->channel.c_str(), 100 * first->share);
   }
   if (std::isfinite(a.own_inputs_nT2))
     std::printf("  (the model's own inputs together: %s nT^2%s)\n",
@@ -68,7 +74,8 @@ nlohmann::json attribution_json(const Attribution& a) {
                         {"features", c.features},
                         {"importance_nT2", json_figure(c.importance_nT2)},
                         {"share", json_figure(c.share)},
-                        {"look_alikes", alikes}});
+                        {"look_alikes", alikes},
+                        {"trajectory", c.trajectory}});
   }
   return {{"method", a.method},
           {"baseline_mse_nT2", json_figure(a.baseline_mse_nT2)},

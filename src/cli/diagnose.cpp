@@ -1,5 +1,6 @@
 // magcomp diagnose: rank the physical effects the model misses, and say which --term to add;
 // with --apply, run the whole loop (diagnose, add, refit) and write the final model.
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <functional>
@@ -18,10 +19,71 @@
 #include "magcomp/core/io/file_io.h"
 #include "magcomp/core/io/output_guard.h"
 #include "magcomp/core/nav/map_reference.h"
+#include "network_attribution.h"
 #include "subcommands.h"
 
 namespace magcomp::cli {
 namespace {
+
+// The final model's terms (band-pass and slow) that read `channel`.
+std::vector<std::string> terms_reading(const Model& model, const std::string& channel) {
+  std::vector<std::string> out;
+  std::vector<TermSpec> all(model.terms.begin(), model.terms.end());
+  for (const std::string& t : model.slow_terms) all.emplace_back(t);
+  for (const TermSpec& t : all) {
+    const std::vector<std::string> ch = term_channels(t);
+    if (std::find(ch.begin(), ch.end(), channel) != ch.end()) out.push_back(t.text());
+  }
+  return out;
+}
+
+// What became of each channel a trained network leans on (diagnose --attribution); with the
+// final model's terms (`final_terms`, the loop) when given.
+void print_network_checks(const std::vector<NetworkCheck>& network, const std::string& after,
+                          const Model* final_model = nullptr) {
+  if (network.empty()) return;
+  std::printf("\nthe network leans on (--attribution)%s:\n", after.c_str());
+  for (const NetworkCheck& c : network) {
+    std::printf("  %-14s %3.0f %%: ", c.channel.c_str(), 100 * c.share);
+    if (final_model) {
+      std::string names;
+      for (const std::string& t : terms_reading(*final_model, c.channel))
+        names += (names.empty() ? "" : ", ") + t;
+      if (!names.empty()) {
+        std::printf("the final model names it (%s)\n", names.c_str());
+        continue;
+      }
+      std::printf("no term of the final model reads it; ");
+    }
+    if (!c.why_not.empty()) {
+      std::printf("not searched: %s\n", c.why_not.c_str());
+    } else if (c.best_term.empty()) {
+      std::printf("no candidate reads it\n");
+    } else {
+      std::printf(
+          "%s%s explains %.1f %% of the selection lines and %.1f %% of the confirmation "
+          "lines: %s\n",
+          final_model ? "in the last round " : "", c.best_term.c_str(), 100 * c.explained_selection,
+          100 * c.explained_confirmation,
+          c.accepted ? "accepted" : "rejected (the held-out lines decide)");
+    }
+  }
+}
+
+nlohmann::json network_json(const std::vector<NetworkCheck>& network) {
+  nlohmann::json out = nlohmann::json::array();
+  for (const NetworkCheck& c : network) {
+    out.push_back({{"channel", c.channel},
+                   {"share", c.share},
+                   {"searched", c.searched},
+                   {"why_not", c.why_not},
+                   {"best_term", c.best_term},
+                   {"explained_selection", json_figure(c.explained_selection)},
+                   {"explained_confirmation", json_figure(c.explained_confirmation)},
+                   {"accepted", c.accepted}});
+  }
+  return out;
+}
 
 void print_diagnosis(const Model& model, const Diagnosis& dx, int top, const std::string& data,
                      const std::string& model_path) {
@@ -85,6 +147,7 @@ void print_diagnosis(const Model& model, const Diagnosis& dx, int top, const std
                   js.best_single_std_nT);
     std::printf("\n");
   }
+  print_network_checks(dx.network, "");
   std::printf("\nverdict: %s\n", dx.verdict.c_str());
   if (!dx.candidates.empty() && dx.candidates.front().accepted &&
       dx.candidates.front().explained_fraction >= 0.05) {
@@ -140,7 +203,8 @@ nlohmann::json to_json(const Diagnosis& dx) {
                                {"slow", c.slow},
                                {"chosen_on_confirmation", c.chosen_on_confirmation},
                                {"estimate", c.estimate},
-                               {"parameters", p}});
+                               {"parameters", p},
+                               {"network_share", c.network_share}});
     // Where it is measured (a band-pass term): absent for a slow term, never null.
     if (std::isfinite(c.base_span_share))
       j["candidates"].back()["base_span_share"] = c.base_span_share;
@@ -192,6 +256,7 @@ nlohmann::json to_json(const Diagnosis& dx) {
                                  {"spearman", a.spearman},
                                  {"mutual_information_bits", a.mutual_information_bits}});
   }
+  if (!dx.network.empty()) j["network"] = network_json(dx.network);
   j["notes"] = dx.notes;
   return j;
 }
@@ -279,6 +344,7 @@ void diagnose_several(const Model& model_in, const std::vector<std::string>& pat
 // What diagnose's command line asks for.
 struct DiagnoseArgs {
   std::string data, model_path, truth = "mag_1_c", json_path, out, validate, track = "truth";
+  std::string attribution;
   int top = 10, rounds = 5;
   double min_share = 0.05;
   bool apply = false, quick = false, choose_lambda = false;
@@ -394,6 +460,11 @@ nlohmann::json loop_json(const LoopResult& r, const std::vector<TermSupport>& su
                             {"note", support_note(s)}});
   }
   j["last_diagnosis"] = to_json(r.last);
+  if (!r.last.network.empty()) {  // each network channel with the final model's terms reading it
+    j["network"] = network_json(r.last.network);
+    for (auto& c : j["network"])
+      c["final_terms"] = terms_reading(r.model, c["channel"].get<std::string>());
+  }
   return j;
 }
 
@@ -428,7 +499,8 @@ void run_diagnose(const DiagnoseArgs& a) {
   if (!a.out.empty() && !a.apply) throw Error("--out: only with --apply (the final model)");
   if (a.choose_lambda && !a.apply) throw Error("--choose-lambda: only with --apply");
   const std::vector<std::string> paths = flight_paths("--data", a.data);
-  std::vector<OutputGuard::File> others = {{"--model", a.model_path}, {"--validate", a.validate}};
+  std::vector<OutputGuard::File> others = {
+      {"--model", a.model_path}, {"--validate", a.validate}, {"--attribution", a.attribution}};
   for (const auto& m : map_inputs("--truth", {a.truth})) others.push_back(m);
   OutputGuard guard = guard_for(paths, others);
   guard.add_output("--out", a.out);
@@ -445,6 +517,7 @@ void run_diagnose(const DiagnoseArgs& a) {
   DiagnoseOptions options;
   options.full_search = !a.quick;
   options.choose_lambda = a.choose_lambda;
+  if (!a.attribution.empty()) options.network_channels = read_network_attribution(a.attribution);
   if (paths.size() > 1 && !a.apply) {
     diagnose_several(model, paths, a.model_path, a.truth, a.json_path, a.top, options, guard, read);
     return;
@@ -487,6 +560,7 @@ void run_diagnose(const DiagnoseArgs& a) {
     const std::string note = support_note(s);
     if (!note.empty()) std::printf("note: %s: %s\n", s.term.c_str(), note.c_str());
   }
+  print_network_checks(r.last.network, " (checked against the final model)", &r.model);
   write_final_model(r, flights, a.truth, a.out, inputs);
   print_map_note(a.truth);
   if (a.json_path.empty()) return;
@@ -535,6 +609,11 @@ void add_diagnose(CLI::App& app) {
       "--choose-lambda", a->choose_lambda,
       "with --apply: each round first chooses fit.lambda on the held-out lines (1/10, "
       "1/100 or 1/1000 of the model's, or back to it, if the error falls on both halves)");
+  cmd->add_option("--attribution", a->attribution,
+                  "a trained network's attribution (magcomp evaluate --explain --json on a "
+                  "flight it never saw): the channels it leans on (10 % or more, at most 3) are "
+                  "searched, their products fitted, and their terms judged like every other; "
+                  "the output says what became of each");
   cmd->add_flag("--channels-only", a->quick,
                 "search only the aircraft's state channels (currents, voltages and any recorded "
                 "channel that is not motion, air data or position) and the attitude rates "

@@ -5,14 +5,18 @@
 // and ranks the inputs by permutation importance on the third flight (core/neural/attribution).
 // Each channel enters raw and through causal low-passes (default 100 s: effects slower
 // than the window), and the channels are ranked with all their inputs shuffled together
-// (Attribution::channels). A run counts when the first-ranked channel is one the effect acts
-// through (for an effect of no channel, a lag: when the model's own inputs together outweigh
-// every channel), and also counts ("alike") when that channel is among the first-ranked
-// channel's look-alikes (channels whose values follow it, |r| >= 0.95, which the network cannot
-// tell apart); the first-ranked single input is printed beside it. Prints one line per run and
-// the shares over the predictable runs (effects of recorded channels). Usage:
-// magcomp_bench_attribution SCENARIO.yaml TL_MODEL.yaml [runs] [first_seed] [epochs]
-//        [low-pass time constants, s, comma-separated, or "none"]
+// (Attribution::channels). A run counts when the first-ranked channel of the aircraft
+// (Attribution::first_aircraft_channel: a position or an earth-frame velocity ranked above it is
+// the trajectory, leakage, and is passed over) is one the effect acts through (for an effect of
+// no channel, a lag: when the model's own inputs together outweigh every channel), and also
+// counts ("alike") when the effect's channel is among that channel's look-alikes (channels whose
+// values follow it, |r| >= 0.95, which the network cannot tell apart); the first-ranked single
+// input is printed beside it. Prints one line per run and the shares over the predictable runs
+// (effects of recorded channels). With "diagnose", each run's first flight is also diagnosed from
+// TL with and without the attribution (DiagnoseOptions::network_channels), on the channels-only and
+// on the full search, and the run counts where the first accepted term reads the effect's channel.
+// Usage: magcomp_bench_attribution SCENARIO.yaml TL_MODEL.yaml [runs] [first_seed] [epochs]
+//        [low-pass time constants, s, comma-separated, or "none"] [diagnose]
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -51,7 +55,11 @@ int main(int argc, char** argv) {
       for (std::string tau; std::getline(list, tau, ',');)
         if (!tau.empty() && tau != "none") lowpass_s.push_back(tau);
     }
+    const bool with_diagnose = argc > 7 && std::string(argv[7]) == "diagnose";
     const Igrf& igrf = Igrf::installed();
+    // diagnose: runs whose first accepted term reads the effect's channel, by search (0
+    // channels-only, 1 full) and without / with the network's channels.
+    int dx_counted = 0, dx_named[2][2] = {{0, 0}, {0, 0}};
     const std::string dir = std::string(std::getenv("TMPDIR") ? std::getenv("TMPDIR") : "/tmp") +
                             "/magcomp_bench_attribution";
     std::filesystem::create_directories(dir);
@@ -111,27 +119,62 @@ int main(int argc, char** argv) {
       const bool own_first =
           std::isfinite(a.own_inputs_nT2) &&
           (a.channels.empty() || a.own_inputs_nT2 > a.channels.front().importance_nT2);
-      const std::string top = a.channels.empty() ? "" : a.channels.front().channel;
+      // The first of the aircraft's own channels: a position or an earth-frame velocity is the
+      // trajectory (leakage), never a source of the aircraft's field.
+      const ChannelImportance* first_ch = a.first_aircraft_channel();
+      const std::string top = first_ch ? first_ch->channel : "";
       const bool right = truth.empty() ? own_first : truth.count(top) > 0;
       // The effect's channel among the first-ranked channel's look-alikes (channels that move
       // with it, which the network cannot tell apart).
       bool alike = right;
-      for (size_t i = 0; !alike && !a.channels.empty() && i < a.channels[0].look_alikes.size(); ++i)
-        alike = truth.count(a.channels[0].look_alikes[i].first) > 0;
+      for (size_t i = 0; !alike && first_ch && i < first_ch->look_alikes.size(); ++i)
+        alike = truth.count(first_ch->look_alikes[i].first) > 0;
       bool in_top3 = right;
-      for (size_t i = 0; i < a.channels.size() && i < 3; ++i)
+      for (size_t i = 0, seen = 0; i < a.channels.size() && seen < 3; ++i) {
+        if (a.channels[i].trajectory) continue;
+        ++seen;
         in_top3 = in_top3 || truth.count(a.channels[i].channel) > 0;
+      }
       if (predictable) {
         ++counted;
         first_right += right;
         top3_right += in_top3;
         alike_right += alike;
       }
+      std::string dx_line;
+      if (with_diagnose && !truth.empty()) {
+        Model from = tl;
+        fit_model(from, {&flights[0]});
+        std::vector<NetworkChannel> network;
+        for (const ChannelImportance& c : a.channels) network.push_back({c.channel, c.share});
+        if (predictable) ++dx_counted;
+        for (int full = 0; full < 2; ++full) {
+          for (int with = 0; with < 2; ++with) {
+            DiagnoseOptions o;
+            o.full_search = full == 1;
+            o.explainable_share = false;
+            if (with) o.network_channels = network;
+            const Diagnosis dx = diagnose(from, flights[0], "mag_1_c", o);
+            std::string named = "none";
+            if (!dx.candidates.empty() && dx.candidates.front().accepted) {
+              named = dx.candidates.front().term.text();
+              bool reads = false;
+              for (const std::string& c : term_channels(dx.candidates.front().term))
+                reads = reads || truth.count(c) > 0;
+              if (predictable) dx_named[full][with] += reads;
+              named += reads ? " (yes)" : " (no)";
+            }
+            dx_line += std::string(dx_line.empty() ? "" : " | ") +
+                       (full ? "full" : "channels-only") + (with ? "+network: " : ": ") + named;
+          }
+        }
+      }
       std::printf("%4u %8.3f %8.3f %5s %-16s %5.1f%% %3s  %-22s  %s%s\n", r, tl_nT, nn_nT,
                   right ? "yes" : (alike ? "alike" : (in_top3 ? "top3" : "no")), top.c_str(),
-                  a.channels.empty() ? 0.0 : 100 * a.channels.front().share, own_first ? "own" : "",
+                  first_ch ? 100 * first_ch->share : 0.0, own_first ? "own" : "",
                   a.inputs.front().feature.c_str(), described.c_str(),
                   predictable ? "" : " (not predictable: not counted)");
+      if (!dx_line.empty()) std::printf("     diagnose: %s\n", dx_line.c_str());
       std::fflush(stdout);
     }
     const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -141,6 +184,12 @@ int main(int argc, char** argv) {
         counted, first_right, counted ? 100.0 * first_right / counted : 0.0, alike_right,
         counted ? 100.0 * alike_right / counted : 0.0, top3_right,
         counted ? 100.0 * top3_right / counted : 0.0, s);
+    if (with_diagnose)
+      std::printf(
+          "diagnose, the first accepted term reads the effect's channel (%d predictable runs "
+          "with a channel): channels-only %d, with the network %d; full search %d, with the "
+          "network %d\n",
+          dx_counted, dx_named[0][0], dx_named[0][1], dx_named[1][0], dx_named[1][1]);
     return 0;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "error: %s\n", e.what());

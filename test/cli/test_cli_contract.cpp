@@ -150,6 +150,40 @@ TEST(Cli, DiagnoseWritesTheContractJsonAndTheLoop) {
     EXPECT_GT(s["size_nT"].get<double>(), 0.0);
   }
   EXPECT_TRUE(heater) << loop["support"].dump();
+  // A network's attribution (as evaluate --explain --json writes it, over two flights): the
+  // channels it leans on are searched and judged, and the loop says whether its final model
+  // names them.
+  std::ofstream(dir + "/att.json")
+      << R"({"flights": [{"attribution": {"channels": [{"channel": "cur_heat", "share": 0.7},
+           {"channel": "cur_ac_lo", "share": 0.2}, {"channel": "lon", "share": 0.1}]}},
+           {"attribution": {"channels": [{"channel": "cur_heat", "share": 0.5},
+           {"channel": "cur_ac_lo", "share": 0.3}, {"channel": "lon", "share": 0.2}]}}]})";
+  ASSERT_EQ(test::run(test::cli() + " diagnose --apply --channels-only --rounds 2 --data " + dir +
+                          "/f.h5 --model " + dir + "/m.yaml --attribution " + dir +
+                          "/att.json --out " + dir + "/net.yaml --json " + dir + "/net.json",
+                      &out),
+            0)
+      << out;
+  EXPECT_NE(out.find("the network leans on (--attribution)"), std::string::npos) << out;
+  EXPECT_NE(out.find("cur_heat        60 %: the final model names it (dcurrent:cur_heat"),
+            std::string::npos)
+      << out;
+  nlohmann::json net;
+  std::ifstream(dir + "/net.json") >> net;
+  ASSERT_EQ(net["network"].size(), 3u) << net["network"].dump();
+  EXPECT_EQ(net["network"][0]["channel"], "cur_heat");
+  EXPECT_NEAR(net["network"][0]["share"].get<double>(), 0.6, 1e-12);
+  EXPECT_EQ(net["network"][0]["final_terms"], nlohmann::json::array({"dcurrent:cur_heat"}));
+  EXPECT_EQ(net["network"][1]["channel"], "cur_ac_lo");
+  EXPECT_TRUE(net["network"][1]["searched"].get<bool>());
+  EXPECT_EQ(net["network"][2]["channel"], "lon");
+  EXPECT_FALSE(net["network"][2]["searched"].get<bool>());
+  EXPECT_NE(net["network"][2]["why_not"].get<std::string>().find("position"), std::string::npos);
+  EXPECT_TRUE(net["network"][2]["final_terms"].empty());
+  bool shares = false;
+  for (const auto& c : net["last_diagnosis"]["candidates"])
+    shares = shares || c["network_share"].get<double>() > 0;
+  EXPECT_TRUE(shares);
 }
 
 }  // namespace

@@ -256,6 +256,38 @@ TEST(HostileInput, OutputsNeverReplaceAnInputOrADevice) {
   EXPECT_EQ(slurp(files().flight), before);
 }
 
+TEST(HostileInput, ANetworksAttributionIsCheckedFieldByField) {
+  const std::string dx = "diagnose --data " + files().flight + " --model " + files().fitted +
+                         " --channels-only --attribution ";
+  const std::vector<std::pair<std::string, std::vector<std::string>>> cases = {
+      {"no json", {"att_0.json", "not JSON"}},
+      {"{\"rmse_nT\": 1.0}", {"att_1.json", "no attribution"}},
+      {"{\"attribution\": {\"channels\": 3}}",
+       {"att_2.json", "attribution.channels", "not an array"}},
+      {"{\"attribution\": {\"channels\": [{\"channel\": \"cur_strb\", \"share\": 1.5}]}}",
+       {"att_3.json", "attribution.channels[0].share", "not in [0, 1]"}},
+      {"{\"channels\": [{\"channel\": \"cur_strb\", \"share\": 0.5}, {\"channel\": "
+       "\"cur_heat\", \"share\": null}]}",
+       {"att_4.json", "attribution.channels[1].share", "not a number"}},
+      {"{\"flights\": [{\"attribution\": {\"channels\": []}}, {\"attribution\": "
+       "{\"channels\": [{\"share\": 0.3}]}}]}",
+       {"att_5.json", "flights[1].attribution.channels[0].channel"}},
+      {"{\"attribution\": {\"channels\": [{\"channel\": \"\", \"share\": 0.3}]}}",
+       {"att_6.json", "attribution.channels[0].channel", "not a channel name"}}};
+  for (size_t k = 0; k < cases.size(); ++k) {
+    const std::string path = write("att_" + std::to_string(k) + ".json", cases[k].first);
+    expect_refusal(dx + path, cases[k].second);
+  }
+  expect_refusal(dx + files().dir + "/absent.json", {"absent.json", "cannot be read"});
+  // The diagnosis's JSON never replaces the attribution it reads.
+  const std::string att = write("att_ok.json",
+                                "{\"channels\": [{\"channel\": \"cur_strb\", "
+                                "\"share\": 0.6}]}");
+  const std::string before = slurp(att);
+  expect_refusal(dx + att + " --json " + att, {"att_ok.json", "is an input of this command"});
+  EXPECT_EQ(slurp(att), before);
+}
+
 TEST(HostileInput, ACorruptBagIsOneLineNotAnAbort) {
   const std::string bag = files().dir + "/good.bag";
   std::string out;

@@ -432,6 +432,73 @@ TEST(Diagnose, BadInputsGiveClearMessagesAndConstantChannelsAreSkipped) {
   }
 }
 
+TEST(Diagnose, ANetworksChannelsAreSearchedAndJudgedLikeAnyOther) {
+  // flex_load: the wing's flex follows the normal acceleration, a motion channel the channels-only
+  // search leaves out. A network's attribution that leans on it brings it in; its terms pass the
+  // same acceptance rule; a channel with no effect is searched and rejected; a position is
+  // never a term.
+  const FlightData& f = test::scenario("flex_load").flight;
+  Model tl = test::reference_tl(f);
+  fit_model(tl, {&f});
+  DiagnoseOptions quick;
+  quick.full_search = false;
+  quick.explainable_share = false;
+  quick.joint_selection = false;
+  const Diagnosis alone = diagnose(tl, f, "mag_1_c", quick);
+  for (const Candidate& c : alone.candidates) {
+    const std::vector<std::string> ch = term_channels(c.term);
+    EXPECT_EQ(std::find(ch.begin(), ch.end(), "nrml_acc"), ch.end()) << c.term.text();
+    EXPECT_EQ(c.network_share, 0.0);
+  }
+  EXPECT_TRUE(alone.network.empty());
+  DiagnoseOptions named = quick;
+  named.network_channels = {
+      {"vol_bat_1", 0.05}, {"lat", 0.12}, {"cur_strb", 0.28}, {"nrml_acc", 0.55}};
+  const Diagnosis dx = diagnose(tl, f, "mag_1_c", named);
+  ASSERT_FALSE(dx.candidates.empty());
+  const Candidate& top = dx.candidates.front();
+  std::printf("  alone: %s %.3f nT (held-out %.3f); with the network: %s %.3f nT\n",
+              alone.candidates.front().term.text().c_str(), alone.candidates.front().std_after_nT,
+              alone.baseline_std_nT, top.term.text().c_str(), top.std_after_nT);
+  EXPECT_EQ(term_channels(top.term), std::vector<std::string>{"nrml_acc"}) << top.term.text();
+  EXPECT_TRUE(top.accepted);
+  EXPECT_GT(top.explained_fraction, 0.9);
+  EXPECT_DOUBLE_EQ(top.network_share, 0.55);
+  EXPECT_LT(top.std_after_nT, 0.5 * alone.candidates.front().std_after_nT);
+  // The leads in the network's order, at least 10 % each; vol_bat_1 (5 %) is not one.
+  ASSERT_EQ(dx.network.size(), 3u);
+  EXPECT_EQ(dx.network[0].channel, "nrml_acc");
+  EXPECT_TRUE(dx.network[0].searched);
+  EXPECT_TRUE(dx.network[0].accepted);
+  EXPECT_EQ(dx.network[0].best_term, top.term.text());
+  EXPECT_EQ(dx.network[1].channel, "cur_strb");
+  EXPECT_TRUE(dx.network[1].searched);
+  EXPECT_FALSE(dx.network[1].accepted) << dx.network[1].best_term;
+  EXPECT_EQ(term_channels(TermSpec(dx.network[1].best_term)), std::vector<std::string>{"cur_strb"});
+  EXPECT_EQ(dx.network[2].channel, "lat");
+  EXPECT_FALSE(dx.network[2].searched);
+  EXPECT_NE(dx.network[2].why_not.find("position"), std::string::npos);
+  EXPECT_TRUE(dx.network[2].best_term.empty());
+  // The two leads' product is fitted, with both shares.
+  bool product = false;
+  for (const Candidate& c : dx.candidates) {
+    const std::vector<std::string> ch = term_channels(c.term);
+    if (ch.size() == 2 && std::count(ch.begin(), ch.end(), "nrml_acc") &&
+        std::count(ch.begin(), ch.end(), "cur_strb")) {
+      product = true;
+      EXPECT_DOUBLE_EQ(c.network_share, 0.55 + 0.28);
+    }
+  }
+  EXPECT_TRUE(product);
+  // The leads are the shares sorted, at least kNetworkMinShare, at most kNetworkChannels.
+  const std::vector<NetworkChannel> leads =
+      network_leads({{"a", 0.2}, {"b", 0.5}, {"c", 0.099}, {"d", 0.15}, {"e", 0.1}, {"b", 0.4}});
+  ASSERT_EQ(leads.size(), 3u);
+  EXPECT_EQ(leads[0].channel, "b");
+  EXPECT_EQ(leads[1].channel, "a");
+  EXPECT_EQ(leads[2].channel, "d");
+}
+
 TEST(Diagnose, ARippleOfUnrecordedPhaseIsNeverCompleteAndItsAmplitudeChannelIsNamed) {
   // A 2 Hz ripple whose amplitude follows cur_acpwr and whose phase no channel records: no term
   // can explain it, the residual stays far above its floor, and the verdict says what its power

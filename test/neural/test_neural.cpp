@@ -695,6 +695,62 @@ TEST(Neural, ChannelsThatMoveTogetherAreEachOthersLookAlikes) {
   EXPECT_EQ(strict[0][0].first, "cur_reversed");
 }
 
+TEST(Neural, TrajectoryChannelsAreMarkedAndPassedOverForTheAircraftsOwn) {
+  // A residual MLP that also reads the north velocity and the latitude: where and which way the
+  // aircraft flies, never a source of its field. Each is ranked among the channels, marked as the
+  // trajectory, and passed over for the first of the aircraft's own channels.
+  Model m = neural_model("mlp", "residual", 5, 4);
+  m.neural->features.push_back("ins_vn");
+  m.neural->features.push_back("lat");
+  const std::string dir = test::temp_dir("neural_trajectory");
+  train_bundle(m, {flight(11)}, {flight(13)}, dir + "/t", false);
+  const Model trained = load_model_yaml(dir + "/t");
+  const FlightData& held = flight(12);
+  const Attribution a = permutation_importance(trained, held);
+  ASSERT_EQ(a.channels.size(), 4u);
+  const ChannelImportance* first = a.first_aircraft_channel();
+  ASSERT_NE(first, nullptr);
+  bool passed = true;  // every channel ranked above the first of the aircraft's is trajectory
+  for (const ChannelImportance& c : a.channels) {
+    const bool trajectory = c.channel == "ins_vn" || c.channel == "lat";
+    EXPECT_EQ(c.trajectory, trajectory) << c.channel;
+    if (&c == first) passed = false;
+    if (passed) {
+      EXPECT_TRUE(c.trajectory) << c.channel;
+    }
+  }
+  EXPECT_FALSE(first->trajectory);
+  // evaluate --explain marks them in its table and its JSON.
+  write_flight_h5(held, dir + "/held.h5");
+  std::string out;
+  ASSERT_EQ(test::run(test::cli() + " evaluate --data " + dir + "/held.h5 --model " + dir +
+                          "/t --truth mag_1_c --explain --json " + dir + "/e.json",
+                      &out),
+            0)
+      << out;
+  nlohmann::json j;
+  std::ifstream(dir + "/e.json") >> j;
+  int marked = 0;
+  for (const auto& c : j["attribution"]["channels"]) {
+    const std::string name = c["channel"].get<std::string>();
+    EXPECT_EQ(c["trajectory"].get<bool>(), name == "ins_vn" || name == "lat") << name;
+    marked += c["trajectory"].get<bool>();
+  }
+  EXPECT_EQ(marked, 2);
+  size_t lines = 0;
+  for (size_t at = 0;
+       (at = out.find("[trajectory: leakage, not a source]", at)) != std::string::npos; ++at)
+    ++lines;
+  EXPECT_EQ(lines, 2u) << out;
+  // No channel at all, or trajectory alone: no aircraft channel.
+  Attribution none;
+  EXPECT_EQ(none.first_aircraft_channel(), nullptr);
+  none.channels.resize(1);
+  none.channels[0].channel = "ins_vn";
+  none.channels[0].trajectory = true;
+  EXPECT_EQ(none.first_aircraft_channel(), nullptr);
+}
+
 TEST(Neural, AttributionNamesTheChannelOfASlowEffectThroughItsLowPass) {
   // thermal_heater: the heater's current squared through a 150 s thermal lag, hidden from TL,
   // far slower than a 0.5 s window. Three flights of one aircraft (train, early-stop, explain).

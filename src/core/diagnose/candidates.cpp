@@ -104,22 +104,32 @@ std::vector<Scored> run_jobs(const Search& search, const std::vector<Job>& jobs,
   return out;
 }
 
-// Products of the strongest sources (their best single form explains more than
-// accept_fraction on the selection lines): at most 4 sources, so 6 products.
-std::vector<Job> product_jobs(const Model& model, const Search& search,
-                              const std::vector<Job>& jobs, const std::vector<Scored>& scored,
-                              double accept_fraction) {
+// Each source's best single form: its share of the selection lines' variance, the largest first.
+std::vector<std::pair<double, std::string>> strongest_sources(const Model& model,
+                                                              const Search& search,
+                                                              const std::vector<Job>& jobs,
+                                                              const std::vector<Scored>& scored) {
   std::map<std::string, double> best_by_source;
   for (size_t k = 0; k < jobs.size(); ++k) {
     if (!scored[k].ok || jobs[k].channel.empty() || jobs[k].channel == model.scalar) continue;
     auto& b = best_by_source[jobs[k].channel];
     b = std::max(b, share(scored[k].sel, search.base_std[0]));
   }
+  std::vector<std::pair<double, std::string>> out;
+  for (const auto& [ch, v] : best_by_source) out.emplace_back(v, ch);
+  std::sort(out.rbegin(), out.rend());
+  return out;
+}
+
+// Products of the strongest sources (their best single form explains more than
+// accept_fraction on the selection lines): at most 4 sources, so 6 products.
+std::vector<Job> product_jobs(const Model& model, const Search& search,
+                              const std::vector<Job>& jobs, const std::vector<Scored>& scored,
+                              double accept_fraction) {
   std::vector<std::pair<double, std::string>> strongest;
-  for (const auto& [ch, v] : best_by_source) {
-    if (v > accept_fraction) strongest.emplace_back(v, ch);
+  for (const auto& [v, ch] : strongest_sources(model, search, jobs, scored)) {
+    if (v > accept_fraction && ch.find('*') == std::string::npos) strongest.emplace_back(v, ch);
   }
-  std::sort(strongest.rbegin(), strongest.rend());
   if (strongest.size() > 4) strongest.resize(4);
   std::vector<Job> products;
   for (size_t a = 0; a < strongest.size(); ++a) {

@@ -18,36 +18,6 @@ namespace magcomp {
 
 using diagnose_search::is_rate;
 
-namespace {
-
-const std::set<std::string> kBookkeeping = {"tt", "line", "flight", "year", "doy", "N", "dt"};
-
-}  // namespace
-
-bool is_electrical(const std::string& channel) {
-  return channel.rfind("cur_", 0) == 0 || channel.rfind("vol_", 0) == 0;
-}
-
-bool is_motion_channel(const std::string& n) {
-  static const std::set<std::string> kNamed = {"vn",      "ve",      "vw",       "vu",      "vd",
-                                               "pitch",   "roll",    "yaw",      "heading", "tas",
-                                               "true_as", "pitot_p", "static_p", "total_p"};
-  const auto ends_with = [&](const char* tail) {
-    const std::string t(tail);
-    return n.size() > t.size() && n.compare(n.size() - t.size(), t.size(), t) == 0;
-  };
-  return n.rfind("ins_", 0) == 0 || is_rate(n) || ends_with("_rt") || ends_with("_acc") ||
-         kNamed.count(n) > 0;
-}
-
-bool is_aircraft_state(const std::string& n) {
-  if (n.empty()) return false;
-  if (is_electrical(n)) return true;
-  return !is_motion_channel(n) && !is_position_channel(n) && !kBookkeeping.count(n) &&
-         n.rfind("mag_", 0) != 0 && n.rfind("flux_", 0) != 0 && n.rfind("ogs_", 0) != 0 &&
-         n != "diurnal" && n.front() != '~';
-}
-
 // How much a term says: its sources and transforms (a shorthand or TL family counts 1).
 int term_complexity(const TermSpec& term) {
   const ExprTerm* e = term.expr();
@@ -62,7 +32,7 @@ std::vector<std::string> source_fields(const Model& model, const FlightData& dat
                                        std::vector<std::string>* notes) {
   std::vector<std::string> out;
   for (const std::string& name : data.names()) {
-    if (kBookkeeping.count(name) || name.rfind("mag_", 0) == 0 || name.rfind("flux_", 0) == 0 ||
+    if (is_bookkeeping_channel(name) || name.rfind("mag_", 0) == 0 || name.rfind("flux_", 0) == 0 ||
         name == truth || name == model.fit.reference || name == "diurnal" ||
         name.rfind("ogs_", 0) == 0 || name == "drape" || name.front() == '~') {
       continue;
@@ -129,6 +99,8 @@ Diagnosis diagnose(const Model& model_in, const FlightData& data, const std::str
   std::vector<std::string> aircraft_sources;
   for (const auto& s : sources)
     if (!is_position_channel(s)) aircraft_sources.push_back(s);
+  const std::vector<NetworkChannel> leads = network_leads(options.network_channels);
+  add_network_sources(model, data, truth_name, leads, &aircraft_sources);
   std::vector<Job> jobs = make_jobs(model, aircraft_sources);
   std::vector<Scored> scored = run_jobs(search, jobs, options.threads);
   std::vector<Job> products = product_jobs(model, search, jobs, scored, options.accept_fraction);
@@ -136,6 +108,11 @@ Diagnosis diagnose(const Model& model_in, const FlightData& data, const std::str
     const std::vector<Job> screened =
         screened_products(search, aircraft_sources, products, kScreenedProducts, options.threads);
     products.insert(products.end(), screened.begin(), screened.end());
+  }
+  {
+    const std::vector<Job> named =
+        network_product_jobs(model, search, jobs, scored, leads, aircraft_sources, products);
+    products.insert(products.end(), named.begin(), named.end());
   }
   if (!products.empty()) {
     std::vector<Scored> more = run_jobs(search, products, options.threads);
@@ -161,6 +138,8 @@ Diagnosis diagnose(const Model& model_in, const FlightData& data, const std::str
   add_candidates(jobs, scored, search, &dx);
   add_lag_candidate(model, data, search, &dx);
   judge_and_rank(search, options, &dx.candidates);
+  mark_network_share(leads, &dx.candidates);
+  dx.network = network_checks(model, data, truth_name, leads, dx.candidates, aircraft_sources);
   data.drop_mapped_pages();
   dx.associations = residual_associations(data, search.held, search.e0, search.line, truth_name);
   data.drop_mapped_pages();

@@ -68,19 +68,6 @@ double pearson(const std::vector<double>& a, const std::vector<double>& b) {
 
 }  // namespace
 
-bool is_position_channel(const std::string& name) {
-  static const std::set<std::string> kPosition = {
-      "lat",     "lon",     "utm_x", "utm_y", "utm_z", "utmX",  "utmY", "utmZ", "ins_lat",
-      "ins_lon", "ins_alt", "msl",   "alt",   "baro",  "radar", "topo", "dem",  "drape"};
-  return kPosition.count(name) > 0;
-}
-
-bool is_earth_frame_velocity(const std::string& name) {
-  static const std::set<std::string> kVelocity = {"ins_vn", "ins_ve", "ins_vw", "ins_vu", "ins_vd",
-                                                  "vn",     "ve",     "vw",     "vu",     "vd"};
-  return kVelocity.count(name) > 0;
-}
-
 ResidualFloor residual_floor(
     const Eigen::VectorXd& residual, const std::vector<int>& unit, double sample_rate_hz,
     const std::vector<std::pair<std::string, Eigen::Map<const Eigen::VectorXd>>>& channels,

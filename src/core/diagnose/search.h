@@ -159,6 +159,10 @@ std::vector<Job> make_jobs(const Model& model, const std::vector<std::string>& s
 // Runs jobs on `threads` workers (candidates.cpp).
 std::vector<Scored> run_jobs(const Search& search, const std::vector<Job>& jobs, int threads);
 // Products of the strongest sources (candidates.cpp).
+std::vector<std::pair<double, std::string>> strongest_sources(const Model& model,
+                                                              const Search& search,
+                                                              const std::vector<Job>& jobs,
+                                                              const std::vector<Scored>& scored);
 std::vector<Job> product_jobs(const Model& model, const Search& search,
                               const std::vector<Job>& jobs, const std::vector<Scored>& scored,
                               double accept_fraction);
@@ -167,6 +171,27 @@ std::vector<Job> product_jobs(const Model& model, const Search& search,
 constexpr size_t kScreenedProducts = 12;  // pairs fitted in full after the screen
 std::vector<Job> screened_products(const Search& search, const std::vector<std::string>& sources,
                                    const std::vector<Job>& taken, size_t keep, int threads);
+// A network's leading channels (network_channels.cpp): those the search left out added to the
+// aircraft's sources (not a position, and a source on a full search); their products with each
+// other and with the kNetworkPartners strongest sources, those not already in `taken`; each
+// candidate's share of the network's attribution; and what became of each channel.
+constexpr size_t kNetworkPartners = 6;
+void add_network_sources(const Model& model, const FlightData& data, const std::string& truth,
+                         const std::vector<NetworkChannel>& leads,
+                         std::vector<std::string>* aircraft_sources);
+std::vector<Job> network_product_jobs(const Model& model, const Search& search,
+                                      const std::vector<Job>& jobs,
+                                      const std::vector<Scored>& scored,
+                                      const std::vector<NetworkChannel>& leads,
+                                      const std::vector<std::string>& aircraft_sources,
+                                      const std::vector<Job>& taken);
+void mark_network_share(const std::vector<NetworkChannel>& leads,
+                        std::vector<Candidate>* candidates);
+std::vector<NetworkCheck> network_checks(const Model& model, const FlightData& data,
+                                         const std::string& truth,
+                                         const std::vector<NetworkChannel>& leads,
+                                         const std::vector<Candidate>& candidates,
+                                         const std::vector<std::string>& aircraft_sources);
 // The grammar growth (grammar.cpp): whether a term's time constant sits at the top of its scan,
 // and the children of the best electrical terms.
 bool at_slow_edge(const Term& term, const Search& search);

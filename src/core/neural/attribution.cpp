@@ -8,6 +8,7 @@
 #include <random>
 
 #include "magcomp/core/error.h"
+#include "magcomp/core/io/channel_kinds.h"
 #include "magcomp/core/neural/features.h"
 
 namespace magcomp {
@@ -63,6 +64,12 @@ std::vector<std::vector<std::pair<std::string, double>>> look_alike_channels(
       return std::abs(p.second) > std::abs(q.second);
     });
   return out;
+}
+
+const ChannelImportance* Attribution::first_aircraft_channel() const {
+  for (const ChannelImportance& c : channels)
+    if (!c.trajectory) return &c;
+  return nullptr;
 }
 
 Attribution permutation_importance(const Model& model, const FlightData& data,
@@ -148,6 +155,7 @@ Attribution permutation_importance(const Model& model, const FlightData& data,
     ci.importance_nT2 = group.size() == 1 ? a.inputs[static_cast<size_t>(group[0])].importance_nT2
                                           : rise_of(group).mean();
     ci.look_alikes = alikes[j];
+    ci.trajectory = is_position_channel(ci.channel) || is_earth_frame_velocity(ci.channel);
     a.channels.push_back(std::move(ci));
   }
   if (!own.empty()) a.own_inputs_nT2 = rise_of(own).mean();

@@ -13,6 +13,7 @@
 #include "magcomp/core/diagnose/associations.h"
 #include "magcomp/core/diagnose/explainable_share.h"
 #include "magcomp/core/diagnose/residual_floor.h"
+#include "magcomp/core/io/channel_kinds.h"
 #include "magcomp/core/io/flight_data.h"
 #include "magcomp/core/model/model.h"
 
@@ -54,10 +55,41 @@ struct Candidate {
   /// (Model::slow_terms: fitted after the band-pass stage against the reference, unfiltered, on
   /// the calibration segments).
   bool slow = false;
+  /// The share (0..1) of a trained network's attribution on the channels this term reads
+  /// (DiagnoseOptions::network_channels, the leading ones): 0 when none is given or read.
+  double network_share = 0.0;
   /// The share (0..1) of its columns' energy on the fit rows that the model's own columns there
   /// already span (NaN for a slow term): near 1, the term adds no direction of its own and only
   /// moves the ridge's hold on the model's coefficients.
   double base_span_share = NAN;
+};
+
+/// A recorded channel a trained network leans on: its share (0..1) of the channels' importance in
+/// the network's attribution (permutation importance on a flight it never saw: `magcomp
+/// evaluate --explain --json`).
+struct NetworkChannel {
+  std::string channel;
+  double share = 0.0;
+};
+/// The channels of an attribution diagnose reads: at most kNetworkChannels, each with at least
+/// kNetworkMinShare of the importance.
+constexpr size_t kNetworkChannels = 3;
+constexpr double kNetworkMinShare = 0.10;
+
+/// What diagnose found of a channel the network leans on (Diagnosis::network).
+struct NetworkCheck {
+  std::string channel;
+  double share = 0.0;  ///< the network's share on it (0..1)
+  /// Its terms were among the candidates; false with the reason in `why_not` (not in the data,
+  /// constant or gappy, a position: leakage of the map or the trajectory, never a term).
+  bool searched = false;
+  std::string why_not;
+  /// The best ranked candidate that reads it (empty when none): its own terms first, unless a
+  /// term with another channel (a product) is accepted above them; its shares of the held-out
+  /// variance on the selection and confirmation lines, and whether it is accepted.
+  std::string best_term;
+  double explained_selection = NAN, explained_confirmation = NAN;
+  bool accepted = false;
 };
 
 /// Settings of a diagnosis (defaults: the full search).
@@ -84,6 +116,13 @@ struct DiagnoseOptions {
   /// diagnose: choose a set of terms together (Diagnosis::joint, joint_selection.cpp), which
   /// diagnose_loop tries before the first single term (false: single terms and pairs only).
   bool joint_selection = true;
+  /// The channels a trained network leans on, as its attribution ranks them (empty: none). The
+  /// leading ones (kNetworkChannels with kNetworkMinShare or more) are searched even where the
+  /// search would leave them out (full_search false), their products with each other and with
+  /// the strongest sources are fitted, and Diagnosis::network says what became of each. Their
+  /// terms pass the same acceptance rule as every other: the network offers, the held-out lines
+  /// decide.
+  std::vector<NetworkChannel> network_channels;
 };
 
 /// A set of candidate terms chosen together (diagnose's joint selection). The pool: the round's
@@ -141,6 +180,8 @@ struct Diagnosis {
       floor;  ///< the held-out residual against its own noise floor; what its power follows
   /// The terms chosen together (DiagnoseOptions::joint_selection); no terms when none.
   JointSet joint;
+  /// Each leading channel of DiagnoseOptions::network_channels, in the network's order.
+  std::vector<NetworkCheck> network;
   std::string verdict;             ///< "add <term>", "structure remains", "complete"
   std::vector<std::string> notes;  ///< skipped channels and why
 };
@@ -151,22 +192,12 @@ std::vector<std::string> source_fields(const Model& model, const FlightData& dat
                                        const std::string& truth, bool full_search,
                                        std::vector<std::string>* notes);
 
-/// Whether a channel is one of the aircraft's electrical sources (cur_*, vol_*): written with the
-/// current: shorthand.
-bool is_electrical(const std::string& channel);
+/// The leading channels of a network's attribution (DiagnoseOptions::network_channels): sorted
+/// by share, the first kNetworkChannels with at least kNetworkMinShare.
+std::vector<NetworkChannel> network_leads(std::vector<NetworkChannel> ranked);
 
-/// Whether a channel is motion or air data: the INS's (ins_*), an angular rate (*_rate, *_rt),
-/// an acceleration (*_acc), a velocity (vn, ve, vw, vu, vd), the attitude (pitch, roll, yaw,
-/// heading), the airspeed and the air pressures (tas, true_as, pitot_p, static_p, total_p).
-bool is_motion_channel(const std::string& channel);
-
-/// Whether a channel is a recorded state of the aircraft: a current or a voltage, or any other
-/// recorded channel that is not motion or air data (is_motion_channel), a position
-/// (is_position_channel), a magnetometer, a fluxgate, the diurnal or map reference or
-/// bookkeeping -- a surface or valve position, a temperature, an engine speed, a switch. These
-/// are the channels a slow term, a grown chain or a learned law may follow (a slow term or law
-/// of motion or position would be leakage of the map or the trajectory).
-bool is_aircraft_state(const std::string& channel);
+/// The data channels a term reads (not B or Bt; none for a TL family).
+std::vector<std::string> term_channels(const TermSpec& term);
 
 /// How much a term says: its sources, transforms and their parameters (a shorthand or TL
 /// family counts 1). Between terms that explain as much, the simpler is preferred.

@@ -8,6 +8,8 @@
 #include <utility>
 #include <vector>
 
+#include "magcomp/core/io/channel_kinds.h"
+
 namespace magcomp {
 
 /// The noise floor of a held-out residual and the channel its local power follows.
@@ -34,14 +36,5 @@ ResidualFloor residual_floor(
     const Eigen::VectorXd& residual, const std::vector<int>& unit, double sample_rate_hz,
     const std::vector<std::pair<std::string, Eigen::Map<const Eigen::VectorXd>>>& channels,
     double band_lo_fraction = 0.5);
-
-/// The position and trajectory channels (lat, lon, utm_*, ins_lat, ins_lon, heights): no source of
-/// aircraft field. A residual that follows them is map or trajectory leakage (the reference fit,
-/// IGRF or diurnal), never a term.
-bool is_position_channel(const std::string& name);
-/// The earth-frame velocities (ins_vn, ins_vw, ins_vu, vn, ve, ...), m/s: the trajectory's heading
-/// and climb. A term of one alone can stand for a slow heading-dependent error, but a product of
-/// one with another channel is no aircraft source: the product screen passes them over.
-bool is_earth_frame_velocity(const std::string& name);
 
 }  // namespace magcomp

@@ -37,6 +37,10 @@ struct ChannelImportance {
   /// (|r| >= kLookAlikeCorrelation), as (channel, Pearson r), the strongest first: the network
   /// cannot tell them apart, and their importance is shared between them.
   std::vector<std::pair<std::string, double>> look_alikes;
+  /// A position or an earth-frame velocity (is_position_channel, is_earth_frame_velocity): where
+  /// and which way the aircraft flies, never a source of its field. What the network reads from
+  /// it is leakage (the map, the diurnal, TL's heading error on a flight it was not fitted on).
+  bool trajectory = false;
 };
 
 /// The correlation above which two channels are look-alikes of one another (|r|, Pearson).
@@ -64,6 +68,9 @@ struct Attribution {
   /// figure, what the network corrects lies in the sensors and the terms' own inputs (a lag, the
   /// terms' coefficients) rather than in a channel of the aircraft.
   double own_inputs_nT2 = NAN;
+  /// The first of `channels` that is not a trajectory channel (ChannelImportance::trajectory),
+  /// where a missing effect of the aircraft is sought; nullptr when there is none.
+  const ChannelImportance* first_aircraft_channel() const;
 };
 
 /// Permutation importance of every input of a model's trained neural stage on `data` (a flight
