@@ -179,7 +179,8 @@ int main(int argc, char** argv) {
     }
     const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     std::printf(
-        "\n%d predictable runs: the first-ranked channel carries the effect in %d (%.0f %%), it or "
+        "\n%d predictable runs: the first-ranked channel of the aircraft carries the effect in %d "
+        "(%.0f %%), it or "
         "one of its look-alikes in %d (%.0f %%), one of the first three in %d (%.0f %%); %.0f s\n",
         counted, first_right, counted ? 100.0 * first_right / counted : 0.0, alike_right,
         counted ? 100.0 * alike_right / counted : 0.0, top3_right,
