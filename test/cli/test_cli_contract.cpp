@@ -115,13 +115,25 @@ TEST(Cli, DiagnoseWritesTheContractJsonAndTheLoop) {
     if (!c["accepted"].get<bool>()) seen_rejected = true;
     EXPECT_FALSE(seen_rejected && c["accepted"].get<bool>()) << c["term"];
   }
-  // The loop as a command: it adds the term, refits and writes the final model.
+  // The loop as a command: it adds the term, refits and writes the final model. It reads a
+  // network's attribution (as evaluate --explain --json writes it, over two flights), searches
+  // and judges the channels it leans on, and says whether its final model names them.
+  std::ofstream(dir + "/att.json")
+      << R"({"flights": [{"attribution": {"channels": [{"channel": "cur_heat", "share": 0.7},
+           {"channel": "cur_ac_lo", "share": 0.2}, {"channel": "lon", "share": 0.1}]}},
+           {"attribution": {"channels": [{"channel": "cur_heat", "share": 0.5},
+           {"channel": "cur_ac_lo", "share": 0.3}, {"channel": "lon", "share": 0.2}]}}]})";
   ASSERT_EQ(test::run(test::cli() + " diagnose --apply --data " + dir + "/f.h5 --model " + dir +
-                          "/m.yaml --out " + dir + "/final.yaml --json " + dir + "/loop.json",
+                          "/m.yaml --attribution " + dir + "/att.json --out " + dir +
+                          "/final.yaml --json " + dir + "/loop.json",
                       &out),
             0)
       << out;
   EXPECT_NE(out.find("dcurrent:cur_heat"), std::string::npos) << out;
+  EXPECT_NE(out.find("the network leans on (--attribution)"), std::string::npos) << out;
+  EXPECT_NE(out.find("cur_heat        60 %: the final model names it (dcurrent:cur_heat"),
+            std::string::npos)
+      << out;
   const Model final_model = load_model_yaml(dir + "/final.yaml");
   EXPECT_TRUE(final_model.fitted());
   EXPECT_NE(std::find(final_model.terms.begin(), final_model.terms.end(), "dcurrent:cur_heat"),
@@ -150,26 +162,9 @@ TEST(Cli, DiagnoseWritesTheContractJsonAndTheLoop) {
     EXPECT_GT(s["size_nT"].get<double>(), 0.0);
   }
   EXPECT_TRUE(heater) << loop["support"].dump();
-  // A network's attribution (as evaluate --explain --json writes it, over two flights): the
-  // channels it leans on are searched and judged, and the loop says whether its final model
-  // names them.
-  std::ofstream(dir + "/att.json")
-      << R"({"flights": [{"attribution": {"channels": [{"channel": "cur_heat", "share": 0.7},
-           {"channel": "cur_ac_lo", "share": 0.2}, {"channel": "lon", "share": 0.1}]}},
-           {"attribution": {"channels": [{"channel": "cur_heat", "share": 0.5},
-           {"channel": "cur_ac_lo", "share": 0.3}, {"channel": "lon", "share": 0.2}]}}]})";
-  ASSERT_EQ(test::run(test::cli() + " diagnose --apply --channels-only --rounds 2 --data " + dir +
-                          "/f.h5 --model " + dir + "/m.yaml --attribution " + dir +
-                          "/att.json --out " + dir + "/net.yaml --json " + dir + "/net.json",
-                      &out),
-            0)
-      << out;
-  EXPECT_NE(out.find("the network leans on (--attribution)"), std::string::npos) << out;
-  EXPECT_NE(out.find("cur_heat        60 %: the final model names it (dcurrent:cur_heat"),
-            std::string::npos)
-      << out;
-  nlohmann::json net;
-  std::ifstream(dir + "/net.json") >> net;
+  // The network's channels: the heater's named by the final model, the load's searched, the
+  // position never a term.
+  nlohmann::json& net = loop;
   ASSERT_EQ(net["network"].size(), 3u) << net["network"].dump();
   EXPECT_EQ(net["network"][0]["channel"], "cur_heat");
   EXPECT_NEAR(net["network"][0]["share"].get<double>(), 0.6, 1e-12);
