@@ -25,66 +25,6 @@
 namespace magcomp::cli {
 namespace {
 
-// The final model's terms (band-pass and slow) that read `channel`.
-std::vector<std::string> terms_reading(const Model& model, const std::string& channel) {
-  std::vector<std::string> out;
-  std::vector<TermSpec> all(model.terms.begin(), model.terms.end());
-  for (const std::string& t : model.slow_terms) all.emplace_back(t);
-  for (const TermSpec& t : all) {
-    const std::vector<std::string> ch = term_channels(t);
-    if (std::find(ch.begin(), ch.end(), channel) != ch.end()) out.push_back(t.text());
-  }
-  return out;
-}
-
-// What became of each channel a trained network leans on (diagnose --attribution); with the
-// final model's terms (`final_terms`, the loop) when given.
-void print_network_checks(const std::vector<NetworkCheck>& network, const std::string& after,
-                          const Model* final_model = nullptr) {
-  if (network.empty()) return;
-  std::printf("\nthe network leans on (--attribution)%s:\n", after.c_str());
-  for (const NetworkCheck& c : network) {
-    std::printf("  %-14s %3.0f %%: ", c.channel.c_str(), 100 * c.share);
-    if (final_model) {
-      std::string names;
-      for (const std::string& t : terms_reading(*final_model, c.channel))
-        names += (names.empty() ? "" : ", ") + t;
-      if (!names.empty()) {
-        std::printf("the final model names it (%s)\n", names.c_str());
-        continue;
-      }
-      std::printf("no term of the final model reads it; ");
-    }
-    if (!c.why_not.empty()) {
-      std::printf("not searched: %s\n", c.why_not.c_str());
-    } else if (c.best_term.empty()) {
-      std::printf("no candidate reads it\n");
-    } else {
-      std::printf(
-          "%s%s explains %.1f %% of the selection lines and %.1f %% of the confirmation "
-          "lines: %s\n",
-          final_model ? "in the last round " : "", c.best_term.c_str(), 100 * c.explained_selection,
-          100 * c.explained_confirmation,
-          c.accepted ? "accepted" : "rejected (the held-out lines decide)");
-    }
-  }
-}
-
-nlohmann::json network_json(const std::vector<NetworkCheck>& network) {
-  nlohmann::json out = nlohmann::json::array();
-  for (const NetworkCheck& c : network) {
-    out.push_back({{"channel", c.channel},
-                   {"share", c.share},
-                   {"searched", c.searched},
-                   {"why_not", c.why_not},
-                   {"best_term", c.best_term},
-                   {"explained_selection", json_figure(c.explained_selection)},
-                   {"explained_confirmation", json_figure(c.explained_confirmation)},
-                   {"accepted", c.accepted}});
-  }
-  return out;
-}
-
 void print_diagnosis(const Model& model, const Diagnosis& dx, int top, const std::string& data,
                      const std::string& model_path) {
   std::printf("model: %s with %s, terms:", model.scalar.c_str(), model.vector.c_str());
@@ -460,11 +400,7 @@ nlohmann::json loop_json(const LoopResult& r, const std::vector<TermSupport>& su
                             {"note", support_note(s)}});
   }
   j["last_diagnosis"] = to_json(r.last);
-  if (!r.last.network.empty()) {  // each network channel with the final model's terms reading it
-    j["network"] = network_json(r.last.network);
-    for (auto& c : j["network"])
-      c["final_terms"] = terms_reading(r.model, c["channel"].get<std::string>());
-  }
+  if (!r.last.network.empty()) j["network"] = network_json(r.last.network, &r.model);
   return j;
 }
 
