@@ -66,6 +66,7 @@ std::vector<Job> network_product_jobs(const Model& model, const Search& search,
                                       const std::vector<NetworkChannel>& leads,
                                       const std::vector<std::string>& aircraft_sources,
                                       const std::vector<Job>& taken) {
+  if (leads.empty()) return {};
   std::set<std::pair<std::string, std::string>> have;
   for (const Job& j : taken) {
     const std::vector<std::string> ch = term_channels(j.term);
