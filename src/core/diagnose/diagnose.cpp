@@ -100,7 +100,13 @@ Diagnosis diagnose(const Model& model_in, const FlightData& data, const std::str
   for (const auto& s : sources)
     if (!is_position_channel(s)) aircraft_sources.push_back(s);
   const std::vector<NetworkChannel> leads = network_leads(options.network_channels);
-  add_network_sources(model, data, truth_name, leads, &aircraft_sources);
+  // The full search's sources (the search's own on a full search), read once when a network
+  // names channels: where they may come from, and why one is not searched.
+  std::vector<std::string> all_sources;
+  if (!leads.empty())
+    all_sources =
+        options.full_search ? sources : source_fields(model, data, truth_name, true, nullptr);
+  add_network_sources(all_sources, leads, &aircraft_sources);
   std::vector<Job> jobs = make_jobs(model, aircraft_sources);
   std::vector<Scored> scored = run_jobs(search, jobs, options.threads);
   std::vector<Job> products = product_jobs(model, search, jobs, scored, options.accept_fraction);
@@ -139,7 +145,7 @@ Diagnosis diagnose(const Model& model_in, const FlightData& data, const std::str
   add_lag_candidate(model, data, search, &dx);
   judge_and_rank(search, options, &dx.candidates);
   mark_network_share(leads, &dx.candidates);
-  dx.network = network_checks(model, data, truth_name, leads, dx.candidates, aircraft_sources);
+  dx.network = network_checks(data, all_sources, leads, dx.candidates, aircraft_sources);
   data.drop_mapped_pages();
   dx.associations = residual_associations(data, search.held, search.e0, search.line, truth_name);
   data.drop_mapped_pages();

@@ -47,11 +47,9 @@ std::pair<std::string, std::string> pair_of(const std::string& a, const std::str
 
 }  // namespace
 
-void add_network_sources(const Model& model, const FlightData& data, const std::string& truth,
+void add_network_sources(const std::vector<std::string>& all,
                          const std::vector<NetworkChannel>& leads,
                          std::vector<std::string>* aircraft_sources) {
-  if (leads.empty()) return;
-  const std::vector<std::string> all = source_fields(model, data, truth, true, nullptr);
   for (const NetworkChannel& c : leads) {
     if (contains(*aircraft_sources, c.channel) || !contains(all, c.channel) ||
         is_position_channel(c.channel) || is_earth_frame_velocity(c.channel))
@@ -104,14 +102,13 @@ void mark_network_share(const std::vector<NetworkChannel>& leads,
   }
 }
 
-std::vector<NetworkCheck> network_checks(const Model& model, const FlightData& data,
-                                         const std::string& truth,
+std::vector<NetworkCheck> network_checks(const FlightData& data,
+                                         const std::vector<std::string>& all,
                                          const std::vector<NetworkChannel>& leads,
                                          const std::vector<Candidate>& candidates,
                                          const std::vector<std::string>& aircraft_sources) {
   std::vector<NetworkCheck> out;
   if (leads.empty()) return out;
-  const std::vector<std::string> all = source_fields(model, data, truth, true, nullptr);
   for (const NetworkChannel& l : leads) {
     NetworkCheck c;
     c.channel = l.channel;

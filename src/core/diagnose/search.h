@@ -171,12 +171,13 @@ std::vector<Job> product_jobs(const Model& model, const Search& search,
 constexpr size_t kScreenedProducts = 12;  // pairs fitted in full after the screen
 std::vector<Job> screened_products(const Search& search, const std::vector<std::string>& sources,
                                    const std::vector<Job>& taken, size_t keep, int threads);
-// A network's leading channels (network_channels.cpp): those the search left out added to the
-// aircraft's sources (not a position, and a source on a full search); their products with each
+// A network's leading channels (network_channels.cpp), with `all` the full search's sources
+// (source_fields): those the search left out added to the aircraft's sources (not a position
+// or an earth-frame velocity, and among `all`); their products with each
 // other and with the kNetworkPartners strongest sources, those not already in `taken`; each
 // candidate's share of the network's attribution; and what became of each channel.
 constexpr size_t kNetworkPartners = 6;
-void add_network_sources(const Model& model, const FlightData& data, const std::string& truth,
+void add_network_sources(const std::vector<std::string>& all,
                          const std::vector<NetworkChannel>& leads,
                          std::vector<std::string>* aircraft_sources);
 std::vector<Job> network_product_jobs(const Model& model, const Search& search,
@@ -187,8 +188,8 @@ std::vector<Job> network_product_jobs(const Model& model, const Search& search,
                                       const std::vector<Job>& taken);
 void mark_network_share(const std::vector<NetworkChannel>& leads,
                         std::vector<Candidate>* candidates);
-std::vector<NetworkCheck> network_checks(const Model& model, const FlightData& data,
-                                         const std::string& truth,
+std::vector<NetworkCheck> network_checks(const FlightData& data,
+                                         const std::vector<std::string>& all,
                                          const std::vector<NetworkChannel>& leads,
                                          const std::vector<Candidate>& candidates,
                                          const std::vector<std::string>& aircraft_sources);
