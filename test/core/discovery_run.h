@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <map>
 #include <set>
 #include <string>
@@ -16,6 +17,7 @@
 #include "magcomp/core/evaluate/evaluation.h"
 #include "magcomp/core/fit/model_fit.h"
 #include "magcomp/core/geo/igrf.h"
+#include "magcomp/core/io/flight_data.h"
 #include "magcomp/core/model/model.h"
 #include "magcomp/core/model/terms_expr.h"
 #include "magcomp/core/neural/attribution.h"
@@ -151,6 +153,14 @@ inline DiscoveryRun discovery_run(unsigned r, int count, sim::Scenario base, con
   b.hidden = a.hidden;
   b.seed = base.seed + 1;
   const sim::Simulation fa = sim::simulate(a, igrf), fb = sim::simulate(b, igrf);
+  // MAGCOMP_DISCOVERY_DUMP=DIR writes both flights (DIR/run_R_D_first.h5, _next.h5), so that a
+  // run is studied with the CLI (magcomp diagnose --data DIR/run_3_1_first.h5 ...).
+  if (const char* dir = std::getenv("MAGCOMP_DISCOVERY_DUMP")) {
+    const std::string stem =
+        std::string(dir) + "/run_" + std::to_string(r) + "_" + std::to_string(draw);
+    write_flight_h5(fa.flight, stem + "_first.h5");
+    write_flight_h5(fb.flight, stem + "_next.h5");
+  }
   Model start = tl;
   fit_model(start, {&fa.flight});
   const LoopResult loop = diagnose_loop(start, fa.flight, "mag_1_c", 5, 0.05, options);

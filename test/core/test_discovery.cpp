@@ -10,6 +10,7 @@
 #include <cstdio>
 
 #include "discovery_run.h"
+#include "magcomp/core/diagnose/diagnose.h"
 #include "magcomp/core/model/term.h"
 #include "test_util.h"
 
@@ -69,6 +70,48 @@ TEST(Discovery, ASlowHeaterIsSizedByTheSlowStageAndCarriesOver) {
   EXPECT_NE(d.slow_terms.front().find("cur_tank|"), std::string::npos) << slow;
   EXPECT_TRUE(d.near_oracle());
   EXPECT_FALSE(d.worse_than_tl());
+}
+
+// Run 3 on its second draw of aircraft and flights: a 0.49 s lag, a 34 s drift of vol_bat_2 and
+// a product of the roll rate with the bus current cur_outpwr (a look-alike of cur_acpwr), which
+// stays near its level: most of the product is the rate times a constant, which the base's eddy
+// columns span. Once the lag is in the model, the pair screen scores each product beside the
+// base's columns (a partial regression, as the fit will): the product of the roll rate with the
+// bus current is fitted and ranked first, in place of the plain rate (which explains 23 % of the
+// selection lines and is not accepted). A screen of each product alone ranked that pair 375th
+// (6 % of the residual) behind products of the attitude angles, so it was never fitted.
+TEST(Discovery, AProductWhosePlainPartTheBaseSpansIsScreenedBesideTheBase) {
+  sim::Scenario a = sim::load_scenario(test::source_dir() + "/config/scenarios/random_base.yaml");
+  const Igrf& igrf = Igrf::installed();
+  a.aircraft_seed = 5000 + 3;
+  a.seed = 1000 + 2 * 3;
+  const std::vector<sim::HiddenEffect> effects = sim::random_effects(a, 3, 3, igrf);
+  a.aircraft_seed += 100000;  // draw 1
+  a.seed += 100000;
+  double lag_s = 0;
+  for (const auto& e : effects) {
+    std::printf("  effect: %s\n", sim::describe(e).c_str());
+    if (e.type == "lag") lag_s = e.lag_s;
+  }
+  ASSERT_GT(lag_s, 0.3);
+  a.hidden.insert(a.hidden.end(), effects.begin(), effects.end());
+  const sim::Simulation fa = sim::simulate(a, igrf);
+  Model start = load_model_yaml(test::source_dir() + "/config/models/tl_sim.yaml");
+  start.terms.push_back("lag:" + std::to_string(lag_s));
+  fit_model(start, {&fa.flight});
+  const Diagnosis dx = diagnose(start, fa.flight, "mag_1_c");
+  ASSERT_FALSE(dx.candidates.empty());
+  const Candidate& top = dx.candidates.front();
+  std::printf("  top: %s (selection %.1f %%, confirmation %.1f %%)\n", top.term.text().c_str(),
+              100 * top.explained_selection, 100 * top.explained_confirmation);
+  EXPECT_TRUE(top.accepted);
+  const std::string t = top.term.text();
+  EXPECT_NE(t.find("roll_rate"), std::string::npos) << t;
+  EXPECT_TRUE(
+      t.find("*cur_outpwr") != std::string::npos || t.find("cur_outpwr*") != std::string::npos ||
+      t.find("*cur_acpwr") != std::string::npos || t.find("cur_acpwr*") != std::string::npos)
+      << t;
+  EXPECT_GE(top.explained_fraction, 0.5);
 }
 
 TEST(DiscoveryLong, AnEffectOfSomeLinesIsChosenOnTheLinesThatHoldIt) {

@@ -22,34 +22,58 @@ namespace magcomp::diagnose_search {
 
 // Every pair of channels screened cheaply for a product term field:x*y: on the held-out rows,
 // the share of the base residual (each line's mean removed) that the product's three columns
-// B̂i·x·y explain by least squares (no refit of the base). The screen only chooses which pairs
-// are fitted: the best `keep` pairs not already in `taken` become jobs, scored like every other
+// B̂i·x·y explain by least squares beside the base's own columns (a partial regression: the
+// part of the product the base already spans -- a rate times a steady current is mostly an eddy
+// column -- explains nothing the refit would keep). The screen only chooses which pairs are
+// fitted: the best `keep` pairs not already in `taken` become jobs, scored like every other
 // (fitted with the base, then accepted only if they lower the error on each fold by itself). It
 // reads both folds because a product of a current that one kind of flying switches on can lie
 // mostly in one of them. The earth-frame velocities are passed over (is_earth_frame_velocity).
-// Two threads split the first channel.
+// Each first channel's pairs are matrix products; two threads split the first channel.
 std::vector<Job> screened_products(const Search& search, const std::vector<std::string>& sources,
                                    const std::vector<Job>& taken, size_t keep, int threads) {
   const std::vector<Eigen::Index>& rows = search.held;
   const auto m = static_cast<Eigen::Index>(rows.size());
   if (m < 100 || sources.size() < 2) return {};
-  // The residual, each line's mean removed; the direction products B̂iB̂j and e·B̂i per row.
-  Eigen::VectorXd e(m);
-  for (Eigen::Index r = 0; r < m; ++r) e[r] = search.e0[rows[static_cast<size_t>(r)]];
-  for (Eigen::Index start = 0, r = 1; r <= m; ++r) {
-    if (r < m &&
-        search.line[rows[static_cast<size_t>(r)]] == search.line[rows[static_cast<size_t>(start)]])
-      continue;
-    e.segment(start, r - start).array() -= e.segment(start, r - start).mean();
-    start = r;
+  // Each line's mean removed from the columns of `x` (rows in held order).
+  const auto remove_line_means = [&](Eigen::Ref<Eigen::MatrixXd> x) {
+    for (Eigen::Index start = 0, r = 1; r <= m; ++r) {
+      if (r < m && search.line[rows[static_cast<size_t>(r)]] ==
+                       search.line[rows[static_cast<size_t>(start)]])
+        continue;
+      auto block = x.middleRows(start, r - start);
+      block.rowwise() -= block.colwise().mean();
+      start = r;
+    }
+  };
+  // The residual, each line's mean removed.
+  Eigen::MatrixXd e(m, 1);
+  for (Eigen::Index r = 0; r < m; ++r) e(r, 0) = search.e0[rows[static_cast<size_t>(r)]];
+  remove_line_means(e);
+  // An orthonormal basis of the base's columns on these rows (line means removed as well).
+  Eigen::MatrixXd q(m, 0);
+  if (search.a0.cols() > 0) {
+    Eigen::MatrixXd a(m, search.a0.cols());
+    for (Eigen::Index r = 0; r < m; ++r) a.row(r) = search.a0.row(rows[static_cast<size_t>(r)]);
+    a = a.unaryExpr([](double v) { return std::isfinite(v) ? v : 0.0; });
+    remove_line_means(a);
+    const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(a);
+    const Eigen::Index rank = qr.rank();
+    q = (qr.householderQ() * Eigen::MatrixXd::Identity(m, rank)).eval();
   }
-  const double ee = e.squaredNorm();
+  const Eigen::Index p = q.cols();
+  const Eigen::VectorXd qe = q.transpose() * e.col(0);
+  const double ee = e.col(0).squaredNorm() - qe.squaredNorm();
   if (!(ee > 0)) return {};
-  Eigen::Matrix<double, Eigen::Dynamic, 9> w(m, 9);  // xx xy xz yy yz zz, e·x e·y e·z
+  // Per row: the direction products B̂iB̂j (xx xy xz yy yz zz), e·B̂i, and the basis times each
+  // B̂i (p columns per direction).
+  Eigen::MatrixXd dd(m, 6), ed(m, 3), qd(m, 3 * p);
   for (Eigen::Index r = 0; r < m; ++r) {
     const Eigen::Vector3d d = search.inputs.direction.row(rows[static_cast<size_t>(r)]);
-    w.row(r) << d.x() * d.x(), d.x() * d.y(), d.x() * d.z(), d.y() * d.y(), d.y() * d.z(),
-        d.z() * d.z(), e[r] * d.x(), e[r] * d.y(), e[r] * d.z();
+    dd.row(r) << d.x() * d.x(), d.x() * d.y(), d.x() * d.z(), d.y() * d.y(), d.y() * d.z(),
+        d.z() * d.z();
+    ed.row(r) = e(r, 0) * d.transpose();
+    for (int k = 0; k < 3; ++k) qd.row(r).segment(k * p, p) = d[k] * q.row(r);
   }
   // The channels on those rows, standardised (a product's share does not depend on scale).
   Eigen::MatrixXd x(m, static_cast<Eigen::Index>(sources.size()));
@@ -68,19 +92,28 @@ std::vector<Job> screened_products(const Search& search, const std::vector<std::
   auto screen = [&](int part) {
     std::vector<std::pair<double, std::pair<Eigen::Index, Eigen::Index>>> out;
     for (Eigen::Index a = part; a < n; a += std::max(threads, 1)) {
-      for (Eigen::Index b = a + 1; b < n; ++b) {
-        Eigen::Matrix<double, 9, 1> acc = Eigen::Matrix<double, 9, 1>::Zero();
-        for (Eigen::Index r = 0; r < m; ++r) {
-          const double z = x(r, a) * x(r, b), z2 = z * z;
-          acc.head<6>() += z2 * w.row(r).head<6>().transpose();
-          acc.tail<3>() += z * w.row(r).tail<3>().transpose();
-        }
+      const Eigen::Index nb = n - a - 1;
+      if (nb <= 0) continue;
+      // The products z = x_a·x_b of every later channel b, then their sums against the rows'
+      // terms: z²·B̂iB̂j (the Gram of the three columns), z·e·B̂i, z·B̂i·q (their base part).
+      const Eigen::MatrixXd z = x.rightCols(nb).array().colwise() * x.col(a).array();
+      const Eigen::MatrixXd s6 = z.array().square().matrix().transpose() * dd;
+      const Eigen::MatrixXd s3 = z.transpose() * ed;
+      const Eigen::MatrixXd sq = z.transpose() * qd;
+      for (Eigen::Index j = 0; j < nb; ++j) {
         Eigen::Matrix3d g;
-        g << acc[0], acc[1], acc[2], acc[1], acc[3], acc[4], acc[2], acc[4], acc[5];
+        g << s6(j, 0), s6(j, 1), s6(j, 2), s6(j, 1), s6(j, 3), s6(j, 4), s6(j, 2), s6(j, 4),
+            s6(j, 5);
+        Eigen::Vector3d h = s3.row(j).transpose();
+        if (p > 0) {
+          Eigen::MatrixXd c(p, 3);  // the base basis against the three columns
+          for (int k = 0; k < 3; ++k) c.col(k) = sq.row(j).segment(k * p, p).transpose();
+          g -= c.transpose() * c;
+          h -= c.transpose() * qe;
+        }
         g.diagonal().array() += 1e-9 * std::max(g.trace(), 1e-300);
-        const Eigen::Vector3d h = acc.tail<3>();
         const double explained = h.dot(g.ldlt().solve(h)) / ee;
-        if (std::isfinite(explained)) out.push_back({explained, {a, b}});
+        if (std::isfinite(explained)) out.push_back({explained, {a, a + 1 + j}});
       }
     }
     return out;
