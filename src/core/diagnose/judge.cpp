@@ -28,12 +28,19 @@ void judge_and_rank(const Search& search, const DiagnoseOptions& options,
   auto gain_nT = [&search](int fold, double share) {
     return search.base_std[fold] * (1 - std::sqrt(std::max(0.0, 1 - share)));
   };
-  // Both splits by accept_fraction of the variance, and `fold` by the resolution.
+  // Both splits by accept_fraction of the variance, and `fold` by the resolution; or, on a
+  // quiet half (its error under kQuietHalfResolutions resolutions, where the resolution is most
+  // of what is left to gain), by kQuietHalfShare of its variance while all held-out lines
+  // together gain the resolution, for a term not within the base's own span (there its gain is
+  // the base's: a steady voltage times the permanent columns stands in for the ridge's bias).
   auto passes = [&](const Candidate& c, int fold) {
+    const double fold_share = fold == 0 ? c.explained_selection : c.explained_confirmation;
     return c.explained_selection >= options.accept_fraction &&
            c.explained_confirmation >= options.accept_fraction &&
-           gain_nT(fold, fold == 0 ? c.explained_selection : c.explained_confirmation) >=
-               options.resolution_nT;
+           (gain_nT(fold, fold_share) >= options.resolution_nT ||
+            (search.base_std[fold] < kQuietHalfResolutions * options.resolution_nT &&
+             fold_share >= kQuietHalfShare && !(c.base_span_share >= kQuietHalfMaxSpanShare) &&
+             search.base_std[2] - c.std_after_nT >= options.resolution_nT));
   };
   for (auto& c : *candidates) {
     if (!std::isfinite(c.ranking_share)) c.ranking_share = c.explained_selection;

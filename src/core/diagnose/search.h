@@ -65,6 +65,17 @@ constexpr double kSlowBandFraction = 0.01;
 // leakage hide, and would stand in for a state's slow effect that turns follow.
 constexpr double kMaxMotionLowPass_s = 20.0;
 
+// A held-out half is quiet when its error is under this many resolutions: gaining the
+// resolution there takes more than half of its variance. A candidate may then remove
+// kQuietHalfShare of that half's variance in place of the resolution, when all held-out lines
+// together gain the resolution (judge.cpp): a drift that lives in the pieces of a long line and
+// barely within the other half's short survey lines.
+// Not for a term whose fit-row columns lie within the base's span by kQuietHalfMaxSpanShare of
+// their energy or more (Scored::base_span_share).
+constexpr double kQuietHalfResolutions = 3.0;
+constexpr double kQuietHalfShare = 0.25;
+constexpr double kQuietHalfMaxSpanShare = 0.99;
+
 // --- the search (search.cpp; the lag's part in search_lag.cpp) ---
 
 // Mean-removed RMS per line over the rows of one fold (-1: every held-out row); NaN when fewer

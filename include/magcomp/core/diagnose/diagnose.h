@@ -38,7 +38,10 @@ struct Candidate {
   TermSpec partner;
   /// True when it improves the selection lines (where it was ranked) and also the confirmation
   /// lines (used neither to fit nor to choose it) by at least DiagnoseOptions::accept_fraction
-  /// of the variance and DiagnoseOptions::resolution_nT of the std; or, for the one candidate
+  /// of the variance and DiagnoseOptions::resolution_nT of the std (on a half under three
+  /// resolutions, for a term outside the base's span: 25 % of its variance, with the resolution
+  /// gained over all held-out lines);
+  /// or, for the one candidate
   /// chosen_on_confirmation, the confirmation lines by both, the selection lines by
   /// accept_fraction, and the held-out error by resolution_nT more than the selection lines'
   /// first.
