@@ -91,31 +91,35 @@ std::vector<Job> screened_products(const Search& search, const std::vector<std::
   const auto n = static_cast<Eigen::Index>(sources.size());
   auto screen = [&](int part) {
     std::vector<std::pair<double, std::pair<Eigen::Index, Eigen::Index>>> out;
-    for (Eigen::Index a = part; a < n; a += std::max(threads, 1)) {
-      const Eigen::Index nb = n - a - 1;
-      if (nb <= 0) continue;
-      // The products z = x_a·x_b of every later channel b, then their sums against the rows'
-      // terms: z²·B̂iB̂j (the Gram of the three columns), z·e·B̂i, z·B̂i·q (their base part).
-      const Eigen::MatrixXd z = x.rightCols(nb).array().colwise() * x.col(a).array();
-      const Eigen::MatrixXd s6 = z.array().square().matrix().transpose() * dd;
-      const Eigen::MatrixXd s3 = z.transpose() * ed;
-      const Eigen::MatrixXd sq = z.transpose() * qd;
-      for (Eigen::Index j = 0; j < nb; ++j) {
-        Eigen::Matrix3d g;
-        g << s6(j, 0), s6(j, 1), s6(j, 2), s6(j, 1), s6(j, 3), s6(j, 4), s6(j, 2), s6(j, 4),
-            s6(j, 5);
-        Eigen::Vector3d h = s3.row(j).transpose();
-        if (p > 0) {
-          Eigen::MatrixXd c(p, 3);  // the base basis against the three columns
-          for (int k = 0; k < 3; ++k) c.col(k) = sq.row(j).segment(k * p, p).transpose();
-          g -= c.transpose() * c;
-          h -= c.transpose() * qe;
+    // The products z = x_a·x_b of later channels b, kBlock at a time (a 5 h flight's held rows
+    // times kBlock columns), then their sums against the rows' terms: z²·B̂iB̂j (the Gram of the
+    // three columns), z·e·B̂i, z·B̂i·q (their base part).
+    constexpr Eigen::Index kBlock = 8;
+    Eigen::MatrixXd z;
+    for (Eigen::Index a = part; a < n; a += std::max(threads, 1))
+      for (Eigen::Index b0 = a + 1; b0 < n; b0 += kBlock) {
+        const Eigen::Index nb = std::min(kBlock, n - b0);
+        z = x.middleCols(b0, nb).array().colwise() * x.col(a).array();
+        const Eigen::MatrixXd s3 = z.transpose() * ed;
+        const Eigen::MatrixXd sq = z.transpose() * qd;
+        z = z.array().square().matrix();
+        const Eigen::MatrixXd s6 = z.transpose() * dd;
+        for (Eigen::Index j = 0; j < nb; ++j) {
+          Eigen::Matrix3d g;
+          g << s6(j, 0), s6(j, 1), s6(j, 2), s6(j, 1), s6(j, 3), s6(j, 4), s6(j, 2), s6(j, 4),
+              s6(j, 5);
+          Eigen::Vector3d h = s3.row(j).transpose();
+          if (p > 0) {
+            Eigen::MatrixXd c(p, 3);  // the base basis against the three columns
+            for (int k = 0; k < 3; ++k) c.col(k) = sq.row(j).segment(k * p, p).transpose();
+            g -= c.transpose() * c;
+            h -= c.transpose() * qe;
+          }
+          g.diagonal().array() += 1e-9 * std::max(g.trace(), 1e-300);
+          const double explained = h.dot(g.ldlt().solve(h)) / ee;
+          if (std::isfinite(explained)) out.push_back({explained, {a, b0 + j}});
         }
-        g.diagonal().array() += 1e-9 * std::max(g.trace(), 1e-300);
-        const double explained = h.dot(g.ldlt().solve(h)) / ee;
-        if (std::isfinite(explained)) out.push_back({explained, {a, a + 1 + j}});
       }
-    }
     return out;
   };
   std::vector<std::future<decltype(screen(0))>> parts;
