@@ -124,18 +124,29 @@ inline double hidden_std_within_lines(const sim::Simulation& s, const std::strin
   return std::sqrt(ss / static_cast<double>(h.size()));
 }
 
+/// The first flight's scenario of run `r` with `count` effects on `base` (aircraft seed 5000 + r,
+/// flight 1000 + 2r; draw d > 0: both seeds + 100000 d), and its drawn effects in `effects`
+/// (already in the scenario's hidden effects).
+inline sim::Scenario discovery_scenario(unsigned r, int count, sim::Scenario base, unsigned draw,
+                                        std::vector<sim::HiddenEffect>* effects) {
+  base.aircraft_seed = 5000 + r;
+  base.seed = 1000 + 2 * r;
+  *effects = sim::random_effects(base, r, count, Igrf::installed());
+  base.aircraft_seed += 100000LL * draw;
+  base.seed += 100000U * draw;
+  base.hidden.insert(base.hidden.end(), effects->begin(), effects->end());
+  return base;
+}
+
 /// Run `r` with `count` effects on `base` (aircraft seed 5000 + r, flights 1000 + 2r and the
 /// next), starting from `tl` (a TL template, fitted here), the loop with `options`. Draw d > 0
 /// puts the same effects on another aircraft and other flights (both seeds + 100000 d), so that a
 /// run's result is not one draw's luck.
-inline DiscoveryRun discovery_run(unsigned r, int count, sim::Scenario base, const Model& tl,
+inline DiscoveryRun discovery_run(unsigned r, int count, const sim::Scenario& base, const Model& tl,
                                   const DiagnoseOptions& options = {}, unsigned draw = 0) {
   const Igrf& igrf = Igrf::installed();
-  base.aircraft_seed = 5000 + r;
-  base.seed = 1000 + 2 * r;
-  const std::vector<sim::HiddenEffect> effects = sim::random_effects(base, r, count, igrf);
-  base.aircraft_seed += 100000LL * draw;
-  base.seed += 100000U * draw;
+  std::vector<sim::HiddenEffect> effects;
+  const sim::Scenario a = discovery_scenario(r, count, base, draw, &effects);
   DiscoveryRun out;
   for (const auto& e : effects) {
     out.effects += (out.effects.empty() ? "" : " + ") + sim::describe(e);
@@ -148,10 +159,8 @@ inline DiscoveryRun discovery_run(unsigned r, int count, sim::Scenario base, con
   if (effects.size() == 1 &&
       std::find(states.begin(), states.end(), effects.front().channel2) != states.end())
     out.kind = "product with a state";
-  sim::Scenario a = base, b = base;
-  a.hidden.insert(a.hidden.end(), effects.begin(), effects.end());
-  b.hidden = a.hidden;
-  b.seed = base.seed + 1;
+  sim::Scenario b = a;
+  b.seed = a.seed + 1;
   const sim::Simulation fa = sim::simulate(a, igrf), fb = sim::simulate(b, igrf);
   // MAGCOMP_DISCOVERY_DUMP=DIR writes both flights (DIR/run_R_D_first.h5, _next.h5), so that a
   // run is studied with the CLI (magcomp diagnose --data DIR/run_3_1_first.h5 ...).

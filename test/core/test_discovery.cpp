@@ -87,21 +87,17 @@ TEST(Discovery, ASlowHeaterIsSizedByTheSlowStageAndCarriesOver) {
 // Which channel it names is the look-alikes' question: on this flight the cabin temperature
 // through 166 s ranks first, the battery channels through 8-53 s within 2 points.
 TEST(Discovery, AProductTheBaseSpansIsScreenedAndADriftOnAQuietHalfIsAccepted) {
-  sim::Scenario a = sim::load_scenario(test::source_dir() + "/config/scenarios/random_base.yaml");
-  const Igrf& igrf = Igrf::installed();
-  a.aircraft_seed = 5000 + 3;
-  a.seed = 1000 + 2 * 3;
-  const std::vector<sim::HiddenEffect> effects = sim::random_effects(a, 3, 3, igrf);
-  a.aircraft_seed += 100000;  // draw 1
-  a.seed += 100000;
+  std::vector<sim::HiddenEffect> effects;
+  const sim::Scenario a = test::discovery_scenario(
+      3, 3, sim::load_scenario(test::source_dir() + "/config/scenarios/random_base.yaml"), 1,
+      &effects);
   double lag_s = 0;
   for (const auto& e : effects) {
     std::printf("  effect: %s\n", sim::describe(e).c_str());
     if (e.type == "lag") lag_s = e.lag_s;
   }
   ASSERT_GT(lag_s, 0.3);
-  a.hidden.insert(a.hidden.end(), effects.begin(), effects.end());
-  const sim::Simulation fa = sim::simulate(a, igrf);
+  const sim::Simulation fa = sim::simulate(a, Igrf::installed());
   Model start = load_model_yaml(test::source_dir() + "/config/models/tl_sim.yaml");
   start.terms.push_back("lag:" + std::to_string(lag_s));
   fit_model(start, {&fa.flight});
