@@ -11,14 +11,13 @@
 #include <map>
 #include <vector>
 
+#include "bag_record_ops.h"
 #include "magcomp/core/error.h"
 #include "magcomp/core/io/file_io.h"
 
 namespace magcomp::rosio {
 namespace {
 
-constexpr uint8_t kOpMessage = 0x02, kOpBagHeader = 0x03, kOpIndex = 0x04, kOpChunk = 0x05,
-                  kOpChunkInfo = 0x06, kOpConnection = 0x07;
 // Records larger than this are not what any recorder writes (rosbag's chunks are ~768 kB).
 constexpr uint64_t kMaxRecordBytes = 1ull << 31;
 // An uncompressed chunk larger than this is refused before it is inflated (rosbag writes 768 kB,

@@ -20,7 +20,7 @@
 namespace magcomp::rosio {
 namespace {
 
-const std::set<std::string> kKnownParams = {
+const std::set<std::string> kPlayerParams = {
     "bag",      "topics",         "rate",       "start_delay_s",   "wait_for_subscribers",
     "clock",    "progress_topic", "max_lead_s", "stall_timeout_s", "queue_size",
     "end_topic"};
@@ -37,7 +37,7 @@ std::function<void(const rosbag::MessageInstance&)> typed_publisher(ros::Publish
 }  // namespace
 
 BagPlayer::BagPlayer(ros::NodeHandle nh, ros::NodeHandle pnh) : nh_(nh), pnh_(pnh) {
-  warn_unknown_params(pnh_, kKnownParams);
+  warn_unknown_params(pnh_, kPlayerParams);
   if (!pnh_.getParam("bag", bag_path_) || bag_path_.empty())
     reject_param("bag", "required (a bag written by magcomp convert, or any bag)");
   pnh_.getParam("topics", topics_);

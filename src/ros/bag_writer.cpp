@@ -3,13 +3,12 @@
 
 #include <cstring>
 
+#include "bag_record_ops.h"
 #include "magcomp/core/error.h"
 
 namespace magcomp::rosio {
 namespace {
 
-constexpr uint8_t kOpMessage = 0x02, kOpFileHeader = 0x03, kOpIndex = 0x04, kOpChunk = 0x05,
-                  kOpChunkInfo = 0x06, kOpConnection = 0x07;
 constexpr size_t kFileHeaderBytes = 4096;  // the header record is padded to this
 
 template <typename T>
@@ -71,7 +70,7 @@ void BagWriter::put(const void* p, size_t n) {
 
 void BagWriter::write_file_header(uint64_t index_pos) {
   std::vector<uint8_t> h, out;
-  field_of<uint8_t>(h, "op", kOpFileHeader);
+  field_of<uint8_t>(h, "op", kOpBagHeader);
   field_of<uint64_t>(h, "index_pos", index_pos);
   field_of<uint32_t>(h, "conn_count", static_cast<uint32_t>(connections_.size()));
   field_of<uint32_t>(h, "chunk_count", static_cast<uint32_t>(chunks_.size()));

@@ -14,7 +14,7 @@
 namespace magcomp::rosio {
 namespace {
 
-const std::set<std::string> kKnownParams = with_input_params(
+const std::set<std::string> kCalibratorParams = with_input_params(
     {"calibration_model", "calibration_out", "forgetting", "auto_segments", "imu_topic"});
 
 constexpr double kStatusPeriod_s = 1.0;
@@ -26,7 +26,7 @@ constexpr double kLineTolerance = 1e-6;    // line numbers compare to this
 
 CalibratorRos::CalibratorRos(ros::NodeHandle nh, ros::NodeHandle pnh)
     : nh_(nh), pnh_(pnh), updater_(nh, pnh) {
-  warn_unknown_params(pnh_, kKnownParams);
+  warn_unknown_params(pnh_, kCalibratorParams);
   std::string template_path;
   pnh_.param<std::string>("calibration_model", template_path, "");
   if (template_path.empty()) {

@@ -17,15 +17,15 @@
 namespace magcomp::rosio {
 namespace {
 
-const std::set<std::string> kKnownParams =
+const std::set<std::string> kCompensatorParams =
     with_input_params({"model_path", "output_topic", "frame_id", "watch_model", "marker_stride",
                        "expected_rate_hz", "flush_after_s", "publish_track_tf", "publish_columns"});
 
-constexpr double kTimerPeriod_s = 0.25;  // model-file watch, held inputs, end of stream
-constexpr double kDiagnosticsPeriod_s = 1.0;
-constexpr int kOutputQueue = 10000;  // deep: a fast replay's bursts are never dropped
-constexpr long kTrackTfEvery = 5;    // outputs between two poses of the aircraft
-constexpr size_t kMinHistory = 256;  // samples re-fed to a swapped-in model (at least)
+constexpr double kCompensatorTimerPeriod_s = 0.25;  // model-file watch, held inputs, end of stream
+constexpr double kCompensatorDiagnosticsPeriod_s = 1.0;
+constexpr int kCompensatorOutputQueue = 10000;  // deep: a fast replay's bursts are never dropped
+constexpr long kTrackTfEvery = 5;               // outputs between two poses of the aircraft
+constexpr size_t kMinHistory = 256;             // samples re-fed to a swapped-in model (at least)
 
 double file_mtime(const std::string& path) {
   struct stat st {};
@@ -37,7 +37,7 @@ double file_mtime(const std::string& path) {
 
 CompensatorRos::CompensatorRos(ros::NodeHandle nh, ros::NodeHandle pnh)
     : nh_(nh), pnh_(pnh), updater_(nh, pnh) {
-  warn_unknown_params(pnh_, kKnownParams);  // typos are not silently ignored
+  warn_unknown_params(pnh_, kCompensatorParams);  // typos are not silently ignored
   pnh_.param<std::string>("model_path", model_path_, "");
   if (model_path_.empty()) {
     reject_param("model_path", "required (a fitted model YAML written by magcomp calibrate)");
@@ -72,10 +72,11 @@ CompensatorRos::CompensatorRos(ros::NodeHandle nh, ros::NodeHandle pnh)
   std::string out_topic;
   pnh_.param<std::string>("output_topic", out_topic, "magcomp/compensated");
 
-  pub_out_ = nh_.advertise<magcomp::CompensatedField>(out_topic, kOutputQueue);
+  pub_out_ = nh_.advertise<magcomp::CompensatedField>(out_topic, kCompensatorOutputQueue);
   pub_marker_ = nh_.advertise<visualization_msgs::MarkerArray>(out_topic + "/track", 2, true);
   if (publish_columns_)
-    pub_columns_ = nh_.advertise<magcomp::AuxChannels>(out_topic + "/columns", kOutputQueue);
+    pub_columns_ =
+        nh_.advertise<magcomp::AuxChannels>(out_topic + "/columns", kCompensatorOutputQueue);
   track_ = std::make_unique<TrackMarker>(frame_id_, stride);
   if (publish_track_tf_) tf_broadcaster_ = std::make_unique<tf2_ros::TransformBroadcaster>();
   InputStream::Callbacks cb;
@@ -99,7 +100,7 @@ CompensatorRos::CompensatorRos(ros::NodeHandle nh, ros::NodeHandle pnh)
   }
   srv_reload_ = pnh_.advertiseService("reload", &CompensatorRos::on_reload, this);
   // Wall timers: the model file and the end of a replay happen in wall time, not data time.
-  timer_ = nh_.createWallTimer(ros::WallDuration(kTimerPeriod_s),
+  timer_ = nh_.createWallTimer(ros::WallDuration(kCompensatorTimerPeriod_s),
                                [this](const ros::WallTimerEvent&) { on_timer(); });
   updater_.setHardwareID("magcomp compensator: " + scalar + " with " + vector);
   updater_.add("compensator", this, &CompensatorRos::diagnose);
@@ -107,7 +108,7 @@ CompensatorRos::CompensatorRos(ros::NodeHandle nh, ros::NodeHandle pnh)
       diagnostic_updater::FrequencyStatusParam(&min_freq_, &max_freq_, 0.1, 10));
   updater_.add(*freq_);
   diag_timer_ =
-      nh_.createWallTimer(ros::WallDuration(kDiagnosticsPeriod_s),
+      nh_.createWallTimer(ros::WallDuration(kCompensatorDiagnosticsPeriod_s),
                           [this](const ros::WallTimerEvent&) { updater_.force_update(); });
   ROS_INFO("magcomp compensator: %s -> %s (model %s)", in.topics.scalar.c_str(), out_topic.c_str(),
            model_path_.c_str());

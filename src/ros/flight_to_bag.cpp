@@ -22,13 +22,13 @@
 
 #include "bag_conversion.h"
 #include "magcomp/core/error.h"
+#include "magcomp/core/geo/attitude.h"
 #include "magcomp/core/io/file_io.h"
 #include "magcomp/core/io/time_base.h"
 #include "magcomp/core/math/constants.h"
 #include "magcomp/core/nav/flight_navigation.h"
 #include "magcomp/ros/bag_converter.h"
 #include "magcomp/ros/bag_writer.h"
-#include "magcomp/core/geo/attitude.h"
 
 namespace magcomp::rosio {
 

@@ -22,48 +22,48 @@
 namespace magcomp::rosio {
 namespace {
 
-const std::set<std::string> kKnownParams = {"map_path",
-                                            "map_interpolation",
-                                            "map_representation_error",
-                                            "map_altitude_m",
-                                            "anomaly_topic",
-                                            "ins_fix_topic",
-                                            "imu_topic",
-                                            "truth_fix_topic",
-                                            "end_of_stream_topic",
-                                            "rate_hz",
-                                            "measurement_sigma_nT",
-                                            "use_compensator_variance",
-                                            "map_sigma_nT",
-                                            "fogm_sigma_nT",
-                                            "fogm_tau_s",
-                                            "init_pos_sigma_m",
-                                            "init_vel_sigma_mps",
-                                            "nis_gate",
-                                            "map_frame",
-                                            "base_frame",
-                                            "origin_lat_deg",
-                                            "origin_lon_deg",
-                                            "origin_alt_m",
-                                            "max_wait_s",
-                                            "jump_back_s",
-                                            "publish_tf",
-                                            "path_stride",
-                                            "map_offset_from_first",
-                                            "queue_size",
-                                            "online",
-                                            "model_path",
-                                            "prior_path",
-                                            "online_cold",
-                                            "coefficient_walk",
-                                            "columns_topic",
-                                            "learned_model_path",
-                                            "particles",
-                                            "handover_sigma_m"};
+const std::set<std::string> kNavigatorParams = {"map_path",
+                                                "map_interpolation",
+                                                "map_representation_error",
+                                                "map_altitude_m",
+                                                "anomaly_topic",
+                                                "ins_fix_topic",
+                                                "imu_topic",
+                                                "truth_fix_topic",
+                                                "end_of_stream_topic",
+                                                "rate_hz",
+                                                "measurement_sigma_nT",
+                                                "use_compensator_variance",
+                                                "map_sigma_nT",
+                                                "fogm_sigma_nT",
+                                                "fogm_tau_s",
+                                                "init_pos_sigma_m",
+                                                "init_vel_sigma_mps",
+                                                "nis_gate",
+                                                "map_frame",
+                                                "base_frame",
+                                                "origin_lat_deg",
+                                                "origin_lon_deg",
+                                                "origin_alt_m",
+                                                "max_wait_s",
+                                                "jump_back_s",
+                                                "publish_tf",
+                                                "path_stride",
+                                                "map_offset_from_first",
+                                                "queue_size",
+                                                "online",
+                                                "model_path",
+                                                "prior_path",
+                                                "online_cold",
+                                                "coefficient_walk",
+                                                "columns_topic",
+                                                "learned_model_path",
+                                                "particles",
+                                                "handover_sigma_m"};
 
-constexpr double kTimerPeriod_s = 0.1;
-constexpr double kDiagnosticsPeriod_s = 1.0;
-constexpr int kOutputQueue = 10000;
+constexpr double kNavigatorTimerPeriod_s = 0.1;
+constexpr double kNavigatorDiagnosticsPeriod_s = 1.0;
+constexpr int kNavigatorOutputQueue = 10000;
 
 double getd(const ros::NodeHandle& pnh, const std::string& key, double def) {
   double v = def;
@@ -75,7 +75,7 @@ double getd(const ros::NodeHandle& pnh, const std::string& key, double def) {
 
 NavigatorRos::NavigatorRos(ros::NodeHandle nh, ros::NodeHandle pnh)
     : nh_(nh), pnh_(pnh), updater_(nh, pnh) {
-  warn_unknown_params(pnh_, kKnownParams);
+  warn_unknown_params(pnh_, kNavigatorParams);
   pnh_.param<std::string>("map_path", map_path_, "");
   if (map_path_.empty())
     reject_param("map_path", "required (an anomaly map HDF5: map, xx, yy, alt, as MagNav.jl)");
@@ -206,17 +206,18 @@ NavigatorRos::NavigatorRos(ros::NodeHandle nh, ros::NodeHandle pnh)
     sub_columns_ = nh_.subscribe(columns_topic, static_cast<uint32_t>(queue),
                                  &NavigatorRos::on_columns, this, hints);
     pub_coefficients_ =
-        nh_.advertise<magcomp::AuxChannels>("magcomp/nav/coefficients", kOutputQueue);
+        nh_.advertise<magcomp::AuxChannels>("magcomp/nav/coefficients", kNavigatorOutputQueue);
     pub_coefficient_sigma_ =
-        nh_.advertise<magcomp::AuxChannels>("magcomp/nav/coefficient_sigma", kOutputQueue);
+        nh_.advertise<magcomp::AuxChannels>("magcomp/nav/coefficient_sigma", kNavigatorOutputQueue);
     srv_save_ = pnh_.advertiseService("save_model", &NavigatorRos::on_save_model, this);
   }
 
-  pub_odom_ = nh_.advertise<nav_msgs::Odometry>("magcomp/nav/odometry", kOutputQueue);
-  pub_pose_ =
-      nh_.advertise<geometry_msgs::PoseWithCovarianceStamped>("magcomp/nav/pose", kOutputQueue);
-  pub_fix_ = nh_.advertise<sensor_msgs::NavSatFix>("magcomp/nav/fix", kOutputQueue);
-  pub_status_ = nh_.advertise<magcomp::NavigationStatus>("magcomp/nav/status", kOutputQueue);
+  pub_odom_ = nh_.advertise<nav_msgs::Odometry>("magcomp/nav/odometry", kNavigatorOutputQueue);
+  pub_pose_ = nh_.advertise<geometry_msgs::PoseWithCovarianceStamped>("magcomp/nav/pose",
+                                                                      kNavigatorOutputQueue);
+  pub_fix_ = nh_.advertise<sensor_msgs::NavSatFix>("magcomp/nav/fix", kNavigatorOutputQueue);
+  pub_status_ =
+      nh_.advertise<magcomp::NavigationStatus>("magcomp/nav/status", kNavigatorOutputQueue);
   pub_path_filter_ = nh_.advertise<nav_msgs::Path>("magcomp/nav/path/filter", 1, true);
   pub_path_ins_ = nh_.advertise<nav_msgs::Path>("magcomp/nav/path/ins", 1, true);
   pub_path_truth_ = nh_.advertise<nav_msgs::Path>("magcomp/nav/path/truth", 1, true);
@@ -225,12 +226,12 @@ NavigatorRos::NavigatorRos(ros::NodeHandle nh, ros::NodeHandle pnh)
   for (nav_msgs::Path* p : {&path_filter_, &path_ins_, &path_truth_})
     p->header.frame_id = map_frame_;
   if (publish_tf_) tf_ = std::make_unique<tf2_ros::TransformBroadcaster>();
-  timer_ = nh_.createWallTimer(ros::WallDuration(kTimerPeriod_s),
+  timer_ = nh_.createWallTimer(ros::WallDuration(kNavigatorTimerPeriod_s),
                                [this](const ros::WallTimerEvent&) { on_timer(); });
   updater_.setHardwareID("magcomp navigator: " + map_path_);
   updater_.add("navigator", this, &NavigatorRos::diagnose);
   diag_timer_ =
-      nh_.createWallTimer(ros::WallDuration(kDiagnosticsPeriod_s),
+      nh_.createWallTimer(ros::WallDuration(kNavigatorDiagnosticsPeriod_s),
                           [this](const ros::WallTimerEvent&) { updater_.force_update(); });
   ROS_INFO("magcomp navigator: %s + %s + %s -> magcomp/nav/* in frame %s (map %s, %ldx%ld)",
            anomaly_topic.c_str(), fix_topic.c_str(), imu_topic.c_str(), map_frame_.c_str(),

@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "magcomp/core/error.h"
+#include "magcomp/core/geo/wgs84.h"
 #include "magcomp/core/io/paths.h"
 #include "magcomp/core/math/constants.h"
 
@@ -14,8 +15,7 @@ namespace magcomp {
 namespace {
 
 constexpr double kReferenceRadiusKm = 6371.2;
-constexpr double kWgs84A = 6378.137;  // km
-constexpr double kWgs84F = 1.0 / 298.257223563;
+constexpr double kWgs84A_km = kWgs84SemiMajor_m / 1000.0;
 
 inline size_t idx(int n, int m) { return static_cast<size_t>(n * (n + 1) / 2 + m); }
 
@@ -149,9 +149,9 @@ FieldNED Igrf::geocentric(double colat_deg, double lon_deg, double r_km, double 
 FieldNED Igrf::geodetic(double lat_deg, double lon_deg, double height_m, double year) const {
   const double lat = lat_deg * kDegToRad;
   const double h = height_m / 1000.0;
-  const double e2 = kWgs84F * (2.0 - kWgs84F);
+  const double e2 = kWgs84Flattening * (2.0 - kWgs84Flattening);
   const double sl = std::sin(lat), cl = std::cos(lat);
-  const double nu = kWgs84A / std::sqrt(1.0 - e2 * sl * sl);
+  const double nu = kWgs84A_km / std::sqrt(1.0 - e2 * sl * sl);
   const double rho = (nu + h) * cl;             // distance from the axis, km
   const double z = (nu * (1.0 - e2) + h) * sl;  // along the axis, km
   const double r = std::hypot(rho, z);

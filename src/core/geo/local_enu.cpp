@@ -4,14 +4,14 @@
 #include <Eigen/Dense>
 #include <cmath>
 
+#include "magcomp/core/geo/wgs84.h"
 #include "magcomp/core/math/constants.h"
 
 namespace magcomp {
 namespace {
 
-constexpr double kA_m = 6378137.0;          // WGS-84 semi-major axis
-constexpr double kF = 1.0 / 298.257223563;  // flattening
-constexpr double kE2 = kF * (2.0 - kF);     // first eccentricity squared
+constexpr double kA_m = kWgs84SemiMajor_m;
+constexpr double kE2 = kWgs84Flattening * (2.0 - kWgs84Flattening);  // first eccentricity squared
 
 }  // namespace
 

@@ -16,6 +16,7 @@
 #include <mutex>
 #include <numeric>
 
+#include "h5_link_names.h"
 #include "magcomp/core/error.h"
 #include "magcomp/core/io/file_io.h"
 #include "magcomp/core/io/flight_data.h"
@@ -35,11 +36,6 @@ struct H5Handle {
   H5Handle(const H5Handle&) = delete;
   H5Handle& operator=(const H5Handle&) = delete;
 };
-
-herr_t collect_name(hid_t, const char* name, const H5L_info_t*, void* out) {
-  static_cast<std::vector<std::string>*>(out)->emplace_back(name);
-  return 0;
-}
 
 struct Dataset {
   std::string name;
@@ -359,7 +355,8 @@ FlightData read_flight_h5(const std::string& path) {
   if (file.id < 0) throw Error(path + ": cannot open HDF5 file (corrupt superblock)");
 
   std::vector<std::string> names;
-  if (H5Literate(file.id, H5_INDEX_NAME, H5_ITER_NATIVE, nullptr, collect_name, &names) < 0) {
+  if (H5Literate(file.id, H5_INDEX_NAME, H5_ITER_NATIVE, nullptr, append_h5_link_name, &names) <
+      0) {
     throw Error(path + ": cannot list the fields (corrupt root group)");
   }
   FlightData data;

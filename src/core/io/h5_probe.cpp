@@ -11,15 +11,9 @@
 #include <cstdlib>
 #include <vector>
 
+#include "h5_link_names.h"
+
 namespace magcomp {
-namespace {
-
-herr_t collect_name(hid_t, const char* name, const H5L_info_t*, void* out) {
-  static_cast<std::vector<std::string>*>(out)->emplace_back(name);
-  return 0;
-}
-
-}  // namespace
 
 std::string probe_h5_structure(const std::string& path, unsigned long long read_values) {
   // MAGCOMP_HDF5_PROBE=0 turns the probe off: the fuzz target does, to feed libFuzzer fast and
@@ -37,7 +31,7 @@ std::string probe_h5_structure(const std::string& path, unsigned long long read_
     const hid_t file = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
     if (file >= 0) {
       std::vector<std::string> names;
-      H5Literate(file, H5_INDEX_NAME, H5_ITER_NATIVE, nullptr, collect_name, &names);
+      H5Literate(file, H5_INDEX_NAME, H5_ITER_NATIVE, nullptr, append_h5_link_name, &names);
       for (const std::string& name : names) {
         H5O_info_t info;
         if (H5Oget_info_by_name2(file, name.c_str(), &info, H5O_INFO_BASIC, H5P_DEFAULT) < 0 ||

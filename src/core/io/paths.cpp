@@ -12,12 +12,11 @@
 #endif
 
 namespace magcomp {
-namespace {
-bool is_directory(const std::string& p) {
+
+bool is_directory(const std::string& path) {
   struct stat st {};
-  return ::stat(p.c_str(), &st) == 0 && S_ISDIR(st.st_mode);
+  return ::stat(path.c_str(), &st) == 0 && S_ISDIR(st.st_mode);
 }
-}  // namespace
 
 std::string executable_dir() {
   char buf[PATH_MAX];

@@ -1,7 +1,6 @@
 // magcomp: model YAML load and atomic save.
 #include <yaml-cpp/yaml.h>
 
-#include <sys/stat.h>
 #include <unistd.h>
 #include <algorithm>
 #include <cmath>
@@ -12,6 +11,7 @@
 
 #include "magcomp/core/error.h"
 #include "magcomp/core/io/file_io.h"
+#include "magcomp/core/io/paths.h"
 #include "magcomp/core/model/model.h"
 
 namespace magcomp {
@@ -36,11 +36,6 @@ void warn_unknown(const YAML::Node& node, const std::set<std::string>& known,
       std::cerr << "warning: " << path << ": unknown key '" << prefix << key << "' ignored\n";
     }
   }
-}
-
-bool is_directory(const std::string& path) {
-  struct stat st {};
-  return ::stat(path.c_str(), &st) == 0 && S_ISDIR(st.st_mode);
 }
 
 std::string directory_of(const std::string& path) {

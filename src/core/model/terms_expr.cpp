@@ -10,7 +10,7 @@
 namespace magcomp {
 namespace {
 
-const char* kAxis = "xyz";
+const char* kAxisLetters = "xyz";
 const int kPairs[6][2] = {{0, 0}, {0, 1}, {0, 2}, {1, 1}, {1, 2}, {2, 2}};
 
 const char* projection_name(Projection p) {
@@ -84,20 +84,21 @@ std::vector<std::string> ExprTerm::column_names() const {
     case Projection::Field:
       for (int i = 0; i < 3; ++i) {
         if (w == 1) {
-          names.push_back(s + "." + kAxis[i]);
+          names.push_back(s + "." + kAxisLetters[i]);
         } else {
-          for (int j = 0; j < 3; ++j) names.push_back(s + "." + kAxis[i] + kAxis[j]);
+          for (int j = 0; j < 3; ++j) names.push_back(s + "." + kAxisLetters[i] + kAxisLetters[j]);
         }
       }
       break;
     case Projection::Induced:
-      for (const auto& p : kPairs) names.push_back(s + "." + kAxis[p[0]] + kAxis[p[1]]);
+      for (const auto& p : kPairs)
+        names.push_back(s + "." + kAxisLetters[p[0]] + kAxisLetters[p[1]]);
       break;
     case Projection::Scalar:
       if (w == 1) {
         names.push_back(s);
       } else {
-        for (int j = 0; j < 3; ++j) names.push_back(s + "." + kAxis[j]);
+        for (int j = 0; j < 3; ++j) names.push_back(s + "." + kAxisLetters[j]);
       }
       break;
   }

@@ -8,6 +8,7 @@
 
 #include "magcomp/core/error.h"
 #include "magcomp/core/geo/potential_field.h"
+#include "magcomp/core/geo/wgs84.h"
 #include "magcomp/core/io/file_io.h"
 #include "magcomp/core/io/h5_array.h"
 #include "magcomp/core/math/constants.h"
@@ -15,12 +16,9 @@
 namespace magcomp::nav {
 namespace {
 
-constexpr double kWgs84A_m = 6378137.0;        // MagNav.jl's r_earth
-constexpr double kWgs84E = 0.0818191908426;    // first eccentricity
 constexpr double kGradientStep_rad = 1.0e-8f;  // MagNav.jl's map_grad step (a Float32 literal)
-constexpr double kMaxMapAltitude_m = 1e5;
-constexpr double kMinCell_rad = 1e-10;  // 0.6 mm on the ground: no anomaly map is finer      // a
-                                        // map's altitude, within 100 km of the ellipsoid
+constexpr double kMaxMapAltitude_m = 1e5;      // a map's altitude, within 100 km of the ellipsoid
+constexpr double kMinCell_rad = 1e-10;         // 0.6 mm on the ground: no anomaly map is finer
 
 // Fractional index of x on a uniform axis from a[0] to a[n-1]: the cell and the weight in it.
 void locate(const Eigen::VectorXd& a, double x, Eigen::Index* cell, double* t) {
@@ -219,9 +217,9 @@ bool AnomalyMap::covered_value(double lat, double lon, double* v) const {
 Eigen::Vector2d AnomalyMap::step_m() const {
   // Radii of curvature of the ellipsoid at the mean latitude (meridian and prime vertical).
   const double lat = 0.5 * (lat_rad[0] + lat_rad[lat_rad.size() - 1]);
-  const double e2 = kWgs84E * kWgs84E, s2 = std::sin(lat) * std::sin(lat);
-  const double rn = kWgs84A_m / std::sqrt(1 - e2 * s2);
-  const double rm = kWgs84A_m * (1 - e2) / std::pow(1 - e2 * s2, 1.5);
+  const double e2 = kWgs84Eccentricity * kWgs84Eccentricity, s2 = std::sin(lat) * std::sin(lat);
+  const double rn = kWgs84SemiMajor_m / std::sqrt(1 - e2 * s2);
+  const double rm = kWgs84SemiMajor_m * (1 - e2) / std::pow(1 - e2 * s2, 1.5);
   const double dlon = (lon_rad[lon_rad.size() - 1] - lon_rad[0]) / (lon_rad.size() - 1);
   const double dlat = (lat_rad[lat_rad.size() - 1] - lat_rad[0]) / (lat_rad.size() - 1);
   return {dlon * (rn + alt_m) * std::cos(lat), dlat * (rm + alt_m)};

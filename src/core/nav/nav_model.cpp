@@ -5,23 +5,18 @@
 #include <cstdio>
 
 #include "magcomp/core/error.h"
+#include "magcomp/core/geo/wgs84.h"
 #include "magcomp/core/math/constants.h"
 #include "magcomp/core/nav/streaming_track.h"
 
 namespace magcomp::nav {
-namespace {
-
-constexpr double kEarthRadius_m = 6378137.0;  // MagNav.jl's r_earth and e_earth
-constexpr double kEccentricity = 0.0818191908426;
-
-}  // namespace
 
 double dlat_to_north_m(double dlat, double lat) {
-  return dlat / std::sqrt(1 - std::pow(kEccentricity * std::sin(lat), 2)) * kEarthRadius_m;
+  return dlat / std::sqrt(1 - std::pow(kWgs84Eccentricity * std::sin(lat), 2)) * kWgs84SemiMajor_m;
 }
 
 double dlon_to_east_m(double dlon, double lat) {
-  return dlon / std::sqrt(1 - std::pow(kEccentricity * std::sin(lat), 2)) * kEarthRadius_m *
+  return dlon / std::sqrt(1 - std::pow(kWgs84Eccentricity * std::sin(lat), 2)) * kWgs84SemiMajor_m *
          std::cos(lat);
 }
 
@@ -87,8 +82,9 @@ FilterSettings filter_model(double dt_s, double lat1, const ModelSigmas& s) {
   f.r_nT2 = s.meas_var_nT2;
   f.map_representation_var = s.map_representation_var;
   Eigen::VectorXd p0(18);
-  const double dlat =
-      s.init_pos_m * std::sqrt(1 - std::pow(kEccentricity * std::sin(lat1), 2)) / kEarthRadius_m;
+  const double dlat = s.init_pos_m *
+                      std::sqrt(1 - std::pow(kWgs84Eccentricity * std::sin(lat1), 2)) /
+                      kWgs84SemiMajor_m;
   p0 << dlat * dlat, std::pow(dlat / std::cos(lat1), 2), s.init_alt_m * s.init_alt_m,
       Eigen::Vector3d::Constant(s.init_vel_mps * s.init_vel_mps),
       Eigen::Vector3d::Constant(s.init_att_rad * s.init_att_rad), s.ha_m * s.ha_m,

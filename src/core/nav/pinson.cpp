@@ -4,11 +4,11 @@
 #include <cmath>
 #include <unsupported/Eigen/MatrixFunctions>
 
+#include "magcomp/core/geo/wgs84.h"
+
 namespace magcomp::nav {
 namespace {
 
-constexpr double kEarthRadius_m = 6378137.0;        // MagNav.jl's r_earth
-constexpr double kEarthRate_rps = 7.2921151467e-5;  // MagNav.jl's ω_earth
 // Barometer-aiding gains of the third-order vertical channel (MagNav.jl's k1, k2, k3).
 constexpr double kBaroK1 = 3e-2, kBaroK2 = 3e-4, kBaroK3 = 1e-6;
 
@@ -16,7 +16,7 @@ constexpr double kBaroK1 = 3e-2, kBaroK2 = 3e-4, kBaroK3 = 1e-6;
 
 Eigen::MatrixXd pinson_dynamics(const NavPoint& p, const ErrorModelTaus& taus, bool fogm_state) {
   const int n = fogm_state ? 18 : 17;
-  const double r = kEarthRadius_m, w = kEarthRate_rps, r2 = r * r;
+  const double r = kWgs84SemiMajor_m, w = kEarthRate_rps, r2 = r * r;
   const double vn = p.vn_mps, ve = p.ve_mps, vd = p.vd_mps;
   const double fn = p.fn_mps2, fe = p.fe_mps2, fd = p.fd_mps2;
   const double tan_l = std::tan(p.lat_rad), cos_l = std::cos(p.lat_rad),

@@ -5,6 +5,9 @@
 
 namespace magcomp {
 
+/// Whether `path` names an existing directory (following symbolic links).
+bool is_directory(const std::string& path);
+
 /// Directory of the running executable (from /proc/self/exe), "." if unknown.
 std::string executable_dir();
 
