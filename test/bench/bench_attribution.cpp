@@ -3,8 +3,8 @@
 // random_base flight of one aircraft, flies it three times (train, early-stop, explain), fits TL
 // on the first, trains a residual MLP on what TL leaves with every aircraft channel as an input,
 // and ranks the inputs by permutation importance on the third flight (core/neural/attribution).
-// Each channel enters raw and through causal low-passes (default 100 s: effects slower
-// than the window), and the channels are ranked with all their inputs shuffled together
+// Each channel enters raw and through causal low-passes (default 2 s and 100 s: a flex's lag of
+// a second or two, and effects far slower than the window), and the channels are ranked with all their inputs shuffled together
 // (Attribution::channels). A run counts when the first-ranked channel of the aircraft
 // (Attribution::first_aircraft_channel: a position or an earth-frame velocity ranked above it is
 // the trajectory, leakage, and is passed over) is one the effect acts through (for an effect of
@@ -51,7 +51,7 @@ int main(int argc, char** argv) {
     const int epochs = argc > 5 ? std::atoi(argv[5]) : 20;
     std::vector<std::string> lowpass_s;
     {
-      std::stringstream list(argc > 6 ? argv[6] : "100");
+      std::stringstream list(argc > 6 ? argv[6] : "2,100");
       for (std::string tau; std::getline(list, tau, ',');)
         if (!tau.empty() && tau != "none") lowpass_s.push_back(tau);
     }

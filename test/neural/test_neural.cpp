@@ -806,6 +806,65 @@ TEST(Neural, AttributionNamesTheChannelOfASlowEffectThroughItsLowPass) {
   }
 }
 
+TEST(Neural, AFlexIsLearnedAndNamedThroughAShortLowPassOfItsRate) {
+  // flex_load with the flex on the pitch rate through a 1.4 s lag: the network sees 0.5 s of
+  // each input (window 5 at 10 Hz) and a 100 s low-pass, both far from the lag. With each
+  // channel also through a 2 s low-pass (not the effect's own constant), the pitch rate is the
+  // aircraft's channel the network leans on most, and it lowers TL's error on a flight it never
+  // saw by more than the network without the short low-pass does.
+  const double flex_gain = 7.0;  // nT per deg/s of the pitch rate, along the flex's direction
+  std::vector<FlightData> flights;
+  for (unsigned k = 0; k < 3; ++k) {
+    sim::Scenario sc = sim::load_scenario(test::source_dir() + "/config/scenarios/flex_load.yaml");
+    ASSERT_EQ(sc.hidden.size(), 1u);
+    sc.hidden[0].channel = "pitch_rate";
+    sc.hidden[0].time_constant_s = 1.4;
+    sc.hidden[0].gain = flex_gain;
+    sc.aircraft_seed = 7;
+    sc.seed = 70 + k;
+    flights.push_back(sim::simulate(sc, Igrf::installed()).flight);
+    flights.back().set_source("flex_" + std::to_string(k) + ".h5");
+  }
+  const std::string dir = test::temp_dir("neural_flex_attribution");
+  double network_nT[2] = {NAN, NAN};
+  for (const bool short_lp : {false, true}) {
+    Model m = test::reference_tl(flights[0]);
+    fit_model(m, {&flights[0]});
+    NeuralSpec spec;
+    spec.mode = parse_mode("residual", "test");
+    spec.window = 5;
+    spec.features = {"tl_anomaly", "tl_correction", "dir_x", "dir_y", "dir_z"};
+    for (const std::string c : {"pitch_rate", "roll_rate", "yaw_rate", "cur_flap", "cur_strb"}) {
+      spec.features.push_back(c);
+      if (short_lp) spec.features.push_back(c + "|lp(2)");
+      spec.features.push_back(c + "|lp(100)");
+    }
+    spec.training.epochs = 30;
+    spec.training.patience = 5;
+    spec.training.fit_output_gain = false;
+    m.neural = spec;
+    const std::string out = dir + (short_lp ? "/short" : "/long");
+    train_bundle(m, {flights[0]}, {flights[1]}, out, false);
+    const Model trained = load_model_yaml(out);
+    Model terms = trained;
+    terms.neural.reset();
+    const double tl_nT = evaluate_model(terms, flights[2], "mag_1_c").std_nT;
+    network_nT[short_lp] = evaluate_model(trained, flights[2], "mag_1_c").std_nT;
+    const Attribution a = permutation_importance(trained, flights[2]);
+    std::printf("  %s: TL %.3f nT, with the network %.3f nT; channels:",
+                short_lp ? "2 s and 100 s low-passes" : "100 s low-pass", tl_nT,
+                network_nT[short_lp]);
+    for (const auto& c : a.channels) std::printf(" %s %.0f%%", c.channel.c_str(), 100 * c.share);
+    std::printf("\n");
+    ASSERT_EQ(a.channels.size(), 5u);
+    if (short_lp) {
+      EXPECT_EQ(a.channels.front().channel, "pitch_rate");
+      EXPECT_LT(network_nT[1], 0.5 * tl_nT);
+      EXPECT_LT(network_nT[1], network_nT[0]);
+    }
+  }
+}
+
 TEST(Neural, TrainPrintsWhatTheNetworkLeansOnOnTheValidationFlight) {
   // magcomp_train on two flights of rostest_short (the second for validation): after the bundle
   // is written, each input's share on the validation flight, the wire's current first, the
