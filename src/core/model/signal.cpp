@@ -141,8 +141,12 @@ class LowPassStage : public SignalStage {
       s_ = x;
       init_ = true;
     } else {
-      const double a = std::exp(-(t - tp_) / tau_);
-      s_ = a * s_ + (1 - a) * x;
+      const double dt = t - tp_;
+      if (dt != dt_) {  // a uniform flight computes its step's factor once
+        dt_ = dt;
+        a_ = std::exp(-dt / tau_);
+      }
+      s_ = a_ * s_ + (1 - a_) * x;
     }
     tp_ = t;
     *y = high_ ? x - s_ : s_;
@@ -155,6 +159,7 @@ class LowPassStage : public SignalStage {
   bool high_;
   bool init_ = false;
   double s_ = 0, tp_ = 0;
+  double dt_ = kNaN, a_ = 1.0;  // the last step [s] and its factor exp(-dt / tau)
 };
 
 class IntegralStage : public SignalStage {
@@ -208,7 +213,10 @@ class PlayStage : public SignalStage {
 class PointwiseStage : public SignalStage {
  public:
   PointwiseStage(TransformKind k, double p)
-      : kind_(k), p_(p), integer_(std::abs(p - std::round(p)) < 1e-12) {}
+      : kind_(k),
+        p_(p),
+        integer_(std::abs(p - std::round(p)) < 1e-12),
+        square_(integer_ && std::round(p) == 2.0) {}
   bool push(double t, double x, double* t_out, double* y) override {
     *t_out = t;
     if (kind_ == TransformKind::Abs) {
@@ -220,7 +228,8 @@ class PointwiseStage : public SignalStage {
     } else if (kind_ == TransformKind::Ramp) {
       *y = std::isfinite(x) ? std::max(x - p_, 0.0) : kNaN;
     } else {
-      *y = integer_ ? std::pow(x, std::round(p_)) : std::pow(std::abs(x), p_);
+      // x * x is pow(x, 2) exactly (one rounding either way), and the commonest law.
+      *y = square_ ? x * x : integer_ ? std::pow(x, std::round(p_)) : std::pow(std::abs(x), p_);
     }
     return true;
   }
@@ -230,6 +239,7 @@ class PointwiseStage : public SignalStage {
   TransformKind kind_;
   double p_;
   bool integer_;
+  bool square_;
 };
 
 class DelayStage : public SignalStage {
