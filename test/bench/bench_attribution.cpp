@@ -4,18 +4,19 @@
 // on the first, trains a residual MLP on what TL leaves with every aircraft channel as an input,
 // and ranks the inputs by permutation importance on the third flight (core/neural/attribution).
 // Each channel enters raw and through causal low-passes (default 2 s and 100 s: a flex's lag of
-// a second or two, and effects far slower than the window), and the channels are ranked with all their inputs shuffled together
-// (Attribution::channels). A run counts when the first-ranked channel of the aircraft
-// (Attribution::first_aircraft_channel: a position or an earth-frame velocity ranked above it is
-// the trajectory, leakage, and is passed over) is one the effect acts through (for an effect of
-// no channel, a lag: when the model's own inputs together outweigh every channel), and also
-// counts ("alike") when the effect's channel is among that channel's look-alikes (channels whose
-// values follow it, |r| >= 0.95, which the network cannot tell apart); the first-ranked single
-// input is printed beside it. Prints one line per run and the shares over the predictable runs
-// (effects of recorded channels). With "diagnose", each run's first flight is also diagnosed from
-// TL with and without the attribution (DiagnoseOptions::network_channels), on the channels-only and
-// on the full search, and the run counts where the first accepted term reads the effect's channel.
-// Usage: magcomp_bench_attribution SCENARIO.yaml TL_MODEL.yaml [runs] [first_seed] [epochs]
+// a second or two, and effects far slower than the window), and the channels are ranked with all
+// their inputs shuffled together (Attribution::channels). A run counts when the first-ranked
+// channel of the aircraft (Attribution::first_aircraft_channel: a position or an earth-frame
+// velocity ranked above it is the trajectory, leakage, and is passed over) is one the effect acts
+// through (for an effect of no channel, a lag: when the model's own inputs together outweigh every
+// channel), and also counts ("alike") when the effect's channel is among that channel's look-alikes
+// (channels whose values follow it, |r| >= 0.95, which the network cannot tell apart); the
+// first-ranked single input is printed beside it. Prints one line per run and the shares over the
+// predictable runs (effects of recorded channels). With "diagnose", each run's first flight is also
+// diagnosed from TL with and without the attribution (DiagnoseOptions::network_channels), on the
+// channels-only and on the full search, and the run counts where the first accepted term reads the
+// effect's channel. Usage: magcomp_bench_attribution SCENARIO.yaml TL_MODEL.yaml [runs]
+// [first_seed] [epochs]
 //        [low-pass time constants, s, comma-separated, or "none"] [diagnose]
 #include <chrono>
 #include <cmath>
