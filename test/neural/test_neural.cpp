@@ -751,6 +751,52 @@ TEST(Neural, TrajectoryChannelsAreMarkedAndPassedOverForTheAircraftsOwn) {
   EXPECT_EQ(none.first_aircraft_channel(), nullptr);
 }
 
+// What a residual network learned beyond TL on a flight it never saw.
+struct Explained {
+  double tl_nT = NAN;       // TL's error std on the third flight [nT]
+  double network_nT = NAN;  // TL + the network's [nT]
+  Attribution attribution;  // the channels ranked on the third flight
+};
+
+// Fits TL on flights[0], trains a residual MLP (window 5, 30 epochs, early-stopped on
+// flights[1]) on TL's anomaly and correction, the direction cosines and each of `channels` raw
+// and through the causal low-passes `lowpass_s` (time constants in s, as written in a feature),
+// writes its bundle to `out`, scores TL and TL + network on flights[2] and ranks the channels
+// there; prints one line labelled `label`.
+Explained train_and_explain(const std::vector<FlightData>& flights,
+                            const std::vector<std::string>& channels,
+                            const std::vector<std::string>& lowpass_s, const std::string& out,
+                            const char* label) {
+  Model m = test::reference_tl(flights[0]);  // TL against mag_1_c on the 1002 training lines
+  fit_model(m, {&flights[0]});
+  NeuralSpec spec;
+  spec.mode = parse_mode("residual", "test");
+  spec.window = 5;
+  spec.features = {"tl_anomaly", "tl_correction", "dir_x", "dir_y", "dir_z"};
+  for (const std::string& c : channels) {
+    spec.features.push_back(c);
+    for (const std::string& tau : lowpass_s) spec.features.push_back(c + "|lp(" + tau + ")");
+  }
+  spec.training.epochs = 30;
+  spec.training.patience = 5;
+  spec.training.fit_output_gain = false;
+  m.neural = spec;
+  train_bundle(m, {flights[0]}, {flights[1]}, out, false);
+  const Model trained = load_model_yaml(out);
+  Model terms = trained;
+  terms.neural.reset();
+  Explained x;
+  x.tl_nT = evaluate_model(terms, flights[2], "mag_1_c").std_nT;
+  x.network_nT = evaluate_model(trained, flights[2], "mag_1_c").std_nT;
+  x.attribution = permutation_importance(trained, flights[2]);
+  std::printf("  %s: TL %.3f nT, with the network %.3f nT; channels:", label, x.tl_nT,
+              x.network_nT);
+  for (const auto& c : x.attribution.channels)
+    std::printf(" %s %.0f%%", c.channel.c_str(), 100 * c.share);
+  std::printf("\n");
+  return x;
+}
+
 TEST(Neural, AttributionNamesTheChannelOfASlowEffectThroughItsLowPass) {
   // thermal_heater: the heater's current squared through a 150 s thermal lag, hidden from TL,
   // far slower than a 0.5 s window. Three flights of one aircraft (train, early-stop, explain).
@@ -768,38 +814,18 @@ TEST(Neural, AttributionNamesTheChannelOfASlowEffectThroughItsLowPass) {
     flights.back().set_source("thermal_heater_" + std::to_string(k) + ".h5");
   }
   const std::string dir = test::temp_dir("neural_slow_attribution");
+  const std::vector<std::string> channels = {"cur_heat", "cur_strb", "cur_tank", "cur_flap",
+                                             "cur_ac_lo"};
   for (const bool lowpass : {false, true}) {
-    Model m = test::reference_tl(flights[0]);  // TL against mag_1_c on the 1002 training lines
-    fit_model(m, {&flights[0]});
-    NeuralSpec spec;
-    spec.mode = parse_mode("residual", "test");
-    spec.window = 5;
-    spec.features = {"tl_anomaly", "tl_correction", "dir_x", "dir_y", "dir_z"};
-    for (const std::string c : {"cur_heat", "cur_strb", "cur_tank", "cur_flap", "cur_ac_lo"}) {
-      spec.features.push_back(c);
-      if (lowpass) spec.features.push_back(c + "|lp(100)");
-    }
-    spec.training.epochs = 30;
-    spec.training.patience = 5;
-    spec.training.fit_output_gain = false;
-    m.neural = spec;
-    const std::string out = dir + (lowpass ? "/lp" : "/raw");
-    train_bundle(m, {flights[0]}, {flights[1]}, out, false);
-    const Model trained = load_model_yaml(out);
-    Model terms = trained;
-    terms.neural.reset();
-    const double tl_nT = evaluate_model(terms, flights[2], "mag_1_c").std_nT;
-    const double network_nT = evaluate_model(trained, flights[2], "mag_1_c").std_nT;
-    const Attribution a = permutation_importance(trained, flights[2]);
-    std::printf("  %s: TL %.3f nT, with the network %.3f nT; channels:",
-                lowpass ? "low-passes" : "raw", tl_nT, network_nT);
-    for (const auto& c : a.channels) std::printf(" %s %.0f%%", c.channel.c_str(), 100 * c.share);
-    std::printf("\n");
+    const Explained x = train_and_explain(
+        flights, channels, lowpass ? std::vector<std::string>{"100"} : std::vector<std::string>{},
+        dir + (lowpass ? "/lp" : "/raw"), lowpass ? "low-passes" : "raw");
+    const Attribution& a = x.attribution;
     ASSERT_EQ(a.channels.size(), 5u);
     if (lowpass) {
       EXPECT_EQ(a.channels.front().channel, "cur_heat");
       EXPECT_GT(a.channels.front().share, 0.5);
-      EXPECT_LT(network_nT, 0.75 * tl_nT);
+      EXPECT_LT(x.network_nT, 0.75 * x.tl_nT);
     } else {
       EXPECT_NE(a.channels.front().channel, "cur_heat");  // the premise
     }
@@ -826,43 +852,16 @@ TEST(Neural, AFlexIsLearnedAndNamedThroughAShortLowPassOfItsRate) {
     flights.back().set_source("flex_" + std::to_string(k) + ".h5");
   }
   const std::string dir = test::temp_dir("neural_flex_attribution");
-  double network_nT[2] = {NAN, NAN};
-  for (const bool short_lp : {false, true}) {
-    Model m = test::reference_tl(flights[0]);
-    fit_model(m, {&flights[0]});
-    NeuralSpec spec;
-    spec.mode = parse_mode("residual", "test");
-    spec.window = 5;
-    spec.features = {"tl_anomaly", "tl_correction", "dir_x", "dir_y", "dir_z"};
-    for (const std::string c : {"pitch_rate", "roll_rate", "yaw_rate", "cur_flap", "cur_strb"}) {
-      spec.features.push_back(c);
-      if (short_lp) spec.features.push_back(c + "|lp(2)");
-      spec.features.push_back(c + "|lp(100)");
-    }
-    spec.training.epochs = 30;
-    spec.training.patience = 5;
-    spec.training.fit_output_gain = false;
-    m.neural = spec;
-    const std::string out = dir + (short_lp ? "/short" : "/long");
-    train_bundle(m, {flights[0]}, {flights[1]}, out, false);
-    const Model trained = load_model_yaml(out);
-    Model terms = trained;
-    terms.neural.reset();
-    const double tl_nT = evaluate_model(terms, flights[2], "mag_1_c").std_nT;
-    network_nT[short_lp] = evaluate_model(trained, flights[2], "mag_1_c").std_nT;
-    const Attribution a = permutation_importance(trained, flights[2]);
-    std::printf("  %s: TL %.3f nT, with the network %.3f nT; channels:",
-                short_lp ? "2 s and 100 s low-passes" : "100 s low-pass", tl_nT,
-                network_nT[short_lp]);
-    for (const auto& c : a.channels) std::printf(" %s %.0f%%", c.channel.c_str(), 100 * c.share);
-    std::printf("\n");
-    ASSERT_EQ(a.channels.size(), 5u);
-    if (short_lp) {
-      EXPECT_EQ(a.channels.front().channel, "pitch_rate");
-      EXPECT_LT(network_nT[1], 0.5 * tl_nT);
-      EXPECT_LT(network_nT[1], network_nT[0]);
-    }
-  }
+  const std::vector<std::string> channels = {"pitch_rate", "roll_rate", "yaw_rate", "cur_flap",
+                                             "cur_strb"};
+  const Explained slow =
+      train_and_explain(flights, channels, {"100"}, dir + "/long", "100 s low-pass");
+  const Explained both = train_and_explain(flights, channels, {"2", "100"}, dir + "/short",
+                                           "2 s and 100 s low-passes");
+  ASSERT_EQ(both.attribution.channels.size(), 5u);
+  EXPECT_EQ(both.attribution.channels.front().channel, "pitch_rate");
+  EXPECT_LT(both.network_nT, 0.5 * both.tl_nT);
+  EXPECT_LT(both.network_nT, slow.network_nT);
 }
 
 TEST(Neural, TrainPrintsWhatTheNetworkLeansOnOnTheValidationFlight) {
