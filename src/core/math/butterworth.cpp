@@ -85,23 +85,13 @@ void sos_pass_fixed(const std::vector<Biquad>& q, const std::vector<std::array<d
 bool sos_pass_small(const std::vector<Biquad>& q, const std::vector<std::array<double, 2>>& unit,
                     double* e, Eigen::Index k, Eigen::Index m, Eigen::Index first,
                     Eigen::Index step) {
-  if (q.size() != 4) return false;
-  switch (k) {
-    case 1:
-      sos_pass_fixed<4, 1>(q, unit, e, m, first, step);
-      return true;
-    case 2:
-      sos_pass_fixed<4, 2>(q, unit, e, m, first, step);
-      return true;
-    case 3:
-      sos_pass_fixed<4, 3>(q, unit, e, m, first, step);
-      return true;
-    case 4:
-      sos_pass_fixed<4, 4>(q, unit, e, m, first, step);
-      return true;
-    default:
-      return false;
-  }
+  using Pass = void (*)(const std::vector<Biquad>&, const std::vector<std::array<double, 2>>&,
+                        double*, Eigen::Index, Eigen::Index, Eigen::Index);
+  static constexpr Pass kByColumns[] = {sos_pass_fixed<4, 1>, sos_pass_fixed<4, 2>,
+                                        sos_pass_fixed<4, 3>, sos_pass_fixed<4, 4>};
+  if (q.size() != 4 || k < 1 || k > 4) return false;
+  kByColumns[k - 1](q, unit, e, m, first, step);
+  return true;
 }
 
 }  // namespace
