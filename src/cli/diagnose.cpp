@@ -369,6 +369,7 @@ nlohmann::json loop_json(const LoopResult& r, const std::vector<TermSupport>& su
                            {"fom_nT", json_figure(lr.fom_nT)}});
     auto& jr = j["rounds"].back();
     jr["validation_std_nT"] = json_figure(lr.validation_std_nT);
+    jr["calibration_std_nT"] = json_figure(lr.calibration_std_nT);
     jr["flights_heldout_std_nT"] = nlohmann::json::array();
     for (double v : lr.flight_heldout_std_nT)
       jr["flights_heldout_std_nT"].push_back(json_figure(v));

@@ -141,12 +141,16 @@ int main(int argc, char** argv) {
                     truth_alikes.empty()
                         ? ""
                         : ("  [the effects' channels move with " + truth_alikes + "]").c_str());
+        for (const auto& [term, next_nT] : d.without_term_next_nT)
+          std::printf("       without %s: %.3f nT on the next flight\n", term.c_str(), next_nT);
         // Each round: what it added or removed and its held-out error, overall and per half.
         for (size_t i = 0; verbose && i < d.rounds.size(); ++i) {
           const magcomp::LoopRound& lr = d.rounds[i];
-          std::printf("       round %d: held out %.4f nT (halves %.4f, %.4f)  %s\n", lr.round,
-                      lr.heldout_std_nT, lr.selection_std_nT, lr.confirmation_std_nT,
-                      i == 0 ? "(start)" : lr.added.c_str());
+          std::printf(
+              "       round %d: held out %.4f nT (halves %.4f, %.4f), calibration rows %.4f nT  "
+              "%s\n",
+              lr.round, lr.heldout_std_nT, lr.selection_std_nT, lr.confirmation_std_nT,
+              lr.calibration_std_nT, i == 0 ? "(start)" : lr.added.c_str());
           for (const auto& [term, why] : lr.removed)
             std::printf("         removed %s: %s\n", term.c_str(), why.c_str());
           for (const auto& [term, held_nT] : lr.look_alikes)

@@ -37,10 +37,14 @@ struct DiscoveryRun {
   /// band-pass cannot always separate an exact term from TL's columns (a flex through the roll
   /// rate, in the band, follows the roll angle as TL's induced terms do).
   double true_terms_next_nT = NAN;
-  std::vector<std::string> added;            ///< the terms the loop kept
+  std::vector<std::string> added;  ///< the terms the loop kept
+  /// With MAGCOMP_DISCOVERY_DROP_ONE set: each added term of the final model, and the next
+  /// flight's std of that model refitted without it (which term carries over, which hurts).
+  std::vector<std::pair<std::string, double>> without_term_next_nT;
   std::vector<LoopRound> rounds;             ///< the loop's rounds, round 0 first
   std::vector<std::string> slow_terms;       ///< those of its model fitted by the slow stage
   std::string verdict;                       ///< the loop's last verdict
+  std::string stop_reason;                   ///< why the loop stopped (LoopResult::stop_reason)
   double residual_nT = NAN, floor_nT = NAN;  ///< its held-out residual and noise floor
   /// The hidden effects' contribution to the scalar, std with each line's mean removed (as the
   /// errors are scored), on the flight the loop learns from and on the next flight: an effect the
@@ -176,7 +180,24 @@ inline DiscoveryRun discovery_run(unsigned r, int count, const sim::Scenario& ba
   out.tl_next_nT = evaluate_model(start, fb.flight, "mag_1_c", false).std_nT;
   out.loop_next_nT = evaluate_model(loop.model, fb.flight, "mag_1_c", false).std_nT;
   for (size_t k = 1; k < loop.rounds.size(); ++k) out.added.push_back(loop.rounds[k].added);
+  if (std::getenv("MAGCOMP_DISCOVERY_DROP_ONE"))
+    for (const std::string& t : loop.model.terms) {
+      if (std::find(start.terms.begin(), start.terms.end(), t) != start.terms.end()) continue;
+      Model m = loop.model;
+      m.terms.erase(std::find(m.terms.begin(), m.terms.end(), t));
+      const auto slow = std::find(m.slow_terms.begin(), m.slow_terms.end(), t);
+      if (slow != m.slow_terms.end()) m.slow_terms.erase(slow);
+      m.coefficients.resize(0);
+      try {
+        fit_model(m, {&fa.flight});
+        out.without_term_next_nT.emplace_back(
+            t, evaluate_model(m, fb.flight, "mag_1_c", false).std_nT);
+      } catch (const std::exception&) {
+        out.without_term_next_nT.emplace_back(t, NAN);  // the rest does not fit alone
+      }
+    }
   out.rounds = loop.rounds;
+  out.stop_reason = loop.stop_reason;
   out.slow_terms = loop.model.slow_terms;
   const auto channels_of = [](const std::string& term) {
     std::set<std::string> out;

@@ -197,6 +197,36 @@ TEST(Discovery, ARidgeChosenOnTheHeldOutLinesLeavesNoTermStandingInForIt) {
   expect_ridge_leaves_no_stand_in(false);
 }
 
+TEST(Discovery, ATermWhoseSizeDoesNotHoldOnTheCalibrationRowsIsRefused) {
+  // Run 12, third aircraft: a 77.5 s drift of vol_block that the first flight barely shows
+  // (0.19 nT within lines). After the ridge step, field:cur_strb|lp(39.8) passes both held-out
+  // halves (0.268 -> 0.233 nT), but its band-pass size raises the unfiltered error on the
+  // calibration maneuvers it is fitted on from 0.053 to 0.238 nT, and on the next flight it
+  // makes the model worse than TL (0.629 against 0.581 nT). Refused there, it is not kept.
+  const sim::Scenario base =
+      sim::load_scenario(test::source_dir() + "/config/scenarios/random_base.yaml");
+  const Model tl = load_model_yaml(test::source_dir() + "/config/models/tl_sim.yaml");
+  const test::DiscoveryRun d = test::discovery_run(12, 1, base, tl, {}, 2);
+  std::string kept, refused = d.stop_reason + "; ";
+  for (const auto& t : d.added) kept += " " + t;
+  for (const LoopRound& lr : d.rounds)
+    for (const auto& [term, why] : lr.rejected)
+      if (why.find("calibration rows") != std::string::npos) refused += term + ": " + why + "; ";
+  std::printf("  run 12/2: %s: next flight TL %.3f, loop %.3f, oracle %.3f nT; kept%s\n  %s\n",
+              d.effects.c_str(), d.tl_next_nT, d.loop_next_nT, d.oracle_next_nT, kept.c_str(),
+              refused.c_str());
+  EXPECT_NE(refused.find("cur_strb|lp(39.8): the error on the calibration rows"), std::string::npos)
+      << refused;
+  EXPECT_EQ(kept.find("cur_strb"), std::string::npos) << kept;
+  EXPECT_FALSE(d.worse_than_tl()) << d.loop_next_nT << " against " << d.tl_next_nT;
+  // The error is scored on each calibration segment with its mean removed: finite, and the
+  // first round's refit of TL leaves it well below the held-out error (the band-pass fits those
+  // rows).
+  ASSERT_FALSE(d.rounds.empty());
+  EXPECT_TRUE(std::isfinite(d.rounds.front().calibration_std_nT));
+  EXPECT_LT(d.rounds.front().calibration_std_nT, d.rounds.front().heldout_std_nT);
+}
+
 TEST(DiscoveryLong, ARidgeChosenEveryRoundLeavesNoTermStandingInForIt) {
   expect_ridge_leaves_no_stand_in(true);
 }

@@ -43,6 +43,32 @@ std::pair<double, double> ss_on_fold(const Eigen::VectorXd& e, const HeldOut& h,
   return {ss, count};
 }
 
+// Sum of squares and count of an error over `rows` (ascending), each contiguous segment's mean
+// removed.
+std::pair<double, double> ss_on_segments(const Eigen::VectorXd& e,
+                                         const std::vector<Eigen::Index>& rows) {
+  double ss = 0, count = 0;
+  size_t k = 0;
+  while (k < rows.size()) {
+    size_t end = k + 1;
+    while (end < rows.size() && rows[end] == rows[end - 1] + 1) ++end;
+    double s = 0, s2 = 0, c = 0;
+    for (size_t j = k; j < end; ++j) {
+      const Eigen::Index i = rows[j];
+      if (i >= e.size() || !std::isfinite(e[i])) continue;
+      s += e[i];
+      s2 += e[i] * e[i];
+      c += 1;
+    }
+    if (c > 1) {
+      ss += s2 - s * s / c;
+      count += c;
+    }
+    k = end;
+  }
+  return {ss, count};
+}
+
 }  // namespace
 
 // Scores of a model: held-out samples (both halves, and each), all lines, FOM, validation
@@ -54,9 +80,15 @@ LoopRound score(const Model& model, const std::vector<const FlightData*>& flight
   LoopRound r;
   r.lambda = model.fit.lambda;
   double ss[3] = {0, 0, 0}, n[3] = {0, 0, 0};  // both halves, selection, confirmation
-  double all_ss = 0, all_n = 0, fom_sum = 0, foms = 0;
+  double all_ss = 0, all_n = 0, fom_sum = 0, foms = 0, cal_ss = 0, cal_n = 0;
   for (size_t f = 0; f < flights.size(); ++f) {
     const Evaluation ev = evaluate_model(model, *flights[f], truth, false);
+    if (!model.fit.lines.empty() || !model.fit.windows.empty()) {
+      const auto [s, c] =
+          ss_on_segments(ev.error_nT, flights[f]->select(model.fit.lines, model.fit.windows));
+      cal_ss += s;
+      cal_n += c;
+    }
     double flight_ss = 0, flight_n = 0;
     for (int which = -1; which <= 1; ++which) {
       const auto [s, c] = ss_on_fold(ev.error_nT, held_out[f], which);
@@ -82,6 +114,7 @@ LoopRound score(const Model& model, const std::vector<const FlightData*>& flight
     r.confirmation_std_nT = pooled(ss[2], n[2]);
   }
   r.all_std_nT = pooled(all_ss, all_n);
+  r.calibration_std_nT = pooled(cal_ss, cal_n);
   r.fom_nT = foms > 0 ? fom_sum / foms : NAN;
   if (validation) r.validation_std_nT = evaluate_model(model, *validation, truth, false).std_nT;
   return r;
@@ -128,6 +161,20 @@ std::string refusal(const LoopRound& next, const LoopRound& now) {
   if (!(next.heldout_std_nT < now.heldout_std_nT)) {
     std::snprintf(buf, sizeof(buf), "the held-out error would not fall (%.3f -> %.3f nT)",
                   now.heldout_std_nT, next.heldout_std_nT);
+    return buf;
+  }
+  // A term sized by the band-pass must hold where it is sized: on the calibration rows, at every
+  // frequency, it may not raise the error by half again and the resolution. A stand-in (a
+  // channel whose band-passed columns happen to follow the residual on the maneuvers) fits the
+  // band and adds its own low frequencies there; a true effect is on those rows too.
+  constexpr double kCalibrationRiseFactor = 1.5, kCalibrationRise_nT = 0.03;
+  if (std::isfinite(now.calibration_std_nT) && std::isfinite(next.calibration_std_nT) &&
+      next.calibration_std_nT > kCalibrationRiseFactor * now.calibration_std_nT &&
+      next.calibration_std_nT > now.calibration_std_nT + kCalibrationRise_nT) {
+    std::snprintf(buf, sizeof(buf),
+                  "the error on the calibration rows it is fitted on would rise (%.3f -> %.3f nT, "
+                  "unfiltered): its size does not hold where it is fitted",
+                  now.calibration_std_nT, next.calibration_std_nT);
     return buf;
   }
   if (std::isfinite(now.validation_std_nT) && !(next.validation_std_nT < now.validation_std_nT)) {

@@ -19,7 +19,11 @@ struct LoopRound {
   double heldout_std_nT = 0.0;  ///< error std (line means removed) on the held-out lines
   /// The same on each half of them: the first diagnosis's selection and confirmation lines.
   double selection_std_nT = NAN, confirmation_std_nT = NAN;
-  double all_std_nT = 0.0;         ///< the same on every line of the flight
+  double all_std_nT = 0.0;  ///< the same on every line of the flight
+  /// Error std on the model's calibration rows (fit.lines / fit.windows), unfiltered, each
+  /// contiguous segment's mean removed, nT: what a term's size does where it was fitted, at
+  /// every frequency the band-pass does not see.
+  double calibration_std_nT = NAN;
   double fom_nT = NAN;             ///< figure of merit on the model's calibration maneuvers
   double validation_std_nT = NAN;  ///< error std on the validation flight (NaN: none given)
   /// The round added a learned law (hinges of a channel, Model::black_box_terms), not a term of
