@@ -17,7 +17,8 @@
 // channels-only and on the full search, and the run counts where the first accepted term reads the
 // effect's channel. Usage: magcomp_bench_attribution SCENARIO.yaml TL_MODEL.yaml [runs]
 // [first_seed] [epochs]
-//        [low-pass time constants, s, comma-separated, or "none"] [diagnose]
+//        [low-pass time constants, s, comma-separated, or "none"; a token that is not a number
+//        is a transform each channel also enters through, e.g. 2,100,d] [diagnose]
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -102,7 +103,11 @@ int main(int argc, char** argv) {
       for (const std::string& c : source_fields(m, flights[0], "mag_1_c", true, nullptr)) {
         if (is_position_channel(c)) continue;
         spec.features.push_back(c);
-        for (const auto& tau : lowpass_s) spec.features.push_back(c + "|lp(" + tau + ")");
+        // A number is a low-pass's time constant; any other token a transform of the term
+        // language (d: the rate of change, which an inductive pickup follows).
+        for (const auto& tau : lowpass_s)
+          spec.features.push_back(
+              c + "|" + (std::strtod(tau.c_str(), nullptr) > 0 ? "lp(" + tau + ")" : tau));
       }
       spec.training.epochs = epochs;
       spec.training.patience = 5;

@@ -16,7 +16,8 @@
 // options: one-at-a-time (no pairs, no backward pass); choose-lambda (each round first chooses
 // fit.lambda on the held-out lines); no-span-ridge (a term within the model's span is added as
 // any other, without the ridge step first); no-joint (no set of terms chosen together,
-// Diagnosis::joint); states (the aircraft's non-electrical states recorded, and effects of a
+// Diagnosis::joint); no-calibration-check (no step refused for raising the error on the
+// calibration rows); states (the aircraft's non-electrical states recorded, and effects of a
 // switched current times one of them drawn among the others); half-several (runs alternate one
 // effect and two or three, instead of 60 % one, 30 % two, 10 % three); draws=N (each run on N
 // aircraft: the same effects, other aircraft and flights); verbose (each run's rounds with their
@@ -54,6 +55,8 @@ int main(int argc, char** argv) {
         options.ridge_for_span_terms = false;
       } else if (opt == "no-joint") {
         options.joint_selection = false;
+      } else if (opt == "no-calibration-check") {
+        options.check_calibration_rows = false;
       } else if (opt == "states") {
         states = true;
       } else if (opt == "verbose") {
@@ -65,6 +68,7 @@ int main(int argc, char** argv) {
       } else {
         std::fprintf(stderr,
                      "error: option '%s': one-at-a-time, choose-lambda, no-span-ridge, no-joint, "
+                     "no-calibration-check, "
                      "states, half-several, verbose or draws=N\n",
                      opt.c_str());
         return 2;

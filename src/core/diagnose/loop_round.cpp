@@ -18,7 +18,7 @@ bool Round::try_model(Model next, const std::string& added, double explained, bo
   fit_model(next, c_.flights);
   LoopRound lr = score(next, c_.flights, c_.truth, c_.held_out, c_.validation);
   const LoopRound& now = r_->rounds.back();
-  std::string why = refusal(lr, now);
+  std::string why = refusal(lr, now, c_.options);
   // A learned law has many columns: it must also explain the accepted share of the held-out
   // variance for each of its hinges, as every candidate must for its one term on each split
   // (five hinges fitted to what is left explain a few percent by their freedom alone).
@@ -67,7 +67,8 @@ bool Round::pair_passes(const LoopRound& lr, const LoopRound& alone_a,
                         const LoopRound& alone_b) const {
   const LoopRound& now = r_->rounds.back();
   const double accept = c_.options.accept_fraction;
-  return refusal(lr, now).empty() && passes(lr.selection_std_nT, now.selection_std_nT) &&
+  return refusal(lr, now, c_.options).empty() &&
+         passes(lr.selection_std_nT, now.selection_std_nT) &&
          passes(lr.confirmation_std_nT, now.confirmation_std_nT) &&
          variance_share(lr.heldout_std_nT, alone_a.heldout_std_nT) >= accept &&
          variance_share(lr.heldout_std_nT, alone_b.heldout_std_nT) >= accept;
@@ -93,7 +94,7 @@ double Round::first_single_nT(const std::vector<Eligible>& eligible) const {
     Model next = r_->model;
     add_candidate_term(eligible[k].term, eligible[k].slow, c_.truth, &next);
     const LoopRound lr = fit_score(std::move(next)).second;
-    if (refusal(lr, r_->rounds.back()).empty()) return lr.heldout_std_nT;
+    if (refusal(lr, r_->rounds.back(), c_.options).empty()) return lr.heldout_std_nT;
   }
   return INFINITY;
 }
@@ -118,7 +119,8 @@ bool Round::joint_set(const std::vector<Diagnosis>& dxs, const std::vector<Eligi
       const size_t none = terms.size();
       auto all = with(none, none);
       const LoopRound& lr = all.second;
-      if (!refusal(lr, now).empty() || !passes(lr.selection_std_nT, now.selection_std_nT) ||
+      if (!refusal(lr, now, c_.options).empty() ||
+          !passes(lr.selection_std_nT, now.selection_std_nT) ||
           !passes(lr.confirmation_std_nT, now.confirmation_std_nT))
         continue;
       if (best && !(lr.heldout_std_nT < best->second.heldout_std_nT)) continue;
@@ -222,7 +224,7 @@ void Round::look_alikes(const Model& before, const std::vector<Eligible>& eligib
       Model m = before;
       add_candidate_term(eligible[j].term, eligible[j].slow, c_.truth, &m);
       const LoopRound lr = fit_score(std::move(m)).second;
-      if (!refusal(lr, previous).empty()) continue;
+      if (!refusal(lr, previous, c_.options).empty()) continue;
       // Not told apart: the kept term is not better by the accepted share and the resolution.
       if (passes(now.heldout_std_nT, lr.heldout_std_nT)) continue;
       now.look_alikes.emplace_back(eligible[j].term.text(), lr.heldout_std_nT);
@@ -277,7 +279,7 @@ bool Round::pair_acting_together(const std::vector<Diagnosis>& dxs) {
       if (pool[a].channel == pool[b].channel || !std::isfinite(alone[a].heldout_std_nT) ||
           !std::isfinite(alone[b].heldout_std_nT))
         continue;
-      if (refusal(alone[a], now).empty() && refusal(alone[b], now).empty())
+      if (refusal(alone[a], now, c_.options).empty() && refusal(alone[b], now, c_.options).empty())
         continue;  // both lower the error alone: not a pair that only acts together
       Model next = r_->model;
       add_candidate_term(pool[a].term, pool[a].slow, c_.truth, &next);

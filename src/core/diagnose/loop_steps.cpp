@@ -115,6 +115,9 @@ LoopRound score(const Model& model, const std::vector<const FlightData*>& flight
   }
   r.all_std_nT = pooled(all_ss, all_n);
   r.calibration_std_nT = pooled(cal_ss, cal_n);
+  for (const TermSpec& t : model.terms)
+    if (const ExprTerm* e = t.expr(); e && !e->required_fields().empty())
+      r.channel_terms.push_back(t.text());
   r.fom_nT = foms > 0 ? fom_sum / foms : NAN;
   if (validation) r.validation_std_nT = evaluate_model(model, *validation, truth, false).std_nT;
   return r;
@@ -148,7 +151,7 @@ std::optional<std::pair<Model, LoopRound>> better_lambda(
   const bool halves =
       !std::isfinite(now.selection_std_nT) || (lr.selection_std_nT < now.selection_std_nT &&
                                                lr.confirmation_std_nT < now.confirmation_std_nT);
-  if (!halves || !refusal(lr, now).empty() ||
+  if (!halves || !refusal(lr, now, options).empty() ||
       variance_share(lr.heldout_std_nT, now.heldout_std_nT) < options.accept_fraction ||
       now.heldout_std_nT - lr.heldout_std_nT < options.resolution_nT)
     return std::nullopt;
@@ -156,19 +159,27 @@ std::optional<std::pair<Model, LoopRound>> better_lambda(
 }
 
 // Why a scored candidate model is refused against the current one ("" when it is kept).
-std::string refusal(const LoopRound& next, const LoopRound& now) {
+std::string refusal(const LoopRound& next, const LoopRound& now, const DiagnoseOptions& options) {
   char buf[256];
   if (!(next.heldout_std_nT < now.heldout_std_nT)) {
     std::snprintf(buf, sizeof(buf), "the held-out error would not fall (%.3f -> %.3f nT)",
                   now.heldout_std_nT, next.heldout_std_nT);
     return buf;
   }
-  // A term sized by the band-pass must hold where it is sized: on the calibration rows, at every
-  // frequency, it may not raise the error by half again and the resolution. A stand-in (a
-  // channel whose band-passed columns happen to follow the residual on the maneuvers) fits the
-  // band and adds its own low frequencies there; a true effect is on those rows too.
+  // A term of a channel sized by the band-pass must hold where it is sized: on the calibration
+  // rows, at every frequency, it may not raise the error by half again and the resolution. A
+  // stand-in (a channel whose band-passed columns happen to follow the residual on the
+  // maneuvers) fits the band and adds its own low frequencies there; a true effect is on those
+  // rows too. A term of the field itself (an eddy decay of B) is not held to it: its low
+  // frequencies on the maneuvers are TL's own columns', which the band-pass leaves free too.
   constexpr double kCalibrationRiseFactor = 1.5, kCalibrationRise_nT = 0.03;
-  if (std::isfinite(now.calibration_std_nT) && std::isfinite(next.calibration_std_nT) &&
+  bool adds_channel_term = false;
+  for (const std::string& t : next.channel_terms)
+    adds_channel_term =
+        adds_channel_term ||
+        std::find(now.channel_terms.begin(), now.channel_terms.end(), t) == now.channel_terms.end();
+  if (options.check_calibration_rows && adds_channel_term &&
+      std::isfinite(now.calibration_std_nT) && std::isfinite(next.calibration_std_nT) &&
       next.calibration_std_nT > kCalibrationRiseFactor * now.calibration_std_nT &&
       next.calibration_std_nT > now.calibration_std_nT + kCalibrationRise_nT) {
     std::snprintf(buf, sizeof(buf),

@@ -24,6 +24,9 @@ struct LoopRound {
   /// contiguous segment's mean removed, nT: what a term's size does where it was fitted, at
   /// every frequency the band-pass does not see.
   double calibration_std_nT = NAN;
+  /// The model's terms that read a recorded channel of the aircraft (ExprTerm::required_fields:
+  /// not TL's, not a lag, not a term of the field itself), as written.
+  std::vector<std::string> channel_terms;
   double fom_nT = NAN;             ///< figure of merit on the model's calibration maneuvers
   double validation_std_nT = NAN;  ///< error std on the validation flight (NaN: none given)
   /// The round added a learned law (hinges of a channel, Model::black_box_terms), not a term of
