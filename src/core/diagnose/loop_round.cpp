@@ -374,6 +374,7 @@ void Round::backward_pass() {
     last.heldout_std_nT = drop->second.heldout_std_nT;
     last.all_std_nT = drop->second.all_std_nT;
     last.calibration_std_nT = drop->second.calibration_std_nT;
+    last.channel_terms = drop->second.channel_terms;
     last.selection_std_nT = drop->second.selection_std_nT;
     last.confirmation_std_nT = drop->second.confirmation_std_nT;
     last.fom_nT = drop->second.fom_nT;
