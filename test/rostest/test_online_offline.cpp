@@ -85,7 +85,7 @@ TEST(OnlineOffline, WholeReplayedFlightEqualsOfflineWithNoSampleLost) {
   const int year = static_cast<int>(f.column("year")[0]),
             doy = static_cast<int>(f.column("doy")[0]);
   double ss = 0, ss_err = 0;
-  long finite = 0;
+  long finite = 0, finite_err = 0, error_nan = 0;
   for (Eigen::Index i = 0; i < f.size(); ++i) {
     const auto& o = g_out[static_cast<size_t>(i)];
     ASSERT_NEAR(o.header.stamp.toSec(), magcomp::rosio::stamp_of(year, doy, f.tt()[i]).toSec(),
@@ -101,15 +101,25 @@ TEST(OnlineOffline, WholeReplayedFlightEqualsOfflineWithNoSampleLost) {
       continue;
     }
     ss += std::pow(o.compensated_nT - offline[i], 2);
-    ss_err += std::pow(o.error_nT - (offline[i] - ref[i]), 2);
     ++finite;
+    // The live error needs the reference at the sample's stamp (CompensatorRos publishes NaN
+    // when the reference topic has not reached it yet, as on a loaded machine): counted apart.
+    if (!std::isfinite(o.error_nT)) {
+      ++error_nan;
+      continue;
+    }
+    ss_err += std::pow(o.error_nT - (offline[i] - ref[i]), 2);
+    ++finite_err;
   }
-  const double rms = std::sqrt(ss / finite), rms_err = std::sqrt(ss_err / finite);
-  std::printf("  %ld samples; online vs offline: rms %.3e nT (live error rms diff %.3e nT)\n",
-              finite, rms, rms_err);
+  const double rms = std::sqrt(ss / finite), rms_err = std::sqrt(ss_err / finite_err);
+  std::printf(
+      "  %ld samples; online vs offline: rms %.3e nT (live error rms diff %.3e nT; %ld live "
+      "errors NaN)\n",
+      finite, rms, rms_err, error_nan);
   EXPECT_LT(rms, tol);
   EXPECT_LT(rms_err, tol);
   EXPECT_GT(finite, f.size() - 10);
+  EXPECT_LE(error_nan, 10);
 }
 
 }  // namespace
