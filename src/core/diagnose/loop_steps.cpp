@@ -172,16 +172,16 @@ std::string refusal(const LoopRound& next, const LoopRound& now, const DiagnoseO
   // maneuvers) fits the band and adds its own low frequencies there; a true effect is on those
   // rows too. A term of the field itself (an eddy decay of B) is not held to it: its low
   // frequencies on the maneuvers are TL's own columns', which the band-pass leaves free too.
-  constexpr double kCalibrationRiseFactor = 1.5, kCalibrationRise_nT = 0.03;
-  bool adds_channel_term = false;
-  for (const std::string& t : next.channel_terms)
-    adds_channel_term =
-        adds_channel_term ||
-        std::find(now.channel_terms.begin(), now.channel_terms.end(), t) == now.channel_terms.end();
+  constexpr double kCalibrationRiseFactor = 1.5;
+  const bool adds_channel_term =
+      std::any_of(next.channel_terms.begin(), next.channel_terms.end(), [&](const std::string& t) {
+        return std::find(now.channel_terms.begin(), now.channel_terms.end(), t) ==
+               now.channel_terms.end();
+      });
   if (options.check_calibration_rows && adds_channel_term &&
       std::isfinite(now.calibration_std_nT) && std::isfinite(next.calibration_std_nT) &&
       next.calibration_std_nT > kCalibrationRiseFactor * now.calibration_std_nT &&
-      next.calibration_std_nT > now.calibration_std_nT + kCalibrationRise_nT) {
+      next.calibration_std_nT > now.calibration_std_nT + options.resolution_nT) {
     std::snprintf(buf, sizeof(buf),
                   "the error on the calibration rows it is fitted on would rise (%.3f -> %.3f nT, "
                   "unfiltered): its size does not hold where it is fitted",

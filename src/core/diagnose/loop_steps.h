@@ -45,7 +45,7 @@ std::optional<std::pair<Model, LoopRound>> better_lambda(
 
 /// Why a scored candidate model is refused against the current one ("" when it is kept): its
 /// held-out error does not fall, its validation flight's error does not fall, or its error on
-/// the calibration rows (LoopRound::calibration_std_nT) rises by half again and 0.03 nT
+/// the calibration rows (LoopRound::calibration_std_nT) rises by half again and the resolution
 /// (DiagnoseOptions::check_calibration_rows).
 std::string refusal(const LoopRound& next, const LoopRound& now, const DiagnoseOptions& options);
 

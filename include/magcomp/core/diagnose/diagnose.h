@@ -120,7 +120,7 @@ struct DiagnoseOptions {
   /// diagnose_loop tries before the first single term (false: single terms and pairs only).
   bool joint_selection = true;
   /// diagnose_loop: refuse a step that raises the unfiltered error on the model's calibration
-  /// rows by half again and 0.03 nT (LoopRound::calibration_std_nT; false: the held-out lines
+  /// rows by half again and resolution_nT (LoopRound::calibration_std_nT; false: the held-out lines
   /// and the validation flight alone decide).
   bool check_calibration_rows = true;
   /// The channels a trained network leans on, as its attribution ranks them (empty: none). The
