@@ -345,6 +345,11 @@ void print_rounds_table(const LoopResult& r, bool validation, size_t flights) {
       for (double v : lr.alone_std_nT) std::printf(" %.3f", v);
       std::printf(" nT (each is needed)\n");
     }
+    if (lr.slow_on_lines)
+      std::printf(
+          "       slow terms sized on the held-out lines too (fit.slow_lines): sized on the "
+          "calibration rows alone, no term passed; each half scored with the size from the "
+          "other half's lines\n");
     for (const auto& [term, why] : lr.removed)
       std::printf("       removed %s: %s\n", term.c_str(), why.c_str());
     for (const auto& [term, std_nT] : lr.look_alikes)
@@ -377,6 +382,7 @@ nlohmann::json loop_json(const LoopResult& r, const std::vector<TermSupport>& su
     for (const auto& [term, why] : lr.rejected)
       jr["rejected"].push_back({{"term", term}, {"why", why}});
     jr["together"] = lr.together;
+    jr["slow_on_lines"] = lr.slow_on_lines;
     jr["lambda"] = json_figure(lr.lambda);
     jr["regularisation"] = lr.regularisation;
     jr["in_place_of"] = lr.in_place_of;

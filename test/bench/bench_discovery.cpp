@@ -17,8 +17,9 @@
 // fit.lambda on the held-out lines); no-span-ridge (a term within the model's span is added as
 // any other, without the ridge step first); no-joint (no set of terms chosen together,
 // Diagnosis::joint); no-calibration-check (no step refused for raising the error on the
-// calibration rows); states (the aircraft's non-electrical states recorded, and effects of a
-// switched current times one of them drawn among the others); half-several (runs alternate one
+// calibration rows); slow-on-calibration (a slow term sized on the calibration rows alone, not
+// on the held-out lines too); states (the aircraft's non-electrical states recorded, and effects of
+// a switched current times one of them drawn among the others); half-several (runs alternate one
 // effect and two or three, instead of 60 % one, 30 % two, 10 % three); draws=N (each run on N
 // aircraft: the same effects, other aircraft and flights); verbose (each run's rounds with their
 // held-out errors and look-alikes).
@@ -57,6 +58,8 @@ int main(int argc, char** argv) {
         options.joint_selection = false;
       } else if (opt == "no-calibration-check") {
         options.check_calibration_rows = false;
+      } else if (opt == "slow-on-calibration") {
+        options.slow_terms_on_lines = false;
       } else if (opt == "states") {
         states = true;
       } else if (opt == "verbose") {
@@ -66,11 +69,11 @@ int main(int argc, char** argv) {
       } else if (opt.rfind("draws=", 0) == 0 && std::atoi(opt.c_str() + 6) >= 1) {
         draws = static_cast<unsigned>(std::atoi(opt.c_str() + 6));
       } else {
-        std::fprintf(stderr,
-                     "error: option '%s': one-at-a-time, choose-lambda, no-span-ridge, no-joint, "
-                     "no-calibration-check, "
-                     "states, half-several, verbose or draws=N\n",
-                     opt.c_str());
+        std::fprintf(
+            stderr,
+            "error: option '%s': one-at-a-time, choose-lambda, no-span-ridge, no-joint, "
+            "no-calibration-check, slow-on-calibration, states, half-several, verbose or draws=N\n",
+            opt.c_str());
         return 2;
       }
     }

@@ -41,10 +41,11 @@ struct DiscoveryRun {
   /// With MAGCOMP_DISCOVERY_DROP_ONE set: each added term of the final model, and the next
   /// flight's std of that model refitted without it (which term carries over, which hurts).
   std::vector<std::pair<std::string, double>> without_term_next_nT;
-  std::vector<LoopRound> rounds;             ///< the loop's rounds, round 0 first
-  std::vector<std::string> slow_terms;       ///< those of its model fitted by the slow stage
-  std::string verdict;                       ///< the loop's last verdict
-  std::string stop_reason;                   ///< why the loop stopped (LoopResult::stop_reason)
+  std::vector<LoopRound> rounds;        ///< the loop's rounds, round 0 first
+  std::vector<std::string> slow_terms;  ///< those of its model fitted by the slow stage
+  std::vector<double> slow_lines;       ///< its fit.slow_lines (the lines slow terms are sized on)
+  std::string verdict;                  ///< the loop's last verdict
+  std::string stop_reason;              ///< why the loop stopped (LoopResult::stop_reason)
   double residual_nT = NAN, floor_nT = NAN;  ///< its held-out residual and noise floor
   /// The hidden effects' contribution to the scalar, std with each line's mean removed (as the
   /// errors are scored), on the flight the loop learns from and on the next flight: an effect the
@@ -199,6 +200,7 @@ inline DiscoveryRun discovery_run(unsigned r, int count, const sim::Scenario& ba
   out.rounds = loop.rounds;
   out.stop_reason = loop.stop_reason;
   out.slow_terms = loop.model.slow_terms;
+  out.slow_lines = loop.model.fit.slow_lines;
   const auto channels_of = [](const std::string& term) {
     std::set<std::string> out;
     if (const auto e = parse_expr_term(term))
@@ -233,8 +235,9 @@ inline DiscoveryRun discovery_run(unsigned r, int count, const sim::Scenario& ba
   out.floor_nT = loop.last.floor.floor_nT;
   out.effect_nT = hidden_std_within_lines(fa, tl.scalar);
   out.effect_next_nT = hidden_std_within_lines(fb, tl.scalar);
-  // TL plus the effects' own terms, fitted two ways, the better on the next flight kept: every
-  // term by the band-pass; and a heater's or a drift's (minutes of lag) by the slow stage.
+  // TL plus the effects' own terms, fitted three ways, the best on the next flight kept: every
+  // term by the band-pass; a heater's or a drift's (minutes of lag) by the slow stage on the
+  // calibration rows; and by the slow stage on the survey lines too (fit.slow_lines).
   std::vector<std::pair<std::string, bool>> truth_terms;  // term, slow
   for (const auto& e : effects) {
     const std::string t = sim::expected_term(e);
@@ -249,11 +252,21 @@ inline DiscoveryRun discovery_run(unsigned r, int count, const sim::Scenario& ba
   // weaker for the loop's choice.
   std::vector<double> lambdas = {tl.fit.lambda};
   if (loop.model.fit.lambda != tl.fit.lambda) lambdas.push_back(loop.model.fit.lambda);
+  std::vector<double> survey_lines;
+  {
+    std::set<double> seen;
+    const auto line = fa.flight.column("line");
+    for (Eigen::Index i = 0; i < line.size(); ++i)
+      if (std::isfinite(line[i]) && seen.insert(line[i]).second &&
+          std::find(tl.fit.lines.begin(), tl.fit.lines.end(), line[i]) == tl.fit.lines.end())
+        survey_lines.push_back(line[i]);
+  }
   for (const double lambda : lambdas) {
-    for (bool use_slow : {false, true}) {
+    for (int use_slow : {0, 1, 2}) {
       if (truth_terms.empty()) break;
       Model m = tl;
       m.fit.lambda = lambda;
+      if (use_slow == 2) m.fit.slow_lines = survey_lines;
       for (const auto& [t, slow] : truth_terms) {
         if (use_slow && slow)
           m.add_slow_term(t, "mag_1_c");

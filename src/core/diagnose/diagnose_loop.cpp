@@ -14,6 +14,25 @@
 #include "magcomp/core/fit/model_fit.h"
 
 namespace magcomp {
+namespace {
+
+// The line numbers of the flights' samples outside the calibration segments (`fit`), sorted.
+std::vector<double> lines_beside_calibration(const FitSettings& fit,
+                                             const std::vector<const FlightData*>& flights) {
+  std::set<double> lines;
+  for (const FlightData* f : flights) {
+    if (!f->has("line")) continue;
+    const std::vector<Eigen::Index> cal = f->select(fit.lines, fit.windows);
+    std::vector<bool> in_cal(static_cast<size_t>(f->size()), false);
+    for (Eigen::Index i : cal) in_cal[static_cast<size_t>(i)] = true;
+    const auto line = f->column("line");
+    for (Eigen::Index i = 0; i < line.size(); ++i)
+      if (!in_cal[static_cast<size_t>(i)] && std::isfinite(line[i])) lines.insert(line[i]);
+  }
+  return {lines.begin(), lines.end()};
+}
+
+}  // namespace
 
 using loop_steps::better_lambda;
 using loop_steps::Eligible;
@@ -43,6 +62,17 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
   LoopResult r;
   r.model = start;
   if (!r.model.fitted()) fit_model(r.model, flights);
+  // Slow terms are sized on the calibration rows first; on the held-out lines too (cross-fitted)
+  // only when a round keeps nothing that way: a drift the calibration barely shows is sized
+  // where its channel moves, while a channel that only trends with the error over the lines
+  // (a stand-in) never displaces a term the calibration rows size.
+  DiagnoseOptions round_options = options;
+  round_options.slow_terms_on_lines = false;
+  const bool lines_fallback = options.slow_terms_on_lines &&
+                              r.model.fit.method == FitMethod::kBandpass &&
+                              r.model.fit.slow_lines.empty();
+  const std::vector<double> lines =
+      lines_fallback ? lines_beside_calibration(r.model.fit, flights) : std::vector<double>{};
   std::vector<HeldOut> held_out(flights.size());  // each flight's held-out samples, in two halves
   const loop_steps::LoopContext context{start,      flights, truth,    held_out,
                                         validation, options, min_share};
@@ -51,7 +81,7 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
     const auto diagnose_all = [&] {
       dxs.clear();
       for (size_t f = 0; f < flights.size(); ++f)
-        dxs.push_back(diagnose(r.model, *flights[f], truth, options));
+        dxs.push_back(diagnose(r.model, *flights[f], truth, round_options));
     };
     diagnose_all();
     for (size_t f = 0; round == 1 && f < flights.size(); ++f) {
@@ -113,9 +143,9 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
       }
     }
     for (size_t f = 0; on_round && f < flights.size(); ++f) on_round(round, f, dxs[f]);
-    const Diagnosis& dx = dxs.front();
     // Over several flights, what is said of them together.
-    const std::string verdict = flights.size() == 1 ? dx.verdict : merge_diagnoses(dxs).verdict;
+    const std::string verdict =
+        flights.size() == 1 ? dxs.front().verdict : merge_diagnoses(dxs).verdict;
     const auto finish = [&](std::string reason) {
       r.stop_reason = std::move(reason);
       r.last = dxs.front();
@@ -127,17 +157,45 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
     }
     // The round's ways to change the model, in order (loop_round.h); the first kept ends the
     // round, then the backward pass.
+    const auto attempt = [&](loop_steps::Round& step, const std::vector<Eligible>& el) {
+      bool kept = options.joint_steps && step.lag_with_partner(dxs, el);
+      kept = kept || (options.joint_steps && step.joint_set(dxs, el));
+      kept = kept || step.first_single(el);
+      // Pairs only while some flight's residual stays predictable (the learned law checks its
+      // own flight).
+      const bool predictable = std::any_of(
+          dxs.begin(), dxs.end(), [](const Diagnosis& d) { return !d.explainable.within_noise; });
+      kept = kept || (options.joint_steps && predictable && step.pair_acting_together(dxs));
+      kept = kept || step.learned_law_of_channel(dxs, &learned_channels);
+      if (options.joint_steps && kept) step.backward_pass();
+      return kept;
+    };
     loop_steps::Round step(context, round, &r);
-    bool kept = options.joint_steps && step.lag_with_partner(dxs, eligible);
-    kept = kept || (options.joint_steps && step.joint_set(dxs, eligible));
-    kept = kept || step.first_single(eligible);
-    // Pairs only while some flight's residual stays predictable (the learned law checks its own
-    // flight).
-    const bool predictable = std::any_of(
-        dxs.begin(), dxs.end(), [](const Diagnosis& d) { return !d.explainable.within_noise; });
-    kept = kept || (options.joint_steps && predictable && step.pair_acting_together(dxs));
-    kept = kept || step.learned_law_of_channel(dxs, &learned_channels);
-    if (options.joint_steps && kept) step.backward_pass();
+    bool kept = attempt(step, eligible);
+    if (!kept && lines_fallback && !round_options.slow_terms_on_lines && !lines.empty()) {
+      // Nothing kept with slow terms sized on the calibration rows: the same round with them
+      // sized on the held-out lines too. The model it starts from keeps its round's scores; a
+      // step is judged against them as any other.
+      const Model before = r.model;
+      const std::vector<Diagnosis> dxs_before = dxs;
+      const std::set<std::string> learned_before = learned_channels;
+      round_options.slow_terms_on_lines = true;
+      r.model.fit.slow_lines = lines;
+      diagnose_all();
+      loop_steps::Round on_lines(context, round, &r);
+      kept = attempt(on_lines, eligible_candidates(dxs, min_share));
+      if (kept) {
+        LoopRound& kept_round = r.rounds.back();
+        kept_round.slow_on_lines = true;
+        kept_round.rejected.insert(kept_round.rejected.begin(), step.rejected().begin(),
+                                   step.rejected().end());
+      } else {
+        round_options.slow_terms_on_lines = false;
+        r.model = before;
+        dxs = dxs_before;
+        learned_channels = learned_before;
+      }
+    }
     const auto& rejected = step.rejected();
     if (!kept) {
       if (rejected.empty()) {
@@ -153,6 +211,8 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
       break;
     }
   }
+  // The lines size nothing in a model without slow terms: its file does not list them.
+  if (lines_fallback && r.model.slow_terms.empty()) r.model.fit.slow_lines.clear();
   return r;
 }
 

@@ -7,6 +7,8 @@
 #include <cmath>
 #include <cstdio>
 #include <map>
+#include <optional>
+#include <set>
 
 #include "magcomp/core/diagnose/diagnose_season.h"
 #include "magcomp/core/error.h"
@@ -69,11 +71,26 @@ std::pair<double, double> ss_on_segments(const Eigen::VectorXd& e,
   return {ss, count};
 }
 
+// The model whose slow terms are sized on the calibration rows and the held-out rows of half
+// `h` (its lines' pieces) in place of fit.slow_lines.
+Model sized_on_half(const Model& model, const std::vector<const FlightData*>& flights,
+                    const std::vector<HeldOut>& held_out, int h) {
+  std::vector<std::vector<Eigen::Index>> rows(flights.size());
+  for (size_t f = 0; f < flights.size() && f < held_out.size(); ++f)
+    for (size_t i = 0; i < held_out[f].fold.size(); ++i)
+      if (held_out[f].fold[i] == h) rows[f].push_back(static_cast<Eigen::Index>(i));
+  Model m = model;
+  m.coefficients.resize(0);
+  fit_model(m, flights, &rows);
+  return m;
+}
+
 }  // namespace
 
 // Scores of a model: held-out samples (both halves, and each), all lines, FOM, validation
 // flight. Over several flights, each figure is pooled over the flights' samples (the FOM: their
-// mean).
+// mean). Slow terms sized on held-out lines (fit.slow_lines) are cross-fitted: each half is
+// scored with them sized on the other half's lines.
 LoopRound score(const Model& model, const std::vector<const FlightData*>& flights,
                 const std::string& truth, const std::vector<HeldOut>& held_out,
                 const FlightData* validation) {
@@ -81,8 +98,23 @@ LoopRound score(const Model& model, const std::vector<const FlightData*>& flight
   r.lambda = model.fit.lambda;
   double ss[3] = {0, 0, 0}, n[3] = {0, 0, 0};  // both halves, selection, confirmation
   double all_ss = 0, all_n = 0, fom_sum = 0, foms = 0, cal_ss = 0, cal_n = 0;
+  std::optional<Model> for_half[2];  // sized on the other half's lines
+  if (!model.slow_terms.empty() && !model.fit.slow_lines.empty() &&
+      model.fit.method == FitMethod::kBandpass)
+    for (int h = 0; h < 2; ++h) for_half[h] = sized_on_half(model, flights, held_out, 1 - h);
   for (size_t f = 0; f < flights.size(); ++f) {
     const Evaluation ev = evaluate_model(model, *flights[f], truth, false);
+    Eigen::VectorXd held_error = ev.error_nT;
+    if (for_half[0]) {
+      const Evaluation e0 = evaluate_model(*for_half[0], *flights[f], truth, false);
+      const Evaluation e1 = evaluate_model(*for_half[1], *flights[f], truth, false);
+      const HeldOut& ho = held_out[f];
+      for (Eigen::Index i = 0; i < held_error.size(); ++i) {
+        const int h = i < static_cast<Eigen::Index>(ho.fold.size()) ? ho.fold[i] : -1;
+        if (h == 0) held_error[i] = e0.error_nT[i];
+        if (h == 1) held_error[i] = e1.error_nT[i];
+      }
+    }
     if (!model.fit.lines.empty() || !model.fit.windows.empty()) {
       const auto [s, c] =
           ss_on_segments(ev.error_nT, flights[f]->select(model.fit.lines, model.fit.windows));
@@ -91,7 +123,7 @@ LoopRound score(const Model& model, const std::vector<const FlightData*>& flight
     }
     double flight_ss = 0, flight_n = 0;
     for (int which = -1; which <= 1; ++which) {
-      const auto [s, c] = ss_on_fold(ev.error_nT, held_out[f], which);
+      const auto [s, c] = ss_on_fold(held_error, held_out[f], which);
       ss[which + 1] += s;
       n[which + 1] += c;
       if (which < 0) {

@@ -47,7 +47,8 @@ double fold_std(const Eigen::VectorXd& e, const std::vector<Eigen::Index>& held,
   return n > 1 && n >= 0.9 * rows ? std::sqrt(ss / n) : NAN;
 }
 
-Search::Search(const Model& m, const FlightData& d, const std::string& truth_name, Diagnosis* dx)
+Search::Search(const Model& m, const FlightData& d, const std::string& truth_name, Diagnosis* dx,
+               bool slow_on_lines)
     : model(m), data(d) {
   require_model_fields_in_range(model, data, {truth_name});
   truth = data.column(truth_name);
@@ -116,8 +117,10 @@ Search::Search(const Model& m, const FlightData& d, const std::string& truth_nam
   profile = std::make_unique<RidgeProfile>(af0, yf, fs.lambda);
   const Eigen::VectorXd c0 = profile->solve(Eigen::MatrixXd(yf.size(), 0), nullptr);
   e0 = scalar - truth - a0 * c0;
-  // --- The base's slow terms, fitted after the band-pass stage as fit_model does.
+  // --- The base's slow terms, fitted after the band-pass stage as fit_model does (on the
+  // calibration rows and fit.slow_lines).
   slow0 = Eigen::VectorXd::Zero(n);
+  Eigen::MatrixXd nuisance = a0;  // what a candidate's slow fit is fitted beside
   if (fs.method == FitMethod::kBandpass) {
     const std::vector<Eigen::Index> slow = slow_columns(fs.method, terms, model.slow_terms);
     Eigen::MatrixXd sc(n, static_cast<Eigen::Index>(slow.size()));
@@ -127,10 +130,12 @@ Search::Search(const Model& m, const FlightData& d, const std::string& truth_nam
     if (slow.empty()) {
       slow_stage = std::make_unique<SlowStage>(a0, e0, runs, fs.lambda);
     } else {
-      const Eigen::VectorXd cs = SlowStage(a0, e0, runs, fs.lambda).fit(sc);
+      const auto base_runs =
+          fs.slow_lines.empty() ? runs : slow_stage_runs(fs, data, a0, Eigen::VectorXd(e0));
+      const Eigen::VectorXd cs = SlowStage(a0, e0, base_runs, fs.lambda).fit(sc);
       slow0 = sc.unaryExpr([](double v) { return std::isfinite(v) ? v : 0.0; }) * cs;
       e0 -= slow0;
-      Eigen::MatrixXd nuisance(n, a0.cols() + sc.cols());
+      nuisance.resize(n, a0.cols() + sc.cols());
       nuisance << a0, sc;
       slow_stage = std::make_unique<SlowStage>(nuisance, e0, runs, fs.lambda);
     }
@@ -180,6 +185,21 @@ Search::Search(const Model& m, const FlightData& d, const std::string& truth_nam
                   " nT on a split (it must be above 0 and within 1e6 nT, the range of any "
                   "magnetic field): nothing to diagnose");
     }
+  // --- Slow candidates sized on the held-out lines too: each half's rows, a run per unit.
+  if (slow_on_lines && slow_stage) {
+    std::vector<std::pair<Eigen::Index, Eigen::Index>> half_runs[2] = {runs, runs};
+    for (size_t k = 0; k < held.size();) {
+      size_t end = k + 1;
+      while (end < held.size() &&
+             unit[static_cast<size_t>(held[end])] == unit[static_cast<size_t>(held[k])])
+        ++end;
+      half_runs[fold[static_cast<size_t>(held[k])]].emplace_back(held[k], held[end - 1]);
+      k = end;
+    }
+    for (int h = 0; h < 2; ++h)
+      slow_cross[h] = std::make_unique<SlowStage>(nuisance, e0, half_runs[h], fs.lambda);
+    slow_stage = std::make_unique<SlowStage>(nuisance, e0, half_runs[0], fs.lambda);
+  }
   dx->baseline_selection_std_nT = base_std[0];
   dx->baseline_confirmation_std_nT = base_std[1];
   dx->baseline_std_nT = base_std[2];
@@ -206,12 +226,21 @@ double Search::slow_rss(const Eigen::MatrixXd& cols) const {
 
 Scored Search::score_slow(const Eigen::MatrixXd& cols) const {
   Scored s;
-  const Eigen::VectorXd coef = slow_stage->fit(cols);
+  // Each half's size: from the other half's lines (cross-fitted), or the calibration rows alone.
+  Eigen::VectorXd size_for[2];
+  if (slow_cross[0]) {
+    size_for[0] = slow_cross[1]->fit(cols);
+    size_for[1] = slow_cross[0]->fit(cols);
+  } else {
+    size_for[0] = size_for[1] = slow_stage->fit(cols);
+  }
+  const Eigen::VectorXd coef = 0.5 * (size_for[0] + size_for[1]);
   Eigen::VectorXd e = Eigen::VectorXd::Constant(data.size(), NAN);
   for (Eigen::Index i : held) {
+    const Eigen::VectorXd& c = size_for[fold[static_cast<size_t>(i)] == 1 ? 1 : 0];
     double v = e0[i];
     for (Eigen::Index j = 0; j < cols.cols(); ++j) {
-      if (std::isfinite(cols(i, j))) v -= cols(i, j) * coef[j];
+      if (std::isfinite(cols(i, j))) v -= cols(i, j) * c[j];
     }
     e[i] = v;
   }
@@ -220,7 +249,8 @@ Scored Search::score_slow(const Eigen::MatrixXd& cols) const {
   s.held = fold_std(e, held, fold, line, -1);
   s.coef = coef;
   s.slow = true;
-  s.ok = std::isfinite(s.sel) && std::isfinite(s.conf) && std::isfinite(s.held) && coef.allFinite();
+  s.ok = std::isfinite(s.sel) && std::isfinite(s.conf) && std::isfinite(s.held) &&
+         size_for[0].allFinite() && size_for[1].allFinite();
   return s;
 }
 

@@ -86,7 +86,10 @@ double fold_std(const Eigen::VectorXd& e, const std::vector<Eigen::Index>& held,
 // Everything a candidate is scored against: read-only once built, shared by the workers.
 class Search {
  public:
-  Search(const Model& model, const FlightData& data, const std::string& truth_name, Diagnosis* dx);
+  // With `slow_on_lines`, a slow candidate is sized on the held-out lines too, cross-fitted
+  // (score_slow); the base's own slow terms are fitted as fit_model fits them (fit.slow_lines).
+  Search(const Model& model, const FlightData& data, const std::string& truth_name, Diagnosis* dx,
+         bool slow_on_lines = false);
 
   // Scores a term's columns (N x k): fit on the fit rows with the base columns, errors on the
   // held-out rows of each fold. With `slow_ok`, a column the band-pass barely sees
@@ -94,9 +97,12 @@ class Search {
   // returned.
   Scored score(const Eigen::MatrixXd& cols, bool slow_ok = false) const;
   // Scores columns fitted by the slow stage: to the base error on the calibration rows,
-  // unfiltered, each segment's mean removed.
+  // unfiltered, each segment's mean removed. Sized on the held-out lines too (slow_on_lines):
+  // each half's error is that of the size fitted on the calibration rows and the other half's
+  // lines, so that neither half scores a size it was fitted on.
   Scored score_slow(const Eigen::MatrixXd& cols) const;
-  // The slow stage's residual sum of squares with these columns (nT²).
+  // The slow stage's residual sum of squares with these columns (nT²), on the calibration rows
+  // (and the selection lines with slow_on_lines).
   double slow_rss(const Eigen::MatrixXd& cols) const;
   // Whether the slow stage exists here: a band-pass fit on this flight's calibration segments.
   bool has_slow_stage() const { return slow_stage != nullptr; }
@@ -141,7 +147,10 @@ class Search {
   Eigen::VectorXd e0;                     // base error, N
   Eigen::VectorXd slow0;                  // the base's slow-stage correction (Model::slow_terms), N
   std::unique_ptr<SlowStage> slow_stage;  // a candidate's slow fit (band-pass models only)
-  double base_std[3] = {0, 0, 0};         // selection, confirmation, all held out
+  // With slow_on_lines: the slow fit on the calibration rows and the lines of half h (0:
+  // selection, 1: confirmation), which sizes the other half's error.
+  std::unique_ptr<SlowStage> slow_cross[2];
+  double base_std[3] = {0, 0, 0};  // selection, confirmation, all held out
   double dt = 0.1, span = 1.0;
 
  private:

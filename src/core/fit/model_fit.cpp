@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <exception>
 #include <limits>
+#include <map>
 #include <mutex>
 #include <sstream>
 #include <thread>
@@ -109,6 +110,36 @@ std::vector<std::pair<Eigen::Index, Eigen::Index>> calibration_runs(
   return kept;
 }
 
+std::vector<std::pair<Eigen::Index, Eigen::Index>> slow_stage_runs(
+    const FitSettings& s, const FlightData& data, const Eigen::MatrixXd& a,
+    const Eigen::VectorXd& y, const std::vector<Eigen::Index>* rows) {
+  auto runs = calibration_runs(s, data, a, y, nullptr);
+  if (!rows && s.slow_lines.empty()) return runs;
+  const std::vector<Eigen::Index> calibration = data.select(s.lines, s.windows);
+  // The extra rows by line (a run never spans two lines), calibration rows left out.
+  std::map<double, std::vector<Eigen::Index>> by_line;
+  const Eigen::VectorXd line =
+      data.has("line") ? Eigen::VectorXd(data.column("line")) : Eigen::VectorXd::Zero(data.size());
+  const auto take = [&](Eigen::Index i) {
+    if (i >= 0 && i < data.size() && std::isfinite(line[i]) &&
+        !std::binary_search(calibration.begin(), calibration.end(), i))
+      by_line[line[i]].push_back(i);
+  };
+  if (rows) {
+    for (Eigen::Index i : *rows) take(i);
+  } else {
+    for (const double l : s.slow_lines)
+      for (Eigen::Index i : data.select({l}, {})) take(i);
+  }
+  for (auto& [l, r] : by_line) {
+    std::sort(r.begin(), r.end());
+    r.erase(std::unique(r.begin(), r.end()), r.end());
+    const auto more = calibration_runs(s, data, std::move(r), a, y, nullptr);
+    runs.insert(runs.end(), more.begin(), more.end());
+  }
+  return runs;
+}
+
 Eigen::MatrixXd stack_runs(const FitSettings& s, double dt_s, const Eigen::MatrixXd& x,
                            const std::vector<std::pair<Eigen::Index, Eigen::Index>>& runs) {
   const bool bandpass = s.method == FitMethod::kBandpass;
@@ -190,8 +221,7 @@ void add_runs(const FitSettings& s, double dt_s, const Eigen::MatrixXd& a, const
   report->segments += static_cast<int>(runs.size());
 }
 
-CalibrationBlocks calibration_blocks(const Model& model,
-                                     const std::vector<TermPtr>& terms,
+CalibrationBlocks calibration_blocks(const Model& model, const std::vector<TermPtr>& terms,
                                      const std::vector<const FlightData*>& flights,
                                      FitReport* report) {
   const FitSettings& s = model.fit;
@@ -319,10 +349,12 @@ void add_column_warnings(const Model& model, const Eigen::MatrixXd& g,
 
 // The slow stage (Model::slow_terms): after the band-pass stage has set the other coefficients,
 // the slow columns are fitted to the scalar minus fit.reference minus that stage's correction on
-// the calibration segments of every flight, unfiltered, each segment's mean removed.
+// the calibration segments of every flight and its fit.slow_lines, unfiltered, each segment's
+// and line's mean removed.
 void fit_slow_stage(Model& model, const std::vector<TermPtr>& terms,
                     const std::vector<const FlightData*>& flights,
-                    const std::vector<Eigen::Index>& slow, FitReport* report) {
+                    const std::vector<Eigen::Index>& slow, FitReport* report,
+                    const std::vector<std::vector<Eigen::Index>>* slow_rows) {
   const FitSettings& s = model.fit;
   if (s.reference.empty()) {
     throw Error("fit: slow_terms need fit.reference (the field they are fitted against)");
@@ -336,8 +368,8 @@ void fit_slow_stage(Model& model, const std::vector<TermPtr>& terms,
   std::vector<Eigen::VectorXd> parts_r;
   std::vector<std::pair<Eigen::Index, Eigen::Index>> runs;
   Eigen::Index rows = 0;
-  for (const FlightData* flight : flights) {
-    const FlightData& data = *flight;
+  for (size_t f = 0; f < flights.size(); ++f) {
+    const FlightData& data = *flights[f];
     if (!data.has(s.reference)) {
       throw Error(data.source() + ": field '" + s.reference +
                   "' (fit.reference, for the slow terms) not found");
@@ -348,7 +380,8 @@ void fit_slow_stage(Model& model, const std::vector<TermPtr>& terms,
     for (Eigen::Index j : fast) {
       if (model.coefficients[j] != 0.0) r -= a.col(j) * model.coefficients[j];
     }
-    for (const auto& [first, last] : calibration_runs(s, data, a, y, nullptr)) {
+    const std::vector<Eigen::Index>* extra = slow_rows ? &(*slow_rows)[f] : nullptr;
+    for (const auto& [first, last] : slow_stage_runs(s, data, a, y, extra)) {
       const Eigen::Index len = last - first + 1;
       Eigen::MatrixXd part(len, p + k);
       for (Eigen::Index c = 0; c < p; ++c)
@@ -382,10 +415,14 @@ void fit_slow_stage(Model& model, const std::vector<TermPtr>& terms,
   for (Eigen::Index j = 0; j < k; ++j) model.coefficients[slow[static_cast<size_t>(j)]] = c[j];
   char buf[256];
   std::snprintf(buf, sizeof(buf),
-                "%lld slow column(s) fitted against %s on %lld calibration samples (segment means "
-                "and the band-pass columns' span removed): residual std %.3g nT",
+                "%lld slow column(s) fitted against %s on %lld samples of the calibration "
+                "segments%s (segment means and the band-pass columns' span removed): residual "
+                "std %.3g nT",
                 static_cast<long long>(k), s.reference.c_str(),
                 static_cast<long long>(stage.rows()),
+                slow_rows              ? " and the rows given"
+                : s.slow_lines.empty() ? ""
+                                       : " and fit.slow_lines",
                 std::sqrt(rss / static_cast<double>(std::max<Eigen::Index>(stage.rows(), 1))));
   report->estimates.push_back(buf);
 }
@@ -393,7 +430,15 @@ void fit_slow_stage(Model& model, const std::vector<TermPtr>& terms,
 }  // namespace
 
 void fit_model(Model& model, const std::vector<const FlightData*>& flights) {
+  fit_model(model, flights, nullptr);
+}
+
+void fit_model(Model& model, const std::vector<const FlightData*>& flights,
+               const std::vector<std::vector<Eigen::Index>>* slow_rows) {
   if (flights.empty()) throw Error("fit: no flight given");
+  if (slow_rows && slow_rows->size() != flights.size())
+    throw Error("fit: slow rows given for " + std::to_string(slow_rows->size()) + " flights, not " +
+                std::to_string(flights.size()));
   require_fittable_column(model);
   const std::vector<std::string> estimates = estimate_free_parameters(model, flights);
   const FitSettings& s = model.fit;
@@ -460,7 +505,7 @@ void fit_model(Model& model, const std::vector<const FlightData*>& flights) {
       coefficient_covariance(g, s.lambda, report.noise_variance_nT2, keep);
   const std::vector<Eigen::Index> slow = slow_columns(s.method, terms, model.slow_terms);
   add_column_warnings(model, g, keep, slow, &report);
-  if (!slow.empty()) fit_slow_stage(model, terms, flights, slow, &report);
+  if (!slow.empty()) fit_slow_stage(model, terms, flights, slow, &report, slow_rows);
   model.report = report;
 }
 

@@ -260,7 +260,9 @@ std::vector<std::string> parse_term_subset(const YAML::Node& node, const std::st
 FitSettings parse_fit_settings(const YAML::Node& f, const std::string& path) {
   FitSettings s;
   if (!f.IsMap()) throw Error(path + ": key 'fit' must be a map");
-  warn_unknown(f, {"method", "lines", "windows", "band_hz", "order", "trim", "lambda", "reference"},
+  warn_unknown(f,
+               {"method", "lines", "windows", "band_hz", "order", "trim", "lambda", "reference",
+                "slow_lines"},
                path, "fit.");
   if (f["method"]) {
     const std::string method = get<std::string>(f["method"], path, "fit.method");
@@ -275,6 +277,12 @@ FitSettings parse_fit_settings(const YAML::Node& f, const std::string& path) {
   if (f["lines"]) s.lines = get<std::vector<double>>(f["lines"], path, "fit.lines");
   for (double l : s.lines) {
     if (!std::isfinite(l)) throw Error(path + ": key 'fit.lines' holds a non-finite line number");
+  }
+  if (f["slow_lines"])
+    s.slow_lines = get<std::vector<double>>(f["slow_lines"], path, "fit.slow_lines");
+  for (double l : s.slow_lines) {
+    if (!std::isfinite(l))
+      throw Error(path + ": key 'fit.slow_lines' holds a non-finite line number");
   }
   if (f["windows"]) {
     for (const auto& w : f["windows"]) {
@@ -454,6 +462,8 @@ void save_model_yaml(const Model& m, const std::string& path,
   out << YAML::Key << "trim" << YAML::Value << m.fit.trim;
   out << YAML::Key << "lambda" << YAML::Value << m.fit.lambda;
   if (!m.fit.reference.empty()) out << YAML::Key << "reference" << YAML::Value << m.fit.reference;
+  if (!m.fit.slow_lines.empty())
+    out << YAML::Key << "slow_lines" << YAML::Value << YAML::Flow << m.fit.slow_lines;
   out << YAML::EndMap;
   if (m.fitted()) {
     out << YAML::Key << "coefficients" << YAML::Value << YAML::BeginMap;

@@ -123,6 +123,12 @@ struct DiagnoseOptions {
   /// rows by half again and resolution_nT (LoopRound::calibration_std_nT; false: the held-out lines
   /// and the validation flight alone decide).
   bool check_calibration_rows = true;
+  /// A slow term (a drift of minutes, Model::slow_terms) is sized on the held-out lines too,
+  /// where its channel moves, not on the calibration rows alone, where it barely does: diagnose
+  /// scores each half with the size fitted on the calibration rows and the other half's lines,
+  /// and diagnose_loop's model carries those lines as fit.slow_lines (false: the calibration
+  /// rows alone size it).
+  bool slow_terms_on_lines = true;
   /// The channels a trained network leans on, as its attribution ranks them (empty: none). The
   /// leading ones (kNetworkChannels with kNetworkMinShare or more) are searched even where the
   /// search would leave them out (full_search false), their products with each other and with

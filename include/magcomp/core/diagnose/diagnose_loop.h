@@ -42,6 +42,10 @@ struct LoopRound {
   /// channel term it was judged with (Candidate::partner), not eligible alone, whose pair lowers
   /// the error below the first single term that passes.
   bool together = false;
+  /// The round's slow terms are sized on the held-out lines too (fit.slow_lines; each half's
+  /// error scored with them sized on the other half's lines), taken because nothing passed with
+  /// them sized on the calibration rows alone (DiagnoseOptions::slow_terms_on_lines).
+  bool slow_on_lines = false;
   /// The held-out error std of each `together` term alone, nT (same order as `added`).
   std::vector<double> alone_std_nT;
   /// Terms of earlier rounds that this round's terms made redundant (the backward pass), each

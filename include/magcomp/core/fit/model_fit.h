@@ -18,6 +18,12 @@ namespace magcomp {
 /// the report.
 void fit_model(Model& model, const std::vector<const FlightData*>& flights);
 
+/// The same, with the slow stage fitted on the calibration rows and `slow_rows` (per flight,
+/// indices into it) in place of fit.slow_lines: diagnose's cross-fit, which sizes the slow terms
+/// on one half of the held-out rows to score them on the other.
+void fit_model(Model& model, const std::vector<const FlightData*>& flights,
+               const std::vector<std::vector<Eigen::Index>>* slow_rows);
+
 /// Contiguous calibration runs [first, last] of `data` selected by the fit settings (all samples
 /// for a reference fit without lines or windows), skipping rows where `a` or `y` is not finite, and
 /// dropping runs too short for the band-pass and trim (noted in `warnings`).
@@ -30,6 +36,13 @@ std::vector<std::pair<Eigen::Index, Eigen::Index>> calibration_runs(
 std::vector<std::pair<Eigen::Index, Eigen::Index>> calibration_runs(
     const FitSettings& fit, const FlightData& data, std::vector<Eigen::Index> selected,
     const Eigen::MatrixXd& a, const Eigen::VectorXd& y, std::vector<std::string>* warnings);
+
+/// The runs [first, last] the slow stage (Model::slow_terms) is fitted on: the calibration runs,
+/// then the runs of `rows` (indices into `data`; null: the rows of fit.slow_lines), each within
+/// one line, calibration rows left to those, each run's mean removed by the stage.
+std::vector<std::pair<Eigen::Index, Eigen::Index>> slow_stage_runs(
+    const FitSettings& fit, const FlightData& data, const Eigen::MatrixXd& a,
+    const Eigen::VectorXd& y, const std::vector<Eigen::Index>* rows = nullptr);
 
 /// The rows of `x` in each run, band-passed and trimmed (bandpass method) or as they are
 /// (reference method), stacked. dt_s is the sample period.

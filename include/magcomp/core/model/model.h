@@ -35,6 +35,10 @@ struct FitSettings {
   int trim = 20;          ///< samples dropped at each end of each filtered segment
   double lambda = 0.025;  ///< ridge parameter (dimensionless, on the raw columns)
   std::string reference;  ///< reference field name, reference method only
+  /// Lines (by line number) whose rows the slow stage (Model::slow_terms) is also fitted on,
+  /// beside the calibration segments: survey lines, where a drift of minutes shows its slope,
+  /// each line's mean removed. The band-pass stage never reads them. Empty: calibration only.
+  std::vector<double> slow_lines;
 };
 
 /// What a fit reports about its conditioning.
