@@ -22,6 +22,17 @@ Model tl16() { return test::tl16_model(); }
 
 Eigen::VectorXd true_coefficients(Eigen::Index p) { return test::known_coefficients(p); }
 
+// `x` through a first-order lag of tau_s (dt_s the sample period), by its exact discrete
+// recursion, started at x's first value.
+Eigen::VectorXd first_order_lag(const Eigen::VectorXd& x, double dt_s, double tau_s) {
+  const double a = 1.0 - std::exp(-dt_s / tau_s);
+  Eigen::VectorXd y(x.size());
+  if (x.size() == 0) return y;
+  y[0] = x[0];
+  for (Eigen::Index i = 1; i < x.size(); ++i) y[i] = y[i - 1] + a * (x[i] - y[i - 1]);
+  return y;
+}
+
 TEST(Model, BandpassFitRecoversKnownCoefficients) {
   Model m = tl16();
   const Eigen::VectorXd c_true = true_coefficients(16);
@@ -108,13 +119,8 @@ TEST(Model, ASlowTermIsFittedAfterTheBandPassAgainstTheReference) {
   // segment means and the TL columns' span removed) does.
   FlightData d = test::scenario("random_base").flight;
   const double gain_nT_per_A = 2.0, tau_s = 150.0;
-  const Eigen::VectorXd current = d.column("cur_tank");
-  const double a = 1.0 - std::exp(-d.dt_s() / tau_s);
-  Eigen::VectorXd heater(current.size());
-  heater[0] = current[0];
-  for (Eigen::Index i = 1; i < current.size(); ++i)
-    heater[i] = heater[i - 1] + a * (current[i] - heater[i - 1]);
-  d.mutable_column("mag_5_uc") += gain_nT_per_A * heater;
+  d.mutable_column("mag_5_uc") +=
+      gain_nT_per_A * first_order_lag(d.column("cur_tank"), d.dt_s(), tau_s);
   const std::string term = "scalar:cur_tank|lp(150)";
   Model band = load_model_yaml(test::source_dir() + "/config/models/tl_sim.yaml");
   band.add_term(term);
@@ -170,12 +176,7 @@ TEST(Model, ASlowTermIsSizedOnTheSlowLinesWhereItsChannelMoves) {
   // whole span. Sized there, the gain is found within 5 %.
   FlightData d = test::scenario("random_base").flight;
   const double gain_nT = 1.5, tau_s = 400.0;
-  const Eigen::VectorXd x = d.column("cur_flap");
-  const double a = 1.0 - std::exp(-d.dt_s() / tau_s);
-  Eigen::VectorXd drift(x.size());
-  drift[0] = x[0];
-  for (Eigen::Index i = 1; i < x.size(); ++i) drift[i] = drift[i - 1] + a * (x[i] - drift[i - 1]);
-  d.mutable_column("mag_5_uc") += gain_nT * drift;
+  d.mutable_column("mag_5_uc") += gain_nT * first_order_lag(d.column("cur_flap"), d.dt_s(), tau_s);
   Model cal = load_model_yaml(test::source_dir() + "/config/models/tl_sim.yaml");
   cal.add_slow_term(TermSpec("scalar:cur_flap|lp(400)"), "mag_1_c");
   Model lines = cal;
