@@ -47,6 +47,7 @@ struct DiscoveryRun {
   std::string verdict;                  ///< the loop's last verdict
   std::string stop_reason;              ///< why the loop stopped (LoopResult::stop_reason)
   double residual_nT = NAN, floor_nT = NAN;  ///< its held-out residual and noise floor
+  double last_heldout_nT = NAN;  ///< the held-out std the last diagnosis reads for the final model
   /// The hidden effects' contribution to the scalar, std with each line's mean removed (as the
   /// errors are scored), on the flight the loop learns from and on the next flight: an effect the
   /// first flight barely shows cannot be learned there.
@@ -233,6 +234,7 @@ inline DiscoveryRun discovery_run(unsigned r, int count, const sim::Scenario& ba
   out.verdict = loop.last.verdict;
   out.residual_nT = loop.last.floor.residual_std_nT;
   out.floor_nT = loop.last.floor.floor_nT;
+  out.last_heldout_nT = loop.last.baseline_std_nT;
   out.effect_nT = hidden_std_within_lines(fa, tl.scalar);
   out.effect_next_nT = hidden_std_within_lines(fb, tl.scalar);
   // TL plus the effects' own terms, fitted three ways, the best on the next flight kept: every

@@ -252,6 +252,12 @@ TEST(Discovery, ADriftTheCalibrationBarelyShowsIsSizedOnTheLines) {
   for (const LoopRound& lr : d.rounds) on_lines = on_lines || lr.slow_on_lines;
   EXPECT_TRUE(on_lines);
   EXPECT_FALSE(d.slow_lines.empty());
+  // The last diagnosis (its verdict and floor) reads the final model's held-out error as the
+  // loop scored it, the slow term cross-fitted by halves, not sized on the rows it is scored on.
+  std::printf("  held-out error: last round %.4f nT, last diagnosis %.4f nT\n",
+              d.rounds.back().heldout_std_nT, d.last_heldout_nT);
+  EXPECT_NEAR(d.last_heldout_nT, d.rounds.back().heldout_std_nT,
+              1e-3 * d.rounds.back().heldout_std_nT);
 }
 
 TEST(DiscoveryLong, ARidgeChosenEveryRoundLeavesNoTermStandingInForIt) {

@@ -117,29 +117,6 @@ Search::Search(const Model& m, const FlightData& d, const std::string& truth_nam
   profile = std::make_unique<RidgeProfile>(af0, yf, fs.lambda);
   const Eigen::VectorXd c0 = profile->solve(Eigen::MatrixXd(yf.size(), 0), nullptr);
   e0 = scalar - truth - a0 * c0;
-  // --- The base's slow terms, fitted after the band-pass stage as fit_model does (on the
-  // calibration rows and fit.slow_lines).
-  slow0 = Eigen::VectorXd::Zero(n);
-  Eigen::MatrixXd nuisance = a0;  // what a candidate's slow fit is fitted beside
-  if (fs.method == FitMethod::kBandpass) {
-    const std::vector<Eigen::Index> slow = slow_columns(fs.method, terms, model.slow_terms);
-    Eigen::MatrixXd sc(n, static_cast<Eigen::Index>(slow.size()));
-    for (size_t k = 0; k < slow.size(); ++k)
-      sc.col(static_cast<Eigen::Index>(k)) = a_all.col(slow[k]);
-    // A candidate's slow fit: with the base's band-pass and slow columns' span removed.
-    if (slow.empty()) {
-      slow_stage = std::make_unique<SlowStage>(a0, e0, runs, fs.lambda);
-    } else {
-      const auto base_runs =
-          fs.slow_lines.empty() ? runs : slow_stage_runs(fs, data, a0, Eigen::VectorXd(e0));
-      const Eigen::VectorXd cs = SlowStage(a0, e0, base_runs, fs.lambda).fit(sc);
-      slow0 = sc.unaryExpr([](double v) { return std::isfinite(v) ? v : 0.0; }) * cs;
-      e0 -= slow0;
-      nuisance.resize(n, a0.cols() + sc.cols());
-      nuisance << a0, sc;
-      slow_stage = std::make_unique<SlowStage>(nuisance, e0, runs, fs.lambda);
-    }
-  }
   // --- Held out: every other line, in units (a line, or each contiguous piece of a line flown in
   // pieces) dealt in time order into selection and confirmation.
   unit.assign(static_cast<size_t>(n), -1);
@@ -161,6 +138,41 @@ Search::Search(const Model& m, const FlightData& d, const std::string& truth_nam
     for (size_t k = 0; k < held.size(); ++k) {
       fold[static_cast<size_t>(held[k])] = k < held.size() / 2 ? 0 : 1;
       unit[static_cast<size_t>(held[k])] = k < held.size() / 2 ? 0 : 1;
+    }
+  }
+  // --- The base's slow terms, fitted after the band-pass stage as fit_model does (on the
+  // calibration rows and fit.slow_lines).
+  slow0 = Eigen::VectorXd::Zero(n);
+  Eigen::MatrixXd nuisance = a0;  // what a candidate's slow fit is fitted beside
+  if (fs.method == FitMethod::kBandpass) {
+    const std::vector<Eigen::Index> slow = slow_columns(fs.method, terms, model.slow_terms);
+    Eigen::MatrixXd sc(n, static_cast<Eigen::Index>(slow.size()));
+    for (size_t k = 0; k < slow.size(); ++k)
+      sc.col(static_cast<Eigen::Index>(k)) = a_all.col(slow[k]);
+    // A candidate's slow fit: with the base's band-pass and slow columns' span removed.
+    if (slow.empty()) {
+      slow_stage = std::make_unique<SlowStage>(a0, e0, runs, fs.lambda);
+    } else {
+      const auto base_runs =
+          fs.slow_lines.empty() ? runs : slow_stage_runs(fs, data, a0, Eigen::VectorXd(e0));
+      const Eigen::MatrixXd sc0 = sc.unaryExpr([](double v) { return std::isfinite(v) ? v : 0.0; });
+      slow0 = sc0 * SlowStage(a0, e0, base_runs, fs.lambda).fit(sc);
+      // Sized on held-out lines too (fit.slow_lines), the slow terms are cross-fitted there as
+      // the loop scores them: each half's rows read the size fitted on the calibration rows and
+      // the other half's held-out rows, so no held-out figure reads a size fitted on itself.
+      if (!fs.slow_lines.empty()) {
+        std::vector<Eigen::Index> half_rows[2];
+        for (Eigen::Index i : held) half_rows[fold[static_cast<size_t>(i)]].push_back(i);
+        for (int h = 0; h < 2; ++h) {
+          const auto other = slow_stage_runs(fs, data, a0, Eigen::VectorXd(e0), &half_rows[1 - h]);
+          const Eigen::VectorXd cs = SlowStage(a0, e0, other, fs.lambda).fit(sc);
+          for (Eigen::Index i : half_rows[h]) slow0[i] = sc0.row(i).dot(cs);
+        }
+      }
+      e0 -= slow0;
+      nuisance.resize(n, a0.cols() + sc.cols());
+      nuisance << a0, sc;
+      slow_stage = std::make_unique<SlowStage>(nuisance, e0, runs, fs.lambda);
     }
   }
   dx->heldout_fold.assign(static_cast<size_t>(n), -1);
