@@ -70,8 +70,21 @@ TEST(TermSupport, ATermWhoseChannelSwitchedTwiceIsSaidToBeUncertain) {
   EXPECT_EQ(s[0].term, "scalar:cur_x");
   EXPECT_EQ(s[0].channel, "cur_x");
   EXPECT_EQ(s[0].switches, 2);
-  // The size: 3 nT/A times the current's std, 2 A * sqrt(p (1 - p)) with p = 1/12.
-  EXPECT_NEAR(s[0].size_nT, 3.0 * 2.0 * std::sqrt(1.0 / 12 * 11.0 / 12), 0.01);
+  // The size: 3 nT/A times the current's std beyond what TL's columns take of it (a single pulse
+  // follows the maneuvers' columns in part), at most 3 nT/A times the current's own std, 2 A *
+  // sqrt(p (1 - p)) with p = 1/12.
+  {
+    const Eigen::MatrixXd tl = design_matrix(c.start, c.flight);
+    Eigen::MatrixXd others(tl.rows(), tl.cols() + 1);
+    others << tl, Eigen::VectorXd::Ones(tl.rows());
+    const Eigen::VectorXd x = c.flight.column("cur_x");
+    const Eigen::VectorXd beyond = x - others * others.colPivHouseholderQr().solve(x);
+    const double expected = 3.0 * std::sqrt(beyond.squaredNorm() / static_cast<double>(x.size()));
+    std::printf("  size %.4f nT: beyond TL's columns %.4f nT, the current's own std %.4f nT\n",
+                s[0].size_nT, expected, 3.0 * 2.0 * std::sqrt(1.0 / 12 * 11.0 / 12));
+    EXPECT_NEAR(s[0].size_nT, expected, 0.01);
+    EXPECT_LE(s[0].size_nT, 3.0 * 2.0 * std::sqrt(1.0 / 12 * 11.0 / 12) + 0.01);
+  }
   // Its uncertainty: the coefficient's sigma (about 0.1 nT / sqrt(500 * 4 A^2 * 11/12)) times the
   // current's rms; small against the noise, far from zero.
   ASSERT_TRUE(std::isfinite(s[0].size_sigma_nT));
@@ -182,6 +195,51 @@ TEST(TermSupport, ATermFittedOnCorrelatedNoiseAloneIsSaidNotToBeDetermined) {
       EXPECT_EQ(note, "");
     }
   }
+}
+
+TEST(TermSupport, AFieldTermsSizeIsWhatItAddsBeyondThePermanentFieldNotItsChannelsLevel) {
+  // A body field of (2, -1, 1.5) nT per unit of a channel that switches by 1 unit every 150
+  // samples, held at a level of 0 or of 27.5 units (a bus voltage). At 27.5 the term is mostly
+  // 27.5 times the permanent columns, which the permanent coefficients take: its size, what it
+  // adds to the model, is the same at both levels (its contribution's std over the flight would
+  // be about 55 times larger at 27.5, its level times the direction cosines' swing).
+  const Model start = reference_tl16();
+  const FlightData clean = test::synthetic_tl_flight(start, test::known_coefficients(16));
+  double size[2] = {0, 0}, sigma[2] = {0, 0};
+  for (int k = 0; k < 2; ++k) {
+    const double level = k == 0 ? 0.0 : 27.5;
+    FlightData f = clean;
+    Eigen::VectorXd v(f.size());
+    for (Eigen::Index i = 0; i < v.size(); ++i)
+      v[i] = level + ((i / 150) % 2 ? 0.5 : -0.5) +
+             0.05 * std::fmod(std::sin(78.233 * i) * 43758.5453, 1.0);
+    f.set("cur_v", v);
+    Model m = start;
+    m.add_term("field:cur_v");
+    const Eigen::MatrixXd a = design_matrix(m, f);
+    const Eigen::Index j = a.cols() - 3;  // the term's three columns come last
+    ASSERT_EQ(m.column_names.empty() ? std::string("field:cur_v.x")
+                                     : m.column_names[static_cast<size_t>(j)],
+              "field:cur_v.x");
+    f.mutable_column("mag_5_uc") +=
+        2.0 * a.col(j) - 1.0 * a.col(j + 1) + 1.5 * a.col(j + 2) +
+        Eigen::VectorXd::NullaryExpr(f.size(), [](Eigen::Index i) {
+          return 0.05 * std::sqrt(3.0) * std::fmod(std::sin(12.9898 * i) * 43758.5453, 1.0);
+        });
+    Model tl = start;
+    fit_model(tl, {&f});
+    fit_model(m, {&f});
+    const std::vector<TermSupport> s = term_support(m, tl, f);
+    ASSERT_EQ(s.size(), 1u);
+    size[k] = s[0].size_nT;
+    sigma[k] = s[0].size_sigma_nT;
+    std::printf("  level %.1f: size %.4f nT +- %.4f nT; note: %s\n", level, size[k], sigma[k],
+                support_note(s[0]).c_str());
+    EXPECT_EQ(support_note(s[0]), "");  // it switches 39 times and is well determined
+  }
+  EXPECT_GT(size[0], 0.1);
+  EXPECT_NEAR(size[1], size[0], 0.02 * size[0]);
+  EXPECT_NEAR(sigma[1], sigma[0], 0.5 * sigma[0]);
 }
 
 }  // namespace

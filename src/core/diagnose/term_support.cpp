@@ -1,6 +1,7 @@
 // magcomp: the support of the terms a diagnosis added.
 #include "magcomp/core/diagnose/term_support.h"
 
+#include <Eigen/QR>
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -30,6 +31,34 @@ int switches_on(const Eigen::VectorXd& x, const std::vector<Eigen::Index>& rows)
     if (s != 0) state = s;
   }
   return count;
+}
+
+// Columns [from, from + n) of `a` less their least-squares fit by the other columns and a
+// constant over the rows where every column is finite (NaN on the other rows): the part of the
+// term the model's other columns cannot take. A field term of a channel that holds a level is
+// mostly that level times the permanent columns; its size is what it adds to them.
+Eigen::MatrixXd beyond_other_columns(const Eigen::MatrixXd& a, Eigen::Index from, Eigen::Index n) {
+  std::vector<Eigen::Index> rows;
+  for (Eigen::Index i = 0; i < a.rows(); ++i)
+    if (a.row(i).allFinite()) rows.push_back(i);
+  Eigen::MatrixXd out = Eigen::MatrixXd::Constant(a.rows(), n, NAN);
+  const Eigen::Index k = a.cols() - n + 1;
+  if (static_cast<Eigen::Index>(rows.size()) <= 2 * k) return a.middleCols(from, n);
+  Eigen::MatrixXd others(static_cast<Eigen::Index>(rows.size()), k), block(others.rows(), n);
+  for (Eigen::Index r = 0; r < others.rows(); ++r) {
+    const Eigen::Index i = rows[static_cast<size_t>(r)];
+    others.row(r) << a.row(i).head(from), a.row(i).tail(a.cols() - from - n), 1.0;
+    block.row(r) = a.row(i).segment(from, n);
+  }
+  // Scaled to unit columns, so that a column in nT beside one in units of a channel stay apart.
+  Eigen::VectorXd scale = others.colwise().norm().transpose();
+  for (Eigen::Index c = 0; c < k; ++c) scale[c] = scale[c] > 0 ? 1.0 / scale[c] : 0.0;
+  Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(others * scale.asDiagonal());
+  qr.setThreshold(1e-10);
+  const Eigen::MatrixXd fitted = others * scale.asDiagonal() * qr.solve(block);
+  for (Eigen::Index r = 0; r < others.rows(); ++r)
+    out.row(rows[static_cast<size_t>(r)]) = block.row(r) - fitted.row(r);
+  return out;
 }
 
 }  // namespace
@@ -94,7 +123,7 @@ std::vector<TermSupport> term_support(const Model& model, const Model& start,
         m.sized = false;
         continue;
       }
-      const Eigen::MatrixXd block = a.middleCols(m.from, m.n);
+      const Eigen::MatrixXd block = beyond_other_columns(a, m.from, m.n);
       const Eigen::VectorXd contribution = block * model.coefficients.segment(m.from, m.n);
       const Eigen::MatrixXd sigma =
           has_cov ? cov.block(m.from, m.from, m.n, m.n) : Eigen::MatrixXd();

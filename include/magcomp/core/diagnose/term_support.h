@@ -19,12 +19,16 @@ struct TermSupport {
   /// fit rows does not switch there, whatever its noise); -1 without a channel.
   int switches = -1;
   /// 1-sigma uncertainty of the term's contribution to the compensated field, nT: the rms over
-  /// the flight's rows of sqrt(a_i' Σ a_i), with a_i the term's columns and Σ their block of the
+  /// the flight's rows of sqrt(a_i' Σ a_i), with a_i the term's columns beyond the model's other
+  /// columns (as for size_nT) and Σ their block of the
   /// coefficients' covariance by the jackknife over 20 blocks of the calibration rows
   /// (coefficient_jackknife_covariance; the fit's own covariance when the rows are too few). NaN
   /// when neither is known, and for a term of the slow stage.
   double size_sigma_nT = NAN;
-  /// The term's contribution's std over the flight, nT (its size).
+  /// The term's contribution's std over the flight, nT (its size), counting only what the model's
+  /// other columns and a constant cannot take: its columns less their least-squares fit by those
+  /// over the flight's rows. A field term of a channel that holds a level (a bus voltage) is
+  /// mostly that level times the permanent columns; its size is what it adds to them.
   double size_nT = NAN;
 };
 
