@@ -81,8 +81,10 @@ int main(int argc, char** argv) {
     int predictable = 0, near = 0, near_true = 0, worse = 0, complete_above = 0, total = 0;
     int worse_with_truth = 0;
     std::map<std::string, std::pair<int, int>> named;  // kind -> (runs naming the truth, runs)
-    // Per number of effects: predictable runs, near the oracle, near the true terms, named.
+    // Per number of effects, and per kind (one effect's, or "several"): predictable runs, near
+    // the oracle, near the true terms, named.
     std::map<int, std::array<int, 4>> by_count;
+    std::map<std::string, std::array<int, 4>> by_kind;
     int runs_all_draws_near = 0, runs_predictable = 0;  // runs near the true terms on every draw
     int named_among_look_alikes = 0;  // predictable runs naming the truth among the look-alikes
     // Predictable runs whose effects' channels have no look-alike on the first flight, and those
@@ -109,6 +111,11 @@ int main(int argc, char** argv) {
           c[1] += d.near_oracle();
           c[2] += d.near_true_terms();
           c[3] += d.names_truth();
+          auto& b = by_kind[d.kind];
+          b[0] += 1;
+          b[1] += d.near_oracle();
+          b[2] += d.near_true_terms();
+          b[3] += d.names_truth();
         }
         predictable += d.predictable;
         near += d.predictable && d.near_oracle();
@@ -201,6 +208,11 @@ int main(int argc, char** argv) {
           "%d effect(s): %d predictable runs, within 1.5x the oracle %d, within 1.5x the true "
           "terms %d, naming the effects' channels %d\n",
           count, c[0], c[1], c[2], c[3]);
+    for (const auto& [kind, c] : by_kind)
+      std::printf(
+          "kind %s: %d predictable runs, within 1.5x the oracle %d, within 1.5x the true terms "
+          "%d, naming the effects' channels %d\n",
+          kind.c_str(), c[0], c[1], c[2], c[3]);
     if (draws > 1)
       std::printf("runs within 1.5x the true terms on all %u draws: %d/%d predictable runs\n",
                   draws, runs_all_draws_near, runs_predictable);

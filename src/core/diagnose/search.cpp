@@ -149,10 +149,8 @@ Search::Search(const Model& m, const FlightData& d, const std::string& truth_nam
     Eigen::MatrixXd sc(n, static_cast<Eigen::Index>(slow.size()));
     for (size_t k = 0; k < slow.size(); ++k)
       sc.col(static_cast<Eigen::Index>(k)) = a_all.col(slow[k]);
-    // A candidate's slow fit: with the base's band-pass and slow columns' span removed.
-    if (slow.empty()) {
-      slow_stage = std::make_unique<SlowStage>(a0, e0, runs, fs.lambda);
-    } else {
+    // A candidate's slow fit (below): with the base's band-pass and slow columns' span removed.
+    if (!slow.empty()) {
       const auto base_runs =
           fs.slow_lines.empty() ? runs : slow_stage_runs(fs, data, a0, Eigen::VectorXd(e0));
       const Eigen::MatrixXd sc0 = sc.unaryExpr([](double v) { return std::isfinite(v) ? v : 0.0; });
@@ -172,7 +170,6 @@ Search::Search(const Model& m, const FlightData& d, const std::string& truth_nam
       e0 -= slow0;
       nuisance.resize(n, a0.cols() + sc.cols());
       nuisance << a0, sc;
-      slow_stage = std::make_unique<SlowStage>(nuisance, e0, runs, fs.lambda);
     }
   }
   dx->heldout_fold.assign(static_cast<size_t>(n), -1);
@@ -197,8 +194,11 @@ Search::Search(const Model& m, const FlightData& d, const std::string& truth_nam
                   " nT on a split (it must be above 0 and within 1e6 nT, the range of any "
                   "magnetic field): nothing to diagnose");
     }
-  // --- Slow candidates sized on the held-out lines too: each half's rows, a run per unit.
-  if (slow_on_lines && slow_stage) {
+  // --- Slow candidates: sized on the calibration rows, or, with the held-out lines too, on the
+  // calibration rows and each half's rows (a run per unit), each half scored with the other's.
+  if (fs.method == FitMethod::kBandpass && !slow_on_lines) {
+    slow_stage = std::make_shared<SlowStage>(nuisance, e0, runs, fs.lambda);
+  } else if (fs.method == FitMethod::kBandpass) {
     std::vector<std::pair<Eigen::Index, Eigen::Index>> half_runs[2] = {runs, runs};
     for (size_t k = 0; k < held.size();) {
       size_t end = k + 1;
@@ -209,8 +209,8 @@ Search::Search(const Model& m, const FlightData& d, const std::string& truth_nam
       k = end;
     }
     for (int h = 0; h < 2; ++h)
-      slow_cross[h] = std::make_unique<SlowStage>(nuisance, e0, half_runs[h], fs.lambda);
-    slow_stage = std::make_unique<SlowStage>(nuisance, e0, half_runs[0], fs.lambda);
+      slow_cross[h] = std::make_shared<SlowStage>(nuisance, e0, half_runs[h], fs.lambda);
+    slow_stage = slow_cross[0];
   }
   dx->baseline_selection_std_nT = base_std[0];
   dx->baseline_confirmation_std_nT = base_std[1];

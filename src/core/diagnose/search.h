@@ -146,10 +146,10 @@ class Search {
   std::unique_ptr<RidgeProfile> profile;
   Eigen::VectorXd e0;                     // base error, N
   Eigen::VectorXd slow0;                  // the base's slow-stage correction (Model::slow_terms), N
-  std::unique_ptr<SlowStage> slow_stage;  // a candidate's slow fit (band-pass models only)
+  std::shared_ptr<SlowStage> slow_stage;  // a candidate's slow fit (band-pass models only)
   // With slow_on_lines: the slow fit on the calibration rows and the lines of half h (0:
-  // selection, 1: confirmation), which sizes the other half's error.
-  std::unique_ptr<SlowStage> slow_cross[2];
+  // selection, 1: confirmation), which sizes the other half's error; slow_stage is the first.
+  std::shared_ptr<SlowStage> slow_cross[2];
   double base_std[3] = {0, 0, 0};  // selection, confirmation, all held out
   double dt = 0.1, span = 1.0;
 
