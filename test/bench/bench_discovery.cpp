@@ -22,7 +22,9 @@
 // a switched current times one of them drawn among the others); half-several (runs alternate one
 // effect and two or three, instead of 60 % one, 30 % two, 10 % three); draws=N (each run on N
 // aircraft: the same effects, other aircraft and flights); verbose (each run's rounds with their
-// held-out errors and look-alikes).
+// held-out errors and look-alikes); validate (the loop learns from the first flight with a second
+// flight of the aircraft as its validation flight); two-flights (the loop, TL and the references
+// learn from both flights together). Every mode is scored on the same next flight.
 #include <array>
 #include <chrono>
 #include <cstdio>
@@ -46,6 +48,7 @@ int main(int argc, char** argv) {
     magcomp::DiagnoseOptions options;
     bool half_several = false, states = false, verbose = false;
     unsigned draws = 1;
+    magcomp::test::Learn learn = magcomp::test::Learn::kOneFlight;
     for (int a = 5; a < argc; ++a) {
       const std::string opt = argv[a];
       if (opt == "one-at-a-time") {
@@ -60,6 +63,10 @@ int main(int argc, char** argv) {
         options.check_calibration_rows = false;
       } else if (opt == "slow-on-calibration") {
         options.slow_terms_on_lines = false;
+      } else if (opt == "validate") {
+        learn = magcomp::test::Learn::kValidated;
+      } else if (opt == "two-flights") {
+        learn = magcomp::test::Learn::kTwoFlights;
       } else if (opt == "states") {
         states = true;
       } else if (opt == "verbose") {
@@ -69,11 +76,11 @@ int main(int argc, char** argv) {
       } else if (opt.rfind("draws=", 0) == 0 && std::atoi(opt.c_str() + 6) >= 1) {
         draws = static_cast<unsigned>(std::atoi(opt.c_str() + 6));
       } else {
-        std::fprintf(
-            stderr,
-            "error: option '%s': one-at-a-time, choose-lambda, no-span-ridge, no-joint, "
-            "no-calibration-check, slow-on-calibration, states, half-several, verbose or draws=N\n",
-            opt.c_str());
+        std::fprintf(stderr,
+                     "error: option '%s': one-at-a-time, choose-lambda, no-span-ridge, no-joint, "
+                     "no-calibration-check, slow-on-calibration, validate, two-flights, states, "
+                     "half-several, verbose or draws=N\n",
+                     opt.c_str());
         return 2;
       }
     }
@@ -101,7 +108,7 @@ int main(int argc, char** argv) {
       bool every_draw = true, run_predictable = true;
       for (unsigned draw = 0; draw < draws; ++draw) {
         const magcomp::test::DiscoveryRun d =
-            magcomp::test::discovery_run(r, count, base, tl, options, draw);
+            magcomp::test::discovery_run(r, count, base, tl, options, draw, learn);
         ++total;
         run_predictable = d.predictable;
         every_draw = every_draw && d.near_true_terms();

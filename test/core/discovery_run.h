@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <map>
+#include <optional>
 #include <set>
 #include <string>
 #include <vector>
@@ -144,12 +145,20 @@ inline sim::Scenario discovery_scenario(unsigned r, int count, sim::Scenario bas
   return base;
 }
 
+/// What the loop learns from: the first flight (the default); the first flight with a second
+/// flight of the aircraft as its validation flight (`diagnose --apply --validate`: no step may
+/// raise that flight's error); or both flights together (`diagnose --apply --data A.h5,B.h5`:
+/// TL, the oracle and the true terms are then fitted on both too). The second flight is the
+/// aircraft's flight 1000 + 2r + 2; every mode is scored on the same next flight, 1000 + 2r + 1.
+enum class Learn { kOneFlight, kValidated, kTwoFlights };
+
 /// Run `r` with `count` effects on `base` (aircraft seed 5000 + r, flights 1000 + 2r and the
 /// next), starting from `tl` (a TL template, fitted here), the loop with `options`. Draw d > 0
 /// puts the same effects on another aircraft and other flights (both seeds + 100000 d), so that a
 /// run's result is not one draw's luck.
 inline DiscoveryRun discovery_run(unsigned r, int count, const sim::Scenario& base, const Model& tl,
-                                  const DiagnoseOptions& options = {}, unsigned draw = 0) {
+                                  const DiagnoseOptions& options = {}, unsigned draw = 0,
+                                  Learn learn = Learn::kOneFlight) {
   const Igrf& igrf = Igrf::installed();
   std::vector<sim::HiddenEffect> effects;
   const sim::Scenario a = discovery_scenario(r, count, base, draw, &effects);
@@ -176,9 +185,22 @@ inline DiscoveryRun discovery_run(unsigned r, int count, const sim::Scenario& ba
     write_flight_h5(fa.flight, stem + "_first.h5");
     write_flight_h5(fb.flight, stem + "_next.h5");
   }
+  std::optional<sim::Simulation> second;
+  if (learn != Learn::kOneFlight) {
+    sim::Scenario c = a;
+    c.seed = a.seed + 2;
+    second = sim::simulate(c, igrf);
+  }
+  // The flights TL and the references are fitted on: the first, or both with kTwoFlights.
+  std::vector<const FlightData*> fit_on = {&fa.flight};
+  if (learn == Learn::kTwoFlights) fit_on.push_back(&second->flight);
   Model start = tl;
-  fit_model(start, {&fa.flight});
-  const LoopResult loop = diagnose_loop(start, fa.flight, "mag_1_c", 5, 0.05, options);
+  fit_model(start, fit_on);
+  const LoopResult loop =
+      learn == Learn::kTwoFlights
+          ? diagnose_loop(start, fit_on, "mag_1_c", 5, 0.05, options)
+          : diagnose_loop(start, fa.flight, "mag_1_c", 5, 0.05, options, {},
+                          learn == Learn::kValidated ? &second->flight : nullptr);
   out.tl_next_nT = evaluate_model(start, fb.flight, "mag_1_c", false).std_nT;
   out.loop_next_nT = evaluate_model(loop.model, fb.flight, "mag_1_c", false).std_nT;
   for (size_t k = 1; k < loop.rounds.size(); ++k) out.added.push_back(loop.rounds[k].added);
@@ -191,7 +213,7 @@ inline DiscoveryRun discovery_run(unsigned r, int count, const sim::Scenario& ba
       if (slow != m.slow_terms.end()) m.slow_terms.erase(slow);
       m.coefficients.resize(0);
       try {
-        fit_model(m, {&fa.flight});
+        fit_model(m, fit_on);
         out.without_term_next_nT.emplace_back(
             t, evaluate_model(m, fb.flight, "mag_1_c", false).std_nT);
       } catch (const std::exception&) {
@@ -275,16 +297,22 @@ inline DiscoveryRun discovery_run(unsigned r, int count, const sim::Scenario& ba
         else
           m.add_term(t);
       }
-      fit_model(m, {&fa.flight});
+      fit_model(m, fit_on);
       const double e = evaluate_model(m, fb.flight, "mag_1_c", false).std_nT;
       if (!(e >= out.true_terms_next_nT)) out.true_terms_next_nT = e;
     }
   }
   const FlightData ca = without_hidden(fa, tl.scalar), cb = without_hidden(fb, tl.scalar);
+  std::vector<const FlightData*> clean_on = {&ca};
+  FlightData cc;
+  if (learn == Learn::kTwoFlights) {
+    cc = without_hidden(*second, tl.scalar);
+    clean_on.push_back(&cc);
+  }
   for (const double lambda : lambdas) {
     Model oracle = tl;
     oracle.fit.lambda = lambda;
-    fit_model(oracle, {&ca});
+    fit_model(oracle, clean_on);
     const double e = evaluate_model(oracle, cb, "mag_1_c", false).std_nT;
     if (!(e >= out.oracle_next_nT)) out.oracle_next_nT = e;
   }
