@@ -260,6 +260,26 @@ TEST(Discovery, ADriftTheCalibrationBarelyShowsIsSizedOnTheLines) {
               1e-3 * d.rounds.back().heldout_std_nT);
 }
 
+TEST(Discovery, AValidationFlightKeepsOutAStandInThatDoesNotCarryOver) {
+  // Run 1, first aircraft: a heater of cur_outpwr (50.7 s) and a 751 s drift of cur_srvo_m.
+  // Learned from its first flight alone, the loop's first term is a bus voltage held near
+  // 27.5 V through a low-pass and a saturation, which follows both effects there and ends worse
+  // than TL on the next flight (0.956 against 0.848 nT; scripts/bench_discovery 1 1
+  // half-several): the voltage's level on another flight is not where it was fitted. With a
+  // second flight of the aircraft as the validation flight (diagnose --apply --validate), no step
+  // that raises that flight's error is kept, and the next flight falls well below TL.
+  const sim::Scenario base =
+      sim::load_scenario(test::source_dir() + "/config/scenarios/random_base.yaml");
+  const Model tl = load_model_yaml(test::source_dir() + "/config/models/tl_sim.yaml");
+  const test::DiscoveryRun d = test::discovery_run(1, 2, base, tl, {}, 0, test::Learn::kValidated);
+  std::string kept;
+  for (const auto& t : d.added) kept += " " + t;
+  std::printf("  run 1/0 validated: next flight TL %.3f, loop %.3f, oracle %.3f nT; kept%s\n",
+              d.tl_next_nT, d.loop_next_nT, d.oracle_next_nT, kept.c_str());
+  EXPECT_LT(d.loop_next_nT, 0.75 * d.tl_next_nT);
+  for (const auto& t : d.added) EXPECT_EQ(t.find("vol_outpwr"), std::string::npos) << t;
+}
+
 TEST(DiscoveryLong, ARidgeChosenEveryRoundLeavesNoTermStandingInForIt) {
   expect_ridge_leaves_no_stand_in(true);
 }
