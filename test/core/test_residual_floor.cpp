@@ -77,6 +77,27 @@ TEST(ResidualFloor, SlowStructureAndARippleDoNotRaiseTheFloor) {
   EXPECT_GT(f.amplitude_correlation, 0.5);
 }
 
+TEST(ResidualFloor, AnEffectInSomeSegmentsOnlyIsNotTheFloor) {
+  // 0.05 nT of white noise everywhere, and in the last of the six pieces a relay that chatters
+  // (+-1 nT, switching at random from sample to sample) while its channel sits at its threshold:
+  // broadband, but in a sixth of the segments only. The averaged spectrum would put the floor
+  // near sqrt(0.05^2 + 1/6) = 0.41 nT; the typical segment's level is the sensor's.
+  Residual x = make(0.05, 0.0, 0.0, 11);
+  std::mt19937 rng(12);
+  std::bernoulli_distribution coin(0.5);
+  double relay = 1.0;
+  for (Eigen::Index i = 5 * 3300; i < 5 * 3300 + 3000; ++i) {
+    if (coin(rng)) relay = -relay;
+    x.r[i] += relay;
+  }
+  const ResidualFloor f = floor_of(x);
+  std::printf("  residual %.3f nT, floor %.4f nT (%d segments)\n", f.residual_std_nT, f.floor_nT,
+              f.segments);
+  ASSERT_TRUE(f.computed);
+  EXPECT_NEAR(f.floor_nT, 0.05, 0.005);
+  EXPECT_GT(f.residual_std_nT, 5 * f.floor_nT);
+}
+
 TEST(ResidualFloor, PositionChannelsAreNotSources) {
   for (const char* p : {"lat", "lon", "utm_x", "utm_y", "utm_z", "ins_lat", "ins_lon", "baro"})
     EXPECT_TRUE(is_position_channel(p)) << p;

@@ -87,13 +87,28 @@ ResidualFloor residual_floor(
   if (n < 2) return out;
   out.residual_std_nT = std::sqrt(ss / static_cast<double>(n - 1));
 
-  // Averaged periodogram (one-sided, nT^2/Hz) of detrended, Hann-windowed segments.
+  // Each detrended, Hann-windowed segment's periodogram (one-sided, nT^2/Hz), and its median
+  // level over the frequencies above band_lo_hz. The floor is the median of those levels over the
+  // segments: a sensor's noise is in every segment, while an effect that lives in some segments
+  // only (a relay chattering while its channel sits at the threshold, a burst of interference)
+  // raises an averaged spectrum but not the typical segment's.
   Eigen::VectorXd w(kSegment);
   for (int k = 0; k < kSegment; ++k) w[k] = 0.5 - 0.5 * std::cos(2 * kPi * k / kSegment);
   const double w2 = w.squaredNorm();
-  Eigen::VectorXd psd = Eigen::VectorXd::Zero(kSegment / 2 + 1);
+  const double nyquist = 0.5 * sample_rate_hz;
+  out.band_lo_hz = band_lo_fraction * nyquist;
+  std::vector<int> bins;
+  for (int k = 1; k < kSegment / 2; ++k)
+    if (k * sample_rate_hz / kSegment >= out.band_lo_hz) bins.push_back(k);
+  if (bins.empty()) return out;
+  // The median of B exponential values (a white noise's periodogram over B frequencies) is the
+  // order statistic r = B/2 + 1 (the one nth_element picks at B/2): mean sum_{j<r} 1/(B - j)
+  // times the level.
+  const size_t nb = bins.size(), r = nb / 2 + 1;
+  double median_mean = 0;
+  for (size_t j = 0; j < r; ++j) median_mean += 1.0 / static_cast<double>(nb - j);
   Eigen::FFT<double> fft;
-  std::vector<double> seg(kSegment);
+  std::vector<double> seg(kSegment), band(nb), levels;
   std::vector<std::complex<double>> spec;
   Eigen::VectorXd x(kSegment), tk(kSegment);
   for (int k = 0; k < kSegment; ++k) tk[k] = k - 0.5 * (kSegment - 1);
@@ -105,28 +120,17 @@ ResidualFloor residual_floor(
       x -= tk * (tk.dot(x) / stt);
       for (int k = 0; k < kSegment; ++k) seg[static_cast<size_t>(k)] = x[k] * w[k];
       fft.fwd(spec, seg);
-      for (int k = 0; k <= kSegment / 2; ++k) {
-        const double scale = (k == 0 || k == kSegment / 2) ? 1.0 : 2.0;
-        psd[k] += scale * std::norm(spec[static_cast<size_t>(k)]) / (sample_rate_hz * w2);
-      }
+      for (size_t q = 0; q < nb; ++q)
+        band[q] = 2.0 * std::norm(spec[static_cast<size_t>(bins[q])]) / (sample_rate_hz * w2);
+      std::nth_element(band.begin(), band.begin() + static_cast<long>(nb / 2), band.end());
+      levels.push_back(band[nb / 2] / median_mean);
       ++out.segments;
     }
   }
   if (out.segments == 0) return out;
-  psd /= out.segments;
-  const double nyquist = 0.5 * sample_rate_hz;
-  out.band_lo_hz = band_lo_fraction * nyquist;
-  std::vector<double> band;
-  for (int k = 1; k < kSegment / 2; ++k) {
-    if (k * sample_rate_hz / kSegment >= out.band_lo_hz) band.push_back(psd[k]);
-  }
-  if (band.empty()) return out;
-  std::nth_element(band.begin(), band.begin() + static_cast<long>(band.size() / 2), band.end());
-  const double level = band[band.size() / 2];
-  // The median of an average of K periodograms (chi-square, 2K degrees of freedom, over 2K)
-  // lies below its mean by about 2/(3*2K): corrected, so a white noise's floor is its std.
-  const double median_bias = 1.0 - 2.0 / (3.0 * 2.0 * out.segments);
-  out.floor_nT = std::sqrt(level / median_bias * nyquist);
+  std::nth_element(levels.begin(), levels.begin() + static_cast<long>(levels.size() / 2),
+                   levels.end());
+  out.floor_nT = std::sqrt(levels[levels.size() / 2] * nyquist);
   out.computed = true;
 
   // The residual's local variance in windows against each channel's local mean (Spearman).
