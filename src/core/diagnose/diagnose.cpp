@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "magcomp/core/diagnose/channel_noise.h"
 #include "magcomp/core/diagnose/residual_floor.h"
 #include "magcomp/core/error.h"
 #include "magcomp/core/evaluate/evaluation.h"
@@ -31,6 +32,7 @@ std::vector<std::string> source_fields(const Model& model, const FlightData& dat
                                        const std::string& truth, bool full_search,
                                        std::vector<std::string>* notes) {
   std::vector<std::string> out;
+  std::string noise_only;
   for (const std::string& name : data.names()) {
     if (is_bookkeeping_channel(name) || name.rfind("mag_", 0) == 0 || name.rfind("flux_", 0) == 0 ||
         name == truth || name == model.fit.reference || name == "diurnal" ||
@@ -56,8 +58,18 @@ std::vector<std::string> source_fields(const Model& model, const FlightData& dat
       if (notes) notes->push_back("channel '" + name + "' is more than 10 % NaN; skipped");
       continue;
     }
+    // A rail that reads a constant plus its noise: whatever a term of it fits is that noise.
+    if (records_noise_only(x, data.dt_s())) {
+      noise_only += (noise_only.empty() ? "" : ", ") + name;
+      continue;
+    }
     out.push_back(name);
   }
+  if (notes && !noise_only.empty())
+    notes->push_back(
+        "channels that record a constant and their white noise only (their 10 s "
+        "means vary no more than that noise gives), skipped: " +
+        noise_only);
   return out;
 }
 

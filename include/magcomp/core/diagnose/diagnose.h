@@ -200,7 +200,9 @@ struct Diagnosis {
 };
 
 /// The data fields diagnose uses as sources: every non-constant, mostly finite field except the
-/// bookkeeping ones (tt, line, flight, year, doy), the magnetometers, the fluxgates and `truth`.
+/// bookkeeping ones (tt, line, flight, year, doy), the magnetometers, the fluxgates, `truth`, and
+/// the channels that record a constant and their white noise only (records_noise_only: a
+/// regulated rail), which `notes` lists.
 std::vector<std::string> source_fields(const Model& model, const FlightData& data,
                                        const std::string& truth, bool full_search,
                                        std::vector<std::string>* notes);
