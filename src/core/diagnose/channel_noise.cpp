@@ -22,9 +22,9 @@ double white_std(const Eigen::Ref<const Eigen::VectorXd>& x) {
   return diff[diff.size() / 2] / (0.6745 * std::sqrt(2.0));
 }
 
-}  // namespace
-
-double variance_to_noise_ratio(const Eigen::Ref<const Eigen::VectorXd>& x) {
+// The two ratios below for a white level s (white_std(x)), so that records_noise_only reads it
+// once.
+double variance_ratio(const Eigen::Ref<const Eigen::VectorXd>& x, double s) {
   double sum = 0, sum2 = 0, n = 0;
   for (Eigen::Index i = 0; i < x.size(); ++i)
     if (std::isfinite(x[i])) {
@@ -34,13 +34,12 @@ double variance_to_noise_ratio(const Eigen::Ref<const Eigen::VectorXd>& x) {
     }
   if (n < 2) return NAN;
   const double var = std::max(0.0, (sum2 - sum * sum / n) / (n - 1));
-  const double s = white_std(x);
   if (!(s > 0)) return var > 0 ? std::numeric_limits<double>::infinity() : NAN;
   return var / (s * s);
 }
 
-double slow_to_noise_ratio(const Eigen::Ref<const Eigen::VectorXd>& x, double dt_s,
-                           double block_s) {
+double slow_ratio(const Eigen::Ref<const Eigen::VectorXd>& x, double dt_s, double block_s,
+                  double s) {
   if (!(dt_s > 0) || !(block_s > 0)) return NAN;
   const auto w = static_cast<Eigen::Index>(std::max(2.0, std::round(block_s / dt_s)));
   std::vector<double> means;
@@ -55,15 +54,26 @@ double slow_to_noise_ratio(const Eigen::Ref<const Eigen::VectorXd>& x, double dt
   double var_blocks = 0;
   for (double v : means) var_blocks += (v - m) * (v - m);
   var_blocks /= static_cast<double>(means.size() - 1);
-  const double s = white_std(x);
   if (!std::isfinite(s)) return NAN;
   const double white = s * s / static_cast<double>(w);
   if (!(white > 0)) return var_blocks > 0 ? std::numeric_limits<double>::infinity() : NAN;
   return var_blocks / white;
 }
 
+}  // namespace
+
+double variance_to_noise_ratio(const Eigen::Ref<const Eigen::VectorXd>& x) {
+  return variance_ratio(x, white_std(x));
+}
+
+double slow_to_noise_ratio(const Eigen::Ref<const Eigen::VectorXd>& x, double dt_s,
+                           double block_s) {
+  return slow_ratio(x, dt_s, block_s, white_std(x));
+}
+
 bool records_noise_only(const Eigen::Ref<const Eigen::VectorXd>& x, double dt_s) {
-  const double slow = slow_to_noise_ratio(x, dt_s), all = variance_to_noise_ratio(x);
+  const double s = white_std(x);
+  const double slow = slow_ratio(x, dt_s, 10.0, s), all = variance_ratio(x, s);
   return std::isfinite(slow) && slow < kNoiseOnlySlowRatio && std::isfinite(all) &&
          all < kNoiseOnlyVarianceRatio;
 }

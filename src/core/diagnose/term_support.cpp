@@ -41,9 +41,9 @@ Eigen::MatrixXd beyond_other_columns(const Eigen::MatrixXd& a, Eigen::Index from
   std::vector<Eigen::Index> rows;
   for (Eigen::Index i = 0; i < a.rows(); ++i)
     if (a.row(i).allFinite()) rows.push_back(i);
-  Eigen::MatrixXd out = Eigen::MatrixXd::Constant(a.rows(), n, NAN);
   const Eigen::Index k = a.cols() - n + 1;
   if (static_cast<Eigen::Index>(rows.size()) <= 2 * k) return a.middleCols(from, n);
+  Eigen::MatrixXd out = Eigen::MatrixXd::Constant(a.rows(), n, NAN);
   Eigen::MatrixXd others(static_cast<Eigen::Index>(rows.size()), k), block(others.rows(), n);
   for (Eigen::Index r = 0; r < others.rows(); ++r) {
     const Eigen::Index i = rows[static_cast<size_t>(r)];
