@@ -109,10 +109,25 @@ LoopRound score(const Model& model, const std::vector<const FlightData*>& flight
       const Evaluation e0 = evaluate_model(*for_half[0], *flights[f], truth, false);
       const Evaluation e1 = evaluate_model(*for_half[1], *flights[f], truth, false);
       const HeldOut& ho = held_out[f];
+      // Each half reads its sizes' correction about that correction's mean over every held-out
+      // row: a channel's level (a bus at 27.5 V) read with two sizes would otherwise split a
+      // line's pieces by a constant that the model, fitted once, never carries.
+      const Eigen::VectorXd* half_error[2] = {&e0.error_nT, &e1.error_nT};
+      double level[2] = {0, 0}, rows[2] = {0, 0};
       for (Eigen::Index i = 0; i < held_error.size(); ++i) {
         const int h = i < static_cast<Eigen::Index>(ho.fold.size()) ? ho.fold[i] : -1;
-        if (h == 0) held_error[i] = e0.error_nT[i];
-        if (h == 1) held_error[i] = e1.error_nT[i];
+        for (int k = 0; h >= 0 && k < 2; ++k) {
+          const double d = (*half_error[k])[i] - ev.error_nT[i];
+          if (std::isfinite(d)) {
+            level[k] += d;
+            rows[k] += 1;
+          }
+        }
+      }
+      for (int k = 0; k < 2; ++k) level[k] = rows[k] > 0 ? level[k] / rows[k] : 0.0;
+      for (Eigen::Index i = 0; i < held_error.size(); ++i) {
+        const int h = i < static_cast<Eigen::Index>(ho.fold.size()) ? ho.fold[i] : -1;
+        if (h >= 0) held_error[i] = (*half_error[h])[i] - level[h];
       }
     }
     if (!model.fit.lines.empty() || !model.fit.windows.empty()) {

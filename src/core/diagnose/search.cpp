@@ -112,6 +112,11 @@ Search::Search(const Model& m, const FlightData& d, const std::string& truth_nam
     qr.setThreshold(1e-10);
     af0_basis = qr.householderQ() * Eigen::MatrixXd::Identity(af0.rows(), qr.rank());
   }
+  {
+    Eigen::MatrixXd g = af0.transpose() * af0;
+    g.diagonal().array() += fs.lambda;
+    band_inv = g.ldlt().solve(Eigen::MatrixXd::Identity(g.rows(), g.cols()));
+  }
   yf = stack_runs(fs, dt, y, runs).col(0);
   dx->fit_samples = yf.size();
   profile = std::make_unique<RidgeProfile>(af0, yf, fs.lambda);
@@ -154,17 +159,26 @@ Search::Search(const Model& m, const FlightData& d, const std::string& truth_nam
       const auto base_runs =
           fs.slow_lines.empty() ? runs : slow_stage_runs(fs, data, a0, Eigen::VectorXd(e0));
       const Eigen::MatrixXd sc0 = sc.unaryExpr([](double v) { return std::isfinite(v) ? v : 0.0; });
-      slow0 = sc0 * SlowStage(a0, e0, base_runs, fs.lambda).fit(sc);
+      // Each size with the base's coefficients' share of its columns' band content given back,
+      // as fit_model gives it back; on the held-out rows, where it is read (the slow stage
+      // removes the base's span on the fit rows).
+      const Eigen::MatrixXd share = band_share(sc);
+      const Eigen::VectorXd cs_all = SlowStage(a0, e0, base_runs, fs.lambda).fit(sc);
+      slow0 = sc0 * cs_all - held_product(a0, share, cs_all);
       // Sized on held-out lines too (fit.slow_lines), the slow terms are cross-fitted there as
       // the loop scores them: each half's rows read the size fitted on the calibration rows and
       // the other half's held-out rows, so no held-out figure reads a size fitted on itself.
       if (!fs.slow_lines.empty()) {
         std::vector<Eigen::Index> half_rows[2];
         for (Eigen::Index i : held) half_rows[fold[static_cast<size_t>(i)]].push_back(i);
+        const Eigen::RowVectorXd level = held_mean(sc);
         for (int h = 0; h < 2; ++h) {
           const auto other = slow_stage_runs(fs, data, a0, Eigen::VectorXd(e0), &half_rows[1 - h]);
           const Eigen::VectorXd cs = SlowStage(a0, e0, other, fs.lambda).fit(sc);
-          for (Eigen::Index i : half_rows[h]) slow0[i] = sc0.row(i).dot(cs);
+          const Eigen::VectorXd back = held_product(a0, share, cs);
+          const double back_level = held_mean(back)[0];
+          for (Eigen::Index i : half_rows[h])
+            slow0[i] = (sc0.row(i) - level).dot(cs) - (back[i] - back_level);
         }
       }
       e0 -= slow0;
@@ -218,6 +232,33 @@ Search::Search(const Model& m, const FlightData& d, const std::string& truth_nam
   inputs = make_term_inputs(data, model.vector, model.bt_scale_nT);
 }
 
+Eigen::VectorXd Search::held_product(const Eigen::MatrixXd& x, const Eigen::MatrixXd& within,
+                                     const Eigen::VectorXd& size) const {
+  Eigen::VectorXd out = Eigen::VectorXd::Zero(data.size());
+  if (within.rows() != x.cols() || within.rows() == 0) return out;
+  const Eigen::VectorXd w = within * size;
+  for (Eigen::Index i : held) {
+    double v = 0;
+    for (Eigen::Index j = 0; j < x.cols(); ++j)
+      if (std::isfinite(x(i, j))) v += x(i, j) * w[j];
+    out[i] = v;
+  }
+  return out;
+}
+
+Eigen::RowVectorXd Search::held_mean(const Eigen::MatrixXd& cols) const {
+  Eigen::RowVectorXd sum = Eigen::RowVectorXd::Zero(cols.cols());
+  Eigen::RowVectorXd count = Eigen::RowVectorXd::Zero(cols.cols());
+  for (Eigen::Index i : held)
+    for (Eigen::Index j = 0; j < cols.cols(); ++j)
+      if (std::isfinite(cols(i, j))) {
+        sum[j] += cols(i, j);
+        count[j] += 1;
+      }
+  for (Eigen::Index j = 0; j < cols.cols(); ++j) sum[j] = count[j] > 0 ? sum[j] / count[j] : 0.0;
+  return sum;
+}
+
 double Search::base_span_share(const Eigen::MatrixXd& band) const {
   const double all = band.squaredNorm();
   if (!(all > 0) || !std::isfinite(all)) return NAN;
@@ -238,21 +279,32 @@ double Search::slow_rss(const Eigen::MatrixXd& cols) const {
 
 Scored Search::score_slow(const Eigen::MatrixXd& cols) const {
   Scored s;
-  // Each half's size: from the other half's lines (cross-fitted), or the calibration rows alone.
-  Eigen::VectorXd size_for[2];
-  if (slow_cross[0]) {
-    size_for[0] = slow_cross[1]->fit(cols);
-    size_for[1] = slow_cross[0]->fit(cols);
-  } else {
-    size_for[0] = size_for[1] = slow_stage->fit(cols);
+  // Each half's size: from the other half's lines (cross-fitted), or the calibration rows alone;
+  // with what it gives back through the base's coefficients (`back`, on the held-out rows): the
+  // base's share of the columns' band content, as fit_model gives it back.
+  const SlowStage* stage_for[2] = {slow_cross[0] ? slow_cross[1].get() : slow_stage.get(),
+                                   slow_cross[0] ? slow_cross[0].get() : slow_stage.get()};
+  const Eigen::MatrixXd share = band_share(cols);
+  Eigen::VectorXd size_for[2], back[2];
+  for (int h = 0; h < 2; ++h) {
+    size_for[h] = stage_for[h]->fit(cols);
+    back[h] = held_product(a0, share, size_for[h]);
   }
   const Eigen::VectorXd coef = 0.5 * (size_for[0] + size_for[1]);
+  // Each column about its held-out mean: the halves' sizes differ, and a channel's level (a bus
+  // at 27.5 V) read with two sizes would split a line's pieces by a constant that no model
+  // fitted once carries (every segment's and line's mean is free).
+  const Eigen::RowVectorXd level =
+      slow_cross[0] ? held_mean(cols) : Eigen::RowVectorXd::Zero(cols.cols());
+  double back_level[2] = {0, 0};
+  for (int h = 0; slow_cross[0] && h < 2; ++h) back_level[h] = held_mean(back[h])[0];
   Eigen::VectorXd e = Eigen::VectorXd::Constant(data.size(), NAN);
   for (Eigen::Index i : held) {
-    const Eigen::VectorXd& c = size_for[fold[static_cast<size_t>(i)] == 1 ? 1 : 0];
-    double v = e0[i];
+    const int h = fold[static_cast<size_t>(i)] == 1 ? 1 : 0;
+    const Eigen::VectorXd& c = size_for[h];
+    double v = e0[i] + back[h][i] - back_level[h];
     for (Eigen::Index j = 0; j < cols.cols(); ++j) {
-      if (std::isfinite(cols(i, j))) v -= cols(i, j) * c[j];
+      if (std::isfinite(cols(i, j))) v -= (cols(i, j) - level[j]) * c[j];
     }
     e[i] = v;
   }
@@ -264,6 +316,10 @@ Scored Search::score_slow(const Eigen::MatrixXd& cols) const {
   s.ok = std::isfinite(s.sel) && std::isfinite(s.conf) && std::isfinite(s.held) &&
          size_for[0].allFinite() && size_for[1].allFinite();
   return s;
+}
+
+Eigen::MatrixXd Search::band_share(const Eigen::MatrixXd& cols) const {
+  return band_inv * (af0.transpose() * stacked(cols));
 }
 
 Scored Search::score(const Eigen::MatrixXd& cols, bool slow_ok) const {

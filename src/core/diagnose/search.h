@@ -100,12 +100,26 @@ class Search {
   // unfiltered, each segment's mean removed. Sized on the held-out lines too (slow_on_lines):
   // each half's error is that of the size fitted on the calibration rows and the other half's
   // lines, so that neither half scores a size it was fitted on.
+  // The base's coefficients take their share of the columns' band content (band_share); the
+  // fitted model gives it back (fit_model), and so does each size here.
   Scored score_slow(const Eigen::MatrixXd& cols) const;
+  // The base's band-pass coefficients' share of columns (N x k): the ridge fit of their stacked
+  // band content on the base's (af0), p x k, per unit of column. The field of a bus at its
+  // steady level is that level times the direction cosines: the permanent terms' share.
+  Eigen::MatrixXd band_share(const Eigen::MatrixXd& cols) const;
   // The slow stage's residual sum of squares with these columns (nT²), on the calibration rows
   // (and the selection lines with slow_on_lines).
   double slow_rss(const Eigen::MatrixXd& cols) const;
   // Whether the slow stage exists here: a band-pass fit on this flight's calibration segments.
   bool has_slow_stage() const { return slow_stage != nullptr; }
+  // Each column's mean over the held-out rows (its finite values; 0 where it has none), in the
+  // columns' units.
+  Eigen::RowVectorXd held_mean(const Eigen::MatrixXd& cols) const;
+  // On the held-out rows (0 elsewhere), N: x (N x m, NaN read as 0) times within (m x k, the
+  // columns' share, band_share) times size (k): what a slow size gives back through the base's
+  // coefficients, nT. Zero when within is empty.
+  Eigen::VectorXd held_product(const Eigen::MatrixXd& x, const Eigen::MatrixXd& within,
+                               const Eigen::VectorXd& size) const;
   // The share (0..1) of the energy of stacked fit-row columns (M x k) that lies in the span of
   // the base's fittable columns on those rows (af0).
   double base_span_share(const Eigen::MatrixXd& band) const;
@@ -146,6 +160,7 @@ class Search {
   std::unique_ptr<RidgeProfile> profile;
   Eigen::VectorXd e0;                     // base error, N
   Eigen::VectorXd slow0;                  // the base's slow-stage correction (Model::slow_terms), N
+  Eigen::MatrixXd band_inv;               // (af0' af0 + lambda)^-1, p x p
   std::shared_ptr<SlowStage> slow_stage;  // a candidate's slow fit (band-pass models only)
   // With slow_on_lines: the slow fit on the calibration rows and the lines of half h (0:
   // selection, 1: confirmation), which sizes the other half's error; slow_stage is the first.

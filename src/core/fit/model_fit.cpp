@@ -351,10 +351,14 @@ void add_column_warnings(const Model& model, const Eigen::MatrixXd& g,
 // the slow columns are fitted to the scalar minus fit.reference minus that stage's correction on
 // the calibration segments of every flight and its fit.slow_lines, unfiltered, each segment's
 // and line's mean removed.
+// `band_share` (fast x slow columns): the band-pass coefficients' share of each slow column, what
+// they took of its band-passed content (the field of a bus at its steady level is that level
+// times the direction cosines, which the permanent terms read): given back once the slow
+// coefficients are fitted, so that the model predicts what the slow fit fitted.
 void fit_slow_stage(Model& model, const std::vector<TermPtr>& terms,
                     const std::vector<const FlightData*>& flights,
-                    const std::vector<Eigen::Index>& slow, FitReport* report,
-                    const std::vector<std::vector<Eigen::Index>>* slow_rows) {
+                    const std::vector<Eigen::Index>& slow, const Eigen::MatrixXd& band_share,
+                    FitReport* report, const std::vector<std::vector<Eigen::Index>>* slow_rows) {
   const FitSettings& s = model.fit;
   if (s.reference.empty()) {
     throw Error("fit: slow_terms need fit.reference (the field they are fitted against)");
@@ -413,6 +417,11 @@ void fit_slow_stage(Model& model, const std::vector<TermPtr>& terms,
                 std::to_string(s.lambda) + "); nothing written");
   }
   for (Eigen::Index j = 0; j < k; ++j) model.coefficients[slow[static_cast<size_t>(j)]] = c[j];
+  if (band_share.rows() == p && band_share.cols() == k) {
+    const Eigen::VectorXd back = band_share * c;
+    for (Eigen::Index j = 0; j < p && back.allFinite(); ++j)
+      model.coefficients[fast[static_cast<size_t>(j)]] -= back[j];
+  }
   char buf[256];
   std::snprintf(buf, sizeof(buf),
                 "%lld slow column(s) fitted against %s on %lld samples of the calibration "
@@ -466,6 +475,14 @@ void fit_model(Model& model, const std::vector<const FlightData*>& flights,
     throw Error("fit: only " + std::to_string(rows) + " usable samples for " +
                 std::to_string(fitted_cols) + " coefficients in " + sources);
   }
+  const std::vector<Eigen::Index> slow = slow_columns(s.method, terms, model.slow_terms);
+  Eigen::MatrixXd a_slow;  // the slow columns as the band-pass stage sees them
+  if (!slow.empty()) {
+    std::vector<bool> keep_slow(keep.size(), false);
+    for (Eigen::Index c : slow) keep_slow[static_cast<size_t>(c)] = true;
+    Eigen::VectorXd unused;
+    stack_blocks(&blocks, keep_slow, &a_slow, &unused);
+  }
   Eigen::MatrixXd a;
   Eigen::VectorXd y;
   stack_blocks(&blocks, keep, &a, &y);
@@ -503,9 +520,18 @@ void fit_model(Model& model, const std::vector<const FlightData*>& flights,
   }
   report.coefficient_covariance =
       coefficient_covariance(g, s.lambda, report.noise_variance_nT2, keep);
-  const std::vector<Eigen::Index> slow = slow_columns(s.method, terms, model.slow_terms);
   add_column_warnings(model, g, keep, slow, &report);
-  if (!slow.empty()) fit_slow_stage(model, terms, flights, slow, &report, slow_rows);
+  if (!slow.empty()) {
+    // The band-pass coefficients' share of each slow column's band-passed content (NaN-free
+    // columns only: a column the band cannot read is given nothing back).
+    Eigen::MatrixXd band_share;
+    if (a_slow.allFinite()) {
+      Eigen::MatrixXd gl = g;
+      gl.diagonal().array() += s.lambda;
+      band_share = gl.ldlt().solve(a.transpose() * a_slow);
+    }
+    fit_slow_stage(model, terms, flights, slow, band_share, &report, slow_rows);
+  }
   model.report = report;
 }
 
