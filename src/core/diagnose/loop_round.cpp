@@ -195,11 +195,59 @@ bool Round::first_single(const std::vector<Eligible>& eligible) {
     Model next = before;
     add_candidate_term(eligible[k].term, eligible[k].slow, c_.truth, &next);
     if (try_model(std::move(next), eligible[k].term, eligible[k].explained, false)) {
-      look_alikes(before, eligible, k);
+      look_alikes(before, eligible, fewer_columns(before, eligible, k));
       return true;
     }
   }
   return false;
+}
+
+size_t Round::fewer_columns(const Model& before, const std::vector<Eligible>& eligible,
+                            size_t kept) {
+  const auto fields_of = [](const TermSpec& t) {
+    const std::vector<std::string> f = t.term().required_fields();
+    return std::set<std::string>(f.begin(), f.end());
+  };
+  const std::set<std::string> kept_fields = fields_of(eligible[kept].term);
+  if (kept_fields.empty() || r_->rounds.size() < 2) return kept;
+  const LoopRound previous = r_->rounds[r_->rounds.size() - 2];
+  const Eigen::Index kept_columns = eligible[kept].term.term().columns();
+  std::optional<std::pair<Model, LoopRound>> best;
+  size_t best_j = kept;
+  for (size_t j = 0; j < eligible.size(); ++j) {
+    if (j == kept || eligible[j].term.term().columns() >= kept_columns ||
+        fields_of(eligible[j].term) != kept_fields)
+      continue;
+    try {
+      Model m = before;
+      add_candidate_term(eligible[j].term, eligible[j].slow, c_.truth, &m);
+      auto fitted = fit_score(std::move(m));
+      const LoopRound& lr = fitted.second;
+      if (!refusal(lr, previous, c_.options).empty()) continue;
+      if (passes(r_->rounds.back().heldout_std_nT, lr.heldout_std_nT)) continue;  // beaten
+      if (best && !(lr.heldout_std_nT < best->second.heldout_std_nT)) continue;
+      best.emplace(std::move(fitted));
+      best_j = j;
+    } catch (const Error&) {
+    }
+  }
+  if (!best) return kept;
+  LoopRound& now = r_->rounds.back();
+  LoopRound lr = std::move(best->second);
+  lr.round = now.round;
+  lr.added = eligible[best_j].term.text();
+  lr.explained = eligible[best_j].explained;
+  lr.black_box = false;
+  lr.rejected = std::move(now.rejected);
+  char why[200];
+  std::snprintf(why, sizeof(why),
+                "as few columns do as well: %s leaves %.4f nT held out, %.4f with %lld columns",
+                lr.added.c_str(), lr.heldout_std_nT, now.heldout_std_nT,
+                static_cast<long long>(kept_columns));
+  lr.rejected.emplace_back(now.added, why);
+  now = std::move(lr);
+  r_->model = std::move(best->first);
+  return best_j;
 }
 
 void Round::look_alikes(const Model& before, const std::vector<Eligible>& eligible, size_t kept) {
@@ -353,10 +401,11 @@ void Round::backward_pass() {
     for (const TermSpec& t : r_->model.terms) {
       if (!removable(c_.start, t) || added_now.count(t.text())) continue;
       auto [m, lr] = fit_score(without_term(r_->model, t));
-      const double share = -variance_share(now.heldout_std_nT, lr.heldout_std_nT);
+      // The share of the variance the term still explains: what its leaving would add.
+      const double share = variance_share(now.heldout_std_nT, lr.heldout_std_nT);
       const bool validation_ok =
           !std::isfinite(now.validation_std_nT) ||
-          -variance_share(now.validation_std_nT, lr.validation_std_nT) < 0.25 * accept;
+          variance_share(now.validation_std_nT, lr.validation_std_nT) < 0.25 * accept;
       if (share < 0.25 * accept && validation_ok && lr.heldout_std_nT < before.heldout_std_nT &&
           share < drop_share) {
         drop_share = share;

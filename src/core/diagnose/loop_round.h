@@ -87,6 +87,12 @@ class Round {
   // The held-out error of the first of the eligible candidates (at most kTriesPerRound) that
   // passes refusal() alone, nT; infinity when none does.
   double first_single_nT(const std::vector<Eligible>& eligible) const;
+  // After eligible[kept] was kept in place of `before`: of the eligible terms of the same
+  // channels with fewer columns (a drift of the reading beside the field of the same current),
+  // the best by held-out error that passes the same checks and that the kept one does not beat by
+  // the accepted share of the variance and the resolution takes its place: a term's extra columns
+  // must earn their place on the held-out lines. Returns the index now kept.
+  size_t fewer_columns(const Model& before, const std::vector<Eligible>& eligible, size_t kept);
   // After eligible[kept] was kept in place of `before`: the eligible terms of other channels
   // that, each in its place, pass the same checks and leave a held-out error within the
   // resolution and the accepted share of the kept one's (LoopRound::look_alikes).
