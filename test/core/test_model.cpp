@@ -33,6 +33,16 @@ Eigen::VectorXd first_order_lag(const Eigen::VectorXd& x, double dt_s, double ta
   return y;
 }
 
+// The lines of `d` with no sample in the calibration selection of `fit`, ascending.
+std::vector<double> survey_lines(const FlightData& d, const FitSettings& fit) {
+  const std::vector<Eigen::Index> in_cal = d.select(fit.lines, fit.windows);
+  std::set<double> survey;
+  const Eigen::VectorXd line = d.column("line");
+  for (Eigen::Index i = 0; i < line.size(); ++i)
+    if (!std::binary_search(in_cal.begin(), in_cal.end(), i)) survey.insert(line[i]);
+  return std::vector<double>(survey.begin(), survey.end());
+}
+
 TEST(Model, BandpassFitRecoversKnownCoefficients) {
   Model m = tl16();
   const Eigen::VectorXd c_true = true_coefficients(16);
@@ -190,12 +200,7 @@ TEST(Model, ASlowTermIsSizedOnTheSlowLinesWhereItsChannelMoves) {
   Model cal = load_model_yaml(test::source_dir() + "/config/models/tl_sim.yaml");
   cal.add_slow_term(TermSpec("scalar:cur_flap|lp(400)"), "mag_1_c");
   Model lines = cal;
-  const std::vector<Eigen::Index> in_cal = d.select(cal.fit.lines, cal.fit.windows);
-  std::set<double> survey;
-  const Eigen::VectorXd line = d.column("line");
-  for (Eigen::Index i = 0; i < line.size(); ++i)
-    if (!std::binary_search(in_cal.begin(), in_cal.end(), i)) survey.insert(line[i]);
-  lines.fit.slow_lines.assign(survey.begin(), survey.end());
+  lines.fit.slow_lines = survey_lines(d, cal.fit);
   ASSERT_GE(lines.fit.slow_lines.size(), 2u);
   fit_model(cal, {&d});
   fit_model(lines, {&d});
@@ -256,12 +261,7 @@ TEST(Model, ASlowFieldOfAChannelIsNotCountedTwiceByTheBandPassTerms) {
   Model tl = load_model_yaml(test::source_dir() + "/config/models/tl_sim.yaml");
   Model m = tl;
   m.add_slow_term(TermSpec("field:vol_srvo|lp(200)"), "mag_1_c");
-  const std::vector<Eigen::Index> in_cal = d.select(m.fit.lines, m.fit.windows);
-  std::set<double> survey;
-  const Eigen::VectorXd line = d.column("line");
-  for (Eigen::Index i = 0; i < line.size(); ++i)
-    if (!std::binary_search(in_cal.begin(), in_cal.end(), i)) survey.insert(line[i]);
-  m.fit.slow_lines.assign(survey.begin(), survey.end());
+  m.fit.slow_lines = survey_lines(d, m.fit);
   fit_model(m, {&d});
   fit_model(tl, {&clean});
   const Eigen::Index p = tl.coefficients.size();
