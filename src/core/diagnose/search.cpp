@@ -277,14 +277,14 @@ double Search::slow_rss(const Eigen::MatrixXd& cols) const {
   return std::isfinite(rss) ? rss : std::numeric_limits<double>::infinity();
 }
 
-Scored Search::score_slow(const Eigen::MatrixXd& cols) const {
+Scored Search::score_slow(const Eigen::MatrixXd& cols, const Eigen::MatrixXd* band) const {
   Scored s;
   // Each half's size: from the other half's lines (cross-fitted), or the calibration rows alone;
   // with what it gives back through the base's coefficients (`back`, on the held-out rows): the
   // base's share of the columns' band content, as fit_model gives it back.
   const SlowStage* stage_for[2] = {slow_cross[0] ? slow_cross[1].get() : slow_stage.get(),
                                    slow_cross[0] ? slow_cross[0].get() : slow_stage.get()};
-  const Eigen::MatrixXd share = band_share(cols);
+  const Eigen::MatrixXd share = band ? band_inv * (af0.transpose() * *band) : band_share(cols);
   Eigen::VectorXd size_for[2], back[2];
   for (int h = 0; h < 2; ++h) {
     size_for[h] = stage_for[h]->fit(cols);
@@ -354,7 +354,7 @@ Scored Search::score(const Eigen::MatrixXd& cols, bool slow_ok) const {
                  .squaredNorm();
     }
     if (band.squaredNorm() < kSlowBandFraction * raw) {
-      Scored slow = score_slow(cols);
+      Scored slow = score_slow(cols, &band);
       if (slow.ok && (!s.ok || slow.sel < s.sel)) return slow;
     }
   }

@@ -102,7 +102,8 @@ class Search {
   // lines, so that neither half scores a size it was fitted on.
   // The base's coefficients take their share of the columns' band content (band_share); the
   // fitted model gives it back (fit_model), and so does each size here.
-  Scored score_slow(const Eigen::MatrixXd& cols) const;
+  // `band` (optional): the columns as stacked for the fit (band()), when already at hand.
+  Scored score_slow(const Eigen::MatrixXd& cols, const Eigen::MatrixXd* band = nullptr) const;
   // The base's band-pass coefficients' share of columns (N x k): the ridge fit of their stacked
   // band content on the base's (af0), p x k, per unit of column. The field of a bus at its
   // steady level is that level times the direction cosines: the permanent terms' share.
