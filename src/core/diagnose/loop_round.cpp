@@ -13,6 +13,14 @@
 
 namespace magcomp::loop_steps {
 
+namespace {
+// The recorded channels a term reads (none for a lag).
+std::set<std::string> fields_of(const TermSpec& t) {
+  const std::vector<std::string> f = t.term().required_fields();
+  return std::set<std::string>(f.begin(), f.end());
+}
+}  // namespace
+
 bool Round::try_model(Model next, const std::string& added, double explained, bool black_box) {
   next.coefficients.resize(0);
   fit_model(next, c_.flights);
@@ -204,10 +212,6 @@ bool Round::first_single(const std::vector<Eligible>& eligible) {
 
 size_t Round::fewer_columns(const Model& before, const std::vector<Eligible>& eligible,
                             size_t kept) {
-  const auto fields_of = [](const TermSpec& t) {
-    const std::vector<std::string> f = t.term().required_fields();
-    return std::set<std::string>(f.begin(), f.end());
-  };
   const std::set<std::string> kept_fields = fields_of(eligible[kept].term);
   if (kept_fields.empty() || r_->rounds.size() < 2) return kept;
   const LoopRound previous = r_->rounds[r_->rounds.size() - 2];
@@ -251,10 +255,6 @@ size_t Round::fewer_columns(const Model& before, const std::vector<Eligible>& el
 }
 
 void Round::look_alikes(const Model& before, const std::vector<Eligible>& eligible, size_t kept) {
-  const auto fields_of = [](const TermSpec& t) {
-    const std::vector<std::string> f = t.term().required_fields();
-    return std::set<std::string>(f.begin(), f.end());
-  };
   const std::set<std::string> kept_fields = fields_of(eligible[kept].term);
   if (kept_fields.empty() || r_->rounds.size() < 2) return;  // a lag names no channel
   LoopRound& now = r_->rounds.back();
