@@ -9,11 +9,13 @@
 namespace magcomp::cli {
 
 void print_attribution(const Attribution& a, const std::string& where) {
+  const std::string networks =
+      a.networks > 1 ? ", averaged over " + std::to_string(a.networks) + " networks" : "";
   std::printf(
-      "\ninputs the network leans on (%s on %s, %d shuffles each: the rise of its mean squared "
+      "\ninputs the network leans on (%s on %s, %d shuffles each%s: the rise of its mean squared "
       "error against its target, nT^2; its own %s nT^2 on %ld samples):\n",
-      a.method.c_str(), where.c_str(), a.repeats, figure(a.baseline_mse_nT2, "%.4g").c_str(),
-      static_cast<long>(a.samples));
+      a.method.c_str(), where.c_str(), a.repeats, networks.c_str(),
+      figure(a.baseline_mse_nT2, "%.4g").c_str(), static_cast<long>(a.samples));
   for (const InputImportance& i : a.inputs)
     std::printf("  %-24s %12s nT^2 %7.1f%%\n", i.feature.c_str(),
                 figure(i.importance_nT2, "%.4g").c_str(), 100 * i.share);
@@ -81,6 +83,7 @@ nlohmann::json attribution_json(const Attribution& a) {
           {"baseline_mse_nT2", json_figure(a.baseline_mse_nT2)},
           {"samples", static_cast<long>(a.samples)},
           {"repeats", a.repeats},
+          {"networks", a.networks},
           {"inputs", inputs},
           {"channels", channels},
           {"own_inputs_nT2", json_figure(a.own_inputs_nT2)}};

@@ -13,7 +13,7 @@ namespace magcomp::cli {
 /// share, the largest first, on the flight `where` names ("this flight", a file name).
 void print_attribution(const Attribution& a, const std::string& where = "this flight");
 
-/// The JSON object: method, baseline_mse_nT2, samples, repeats, inputs [{feature,
+/// The JSON object: method, baseline_mse_nT2, samples, repeats, networks, inputs [{feature,
 /// importance_nT2, share, per_line [{line, importance_nT2}]}].
 nlohmann::json attribution_json(const Attribution& a);
 

@@ -165,11 +165,21 @@ void add_network_gain(const Model& model, const FlightData& flight, const std::s
                           {"verdict", g.verdict}};
 }
 
+// The attribution on a flight: the model's network's, or with an ensemble (--ensemble) the
+// mean of every network's (average_attributions).
+Attribution explain(const Model& model, const std::vector<Model>& ensemble,
+                    const FlightData& flight) {
+  std::vector<Attribution> each = {permutation_importance(model, flight)};
+  for (const Model& m : ensemble) each.push_back(permutation_importance(m, flight));
+  return average_attributions(each);
+}
+
 // One flight: the table, the JSON and the report.
 void evaluate_one(const std::string& data, const Model& model, const Model* baseline_model,
                   const std::string& model_path, const std::string& baseline_path,
                   const std::string& truth, const std::string& json_path, const std::string& report,
-                  const OutputGuard& guard, const std::string& track, bool with_explain) {
+                  const OutputGuard& guard, const std::string& track, bool with_explain,
+                  const std::vector<Model>& ensemble) {
   const std::vector<std::string> inputs = guard.input_paths();
   FlightData flight = read_flight(data);
   add_map_references(&flight, {truth}, track, &model);
@@ -180,8 +190,7 @@ void evaluate_one(const std::string& data, const Model& model, const Model* base
   if (baseline_model)
     base = std::make_unique<Evaluation>(evaluate_model(*baseline_model, flight, truth, series));
   std::unique_ptr<Attribution> attribution;
-  if (with_explain)
-    attribution = std::make_unique<Attribution>(permutation_importance(model, flight));
+  if (with_explain) attribution = std::make_unique<Attribution>(explain(model, ensemble, flight));
   guard.check_inputs_unchanged();
   print_evaluation(ev, base.get());
   nlohmann::json j = to_json(ev);
@@ -210,12 +219,14 @@ void evaluate_one(const std::string& data, const Model& model, const Model* base
 struct EvaluateArgs {
   std::string data, model_path, truth = "mag_1_c", json_path, report, baseline_path;
   std::string track = "truth";
+  std::string ensemble;  // other trainings of the network, comma-separated (--ensemble)
   bool explain = false;
 };
 
 // Several flights: each evaluated in turn (memory is one flight's columns), then pooled.
 void evaluate_several(const EvaluateArgs& a, const std::vector<std::string>& paths,
-                      const Model& model, const Model* baseline_model, const OutputGuard& guard) {
+                      const Model& model, const Model* baseline_model, const OutputGuard& guard,
+                      const std::vector<Model>& ensemble) {
   nlohmann::json j;
   j["flights"] = nlohmann::json::array();
   double n = 0, sum_sq = 0, sum_var = 0, sum_unc = 0, n_unc = 0;
@@ -231,7 +242,7 @@ void evaluate_several(const EvaluateArgs& a, const std::vector<std::string>& pat
     nlohmann::json f = to_json(ev);
     add_network_gain(model, flight, a.truth, ev, &f);
     if (a.explain) {
-      const Attribution at = permutation_importance(model, flight);
+      const Attribution at = explain(model, ensemble, flight);
       print_attribution(at);
       f["attribution"] = attribution_json(at);
     }
@@ -270,6 +281,9 @@ void run_evaluate(const EvaluateArgs& a) {
   const std::vector<std::string> paths = flight_paths("--data", a.data);
   std::vector<OutputGuard::File> others = {{"--model", a.model_path},
                                            {"--baseline", a.baseline_path}};
+  const std::vector<std::string> ensemble_paths =
+      a.ensemble.empty() ? std::vector<std::string>{} : flight_paths("--ensemble", a.ensemble);
+  for (const std::string& p : ensemble_paths) others.push_back({"--ensemble", p});
   for (const auto& m : map_inputs("--truth", {a.truth})) others.push_back(m);
   OutputGuard guard = guard_for(paths, others);
   guard.add_output("--json", a.json_path);
@@ -283,6 +297,19 @@ void run_evaluate(const EvaluateArgs& a) {
   if (a.explain && !(model.neural && model.neural->trained()))
     throw Error("--explain: " + a.model_path +
                 " has no trained neural stage (the attribution explains a network)");
+  if (!ensemble_paths.empty() && !a.explain)
+    throw Error("--ensemble: only with --explain (the networks' attributions are averaged)");
+  // Other trainings of the same network (magcomp train --seed): the same inputs, in order.
+  std::vector<Model> ensemble;
+  for (const std::string& p : ensemble_paths) {
+    Model m = load_model_yaml(p);
+    if (!(m.neural && m.neural->trained()))
+      throw Error("--ensemble: " + p + " has no trained neural stage");
+    if (m.neural->features != model.neural->features)
+      throw Error("--ensemble: " + p + ": its network reads other inputs than " + a.model_path +
+                  "'s (neural.features must be the same, in the same order)");
+    ensemble.push_back(std::move(m));
+  }
   std::unique_ptr<Model> baseline_model;
   if (!a.baseline_path.empty()) {
     baseline_model = std::make_unique<Model>(load_model_yaml(a.baseline_path));
@@ -291,9 +318,9 @@ void run_evaluate(const EvaluateArgs& a) {
   }
   if (paths.size() == 1)
     evaluate_one(paths[0], model, baseline_model.get(), a.model_path, a.baseline_path, a.truth,
-                 a.json_path, a.report, guard, a.track, a.explain);
+                 a.json_path, a.report, guard, a.track, a.explain, ensemble);
   else
-    evaluate_several(a, paths, model, baseline_model.get(), guard);
+    evaluate_several(a, paths, model, baseline_model.get(), guard, ensemble);
 }
 
 }  // namespace
@@ -318,6 +345,11 @@ void add_evaluate(CLI::App& app) {
                 "with a trained neural stage: each input's share of the network's prediction on "
                 "each flight (permutation importance: the rise of its squared error against its "
                 "target when the input is shuffled), in the table and the JSON (attribution)");
+  cmd->add_option("--ensemble", a->ensemble,
+                  "with --explain: other trainings of the same network (magcomp train --seed S, "
+                  "the same neural.features), comma-separated; the attribution is the mean of "
+                  "every network's, --model's included (what one training leans on moves with "
+                  "its seed)");
   cmd->callback([a] { run_evaluate(*a); });
 }
 

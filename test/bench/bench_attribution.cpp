@@ -19,6 +19,9 @@
 // [first_seed] [epochs]
 //        [low-pass time constants, s, comma-separated, or "none"; a token that is not a number
 //        is a transform each channel also enters through, e.g. 2,100,d] [diagnose]
+//        [ensemble=K: K networks trained per run (seeds 1..K), their attributions averaged
+//        (average_attributions); the MLP's error printed is their mean]
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -57,7 +60,13 @@ int main(int argc, char** argv) {
       for (std::string tau; std::getline(list, tau, ',');)
         if (!tau.empty() && tau != "none") lowpass_s.push_back(tau);
     }
-    const bool with_diagnose = argc > 7 && std::string(argv[7]) == "diagnose";
+    bool with_diagnose = false;
+    int ensemble = 1;  // networks trained per run (seeds 1..K), their attributions averaged
+    for (int k = 7; k < argc; ++k) {
+      const std::string arg = argv[k];
+      if (arg == "diagnose") with_diagnose = true;
+      if (arg.rfind("ensemble=", 0) == 0) ensemble = std::max(1, std::atoi(arg.c_str() + 9));
+    }
     const Igrf& igrf = Igrf::installed();
     // diagnose: runs whose first accepted term reads the effect's channel, by search (0
     // channels-only, 1 full) and without / with the network's channels.
@@ -112,14 +121,20 @@ int main(int argc, char** argv) {
       spec.training.epochs = epochs;
       spec.training.patience = 5;
       m.neural = spec;
-      const std::string out = dir + "/run" + std::to_string(r);
-      train_bundle(m, {flights[0]}, {flights[1]}, out, false);
-      const Model trained = load_model_yaml(out);
-      Model tl_only = trained;
-      tl_only.neural.reset();
-      const double tl_nT = evaluate_model(tl_only, flights[2], "mag_1_c", false).std_nT;
-      const double nn_nT = evaluate_model(trained, flights[2], "mag_1_c", false).std_nT;
-      const Attribution a = permutation_importance(trained, flights[2]);
+      std::vector<Attribution> each;
+      double tl_nT = NAN, nn_nT = 0;
+      for (int e = 0; e < ensemble; ++e) {
+        const std::string out = dir + "/run" + std::to_string(r) + "_seed" + std::to_string(e + 1);
+        m.neural->training.seed = static_cast<std::uint64_t>(e + 1);
+        train_bundle(m, {flights[0]}, {flights[1]}, out, false);
+        const Model trained = load_model_yaml(out);
+        Model tl_only = trained;
+        tl_only.neural.reset();
+        tl_nT = evaluate_model(tl_only, flights[2], "mag_1_c", false).std_nT;
+        nn_nT += evaluate_model(trained, flights[2], "mag_1_c", false).std_nT / ensemble;
+        each.push_back(permutation_importance(trained, flights[2]));
+      }
+      const Attribution a = average_attributions(each);
       // An effect of no channel (a lag) is named when the model's own inputs together outweigh
       // every channel of the aircraft; any other by the first-ranked channel.
       const bool own_first =

@@ -638,6 +638,51 @@ TEST(Neural, AttributionRanksTheHiddenWiresChannelFirstAndItsFiguresAddUp) {
             0);
   EXPECT_NE(out.find("--explain"), std::string::npos) << out;
   EXPECT_EQ(std::count(out.begin(), out.end(), '\n'), 1) << out;
+
+  // evaluate --explain --ensemble: the same network trained with another seed; the JSON's
+  // channels are the mean of the two networks' figures (computed here from each network's
+  // attribution, the CLI's defaults), and the strobe's current still ranks first.
+  Model m2 = m;
+  m2.neural->training.seed = 2;
+  train_bundle(m2, {flight(11)}, {flight(13)}, dir + "/b", false);
+  const Attribution c2 = permutation_importance(load_model_yaml(dir + "/b"), held);
+  ASSERT_EQ(test::run(test::cli() + " evaluate --data " + dir + "/held.h5 --model " + dir +
+                          "/a --explain --ensemble " + dir + "/b --json " + dir + "/e2.json",
+                      &out),
+            0)
+      << out;
+  EXPECT_NE(out.find("averaged over 2 networks"), std::string::npos) << out;
+  nlohmann::json j2;
+  std::ifstream(dir + "/e2.json") >> j2;
+  EXPECT_EQ(j2["attribution"]["networks"], 2);
+  ASSERT_EQ(j2["attribution"]["channels"].size(), 2u);
+  EXPECT_EQ(j2["attribution"]["channels"][0]["channel"], "cur_strb");
+  for (const auto& ch : j2["attribution"]["channels"]) {
+    double sum = 0;
+    for (const Attribution* x : {&c, &c2})
+      for (const ChannelImportance& k : x->channels)
+        if (k.channel == ch["channel"]) sum += k.importance_nT2;
+    EXPECT_NEAR(ch["importance_nT2"].get<double>(), sum / 2, 1e-9 * std::abs(sum) + 1e-15)
+        << ch["channel"];
+  }
+  EXPECT_NEAR(j2["attribution"]["own_inputs_nT2"].get<double>(),
+              (c.own_inputs_nT2 + c2.own_inputs_nT2) / 2, 1e-9 * c.own_inputs_nT2);
+  // Refused in one line: without --explain, and a network of other inputs.
+  EXPECT_NE(test::run(test::cli() + " evaluate --data " + dir + "/held.h5 --model " + dir +
+                          "/a --ensemble " + dir + "/b",
+                      &out),
+            0);
+  EXPECT_NE(out.find("--ensemble"), std::string::npos) << out;
+  EXPECT_EQ(std::count(out.begin(), out.end(), '\n'), 1) << out;
+  Model other = load_model_yaml(dir + "/b");
+  other.neural->features.back() = "ins_pitch";
+  save_model_yaml(other, dir + "/b/other.yaml");  // beside its weights
+  EXPECT_NE(test::run(test::cli() + " evaluate --data " + dir + "/held.h5 --model " + dir +
+                          "/a --explain --ensemble " + dir + "/b/other.yaml",
+                      &out),
+            0);
+  EXPECT_NE(out.find("other inputs"), std::string::npos) << out;
+  EXPECT_EQ(std::count(out.begin(), out.end(), '\n'), 1) << out;
 }
 
 TEST(Neural, ChannelsThatMoveTogetherAreEachOthersLookAlikes) {
@@ -693,6 +738,57 @@ TEST(Neural, ChannelsThatMoveTogetherAreEachOthersLookAlikes) {
   const auto strict = look_alike_channels(f, channels, rows, 0.5 * (1 + r));
   ASSERT_EQ(strict[0].size(), 1u);
   EXPECT_EQ(strict[0][0].first, "cur_reversed");
+}
+
+TEST(Neural, AnEnsemblesAttributionIsTheMeanRiseOfItsNetworks) {
+  // Two networks of the same inputs: one leans on cur_a (rise 3 nT²), the other on cur_b
+  // (rise 5 nT²); the ensemble's rise is each figure's mean, its shares the means over their
+  // positive sum, and cur_b ranks first (2.5 against 1.5 nT²).
+  const auto one = [](double a_nT2, double b_nT2, double own_nT2) {
+    Attribution at;
+    at.baseline_mse_nT2 = a_nT2 + b_nT2;
+    at.own_inputs_nT2 = own_nT2;
+    for (const auto& [name, rise] :
+         {std::pair<std::string, double>{"cur_a", a_nT2}, {"cur_b", b_nT2}, {"tl_anomaly", -0.5}}) {
+      InputImportance i;
+      i.feature = name;
+      i.importance_nT2 = rise;
+      i.per_line_nT2 = {{1001.1, 2 * rise}, {1001.2, 0.5 * rise}};
+      at.inputs.push_back(i);
+    }
+    for (const auto& [name, rise] :
+         {std::pair<std::string, double>{"cur_a", a_nT2}, {"cur_b", b_nT2}}) {
+      ChannelImportance c;
+      c.channel = name;
+      c.features = {name};
+      c.importance_nT2 = rise;
+      at.channels.push_back(c);
+    }
+    return at;
+  };
+  const Attribution mean = average_attributions({one(3.0, 0.0, 1.0), one(0.0, 5.0, 2.0)});
+  ASSERT_EQ(mean.channels.size(), 2u);
+  EXPECT_EQ(mean.channels[0].channel, "cur_b");
+  EXPECT_DOUBLE_EQ(mean.channels[0].importance_nT2, 2.5);
+  EXPECT_DOUBLE_EQ(mean.channels[1].importance_nT2, 1.5);
+  EXPECT_DOUBLE_EQ(mean.channels[0].share, 2.5 / 4.0);
+  EXPECT_DOUBLE_EQ(mean.channels[1].share, 1.5 / 4.0);
+  EXPECT_DOUBLE_EQ(mean.own_inputs_nT2, 1.5);
+  EXPECT_DOUBLE_EQ(mean.baseline_mse_nT2, 4.0);
+  ASSERT_EQ(mean.inputs.size(), 3u);
+  EXPECT_EQ(mean.inputs[0].feature, "cur_b");
+  EXPECT_EQ(mean.inputs[2].feature, "tl_anomaly");
+  EXPECT_DOUBLE_EQ(mean.inputs[2].importance_nT2, -0.5);
+  EXPECT_EQ(mean.inputs[2].share, 0.0);  // a negative rise has no share
+  EXPECT_DOUBLE_EQ(mean.inputs[0].per_line_nT2[0].second, 5.0);
+  EXPECT_DOUBLE_EQ(mean.inputs[0].per_line_nT2[1].second, 1.25);
+  EXPECT_EQ(mean.inputs[0].per_line_nT2[1].first, 1001.2);
+  // One network alone is its own attribution; networks of other inputs are refused.
+  EXPECT_DOUBLE_EQ(average_attributions({one(3.0, 1.0, 0.0)}).channels[0].importance_nT2, 3.0);
+  Attribution other = one(1.0, 1.0, 0.0);
+  other.inputs[0].feature = "cur_c";
+  EXPECT_THROW(average_attributions({one(1.0, 1.0, 0.0), other}), Error);
+  EXPECT_THROW(average_attributions({}), Error);
 }
 
 TEST(Neural, TrajectoryChannelsAreMarkedAndPassedOverForTheAircraftsOwn) {

@@ -66,6 +66,21 @@ std::vector<std::vector<std::pair<std::string, double>>> look_alike_channels(
   return out;
 }
 
+namespace {
+
+// Each item's share of the positive importances, and the items ranked by importance.
+template <typename Items>
+void rank_by_share(Items* items) {
+  double positive = 0;
+  for (const auto& i : *items) positive += std::max(0.0, i.importance_nT2);
+  for (auto& i : *items) i.share = positive > 0 ? std::max(0.0, i.importance_nT2) / positive : 0;
+  std::stable_sort(items->begin(), items->end(), [](const auto& x, const auto& y) {
+    return x.importance_nT2 > y.importance_nT2;
+  });
+}
+
+}  // namespace
+
 const ChannelImportance* Attribution::first_aircraft_channel() const {
   for (const ChannelImportance& c : channels)
     if (!c.trajectory) return &c;
@@ -159,16 +174,59 @@ Attribution permutation_importance(const Model& model, const FlightData& data,
     a.channels.push_back(std::move(ci));
   }
   if (!own.empty()) a.own_inputs_nT2 = rise_of(own).mean();
-  const auto shares = [](auto& items) {
-    double positive = 0;
-    for (const auto& i : items) positive += std::max(0.0, i.importance_nT2);
-    for (auto& i : items) i.share = positive > 0 ? std::max(0.0, i.importance_nT2) / positive : 0;
-    std::stable_sort(items.begin(), items.end(), [](const auto& x, const auto& y) {
-      return x.importance_nT2 > y.importance_nT2;
-    });
+  rank_by_share(&a.inputs);
+  rank_by_share(&a.channels);
+  return a;
+}
+
+Attribution average_attributions(const std::vector<Attribution>& each) {
+  if (each.empty()) throw Error("attribution: no attribution to average");
+  Attribution a = each.front();
+  if (each.size() == 1) return a;
+  const auto index = [](const auto& items, const auto& name_of) {
+    std::map<std::string, size_t> at;
+    for (size_t k = 0; k < items.size(); ++k) at[name_of(items[k])] = k;
+    return at;
   };
-  shares(a.inputs);
-  shares(a.channels);
+  const auto feature = [](const InputImportance& i) { return i.feature; };
+  const auto channel = [](const ChannelImportance& c) { return c.channel; };
+  const double count = static_cast<double>(each.size());
+  a.baseline_mse_nT2 = 0;
+  a.own_inputs_nT2 = 0;
+  for (auto& i : a.inputs) {
+    i.importance_nT2 = 0;
+    for (auto& l : i.per_line_nT2) l.second = 0;
+  }
+  for (auto& c : a.channels) c.importance_nT2 = 0;
+  const auto inputs_at = index(a.inputs, feature);
+  const auto channels_at = index(a.channels, channel);
+  for (const Attribution& b : each) {
+    if (b.inputs.size() != a.inputs.size() || b.channels.size() != a.channels.size())
+      throw Error("attribution: the networks to average do not read the same inputs");
+    a.baseline_mse_nT2 += b.baseline_mse_nT2 / count;
+    a.own_inputs_nT2 += b.own_inputs_nT2 / count;
+    for (const InputImportance& i : b.inputs) {
+      const auto at = inputs_at.find(i.feature);
+      if (at == inputs_at.end() ||
+          a.inputs[at->second].per_line_nT2.size() != i.per_line_nT2.size())
+        throw Error("attribution: the networks to average do not read the same inputs ('" +
+                    i.feature + "')");
+      InputImportance& to = a.inputs[at->second];
+      to.importance_nT2 += i.importance_nT2 / count;
+      for (size_t l = 0; l < i.per_line_nT2.size(); ++l)
+        to.per_line_nT2[l].second += i.per_line_nT2[l].second / count;
+    }
+    for (const ChannelImportance& c : b.channels) {
+      const auto at = channels_at.find(c.channel);
+      if (at == channels_at.end())
+        throw Error("attribution: the networks to average do not read the same channels ('" +
+                    c.channel + "')");
+      a.channels[at->second].importance_nT2 += c.importance_nT2 / count;
+    }
+  }
+  a.networks = static_cast<int>(each.size());
+  rank_by_share(&a.inputs);
+  rank_by_share(&a.channels);
   return a;
 }
 

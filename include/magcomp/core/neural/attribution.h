@@ -59,6 +59,7 @@ struct Attribution {
   double baseline_mse_nT2 = NAN;  ///< the network's mean squared error against its target, nT²
   Eigen::Index samples = 0;       ///< the samples scored (the target finite)
   int repeats = 0;                ///< shuffles averaged per input
+  int networks = 1;               ///< networks whose attributions are averaged (an ensemble)
   std::vector<InputImportance> inputs;  ///< the largest importance first
   /// The recorded channels the inputs read, the largest importance first; the model's own
   /// inputs (tl_anomaly, tl_correction, dir_*, anomaly:<field>, the vector components) are not
@@ -85,5 +86,13 @@ struct Attribution {
 Attribution permutation_importance(const Model& model, const FlightData& data,
                                    std::shared_ptr<NeuralNetwork> network = nullptr,
                                    int repeats = 2, unsigned seed = 1);
+
+/// The attribution of an ensemble: several networks trained on the same data with the same
+/// inputs (different seeds), each attributed on the same flight. Each input's, channel's and
+/// line's rise (nT²), the baselines and the model's own inputs' figure are averaged over the
+/// networks, the shares recomputed and the lists ranked again. What one network leans on moves
+/// with its training draw; what several lean on together is the data's. Throws magcomp::Error
+/// when the list is empty or the attributions do not rank the same inputs.
+Attribution average_attributions(const std::vector<Attribution>& each);
 
 }  // namespace magcomp
