@@ -20,7 +20,8 @@
 //        [low-pass time constants, s, comma-separated, or "none"; a token that is not a number
 //        is a transform each channel also enters through, e.g. 2,100,d] [diagnose]
 //        [ensemble=K: K networks trained per run (seeds 1..K), their attributions averaged
-//        (average_attributions); the MLP's error printed is their mean]
+//        (average_attributions); the MLP's error printed is their mean] [mode=M: the network's
+//        mode, residual (default), coefficients or joint]
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -62,10 +63,12 @@ int main(int argc, char** argv) {
     }
     bool with_diagnose = false;
     int ensemble = 1;  // networks trained per run (seeds 1..K), their attributions averaged
+    std::string mode = "residual";  // the network's mode (residual, coefficients, joint)
     for (int k = 7; k < argc; ++k) {
       const std::string arg = argv[k];
       if (arg == "diagnose") with_diagnose = true;
       if (arg.rfind("ensemble=", 0) == 0) ensemble = std::max(1, std::atoi(arg.c_str() + 9));
+      if (arg.rfind("mode=", 0) == 0) mode = arg.substr(5);
     }
     const Igrf& igrf = Igrf::installed();
     // diagnose: runs whose first accepted term reads the effect's channel, by search (0
@@ -106,7 +109,7 @@ int main(int argc, char** argv) {
       fit_model(m, {&flights[0]});
       NeuralSpec spec;
       spec.architecture = parse_architecture("mlp", "bench");
-      spec.mode = parse_mode("residual", "bench");
+      spec.mode = parse_mode(mode, "bench");
       spec.window = 5;
       spec.features = {"tl_anomaly", "tl_correction", "dir_x", "dir_y", "dir_z"};
       for (const std::string& c : source_fields(m, flights[0], "mag_1_c", true, nullptr)) {
