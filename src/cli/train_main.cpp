@@ -35,6 +35,7 @@ struct TrainArgs {
   std::string model_path, neural_from, out;
   int epochs = 0;
   long long seed = -1;
+  double channel_sparsity = -1;  // < 0: the model's own
   bool quiet = false;
 };
 
@@ -50,6 +51,7 @@ Model model_to_train(const TrainArgs& a) {
   NeuralSpec& spec = *model.neural;
   if (a.epochs > 0) spec.training.epochs = a.epochs;
   if (a.seed >= 0) spec.training.seed = static_cast<std::uint64_t>(a.seed);
+  if (a.channel_sparsity >= 0) spec.training.channel_sparsity = a.channel_sparsity;
   validate_neural_spec(spec, a.neural_from.empty() ? a.model_path : a.neural_from);
   return model;
 }
@@ -139,6 +141,10 @@ int run(int argc, char** argv) {
       ->required();
   app.add_option("--epochs", a.epochs, "override neural.training.epochs");
   app.add_option("--seed", a.seed, "override neural.training.seed");
+  app.add_option("--channel-sparsity", a.channel_sparsity,
+                 "override neural.training.channel_sparsity (the group lasso on each recorded "
+                 "channel's inputs; 0 off)")
+      ->check(CLI::NonNegativeNumber);
   app.add_flag("--quiet", a.quiet, "no progress bar");
   CLI11_PARSE(app, argc, argv);
 

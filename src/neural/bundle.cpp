@@ -53,7 +53,9 @@ BundleReport train_bundle(Model& model, const std::vector<FlightData>& train_fli
   const bool with_columns = s.mode == NeuralMode::kJoint || s.mode == NeuralMode::kCoefficients;
   const Eigen::VectorXd tl_scale = with_columns ? tl_column_scale(tr) : Eigen::VectorXd();
   if (s.mode == NeuralMode::kCoefficients) s.column_scale = tl_scale;
-  const TrainingData td = make_training_data(s, tr, tl_scale, s.training.stride);
+  TrainingData td = make_training_data(s, tr, tl_scale, s.training.stride);
+  if (s.training.channel_sparsity > 0)
+    for (auto& group : channel_input_groups(model)) td.channel_groups.push_back(group.second);
   // Validation windows on the same stride (early stopping needs a score, not every sample).
   const TrainingData vd = make_training_data(s, va, tl_scale, s.training.stride);
   rep.train_windows = td.windows();

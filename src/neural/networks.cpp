@@ -104,6 +104,16 @@ torch::Tensor CompensatorNetImpl::forward(const torch::Tensor& x, const torch::T
   return y;
 }
 
+torch::Tensor CompensatorNetImpl::input_weights() {
+  if (architecture == NeuralArchitecture::kMlp) {
+    const torch::Tensor w = mlp->ptr<torch::nn::LinearImpl>(0)->weight;  // [h0, k F], t-major
+    return w.reshape({-1, n_features});
+  }
+  if (architecture == NeuralArchitecture::kCnn || architecture == NeuralArchitecture::kCnnLstm)
+    return conv1->weight.transpose(1, 2).reshape({-1, n_features});  // [h0, F, 5] -> [5 h0, F]
+  return lstm->named_parameters()["weight_ih_l0"];                   // [4H, F]
+}
+
 namespace {
 
 /// A trained network for inference, in double precision, one thread.

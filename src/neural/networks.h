@@ -13,6 +13,10 @@ namespace magcomp {
 struct CompensatorNetImpl : torch::nn::Module {
   CompensatorNetImpl(const NeuralSpec& spec, int n_features, int n_tl_columns);
   torch::Tensor forward(const torch::Tensor& windows, const torch::Tensor& tl);
+  /// The first layer's weights on each input, [R, F]: column f holds every weight that reads
+  /// input f (each unit and time step of the MLP's first layer or the convolution, or each gate
+  /// of the first LSTM layer). What NeuralTraining::channel_sparsity penalises.
+  torch::Tensor input_weights();
 
   NeuralArchitecture architecture;
   bool coefficients = false;  ///< the body's outputs are coefficient corrections

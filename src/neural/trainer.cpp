@@ -26,6 +26,7 @@ double since(Clock::time_point t0) {
 
 struct Tensors {
   torch::Tensor x, target, tl, first;
+  std::vector<torch::Tensor> groups;  // the inputs of each recorded channel (channel_sparsity)
 };
 
 Tensors tensors_of(const TrainingData& d) {
@@ -38,6 +39,10 @@ Tensors tensors_of(const TrainingData& d) {
                             torch::kFloat32);
   }
   t.first = torch::from_blob(const_cast<int64_t*>(d.first_row.data()), {n}, torch::kInt64);
+  for (const auto& g : d.channel_groups) {
+    if (g.empty()) continue;
+    t.groups.push_back(torch::tensor(g, torch::kInt64));
+  }
   return t;
 }
 
@@ -91,7 +96,19 @@ double run_epoch(CompensatorNet& net, torch::optim::Adam& opt, const Tensors& t,
     const torch::Tensor pred = net->forward(gather_windows(t, e, spec.window), tl);
     const torch::Tensor loss = torch::mse_loss(pred, t.target.index_select(0, e));
     opt.zero_grad();
-    loss.backward();
+    if (spec.training.channel_sparsity > 0 && !t.groups.empty()) {
+      // The group lasso on the channels: sqrt(n_c) ||W_c|| for each channel's inputs.
+      const torch::Tensor w = net->input_weights();
+      torch::Tensor penalty = torch::zeros({}, w.options());
+      for (const torch::Tensor& g : t.groups) {
+        const torch::Tensor wg = w.index_select(1, g);
+        penalty =
+            penalty + std::sqrt(static_cast<double>(g.size(0))) * (wg.pow(2).sum() + 1e-12).sqrt();
+      }
+      (loss + spec.training.channel_sparsity * penalty).backward();
+    } else {
+      loss.backward();
+    }
     opt.step();
     sum += loss.item<double>() * static_cast<double>(c);
     seen += c;

@@ -1,27 +1,29 @@
 // magcomp benchmark: does a network's attribution name the channel of an effect TL misses? Each
 // run draws one hidden effect at random (sim/random_effects, as scripts/bench_discovery) on the
 // random_base flight of one aircraft, flies it three times (train, early-stop, explain), fits TL
-// on the first, trains a residual MLP on what TL leaves with every aircraft channel as an input,
-// and ranks the inputs by permutation importance on the third flight (core/neural/attribution).
-// Each channel enters raw and through causal low-passes (default 2 s and 100 s: a flex's lag of
-// a second or two, and effects far slower than the window), and the channels are ranked with all
-// their inputs shuffled together (Attribution::channels). A run counts when the first-ranked
-// channel of the aircraft (Attribution::first_aircraft_channel: a position or an earth-frame
-// velocity ranked above it is the trajectory, leakage, and is passed over) is one the effect acts
-// through (for an effect of no channel, a lag: when the model's own inputs together outweigh every
-// channel), and also counts ("alike") when the effect's channel is among that channel's look-alikes
-// (channels whose values follow it, |r| >= 0.95, which the network cannot tell apart); the
-// first-ranked single input is printed beside it. Prints one line per run and the shares over the
-// predictable runs (effects of recorded channels). With "diagnose", each run's first flight is also
-// diagnosed from TL with and without the attribution (DiagnoseOptions::network_channels), on the
-// channels-only and on the full search, and the run counts where the first accepted term reads the
-// effect's channel. Usage: magcomp_bench_attribution SCENARIO.yaml TL_MODEL.yaml [runs]
-// [first_seed] [epochs]
+// on the first, trains an MLP on what TL leaves with every aircraft channel as an input (by
+// default correcting TL's coefficients at every sample, with the group lasso on each channel's
+// inputs, neural.training.channel_sparsity 0.01), and ranks the inputs by permutation importance on
+// the third flight (core/neural/attribution). Each channel enters raw and through causal low-passes
+// (default 2 s and 100 s: a flex's lag of a second or two, and effects far slower than the window),
+// and the channels are ranked with all their inputs shuffled together (Attribution::channels). A
+// run counts when the first-ranked channel of the aircraft (Attribution::first_aircraft_channel: a
+// position or an earth-frame velocity ranked above it is the trajectory, leakage, and is passed
+// over) is one the effect acts through (for an effect of no channel, a lag: when the model's own
+// inputs together outweigh every channel), and also counts ("alike") when the effect's channel is
+// among that channel's look-alikes (channels whose values follow it, |r| >= 0.95, which the network
+// cannot tell apart); the first-ranked single input is printed beside it. Prints one line per run
+// and the shares over the predictable runs (effects of recorded channels). With "diagnose", each
+// run's first flight is also diagnosed from TL with and without the attribution
+// (DiagnoseOptions::network_channels), on the channels-only and on the full search, and the run
+// counts where the first accepted term reads the effect's channel. Usage: magcomp_bench_attribution
+// SCENARIO.yaml TL_MODEL.yaml [runs] [first_seed] [epochs]
 //        [low-pass time constants, s, comma-separated, or "none"; a token that is not a number
 //        is a transform each channel also enters through, e.g. 2,100,d] [diagnose]
 //        [ensemble=K: K networks trained per run (seeds 1..K), their attributions averaged
 //        (average_attributions); the MLP's error printed is their mean] [mode=M: the network's
-//        mode, residual (default), coefficients or joint]
+//        mode, coefficients (default), residual or joint] [sparsity=L: the group lasso on the
+//        channels' inputs, neural.training.channel_sparsity (default 0.01; 0 off)]
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -63,12 +65,14 @@ int main(int argc, char** argv) {
     }
     bool with_diagnose = false;
     int ensemble = 1;  // networks trained per run (seeds 1..K), their attributions averaged
-    std::string mode = "residual";  // the network's mode (residual, coefficients, joint)
+    std::string mode = "coefficients";  // the network's mode (coefficients, residual, joint)
+    double sparsity = 0.01;             // neural.training.channel_sparsity
     for (int k = 7; k < argc; ++k) {
       const std::string arg = argv[k];
       if (arg == "diagnose") with_diagnose = true;
       if (arg.rfind("ensemble=", 0) == 0) ensemble = std::max(1, std::atoi(arg.c_str() + 9));
       if (arg.rfind("mode=", 0) == 0) mode = arg.substr(5);
+      if (arg.rfind("sparsity=", 0) == 0) sparsity = std::atof(arg.c_str() + 9);
     }
     const Igrf& igrf = Igrf::installed();
     // diagnose: runs whose first accepted term reads the effect's channel, by search (0
@@ -123,6 +127,7 @@ int main(int argc, char** argv) {
       }
       spec.training.epochs = epochs;
       spec.training.patience = 5;
+      spec.training.channel_sparsity = sparsity;
       m.neural = spec;
       std::vector<Attribution> each;
       double tl_nT = NAN, nn_nT = 0;

@@ -54,8 +54,8 @@ NeuralTraining parse_neural_training(const YAML::Node& t, const std::string& pat
   NeuralTraining r;
   if (!t.IsMap()) throw Error(path + ": key 'neural.training' must be a map");
   warn_unknown(t,
-               {"epochs", "batch", "learning_rate", "lr_decay", "weight_decay", "patience", "seed",
-                "stride", "threads", "fit_output_gain"},
+               {"epochs", "batch", "learning_rate", "lr_decay", "weight_decay", "channel_sparsity",
+                "patience", "seed", "stride", "threads", "fit_output_gain"},
                path, "neural.training.");
   if (t["epochs"]) r.epochs = get<int>(t["epochs"], path, "neural.training.epochs");
   if (t["batch"]) r.batch = get<int>(t["batch"], path, "neural.training.batch");
@@ -64,6 +64,9 @@ NeuralTraining parse_neural_training(const YAML::Node& t, const std::string& pat
   if (t["lr_decay"]) r.lr_decay = get<double>(t["lr_decay"], path, "neural.training.lr_decay");
   if (t["weight_decay"])
     r.weight_decay = get<double>(t["weight_decay"], path, "neural.training.weight_decay");
+  if (t["channel_sparsity"])
+    r.channel_sparsity =
+        get<double>(t["channel_sparsity"], path, "neural.training.channel_sparsity");
   if (t["patience"]) r.patience = get<int>(t["patience"], path, "neural.training.patience");
   if (t["seed"]) r.seed = get<std::uint64_t>(t["seed"], path, "neural.training.seed");
   if (t["stride"]) r.stride = get<int>(t["stride"], path, "neural.training.stride");
@@ -184,6 +187,8 @@ void emit_neural(YAML::Emitter& out, const NeuralSpec& s) {
   out << YAML::Key << "learning_rate" << YAML::Value << t.learning_rate;
   out << YAML::Key << "lr_decay" << YAML::Value << t.lr_decay;
   out << YAML::Key << "weight_decay" << YAML::Value << t.weight_decay;
+  if (t.channel_sparsity > 0)
+    out << YAML::Key << "channel_sparsity" << YAML::Value << t.channel_sparsity;
   out << YAML::Key << "patience" << YAML::Value << t.patience;
   out << YAML::Key << "seed" << YAML::Value << t.seed;
   out << YAML::Key << "stride" << YAML::Value << t.stride;

@@ -1,6 +1,7 @@
 // magcomp: checks of the neural stage's settings.
 #include "magcomp/core/model/neural_spec.h"
 
+#include <cmath>
 #include <set>
 
 #include "magcomp/core/error.h"
@@ -109,6 +110,8 @@ void validate_neural_spec(const NeuralSpec& s, const std::string& where) {
   if (!(t.learning_rate > 0)) throw Error(p + "training.learning_rate' must be > 0");
   if (!(t.lr_decay > 0 && t.lr_decay <= 1)) throw Error(p + "training.lr_decay' must be in (0, 1]");
   if (!(t.weight_decay >= 0)) throw Error(p + "training.weight_decay' must be >= 0");
+  if (!(t.channel_sparsity >= 0 && std::isfinite(t.channel_sparsity)))
+    throw Error(p + "training.channel_sparsity' must be a finite number >= 0");
   if (t.patience < 1) throw Error(p + "training.patience' must be >= 1");
   if (t.stride < 1) throw Error(p + "training.stride' must be >= 1");
   if (t.threads < 1) throw Error(p + "training.threads' must be >= 1");

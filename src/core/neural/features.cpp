@@ -1,6 +1,7 @@
 // magcomp: neural features and target.
 #include "magcomp/core/neural/features.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include "magcomp/core/error.h"
@@ -115,6 +116,22 @@ void FeaturePlan::row(double t_s, double scalar_nT, double tl_correction_nT, dou
       }
     }
   }
+}
+
+std::vector<std::pair<std::string, std::vector<std::int64_t>>> channel_input_groups(
+    const Model& model) {
+  const FeaturePlan plan(model);
+  std::vector<std::pair<std::string, std::vector<std::int64_t>>> groups;
+  for (size_t k = 0; k < plan.feature_channels().size(); ++k) {
+    for (const std::string& c : plan.feature_channels()[k]) {
+      auto it =
+          std::find_if(groups.begin(), groups.end(), [&](const auto& g) { return g.first == c; });
+      if (it == groups.end()) it = groups.insert(groups.end(), {c, {}});
+      if (it->second.empty() || it->second.back() != static_cast<std::int64_t>(k))
+        it->second.push_back(static_cast<std::int64_t>(k));
+    }
+  }
+  return groups;
 }
 
 NeuralInputs neural_inputs(const Model& model, const FlightData& data) {

@@ -19,10 +19,17 @@ struct NeuralTraining {
   double learning_rate = 1e-3;  ///< Adam, first epoch
   double lr_decay = 0.9;        ///< learning rate multiplied by this after each epoch
   double weight_decay = 1e-2;   ///< Adam weight decay (L2)
-  int patience = 5;             ///< early stopping: epochs without a better validation loss
-  std::uint64_t seed = 1;       ///< torch and shuffling seed: same seed, same weights
-  int stride = 1;               ///< a training window ends every `stride` samples
-  int threads = 2;              ///< torch intra-op threads
+  /// Group sparsity on the aircraft's channels (a group lasso): the training loss gains
+  /// channel_sparsity × Σ_c sqrt(n_c) ||W_c||, where W_c are the first layer's weights on the
+  /// inputs that read recorded channel c (its value, low-passes, products; every time step of
+  /// the window) and n_c their count. The network then reads few channels, and of channels that
+  /// move together the one that fits best, rather than a share of each (0: off; the model's own
+  /// inputs, tl_anomaly, tl_correction, dir_*, are never penalised). Standardised-loss units.
+  double channel_sparsity = 0.0;
+  int patience = 5;        ///< early stopping: epochs without a better validation loss
+  std::uint64_t seed = 1;  ///< torch and shuffling seed: same seed, same weights
+  int stride = 1;          ///< a training window ends every `stride` samples
+  int threads = 2;         ///< torch intra-op threads
   /// After training, scale the network's part of the correction by the factor in [0, 1] that
   /// minimises the error on the validation flights (NeuralSpec::output_gain).
   bool fit_output_gain = true;

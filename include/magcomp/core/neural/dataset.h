@@ -19,6 +19,9 @@ struct TrainingData {
   RowMatrixXf tl_columns;               ///< N x P, TL columns / tl_scale (joint mode), else empty
   std::vector<std::int64_t> first_row;  ///< per sample: first sample of its flight (padding)
   std::vector<std::int64_t> ends;       ///< window ends used (finite target, stride applied)
+  /// The inputs (feature indices) that read each recorded channel (channel_input_groups):
+  /// the groups NeuralTraining::channel_sparsity penalises. Empty: no penalty.
+  std::vector<std::vector<std::int64_t>> channel_groups;
   std::int64_t windows() const { return static_cast<std::int64_t>(ends.size()); }
 };
 

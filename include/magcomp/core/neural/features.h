@@ -3,8 +3,10 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <cstdint>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "magcomp/core/geo/igrf.h"
@@ -64,6 +66,13 @@ class FeaturePlan {
   int diurnal_field_ = -1;
   bool needs_igrf_ = false;
 };
+
+/// The recorded channels the model's neural features read, in the order they first appear, each
+/// with the indices of the features that read it (a product's feature is in each of its
+/// channels' groups). The model's own inputs (tl_anomaly, tl_correction, dir_*, anomaly:<field>)
+/// belong to none. Throws as FeaturePlan does.
+std::vector<std::pair<std::string, std::vector<std::int64_t>>> channel_input_groups(
+    const Model& model);
 
 /// Everything the neural stage needs from one flight, as whole columns.
 struct NeuralInputs {
