@@ -148,24 +148,28 @@ Attribution permutation_importance(const Model& model, const FlightData& data,
   }
   // The recorded channels: every input reading one is shuffled with it. A channel read by one
   // input alone has that input's figure. The inputs that read no channel are the model's own.
-  const FeaturePlan plan(model);
-  std::map<std::string, std::vector<Eigen::Index>> readers;
   std::vector<std::string> channel_order;
-  std::vector<Eigen::Index> own;
-  for (size_t k = 0; k < plan.feature_channels().size() && static_cast<Eigen::Index>(k) < f; ++k) {
-    if (plan.feature_channels()[k].empty()) own.push_back(static_cast<Eigen::Index>(k));
-    for (const auto& c : plan.feature_channels()[k]) {
-      if (readers.find(c) == readers.end()) channel_order.push_back(c);
-      auto& r = readers[c];
-      if (r.empty() || r.back() != static_cast<Eigen::Index>(k))
-        r.push_back(static_cast<Eigen::Index>(k));
+  std::vector<std::vector<Eigen::Index>> readers;  // the inputs of each channel
+  std::vector<bool> reads_a_channel(static_cast<size_t>(f), false);
+  for (const auto& [channel, inputs] : channel_input_groups(model)) {
+    std::vector<Eigen::Index> group;
+    for (std::int64_t k : inputs) {
+      if (k >= f) continue;
+      group.push_back(static_cast<Eigen::Index>(k));
+      reads_a_channel[static_cast<size_t>(k)] = true;
     }
+    if (group.empty()) continue;
+    channel_order.push_back(channel);
+    readers.push_back(std::move(group));
   }
+  std::vector<Eigen::Index> own;
+  for (Eigen::Index k = 0; k < f; ++k)
+    if (!reads_a_channel[static_cast<size_t>(k)]) own.push_back(k);
   const auto alikes = look_alike_channels(data, channel_order, rows);
   for (size_t j = 0; j < channel_order.size(); ++j) {
     ChannelImportance ci;
     ci.channel = channel_order[j];
-    const std::vector<Eigen::Index>& group = readers[ci.channel];
+    const std::vector<Eigen::Index>& group = readers[j];
     for (Eigen::Index k : group) ci.features.push_back(a.inputs[static_cast<size_t>(k)].feature);
     ci.importance_nT2 = group.size() == 1 ? a.inputs[static_cast<size_t>(group[0])].importance_nT2
                                           : rise_of(group).mean();
