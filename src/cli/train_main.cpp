@@ -36,6 +36,7 @@ struct TrainArgs {
   int epochs = 0;
   long long seed = -1;
   double channel_sparsity = -1;  // < 0: the model's own
+  double channel_cut = -1;       // < 0: the model's own
   bool quiet = false;
 };
 
@@ -52,6 +53,7 @@ Model model_to_train(const TrainArgs& a) {
   if (a.epochs > 0) spec.training.epochs = a.epochs;
   if (a.seed >= 0) spec.training.seed = static_cast<std::uint64_t>(a.seed);
   if (a.channel_sparsity >= 0) spec.training.channel_sparsity = a.channel_sparsity;
+  if (a.channel_cut >= 0) spec.training.channel_cut = a.channel_cut;
   validate_neural_spec(spec, a.neural_from.empty() ? a.model_path : a.neural_from);
   return model;
 }
@@ -71,8 +73,17 @@ void print_training(const Model& model, const BundleReport& rep,
             << " validation windows\n";
   std::cout << std::fixed << std::setprecision(3) << "trained " << r.epochs_run << " epoch(s) in "
             << r.seconds << " s; kept epoch " << r.best_epoch;
-  if (!r.validation_rmse_nT.empty()) {
+  if (!r.validation_rmse_nT.empty())
     std::cout << " (validation rmse " << s.validation_rmse_nT << " nT)";
+  if (r.refit_from_epoch > 0) {
+    std::cout << "\nchannel_cut " << s.training.channel_cut << ": kept " << r.kept_channels.size()
+              << " channel(s) after the penalised epochs 1-" << r.refit_from_epoch - 1 << " (";
+    for (size_t i = 0; i < r.kept_channels.size(); ++i)
+      std::cout << (i ? ", " : "") << r.kept_channels[i];
+    std::cout << "), cut " << r.cut_channels << ", refit without the penalty from epoch "
+              << r.refit_from_epoch;
+  }
+  if (!r.validation_rmse_nT.empty()) {
     for (size_t i = 0; i < val_flights.size(); ++i) {
       const FlightData& f = val_flights[i];
       if (!f.has(s.reference)) continue;
@@ -145,6 +156,11 @@ int run(int argc, char** argv) {
                  "override neural.training.channel_sparsity (the group lasso on each recorded "
                  "channel's inputs; 0 off)")
       ->check(CLI::NonNegativeNumber);
+  app.add_option("--channel-cut", a.channel_cut,
+                 "override neural.training.channel_cut (with --channel-sparsity: cut the channels "
+                 "whose weights fall below this fraction of the largest channel's, refit the rest "
+                 "without the penalty; 0 off)")
+      ->check(CLI::Range(0.0, 0.999999));
   app.add_flag("--quiet", a.quiet, "no progress bar");
   CLI11_PARSE(app, argc, argv);
 

@@ -2,6 +2,7 @@
 #include <sys/stat.h>
 
 #include <cerrno>
+#include <cmath>
 #include <iostream>
 
 #include "magcomp/core/error.h"
@@ -55,7 +56,10 @@ BundleReport train_bundle(Model& model, const std::vector<FlightData>& train_fli
   if (s.mode == NeuralMode::kCoefficients) s.column_scale = tl_scale;
   TrainingData td = make_training_data(s, tr, tl_scale, s.training.stride);
   if (s.training.channel_sparsity > 0)
-    for (auto& group : channel_input_groups(model)) td.channel_groups.push_back(group.second);
+    for (auto& group : channel_input_groups(model)) {
+      td.channel_names.push_back(group.first);
+      td.channel_groups.push_back(group.second);
+    }
   // Validation windows on the same stride (early stopping needs a score, not every sample).
   const TrainingData vd = make_training_data(s, va, tl_scale, s.training.stride);
   rep.train_windows = td.windows();
@@ -89,9 +93,7 @@ BundleReport train_bundle(Model& model, const std::vector<FlightData>& train_fli
   for (const auto& f : validation_flights) s.validation_flights.push_back(base_name(f.source()));
   s.epochs_run = rep.result.epochs_run;
   s.validation_rmse_nT =
-      rep.result.validation_rmse_nT.empty()
-          ? 0.0
-          : rep.result.validation_rmse_nT[static_cast<size_t>(rep.result.best_epoch - 1)];
+      std::isfinite(rep.result.best_validation_rmse_nT) ? rep.result.best_validation_rmse_nT : 0.0;
   // The network's share of the correction, fitted on the flights it was not trained on: the
   // hybrid is then no worse there than its terms alone.
   s.output_gain = 1.0;

@@ -114,6 +114,19 @@ torch::Tensor CompensatorNetImpl::input_weights() {
   return lstm->named_parameters()["weight_ih_l0"];                   // [4H, F]
 }
 
+void CompensatorNetImpl::zero_inputs(const torch::Tensor& columns) {
+  torch::NoGradGuard g;
+  if (architecture == NeuralArchitecture::kMlp) {
+    torch::Tensor w = mlp->ptr<torch::nn::LinearImpl>(0)->weight;  // [h0, k F], t-major
+    w.view({w.size(0), -1, n_features}).index_fill_(2, columns, 0.0);
+  } else if (architecture == NeuralArchitecture::kCnn ||
+             architecture == NeuralArchitecture::kCnnLstm) {
+    conv1->weight.index_fill_(1, columns, 0.0);  // [h0, F, 5]
+  } else {
+    lstm->named_parameters()["weight_ih_l0"].index_fill_(1, columns, 0.0);  // [4H, F]
+  }
+}
+
 namespace {
 
 /// A trained network for inference, in double precision, one thread.

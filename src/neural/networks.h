@@ -17,6 +17,9 @@ struct CompensatorNetImpl : torch::nn::Module {
   /// input f (each unit and time step of the MLP's first layer or the convolution, or each gate
   /// of the first LSTM layer). What NeuralTraining::channel_sparsity penalises.
   torch::Tensor input_weights();
+  /// Sets to zero every first-layer weight that reads the inputs `columns` (int64 indices):
+  /// those inputs are cut from the network (channel_cut).
+  void zero_inputs(const torch::Tensor& columns);
 
   NeuralArchitecture architecture;
   bool coefficients = false;  ///< the body's outputs are coefficient corrections

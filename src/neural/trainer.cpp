@@ -26,7 +26,8 @@ double since(Clock::time_point t0) {
 
 struct Tensors {
   torch::Tensor x, target, tl, first;
-  std::vector<torch::Tensor> groups;  // the inputs of each recorded channel (channel_sparsity)
+  std::vector<torch::Tensor> groups;     // the inputs of each recorded channel (channel_sparsity)
+  std::vector<std::string> group_names;  // the channel of each group
 };
 
 Tensors tensors_of(const TrainingData& d) {
@@ -39,9 +40,10 @@ Tensors tensors_of(const TrainingData& d) {
                             torch::kFloat32);
   }
   t.first = torch::from_blob(const_cast<int64_t*>(d.first_row.data()), {n}, torch::kInt64);
-  for (const auto& g : d.channel_groups) {
-    if (g.empty()) continue;
-    t.groups.push_back(torch::tensor(g, torch::kInt64));
+  for (size_t c = 0; c < d.channel_groups.size(); ++c) {
+    if (d.channel_groups[c].empty()) continue;
+    t.groups.push_back(torch::tensor(d.channel_groups[c], torch::kInt64));
+    t.group_names.push_back(c < d.channel_names.size() ? d.channel_names[c] : "");
   }
   return t;
 }
@@ -82,8 +84,11 @@ std::string clock_text(double s) {
 }
 
 /// One pass over the shuffled windows; returns the mean training MSE (standardised).
+/// `sparsity`: the group lasso's weight (0: none); `cut`: input columns held at zero after
+/// every step (undefined: none).
 double run_epoch(CompensatorNet& net, torch::optim::Adam& opt, const Tensors& t,
-                 std::vector<int64_t>& ends, const NeuralSpec& spec, std::mt19937_64& rng,
+                 std::vector<int64_t>& ends, const NeuralSpec& spec, double sparsity,
+                 const torch::Tensor& cut, std::mt19937_64& rng,
                  const std::function<void(double, double)>& on_progress) {
   std::shuffle(ends.begin(), ends.end(), rng);
   const int64_t n = static_cast<int64_t>(ends.size()), b = spec.training.batch;
@@ -96,7 +101,7 @@ double run_epoch(CompensatorNet& net, torch::optim::Adam& opt, const Tensors& t,
     const torch::Tensor pred = net->forward(gather_windows(t, e, spec.window), tl);
     const torch::Tensor loss = torch::mse_loss(pred, t.target.index_select(0, e));
     opt.zero_grad();
-    if (spec.training.channel_sparsity > 0 && !t.groups.empty()) {
+    if (sparsity > 0 && !t.groups.empty()) {
       // The group lasso on the channels: sqrt(n_c) ||W_c|| for each channel's inputs.
       const torch::Tensor w = net->input_weights();
       torch::Tensor penalty = torch::zeros({}, w.options());
@@ -105,11 +110,12 @@ double run_epoch(CompensatorNet& net, torch::optim::Adam& opt, const Tensors& t,
         penalty =
             penalty + std::sqrt(static_cast<double>(g.size(0))) * (wg.pow(2).sum() + 1e-12).sqrt();
       }
-      (loss + spec.training.channel_sparsity * penalty).backward();
+      (loss + sparsity * penalty).backward();
     } else {
       loss.backward();
     }
     opt.step();
+    if (cut.defined()) net->zero_inputs(cut);
     sum += loss.item<double>() * static_cast<double>(c);
     seen += c;
     if (on_progress) on_progress(static_cast<double>(seen) / static_cast<double>(n), sum / seen);
@@ -129,73 +135,131 @@ TrainResult train_network(const NeuralSpec& spec, const TrainingData& train,
   const int n_tl = static_cast<int>(train.tl_columns.cols());
   CompensatorNet net(spec, static_cast<int>(train.features.cols()), n_tl);
   net->train();
-  torch::optim::Adam opt(net->parameters(), torch::optim::AdamOptions(spec.training.learning_rate)
-                                                .weight_decay(spec.training.weight_decay));
   const Tensors tt = tensors_of(train);
   const bool has_val = !validation.ends.empty();
   const Tensors tv = has_val ? tensors_of(validation) : Tensors{};
   std::mt19937_64 rng(spec.training.seed);
   std::vector<int64_t> ends = train.ends;
   TrainResult r;
-  double best = INFINITY, lr = spec.training.learning_rate;
-  int since_best = 0;
+  double best = INFINITY;
   std::vector<torch::Tensor> best_state;
   const bool tty = ::isatty(2);
   const auto t0 = Clock::now();
   const int epochs = spec.training.epochs;
-  for (int epoch = 1; epoch <= epochs; ++epoch) {
-    auto last_draw = Clock::now();
-    const auto on_progress = [&](double frac, double mse) {
-      if (!progress || !tty || since(last_draw) < 0.25) return;
-      last_draw = Clock::now();
-      const double done = (epoch - 1 + frac) / epochs;
-      const int bar = static_cast<int>(frac * 24);
-      std::fprintf(stderr, "\repoch %d/%d [%s%s] %3.0f%% loss %.4f ETA %s   ", epoch, epochs,
-                   std::string(static_cast<size_t>(bar), '#').c_str(),
-                   std::string(static_cast<size_t>(24 - bar), '.').c_str(), frac * 100, mse,
-                   clock_text(since(t0) / done * (1 - done)).c_str());
-    };
-    const double mse = run_epoch(net, opt, tt, ends, spec, rng, on_progress);
-    r.train_rmse_nT.push_back(std::sqrt(mse) * spec.target_std);
-    double val = NAN;
-    if (has_val) {
-      val = evaluate_rmse(net, tv, validation.ends, k) * spec.target_std;
-      r.validation_rmse_nT.push_back(val);
-    }
-    r.epochs_run = epoch;
-    const double score = has_val ? val : mse;
-    if (score < best) {
-      best = score;
-      r.best_epoch = epoch;
-      since_best = 0;
-      best_state.clear();
-      for (const auto& p : net->parameters()) best_state.push_back(p.detach().clone());
-    } else {
-      ++since_best;
-    }
-    if (progress) {
-      const double done = static_cast<double>(epoch) / epochs;
-      std::fprintf(stderr, "%sepoch %d/%d  train rmse %.3f nT", tty ? "\r" : "", epoch, epochs,
-                   r.train_rmse_nT.back());
-      if (has_val) std::fprintf(stderr, "  validation rmse %.3f nT", val);
-      std::fprintf(stderr, "  lr %.2e  %s elapsed, ETA %s%s\n", lr, clock_text(since(t0)).c_str(),
-                   clock_text(since(t0) / done * (1 - done)).c_str(), since_best == 0 ? "  *" : "");
-    }
-    if (has_val && since_best >= spec.training.patience) {
-      if (progress)
-        std::fprintf(stderr, "early stop: no better validation for %d epochs\n", since_best);
-      break;
-    }
-    lr *= spec.training.lr_decay;
-    for (auto& group : opt.param_groups()) {
-      static_cast<torch::optim::AdamOptions&>(group.options()).lr(lr);
-    }
-  }
-  {
+  const auto keep_best = [&]() {
+    best_state.clear();
+    for (const auto& p : net->parameters()) best_state.push_back(p.detach().clone());
+  };
+  const auto restore_best = [&]() {
     torch::NoGradGuard g;
     auto params = net->parameters();
     for (size_t i = 0; i < params.size(); ++i) params[i].copy_(best_state[i]);
+  };
+  // One training phase: up to `epochs` epochs from a fresh Adam, early-stopped on validation;
+  // the best weights so far (both phases) kept in best_state.
+  // The refit continues the learning rate's schedule from the epoch it starts from.
+  const auto phase = [&](double sparsity, const torch::Tensor& cut, const char* label, double lr) {
+    torch::optim::Adam opt(net->parameters(),
+                           torch::optim::AdamOptions(lr).weight_decay(spec.training.weight_decay));
+    int since_best = 0;
+    const int first = r.epochs_run + 1, last = r.epochs_run + epochs;
+    for (int epoch = first; epoch <= last; ++epoch) {
+      auto last_draw = Clock::now();
+      const auto on_progress = [&](double frac, double mse) {
+        if (!progress || !tty || since(last_draw) < 0.25) return;
+        last_draw = Clock::now();
+        const double done = (epoch - first + frac) / epochs;
+        const int bar = static_cast<int>(frac * 24);
+        std::fprintf(stderr, "\r%sepoch %d/%d [%s%s] %3.0f%% loss %.4f ETA %s   ", label,
+                     epoch - first + 1, epochs, std::string(static_cast<size_t>(bar), '#').c_str(),
+                     std::string(static_cast<size_t>(24 - bar), '.').c_str(), frac * 100, mse,
+                     clock_text(since(t0) / done * (1 - done)).c_str());
+      };
+      const double mse = run_epoch(net, opt, tt, ends, spec, sparsity, cut, rng, on_progress);
+      r.train_rmse_nT.push_back(std::sqrt(mse) * spec.target_std);
+      double val = NAN;
+      if (has_val) {
+        val = evaluate_rmse(net, tv, validation.ends, k) * spec.target_std;
+        r.validation_rmse_nT.push_back(val);
+      }
+      r.epochs_run = epoch;
+      const double score = has_val ? val : mse;
+      if (score < best) {
+        best = score;
+        r.best_epoch = epoch;
+        since_best = 0;
+        keep_best();
+      } else {
+        ++since_best;
+      }
+      if (progress) {
+        const double done = static_cast<double>(epoch - first + 1) / epochs;
+        std::fprintf(stderr, "%s%sepoch %d/%d  train rmse %.3f nT", tty ? "\r" : "", label,
+                     epoch - first + 1, epochs, r.train_rmse_nT.back());
+        if (has_val) std::fprintf(stderr, "  validation rmse %.3f nT", val);
+        std::fprintf(stderr, "  lr %.2e  %s elapsed, ETA %s%s\n", lr, clock_text(since(t0)).c_str(),
+                     clock_text(since(t0) / done * (1 - done)).c_str(),
+                     since_best == 0 ? "  *" : "");
+      }
+      if (has_val && since_best >= spec.training.patience) {
+        if (progress)
+          std::fprintf(stderr, "early stop: no better validation for %d epochs\n", since_best);
+        break;
+      }
+      lr *= spec.training.lr_decay;
+      for (auto& group : opt.param_groups()) {
+        static_cast<torch::optim::AdamOptions&>(group.options()).lr(lr);
+      }
+    }
+  };
+  const double sparsity = spec.training.channel_sparsity;
+  phase(sparsity, torch::Tensor(), "", spec.training.learning_rate);
+  restore_best();
+  if (sparsity > 0 && spec.training.channel_cut > 0 && !tt.groups.empty()) {
+    // The relaxed lasso: cut the channels the penalty shrank, refit the rest without it.
+    std::vector<std::pair<double, size_t>> norms;
+    {
+      torch::NoGradGuard g;
+      const torch::Tensor w = net->input_weights();
+      for (size_t c = 0; c < tt.groups.size(); ++c)
+        norms.emplace_back(w.index_select(1, tt.groups[c]).norm().item<double>(), c);
+    }
+    std::sort(norms.rbegin(), norms.rend());
+    const double floor = spec.training.channel_cut * norms.front().first;
+    if (progress) {
+      std::fprintf(stderr, "channel weight norms (of the largest):");
+      for (const auto& [norm, c] : norms)
+        std::fprintf(stderr, " %s %.3g", tt.group_names[c].c_str(), norm / norms.front().first);
+      std::fprintf(stderr, "\n");
+    }
+    std::vector<int64_t> cut_columns;
+    for (const auto& [norm, c] : norms) {
+      const std::string& name = tt.group_names[c];
+      if (norm >= floor) {
+        r.kept_channels.push_back(name);
+        continue;
+      }
+      ++r.cut_channels;
+      const torch::Tensor& g = tt.groups[c];
+      cut_columns.insert(cut_columns.end(), g.data_ptr<int64_t>(),
+                         g.data_ptr<int64_t>() + g.size(0));
+    }
+    if (!cut_columns.empty()) {
+      const torch::Tensor cut = torch::tensor(cut_columns, torch::kInt64);
+      net->zero_inputs(cut);
+      // The cut network's own score is the one to beat: the weights kept read no cut channel.
+      best = has_val ? evaluate_rmse(net, tv, validation.ends, k) * spec.target_std : INFINITY;
+      keep_best();
+      r.refit_from_epoch = r.epochs_run + 1;
+      if (progress)
+        std::fprintf(stderr, "channel_cut: %zu of %zu channels kept; refit without the penalty\n",
+                     r.kept_channels.size(), norms.size());
+      phase(0.0, cut, "refit ",
+            spec.training.learning_rate * std::pow(spec.training.lr_decay, r.best_epoch));
+      restore_best();
+    }
   }
+  if (has_val) r.best_validation_rmse_nT = best;
   r.seconds = since(t0);
   if (n_tl > 0 && net->tl_linear) {
     const torch::Tensor w = net->tl_linear->weight.detach().to(torch::kFloat64).contiguous();
@@ -226,7 +290,7 @@ double time_one_epoch(const NeuralSpec& spec, const TrainingData& data, bool tor
   std::mt19937_64 rng(spec.training.seed);
   std::vector<int64_t> ends = data.ends;
   const auto t0 = Clock::now();
-  run_epoch(net, opt, t, ends, spec, rng, nullptr);
+  run_epoch(net, opt, t, ends, spec, spec.training.channel_sparsity, torch::Tensor(), rng, nullptr);
   return since(t0);
 }
 

@@ -4,8 +4,9 @@
 // on the first, trains an MLP on what TL leaves with every aircraft channel as an input (by
 // default correcting TL's coefficients at every sample, with the group lasso on each channel's
 // inputs, neural.training.channel_sparsity 0.01), and ranks the inputs by permutation importance on
-// the third flight (core/neural/attribution). Each channel enters raw and through causal low-passes
-// (default 2 s and 100 s: a flex's lag of a second or two, and effects far slower than the window),
+// the third flight (core/neural/attribution). Each channel enters raw and through causal filters
+// (default a 2 s and a 100 s low-pass, a flex's lag of a second or two and effects far slower than
+// the window, and a 0.5 s high-pass, the rate of change an inductive pickup follows),
 // and the channels are ranked with all their inputs shuffled together (Attribution::channels). A
 // run counts when the first-ranked channel of the aircraft (Attribution::first_aircraft_channel: a
 // position or an earth-frame velocity ranked above it is the trajectory, leakage, and is passed
@@ -19,11 +20,12 @@
 // counts where the first accepted term reads the effect's channel. Usage: magcomp_bench_attribution
 // SCENARIO.yaml TL_MODEL.yaml [runs] [first_seed] [epochs]
 //        [low-pass time constants, s, comma-separated, or "none"; a token that is not a number
-//        is a transform each channel also enters through, e.g. 2,100,d] [diagnose]
+//        is a transform each channel also enters through; default 2,100,hp(0.5)] [diagnose]
 //        [ensemble=K: K networks trained per run (seeds 1..K), their attributions averaged
 //        (average_attributions); the MLP's error printed is their mean] [mode=M: the network's
 //        mode, coefficients (default), residual or joint] [sparsity=L: the group lasso on the
 //        channels' inputs, neural.training.channel_sparsity (default 0.01; 0 off)]
+//        [cut=C: neural.training.channel_cut, the refit of the kept channels (default 0: none)]
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -59,7 +61,7 @@ int main(int argc, char** argv) {
     const int epochs = argc > 5 ? std::atoi(argv[5]) : 20;
     std::vector<std::string> lowpass_s;
     {
-      std::stringstream list(argc > 6 ? argv[6] : "2,100");
+      std::stringstream list(argc > 6 ? argv[6] : "2,100,hp(0.5)");
       for (std::string tau; std::getline(list, tau, ',');)
         if (!tau.empty() && tau != "none") lowpass_s.push_back(tau);
     }
@@ -67,12 +69,14 @@ int main(int argc, char** argv) {
     int ensemble = 1;  // networks trained per run (seeds 1..K), their attributions averaged
     std::string mode = "coefficients";  // the network's mode (coefficients, residual, joint)
     double sparsity = 0.01;             // neural.training.channel_sparsity
+    double cut = 0.0;                   // neural.training.channel_cut
     for (int k = 7; k < argc; ++k) {
       const std::string arg = argv[k];
       if (arg == "diagnose") with_diagnose = true;
       if (arg.rfind("ensemble=", 0) == 0) ensemble = std::max(1, std::atoi(arg.c_str() + 9));
       if (arg.rfind("mode=", 0) == 0) mode = arg.substr(5);
       if (arg.rfind("sparsity=", 0) == 0) sparsity = std::atof(arg.c_str() + 9);
+      if (arg.rfind("cut=", 0) == 0) cut = std::atof(arg.c_str() + 4);
     }
     const Igrf& igrf = Igrf::installed();
     // diagnose: runs whose first accepted term reads the effect's channel, by search (0
@@ -128,6 +132,7 @@ int main(int argc, char** argv) {
       spec.training.epochs = epochs;
       spec.training.patience = 5;
       spec.training.channel_sparsity = sparsity;
+      spec.training.channel_cut = cut;
       m.neural = spec;
       std::vector<Attribution> each;
       double tl_nT = NAN, nn_nT = 0;

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <random>
 #include <sstream>
 
 #include "magcomp/core/apply/apply.h"
@@ -123,6 +124,10 @@ TEST(Neural, SpecRoundTripsThroughTheModelYaml) {
   m.neural->training.channel_sparsity = 0.015625;
   save_model_yaml(m, dir + "/model.yaml");
   EXPECT_EQ(load_model_yaml(dir).neural->training.channel_sparsity, 0.015625);
+  EXPECT_EQ(load_model_yaml(dir).neural->training.channel_cut, 0.0);  // no refit unless asked
+  m.neural->training.channel_cut = 0.0625;
+  save_model_yaml(m, dir + "/model.yaml");
+  EXPECT_EQ(load_model_yaml(dir).neural->training.channel_cut, 0.0625);
   // The coefficients mode keeps each column's scale; a bundle without it is refused by name.
   m.neural->mode = NeuralMode::kCoefficients;
   m.neural->tl_delta.resize(0);
@@ -139,12 +144,72 @@ TEST(Neural, SpecRoundTripsThroughTheModelYaml) {
   std::ofstream(dir + "/sparse.yaml") << "scalar: mag_5_uc\nvector: flux_c\nneural: {features: "
                                          "[cur_strb], training: {channel_sparsity: -0.1}}\n";
   expect_refused_naming(dir + "/sparse.yaml", "neural.training.channel_sparsity");
+  std::ofstream(dir + "/cut.yaml") << "scalar: mag_5_uc\nvector: flux_c\nneural: {features: "
+                                      "[cur_strb], training: {channel_cut: 1}}\n";
+  expect_refused_naming(dir + "/cut.yaml", "neural.training.channel_cut");
   std::ofstream(dir + "/bad.yaml") << "scalar: mag_5_uc\nvector: flux_c\nneural: {architecture: "
                                       "gru, features: [cur_strb]}\n";
   expect_refused_naming(dir + "/bad.yaml", "neural.architecture");
   std::ofstream(dir + "/v2.yaml") << "scalar: mag_5_uc\nvector: flux_c\nneural: {version: 2, "
                                      "features: [cur_strb]}\n";
   EXPECT_THROW(load_model_yaml(dir + "/v2.yaml"), Error);
+}
+
+// Samples of three channels of two inputs each (standard normal) whose target is 1.0 × the
+// first channel's first input + 0.5 × its second + white noise of std `noise` (standardised
+// units): one flight, window ends at every sample.
+TrainingData three_channels(std::int64_t n, double noise, unsigned seed) {
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<float> g(0.0f, 1.0f);
+  TrainingData d;
+  d.features.resize(n, 6);
+  d.target.resize(n);
+  for (std::int64_t i = 0; i < n; ++i) {
+    for (int f = 0; f < 6; ++f) d.features(i, f) = g(rng);
+    d.target[i] = d.features(i, 0) + 0.5f * d.features(i, 1) + static_cast<float>(noise) * g(rng);
+    d.first_row.push_back(0);
+    d.ends.push_back(i);
+  }
+  d.channel_groups = {{0, 1}, {2, 3}, {4, 5}};
+  d.channel_names = {"cur_a", "cur_b", "cur_c"};
+  return d;
+}
+
+TEST(Neural, TheChannelCutRefitsTheKeptChannelsWithoutTheLassosShrinkage) {
+  // A linear target of one channel's two inputs, two idle channels beside it, 0.1 of noise.
+  // The group lasso (channel_sparsity 0.1, strong) shrinks the weights it keeps: its validation
+  // error stays above the noise. channel_cut 0.1 cuts the two idle channels and refits the first
+  // without the penalty: the error falls to the noise (0.1), and the result says which channels
+  // were kept.
+  const double noise = 0.1;
+  const TrainingData train = three_channels(20000, noise, 1), val = three_channels(5000, noise, 2);
+  NeuralSpec spec;
+  spec.window = 1;
+  spec.features = {"a0", "a1", "b0", "b1", "c0", "c1"};
+  spec.training.epochs = 15;
+  spec.training.patience = 5;
+  spec.training.weight_decay = 0.0;
+  spec.training.channel_sparsity = 0.1;
+  const std::string dir = test::temp_dir("neural_channel_cut");
+  const TrainResult lasso = train_network(spec, train, val, dir + "/lasso.pt", false);
+  spec.training.channel_cut = 0.1;
+  const TrainResult relaxed = train_network(spec, train, val, dir + "/relaxed.pt", false);
+  std::printf(
+      "  lasso: validation rmse %.4f (epoch %d); cut and refit: %.4f (epoch %d, refit "
+      "from %d), kept %zu, cut %d\n",
+      lasso.best_validation_rmse_nT, lasso.best_epoch, relaxed.best_validation_rmse_nT,
+      relaxed.best_epoch, relaxed.refit_from_epoch, relaxed.kept_channels.size(),
+      relaxed.cut_channels);
+  EXPECT_EQ(lasso.refit_from_epoch, 0);  // no cut asked: no refit
+  EXPECT_TRUE(lasso.kept_channels.empty());
+  EXPECT_EQ(relaxed.kept_channels, std::vector<std::string>{"cur_a"});
+  EXPECT_EQ(relaxed.cut_channels, 2);
+  EXPECT_GT(relaxed.refit_from_epoch, 1);  // after the penalised epochs
+  EXPECT_GE(relaxed.epochs_run, relaxed.refit_from_epoch);
+  EXPECT_GE(relaxed.best_epoch, relaxed.refit_from_epoch);  // a refit epoch was kept
+  // Measured: 0.1236 (the lasso) and 0.1037 (cut and refit) against the noise's 0.1.
+  EXPECT_GT(lasso.best_validation_rmse_nT, 1.15 * noise);  // the premise: shrunk
+  EXPECT_LT(relaxed.best_validation_rmse_nT, 1.08 * noise);
 }
 
 TEST(Neural, NormalisationComesFromTrainingFlightsOnlyAndWindowsStayInTheirFlight) {

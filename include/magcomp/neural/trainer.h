@@ -3,6 +3,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <cmath>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -22,6 +23,12 @@ struct TrainResult {
   int epochs_run = 0;
   double seconds = 0.0;
   Eigen::VectorXd tl_weights;  ///< joint mode: weights on the scaled TL columns (standardised)
+  /// channel_cut: the channels kept after the penalised epochs, largest weight norm first, and
+  /// the number cut; refit_from_epoch: the first epoch trained without the penalty (0: none).
+  std::vector<std::string> kept_channels;
+  int cut_channels = 0;
+  int refit_from_epoch = 0;
+  double best_validation_rmse_nT = NAN;  ///< of the weights kept (NaN without validation)
 };
 
 /// Trains the spec's network (seeded: same inputs, same weights) and writes its weights to

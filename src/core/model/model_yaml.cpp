@@ -55,7 +55,7 @@ NeuralTraining parse_neural_training(const YAML::Node& t, const std::string& pat
   if (!t.IsMap()) throw Error(path + ": key 'neural.training' must be a map");
   warn_unknown(t,
                {"epochs", "batch", "learning_rate", "lr_decay", "weight_decay", "channel_sparsity",
-                "patience", "seed", "stride", "threads", "fit_output_gain"},
+                "channel_cut", "patience", "seed", "stride", "threads", "fit_output_gain"},
                path, "neural.training.");
   if (t["epochs"]) r.epochs = get<int>(t["epochs"], path, "neural.training.epochs");
   if (t["batch"]) r.batch = get<int>(t["batch"], path, "neural.training.batch");
@@ -67,6 +67,8 @@ NeuralTraining parse_neural_training(const YAML::Node& t, const std::string& pat
   if (t["channel_sparsity"])
     r.channel_sparsity =
         get<double>(t["channel_sparsity"], path, "neural.training.channel_sparsity");
+  if (t["channel_cut"])
+    r.channel_cut = get<double>(t["channel_cut"], path, "neural.training.channel_cut");
   if (t["patience"]) r.patience = get<int>(t["patience"], path, "neural.training.patience");
   if (t["seed"]) r.seed = get<std::uint64_t>(t["seed"], path, "neural.training.seed");
   if (t["stride"]) r.stride = get<int>(t["stride"], path, "neural.training.stride");
@@ -189,6 +191,8 @@ void emit_neural(YAML::Emitter& out, const NeuralSpec& s) {
   out << YAML::Key << "weight_decay" << YAML::Value << t.weight_decay;
   if (t.channel_sparsity > 0)
     out << YAML::Key << "channel_sparsity" << YAML::Value << t.channel_sparsity;
+  if (t.channel_sparsity > 0 && t.channel_cut > 0)
+    out << YAML::Key << "channel_cut" << YAML::Value << t.channel_cut;
   out << YAML::Key << "patience" << YAML::Value << t.patience;
   out << YAML::Key << "seed" << YAML::Value << t.seed;
   out << YAML::Key << "stride" << YAML::Value << t.stride;

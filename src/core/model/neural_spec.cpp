@@ -112,6 +112,10 @@ void validate_neural_spec(const NeuralSpec& s, const std::string& where) {
   if (!(t.weight_decay >= 0)) throw Error(p + "training.weight_decay' must be >= 0");
   if (!(t.channel_sparsity >= 0 && std::isfinite(t.channel_sparsity)))
     throw Error(p + "training.channel_sparsity' must be a finite number >= 0");
+  if (!(t.channel_cut >= 0 && t.channel_cut < 1))
+    throw Error(p +
+                "training.channel_cut' must be in [0, 1) (a fraction of the largest "
+                "channel's weight norm)");
   if (t.patience < 1) throw Error(p + "training.patience' must be >= 1");
   if (t.stride < 1) throw Error(p + "training.stride' must be >= 1");
   if (t.threads < 1) throw Error(p + "training.threads' must be >= 1");

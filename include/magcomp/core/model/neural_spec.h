@@ -26,6 +26,11 @@ struct NeuralTraining {
   /// move together the one that fits best, rather than a share of each (0: off; the model's own
   /// inputs, tl_anomaly, tl_correction, dir_*, are never penalised). Standardised-loss units.
   double channel_sparsity = 0.0;
+  /// With channel_sparsity: after the penalised training, a channel whose weights' norm ||W_c||
+  /// is below channel_cut × the largest channel's is cut (its weights held at zero) and the
+  /// network is trained again from there without the penalty (a relaxed lasso: the penalty
+  /// chooses the channels, the refit sizes them unshrunk). 0: no cut, no refit. In [0, 1).
+  double channel_cut = 0.0;
   int patience = 5;        ///< early stopping: epochs without a better validation loss
   std::uint64_t seed = 1;  ///< torch and shuffling seed: same seed, same weights
   int stride = 1;          ///< a training window ends every `stride` samples

@@ -3,6 +3,7 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include "magcomp/core/model/model.h"
@@ -22,6 +23,7 @@ struct TrainingData {
   /// The inputs (feature indices) that read each recorded channel (channel_input_groups):
   /// the groups NeuralTraining::channel_sparsity penalises. Empty: no penalty.
   std::vector<std::vector<std::int64_t>> channel_groups;
+  std::vector<std::string> channel_names;  ///< the channel of each group
   std::int64_t windows() const { return static_cast<std::int64_t>(ends.size()); }
 };
 
