@@ -155,9 +155,8 @@ TrainResult train_network(const NeuralSpec& spec, const TrainingData& train,
     auto params = net->parameters();
     for (size_t i = 0; i < params.size(); ++i) params[i].copy_(best_state[i]);
   };
-  // One training phase: up to `epochs` epochs from a fresh Adam, early-stopped on validation;
-  // the best weights so far (both phases) kept in best_state.
-  // The refit continues the learning rate's schedule from the epoch it starts from.
+  // One training phase: up to `epochs` epochs from a fresh Adam at learning rate `lr`,
+  // early-stopped on validation; the best weights so far (both phases) kept in best_state.
   const auto phase = [&](double sparsity, const torch::Tensor& cut, const char* label, double lr) {
     torch::optim::Adam opt(net->parameters(),
                            torch::optim::AdamOptions(lr).weight_decay(spec.training.weight_decay));
@@ -214,6 +213,9 @@ TrainResult train_network(const NeuralSpec& spec, const TrainingData& train,
   };
   const double sparsity = spec.training.channel_sparsity;
   phase(sparsity, torch::Tensor(), "", spec.training.learning_rate);
+  if (best_state.empty())
+    throw Error("train: no epoch gave a finite loss (neural.training.learning_rate " +
+                std::to_string(spec.training.learning_rate) + " too large, or inputs too large)");
   restore_best();
   if (sparsity > 0 && spec.training.channel_cut > 0 && !tt.groups.empty()) {
     // The relaxed lasso: cut the channels the penalty shrank, refit the rest without it.

@@ -212,6 +212,26 @@ TEST(Neural, TheChannelCutRefitsTheKeptChannelsWithoutTheLassosShrinkage) {
   EXPECT_LT(relaxed.best_validation_rmse_nT, 1.08 * noise);
 }
 
+TEST(Neural, ATrainingWhoseLossIsNeverFiniteIsRefusedNamingTheLearningRate) {
+  // A learning rate so large that the first step sends the weights to infinity: no epoch has a
+  // finite loss, so no weights are worth keeping; one clear error, no weights file written.
+  const TrainingData train = three_channels(2000, 0.1, 3), val = three_channels(500, 0.1, 4);
+  NeuralSpec spec;
+  spec.window = 1;
+  spec.features = {"a0", "a1", "b0", "b1", "c0", "c1"};
+  spec.training.epochs = 2;
+  spec.training.learning_rate = 1e30;
+  const std::string path = test::temp_dir("neural_nan_loss") + "/w.pt";
+  try {
+    train_network(spec, train, val, path, false);
+    ADD_FAILURE() << "a loss never finite was accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("neural.training.learning_rate"), std::string::npos)
+        << e.what();
+  }
+  EXPECT_FALSE(std::ifstream(path).good());
+}
+
 TEST(Neural, NormalisationComesFromTrainingFlightsOnlyAndWindowsStayInTheirFlight) {
   Model m = neural_model("mlp", "residual", 5, 1);
   fit_model(m, {&flight(11)});
