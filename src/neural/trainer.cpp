@@ -84,6 +84,12 @@ std::string clock_text(double s) {
 }
 
 /// One pass over the shuffled windows; returns the mean training MSE (standardised).
+/// ||W_c||: the norm of the first-layer weights `w` [R, F] on one channel's input columns `g`
+/// (the 1e-12 keeps its gradient finite at zero). What the group lasso weighs and the cut ranks.
+torch::Tensor group_norm(const torch::Tensor& w, const torch::Tensor& g) {
+  return (w.index_select(1, g).pow(2).sum() + 1e-12).sqrt();
+}
+
 /// `sparsity`: the group lasso's weight (0: none); `cut`: input columns held at zero after
 /// every step (undefined: none).
 double run_epoch(CompensatorNet& net, torch::optim::Adam& opt, const Tensors& t,
@@ -105,11 +111,8 @@ double run_epoch(CompensatorNet& net, torch::optim::Adam& opt, const Tensors& t,
       // The group lasso on the channels: sqrt(n_c) ||W_c|| for each channel's inputs.
       const torch::Tensor w = net->input_weights();
       torch::Tensor penalty = torch::zeros({}, w.options());
-      for (const torch::Tensor& g : t.groups) {
-        const torch::Tensor wg = w.index_select(1, g);
-        penalty =
-            penalty + std::sqrt(static_cast<double>(g.size(0))) * (wg.pow(2).sum() + 1e-12).sqrt();
-      }
+      for (const torch::Tensor& g : t.groups)
+        penalty = penalty + std::sqrt(static_cast<double>(g.size(0))) * group_norm(w, g);
       (loss + sparsity * penalty).backward();
     } else {
       loss.backward();
@@ -224,7 +227,7 @@ TrainResult train_network(const NeuralSpec& spec, const TrainingData& train,
       torch::NoGradGuard g;
       const torch::Tensor w = net->input_weights();
       for (size_t c = 0; c < tt.groups.size(); ++c)
-        norms.emplace_back(w.index_select(1, tt.groups[c]).norm().item<double>(), c);
+        norms.emplace_back(group_norm(w, tt.groups[c]).item<double>(), c);
     }
     std::sort(norms.rbegin(), norms.rend());
     const double floor = spec.training.channel_cut * norms.front().first;
