@@ -287,7 +287,7 @@ struct DiagnoseArgs {
   std::string attribution;
   int top = 10, rounds = 5;
   double min_share = 0.05;
-  bool apply = false, quick = false, choose_lambda = false;
+  bool apply = false, quick = false, choose_lambda = false, no_exchange = false;
 };
 
 // One round of the loop on one flight, as it runs: its baseline, its first candidates, its
@@ -352,6 +352,8 @@ void print_rounds_table(const LoopResult& r, bool validation, size_t flights) {
           "other half's lines\n");
     for (const auto& [term, why] : lr.removed)
       std::printf("       removed %s: %s\n", term.c_str(), why.c_str());
+    for (const auto& [term, why] : lr.replaced)
+      std::printf("       in place of %s: %s\n", term.c_str(), why.c_str());
     for (const auto& [term, std_nT] : lr.look_alikes)
       std::printf(
           "       look-alike %s: held-out %.3f nT in its place; these flights cannot tell its "
@@ -391,6 +393,9 @@ nlohmann::json loop_json(const LoopResult& r, const std::vector<TermSupport>& su
     jr["removed"] = nlohmann::json::array();
     for (const auto& [term, why] : lr.removed)
       jr["removed"].push_back({{"term", term}, {"why", why}});
+    jr["replaced"] = nlohmann::json::array();
+    for (const auto& [term, why] : lr.replaced)
+      jr["replaced"].push_back({{"term", term}, {"why", why}});
     jr["look_alikes"] = nlohmann::json::array();
     for (const auto& [term, std_nT] : lr.look_alikes)
       jr["look_alikes"].push_back({{"term", term}, {"heldout_std_nT", std_nT}});
@@ -441,6 +446,7 @@ void run_diagnose(const DiagnoseArgs& a) {
   if (!a.validate.empty() && !a.apply) throw Error("--validate: only with --apply");
   if (!a.out.empty() && !a.apply) throw Error("--out: only with --apply (the final model)");
   if (a.choose_lambda && !a.apply) throw Error("--choose-lambda: only with --apply");
+  if (a.no_exchange && !a.apply) throw Error("--no-exchange: only with --apply");
   const std::vector<std::string> paths = flight_paths("--data", a.data);
   std::vector<OutputGuard::File> others = {
       {"--model", a.model_path}, {"--validate", a.validate}, {"--attribution", a.attribution}};
@@ -460,6 +466,7 @@ void run_diagnose(const DiagnoseArgs& a) {
   DiagnoseOptions options;
   options.full_search = !a.quick;
   options.choose_lambda = a.choose_lambda;
+  options.exchange_terms = !a.no_exchange;
   if (!a.attribution.empty()) options.network_channels = read_network_attribution(a.attribution);
   if (paths.size() > 1 && !a.apply) {
     diagnose_several(model, paths, a.model_path, a.truth, a.json_path, a.top, options, guard, read);
@@ -552,6 +559,10 @@ void add_diagnose(CLI::App& app) {
       "--choose-lambda", a->choose_lambda,
       "with --apply: each round first chooses fit.lambda on the held-out lines (1/10, "
       "1/100 or 1/1000 of the model's, or back to it, if the error falls on both halves)");
+  cmd->add_flag("--no-exchange", a->no_exchange,
+                "with --apply: when no term passes, keep the kept terms as they are (by default "
+                "each is taken out in turn and the model without it diagnosed again: a better "
+                "term takes its place and the loop goes on)");
   cmd->add_option("--attribution", a->attribution,
                   "a trained network's attribution (magcomp evaluate --explain --json on a "
                   "flight it never saw): the channels it leans on (10 % or more, at most 3) are "

@@ -17,14 +17,16 @@
 // fit.lambda on the held-out lines); no-span-ridge (a term within the model's span is added as
 // any other, without the ridge step first); no-joint (no set of terms chosen together,
 // Diagnosis::joint); no-calibration-check (no step refused for raising the error on the
-// calibration rows); slow-on-calibration (a slow term sized on the calibration rows alone, not
-// on the held-out lines too); states (the aircraft's non-electrical states recorded, and effects of
-// a switched current times one of them drawn among the others); half-several (runs alternate one
-// effect and two or three, instead of 60 % one, 30 % two, 10 % three); draws=N (each run on N
-// aircraft: the same effects, other aircraft and flights); verbose (each run's rounds with their
-// held-out errors and look-alikes); validate (the loop learns from the first flight with a second
-// flight of the aircraft as its validation flight); two-flights (the loop, TL and the references
-// learn from both flights together). Every mode is scored on the same next flight.
+// calibration rows); no-exchange (a kept term is never replaced by what the model without it
+// ranks first, DiagnoseOptions::exchange_terms); slow-on-calibration (a slow term sized on the
+// calibration rows alone, not on the held-out lines too); states (the aircraft's non-electrical
+// states recorded, and effects of a switched current times one of them drawn among the others);
+// half-several (runs alternate one effect and two or three, instead of 60 % one, 30 % two, 10 %
+// three); draws=N (each run on N aircraft: the same effects, other aircraft and flights); verbose
+// (each run's rounds with their held-out errors and look-alikes); validate (the loop learns from
+// the first flight with a second flight of the aircraft as its validation flight); two-flights (the
+// loop, TL and the references learn from both flights together). Every mode is scored on the same
+// next flight.
 #include <array>
 #include <chrono>
 #include <cstdio>
@@ -61,6 +63,8 @@ int main(int argc, char** argv) {
         options.joint_selection = false;
       } else if (opt == "no-calibration-check") {
         options.check_calibration_rows = false;
+      } else if (opt == "no-exchange") {
+        options.exchange_terms = false;
       } else if (opt == "slow-on-calibration") {
         options.slow_terms_on_lines = false;
       } else if (opt == "validate") {
@@ -76,11 +80,12 @@ int main(int argc, char** argv) {
       } else if (opt.rfind("draws=", 0) == 0 && std::atoi(opt.c_str() + 6) >= 1) {
         draws = static_cast<unsigned>(std::atoi(opt.c_str() + 6));
       } else {
-        std::fprintf(stderr,
-                     "error: option '%s': one-at-a-time, choose-lambda, no-span-ridge, no-joint, "
-                     "no-calibration-check, slow-on-calibration, validate, two-flights, states, "
-                     "half-several, verbose or draws=N\n",
-                     opt.c_str());
+        std::fprintf(
+            stderr,
+            "error: option '%s': one-at-a-time, choose-lambda, no-span-ridge, no-joint, "
+            "no-calibration-check, no-exchange, slow-on-calibration, validate, two-flights, "
+            "states, half-several, verbose or draws=N\n",
+            opt.c_str());
         return 2;
       }
     }
@@ -132,7 +137,7 @@ int main(int argc, char** argv) {
         worse_with_truth += d.worse_than_tl() && d.true_terms_next_nT > d.tl_next_nT + 0.005;
         complete_above += d.complete_above_floor();
         std::string kept;
-        for (const auto& t : d.added) kept += (kept.empty() ? "" : ", ") + t;
+        for (const auto& t : d.in_force) kept += (kept.empty() ? "" : ", ") + t;
         if (d.predictable) {
           named[d.kind].first += d.names_truth();
           named[d.kind].second += 1;
@@ -174,6 +179,8 @@ int main(int argc, char** argv) {
               lr.calibration_std_nT, i == 0 ? "(start)" : lr.added.c_str());
           for (const auto& [term, why] : lr.removed)
             std::printf("         removed %s: %s\n", term.c_str(), why.c_str());
+          for (const auto& [term, why] : lr.replaced)
+            std::printf("         in place of %s: %s\n", term.c_str(), why.c_str());
           for (const auto& [term, held_nT] : lr.look_alikes)
             std::printf("         look-alike %s: held out %.4f nT\n", term.c_str(), held_nT);
         }

@@ -214,13 +214,17 @@ TEST(HostileOutputs, AnUnknownTransformListsEveryKnownOne) {
 }
 
 TEST(HostileOutputs, LoopOnlyFlagsWithoutTheLoopAreRefused) {
-  // --choose-lambda and --validate change the loop (--apply); without it they would be ignored.
+  // --choose-lambda, --validate and --no-exchange change the loop (--apply); without it they would
+  // be ignored.
   expect_refusal(
       "diagnose --data " + files().flight + " --model " + files().model + " --choose-lambda",
       {"--choose-lambda: only with --apply"});
   expect_refusal("diagnose --data " + files().flight + " --model " + files().model +
                      " --validate " + files().flight,
                  {"--validate: only with --apply"});
+  expect_refusal(
+      "diagnose --data " + files().flight + " --model " + files().model + " --no-exchange",
+      {"--no-exchange: only with --apply"});
 }
 
 }  // namespace

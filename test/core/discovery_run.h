@@ -38,7 +38,9 @@ struct DiscoveryRun {
   /// band-pass cannot always separate an exact term from TL's columns (a flex through the roll
   /// rate, in the band, follows the roll angle as TL's induced terms do).
   double true_terms_next_nT = NAN;
-  std::vector<std::string> added;  ///< the terms the loop kept
+  std::vector<std::string> added;  ///< each round's step, in order (later removed or not)
+  /// The rounds' steps still in force at the end: not removed or exchanged by a later round.
+  std::vector<std::string> in_force;
   /// With MAGCOMP_DISCOVERY_DROP_ONE set: each added term of the final model, and the next
   /// flight's std of that model refitted without it (which term carries over, which hurts).
   std::vector<std::pair<std::string, double>> without_term_next_nT;
@@ -203,7 +205,16 @@ inline DiscoveryRun discovery_run(unsigned r, int count, const sim::Scenario& ba
                           learn == Learn::kValidated ? &second->flight : nullptr);
   out.tl_next_nT = evaluate_model(start, fb.flight, "mag_1_c", false).std_nT;
   out.loop_next_nT = evaluate_model(loop.model, fb.flight, "mag_1_c", false).std_nT;
-  for (size_t k = 1; k < loop.rounds.size(); ++k) out.added.push_back(loop.rounds[k].added);
+  for (size_t k = 1; k < loop.rounds.size(); ++k) {
+    const std::string& a = loop.rounds[k].added;
+    bool gone = false;
+    for (size_t j = k + 1; j < loop.rounds.size(); ++j) {
+      for (const auto& [term, why] : loop.rounds[j].removed) gone = gone || term == a;
+      for (const auto& [term, why] : loop.rounds[j].replaced) gone = gone || term == a;
+    }
+    out.added.push_back(a);
+    if (!gone) out.in_force.push_back(a);
+  }
   if (std::getenv("MAGCOMP_DISCOVERY_DROP_ONE"))
     for (const std::string& t : loop.model.terms) {
       if (std::find(start.terms.begin(), start.terms.end(), t) != start.terms.end()) continue;

@@ -59,6 +59,8 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
                          const FlightData* validation) {
   if (flights.empty()) throw Error("diagnose: no flight given");
   std::set<std::string> learned_channels;  // one learned law per channel
+  std::set<std::string> taken_out;         // terms an exchange took out (never put back by one)
+  int exchanges = 0;
   LoopResult r;
   r.model = start;
   if (!r.model.fitted()) fit_model(r.model, flights);
@@ -194,6 +196,17 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
         r.model = before;
         dxs = dxs_before;
         learned_channels = learned_before;
+      }
+    }
+    // Nothing passes: a kept term chosen while other effects were still in the residual may
+    // give way to what the model without it ranks first (Round::exchange); the loop goes on.
+    if (!kept && options.exchange_terms && exchanges < loop_steps::kExchanges) {
+      loop_steps::Round swap(context, round, &r);
+      if (swap.exchange(round_options, &taken_out)) {
+        auto& refused = r.rounds.back().rejected;
+        refused.insert(refused.begin(), step.rejected().begin(), step.rejected().end());
+        ++exchanges;
+        continue;
       }
     }
     const auto& rejected = step.rejected();

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <map>
 #include <optional>
 #include <set>
 
@@ -379,6 +380,77 @@ bool Round::learned_law_of_channel(const std::vector<Diagnosis>& dxs,
   std::string added;
   for (const auto& t : law) added += (added.empty() ? "" : " + ") + t.text();
   return try_model(std::move(next), added, share, true);
+}
+
+bool Round::exchange(const DiagnoseOptions& options, std::set<std::string>* taken_out) {
+  const LoopRound now = r_->rounds.back();
+  const std::vector<std::string>& laws = r_->model.black_box_terms;
+  // The round that added each term last, and the last round that added any: a term added in
+  // that round was chosen with every other term in the model, and its diagnosis would be the same.
+  std::map<std::string, size_t> added_in;
+  size_t last_adding = 0;
+  for (size_t k = 1; k < r_->rounds.size(); ++k) {
+    const LoopRound& lr = r_->rounds[k];
+    if (lr.regularisation || lr.added.empty()) continue;
+    last_adding = k;
+    for (size_t from = 0;;) {
+      const size_t to = lr.added.find(" + ", from);
+      added_in[lr.added.substr(from, to == std::string::npos ? std::string::npos : to - from)] = k;
+      if (to == std::string::npos) break;
+      from = to + 3;
+    }
+  }
+  for (const TermSpec& t : r_->model.terms) {
+    const auto in = added_in.find(t.text());
+    if (!removable(c_.start, t) || fields_of(t).empty() || taken_out->count(t.text()) ||
+        std::find(laws.begin(), laws.end(), t.text()) != laws.end() || in == added_in.end() ||
+        in->second >= last_adding)
+      continue;
+    const auto [without, without_lr] = fit_score(without_term(r_->model, t));
+    std::vector<Diagnosis> dxs;
+    for (const FlightData* f : c_.flights) dxs.push_back(diagnose(without, *f, c_.truth, options));
+    const std::vector<Eligible> eligible = eligible_candidates(dxs, c_.min_share);
+    std::optional<std::pair<Model, LoopRound>> best;
+    const Eligible* best_e = nullptr;
+    for (size_t k = 0, tried = 0; k < eligible.size() && tried < kTriesPerRound; ++k) {
+      if (eligible[k].term.text() == t.text()) continue;
+      ++tried;
+      try {
+        Model m = without;
+        add_candidate_term(eligible[k].term, eligible[k].slow, c_.truth, &m);
+        auto fitted = fit_score(std::move(m));
+        const LoopRound& lr = fitted.second;
+        const bool halves_hold = !(lr.selection_std_nT > now.selection_std_nT) &&
+                                 !(lr.confirmation_std_nT > now.confirmation_std_nT);
+        if (!refusal(lr, now, c_.options).empty() || !halves_hold ||
+            !passes(lr.heldout_std_nT, now.heldout_std_nT))
+          continue;
+        if (best && !(lr.heldout_std_nT < best->second.heldout_std_nT)) continue;
+        best.emplace(std::move(fitted));
+        best_e = &eligible[k];
+      } catch (const Error&) {
+      }
+    }
+    if (!best) continue;
+    LoopRound lr = std::move(best->second);
+    lr.round = round_;
+    lr.added = best_e->term.text();
+    lr.explained = best_e->explained;
+    char why[300];
+    std::snprintf(why, sizeof(why),
+                  "the model without it, diagnosed again, takes %s: held-out error %.4f -> %.4f "
+                  "nT (without either %.4f)",
+                  lr.added.c_str(), now.heldout_std_nT, lr.heldout_std_nT,
+                  without_lr.heldout_std_nT);
+    lr.replaced.emplace_back(t.text(), why);
+    lr.rejected = std::move(rejected_);
+    rejected_.clear();
+    taken_out->insert(t.text());
+    r_->rounds.push_back(std::move(lr));
+    r_->model = std::move(best->first);
+    return true;
+  }
+  return false;
 }
 
 void Round::backward_pass() {

@@ -19,6 +19,8 @@ namespace magcomp::loop_steps {
 
 // Eligible candidates tried per round, in rank order.
 constexpr size_t kTriesPerRound = 3;
+/// Exchanges (Round::exchange) made at most over one loop.
+constexpr int kExchanges = 3;
 /// Eligible candidates (in rank order, after the kept one) tried as look-alikes of a kept term.
 constexpr size_t kLookAlikeTries = 6;
 
@@ -64,6 +66,14 @@ class Round {
   // the channel that predicts most of it (one per channel over the loop: `learned_channels`).
   bool learned_law_of_channel(const std::vector<Diagnosis>& dxs,
                               std::set<std::string>* learned_channels);
+  // When nothing else passes: each kept term of a recorded channel (not a learned law's, not one
+  // in `taken_out`, not one of the last round that added terms: that round's diagnosis already
+  // saw every other term) is taken out in turn, the model without it diagnosed with `options`, and
+  // the best of that diagnosis's first eligible candidates (at most kTriesPerRound, not the term
+  // itself) takes its place if it lowers the held-out error of the model with the term by the
+  // accepted share and the resolution, raises neither half and passes refusal(). One exchange
+  // per call; the term taken out joins `taken_out`.
+  bool exchange(const DiagnoseOptions& options, std::set<std::string>* taken_out);
   // An earlier round's term that the model no longer needs leaves (the least needed first, one
   // at a time), so long as the round still lowers the error of the round before it.
   void backward_pass();

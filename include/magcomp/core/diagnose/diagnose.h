@@ -129,6 +129,13 @@ struct DiagnoseOptions {
   /// and diagnose_loop's model carries those lines as fit.slow_lines (false: the calibration
   /// rows alone size it).
   bool slow_terms_on_lines = true;
+  /// diagnose_loop: when no term passes, each kept term of a recorded channel is taken out in
+  /// turn and the model without it diagnosed; the best of that diagnosis's first candidates takes
+  /// its place when it lowers the held-out error by the accepted share and the resolution and
+  /// raises neither half, and the loop goes on (LoopRound::replaced). A term chosen while other
+  /// effects were still in the residual is chosen again once they are written (false: a kept
+  /// term stays unless later terms make it redundant).
+  bool exchange_terms = true;
   /// The channels a trained network leans on, as its attribution ranks them (empty: none). The
   /// leading ones (kNetworkChannels with kNetworkMinShare or more) are searched even where the
   /// search would leave them out (full_search false), their products with each other and with

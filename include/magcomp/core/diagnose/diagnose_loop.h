@@ -51,6 +51,10 @@ struct LoopRound {
   /// Terms of earlier rounds that this round's terms made redundant (the backward pass), each
   /// with why; the round's scores are those of the model without them.
   std::vector<std::pair<std::string, std::string>> removed;
+  /// The kept term this round's single term took the place of (DiagnoseOptions::exchange_terms),
+  /// with why: the model without it, diagnosed again, ranks this term first and it lowers the
+  /// held-out error. Empty for a round that only adds.
+  std::vector<std::pair<std::string, std::string>> replaced;
   /// The held-out error std on each flight the loop learns from, nT (in the order given).
   std::vector<double> flight_heldout_std_nT;
   /// The ridge strength of this round's model (fit.lambda, dimensionless).
@@ -110,6 +114,13 @@ struct LoopResult {
 /// flight biases the fit, and a term that only undoes the bias would otherwise be taken for an
 /// effect. It never exceeds the start model's: a stronger ridge hides an effect the model lacks
 /// instead of writing it.
+/// When no step passes (DiagnoseOptions::exchange_terms), the kept terms of recorded channels
+/// chosen before a later round's terms are revisited one at a time: the model without the term
+/// (with the later terms) is diagnosed again, and the best of its
+/// first eligible candidates that lowers the held-out error of the model with the term by the
+/// accepted share and the resolution, raises neither half and passes every other check takes the
+/// term's place as a round of its own (LoopRound::replaced); the loop then goes on. A term taken
+/// out never comes back through an exchange, and at most three are made.
 /// `on_round` (optional) is called after each diagnosis with the round number and the diagnosis.
 LoopResult diagnose_loop(const Model& model, const FlightData& data, const std::string& truth,
                          int max_rounds, double min_share, const DiagnoseOptions& options,
