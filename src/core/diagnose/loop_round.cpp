@@ -20,6 +20,17 @@ std::set<std::string> fields_of(const TermSpec& t) {
   const std::vector<std::string> f = t.term().required_fields();
   return std::set<std::string>(f.begin(), f.end());
 }
+
+// The terms of a round's step as LoopRound::added writes them (" + " joins a pair or a law).
+std::vector<std::string> step_terms(const std::string& added) {
+  std::vector<std::string> out;
+  for (size_t from = 0;;) {
+    const size_t to = added.find(" + ", from);
+    out.push_back(added.substr(from, to == std::string::npos ? std::string::npos : to - from));
+    if (to == std::string::npos) return out;
+    from = to + 3;
+  }
+}
 }  // namespace
 
 bool Round::try_model(Model next, const std::string& added, double explained, bool black_box) {
@@ -393,12 +404,7 @@ bool Round::exchange(const DiagnoseOptions& options, std::set<std::string>* take
     const LoopRound& lr = r_->rounds[k];
     if (lr.regularisation || lr.added.empty()) continue;
     last_adding = k;
-    for (size_t from = 0;;) {
-      const size_t to = lr.added.find(" + ", from);
-      added_in[lr.added.substr(from, to == std::string::npos ? std::string::npos : to - from)] = k;
-      if (to == std::string::npos) break;
-      from = to + 3;
-    }
+    for (const std::string& t : step_terms(lr.added)) added_in[t] = k;
   }
   for (const TermSpec& t : r_->model.terms) {
     const auto in = added_in.find(t.text());
@@ -457,14 +463,8 @@ void Round::backward_pass() {
   if (r_->rounds.size() < 2) return;
   const double accept = c_.options.accept_fraction;
   const LoopRound before = r_->rounds[r_->rounds.size() - 2];
-  std::set<std::string> added_now;  // this round's terms (" + " joins a pair or a law)
-  for (size_t from = 0;;) {
-    const std::string& a = r_->rounds.back().added;
-    const size_t to = a.find(" + ", from);
-    added_now.insert(a.substr(from, to == std::string::npos ? std::string::npos : to - from));
-    if (to == std::string::npos) break;
-    from = to + 3;
-  }
+  const std::vector<std::string> now_terms = step_terms(r_->rounds.back().added);
+  const std::set<std::string> added_now(now_terms.begin(), now_terms.end());  // this round's
   for (;;) {
     const LoopRound& now = r_->rounds.back();
     std::optional<std::pair<Model, LoopRound>> drop;
