@@ -171,7 +171,9 @@ nlohmann::json to_json(const Diagnosis& dx) {
                          {"segments", f.segments},
                          {"amplitude_channel", f.amplitude_channel},
                          {"amplitude_correlation", f.amplitude_correlation},
-                         {"amplitude_windows", f.amplitude_windows}};
+                         {"amplitude_windows", f.amplitude_windows},
+                         {"floor_channel", f.floor_channel},
+                         {"floor_correlation", f.floor_correlation}};
   j["verdict"] = dx.verdict;
   if (!dx.joint.terms.empty()) {
     const JointSet& js = dx.joint;

@@ -314,6 +314,32 @@ TEST(Diagnose, ASwitchedLoadIsFoundAsAStepOfTheBusCurrent) {
   EXPECT_LT(r.rounds.back().heldout_std_nT, r.rounds.front().heldout_std_nT);
 }
 
+TEST(Diagnose, ARelayChatteringOnItsChannelsNoiseIsFoundToTheSample) {
+  // A heater's relay switched while cur_heat is above 0.02 A, a level inside the idle heater's
+  // noise (0 +- 0.05 A): whenever the heater is off the relay flips on that noise, a broadband
+  // field. The threshold is scanned over the channel's quantiles, where its samples are (an even
+  // grid over its range, -0.07 to 5 A, steps over the whole noise band and finds an on/off level
+  // near 0.7 A that explains half as much); the step at the true threshold explains most of the
+  // held-out error on both halves.
+  const sim::Simulation& s = test::scenario("relay_chatter");
+  Model m = test::reference_tl(s.flight);
+  fit_model(m, {&s.flight});
+  DiagnoseOptions o;
+  o.full_search = false;
+  const Diagnosis dx = diagnose(m, s.flight, "mag_1_c", o);
+  ASSERT_FALSE(dx.candidates.empty());
+  const Candidate& top = dx.candidates.front();
+  std::printf(
+      "  relay_chatter: %s, held-out %.3f -> %.3f nT (selection %.1f%%, confirmation %.1f%%)\n",
+      top.term.text().c_str(), dx.baseline_std_nT, top.std_after_nT, 100 * top.explained_selection,
+      100 * top.explained_confirmation);
+  ASSERT_EQ(top.term.text().rfind("field:cur_heat|step(", 0), 0u) << top.term.text();
+  EXPECT_NEAR(parameter(top.term.text(), TransformKind::Step), 0.02, 0.005);
+  EXPECT_GT(top.explained_selection, 0.8);
+  EXPECT_GT(top.explained_confirmation, 0.8);
+  EXPECT_TRUE(top.accepted);
+}
+
 TEST(Diagnose, ALawNoFormulaWritesIsLearnedAsHingesOfItsChannelAndCarriesOver) {
   // The bus current through a core with a dead band that saturates above it (3 tanh(max(I - 19,
   // 0) / 3)): no closed form of the language writes it exactly. The loop ends with terms of

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <random>
 
+#include "../../src/core/diagnose/search.h"  // verdict_of
 #include "magcomp/core/diagnose/residual_floor.h"
 
 namespace magcomp {
@@ -58,6 +59,7 @@ TEST(ResidualFloor, WhiteNoiseIsItsOwnFloor) {
                 f.residual_std_nT, f.floor_nT, f.segments);
     ASSERT_TRUE(f.computed);
     EXPECT_NEAR(f.floor_nT / sigma, 1.0, 0.05);
+    EXPECT_TRUE(f.floor_channel.empty()) << f.floor_channel << " " << f.floor_correlation;
     EXPECT_NEAR(f.residual_std_nT / sigma, 1.0, 0.03);
     EXPECT_TRUE(f.amplitude_channel.empty()) << f.amplitude_channel;
   }
@@ -96,6 +98,43 @@ TEST(ResidualFloor, AnEffectInSomeSegmentsOnlyIsNotTheFloor) {
   ASSERT_TRUE(f.computed);
   EXPECT_NEAR(f.floor_nT, 0.05, 0.005);
   EXPECT_GT(f.residual_std_nT, 5 * f.floor_nT);
+}
+
+TEST(ResidualFloor, AChatterOnAChannelsNoiseIsAnEffectNotTheFloor) {
+  // A relay switched by a recorded control that sits at its threshold: the control's noise
+  // (0.05, white) flips it at random on every sample, a white chatter of +-0.3 nT times `rpm`
+  // (the projection of the relay's field, slowly varying) beside the sensor's 0.02 nT. The
+  // chatter is white: the residual is at its spectrum's white level, which therefore follows
+  // rpm; the control's own level (0 on average) and an unrelated channel do not rank it.
+  Residual x = make(0.0, 0.0, 0.0, 5);
+  std::mt19937 rng(11);
+  std::normal_distribution<double> g(0.0, 1.0);
+  Eigen::VectorXd control(x.r.size());
+  for (Eigen::Index i = 0; i < x.r.size(); ++i) {
+    control[i] = 0.05 * g(rng);
+    x.r[i] = 0.02 * g(rng) + 0.3 * x.rpm[i] * (control[i] > 0 ? 1.0 : -1.0);
+  }
+  std::vector<std::pair<std::string, Eigen::Map<const Eigen::VectorXd>>> ch;
+  ch.emplace_back("other", Eigen::Map<const Eigen::VectorXd>(x.other.data(), x.other.size()));
+  ch.emplace_back("control", Eigen::Map<const Eigen::VectorXd>(control.data(), control.size()));
+  ch.emplace_back("rpm", Eigen::Map<const Eigen::VectorXd>(x.rpm.data(), x.rpm.size()));
+  const ResidualFloor f = residual_floor(x.r, x.unit, kRate_hz, ch);
+  std::printf("  residual %.3f nT, floor %.3f nT; floor follows '%s' (rho %.2f, %d segments)\n",
+              f.residual_std_nT, f.floor_nT, f.floor_channel.c_str(), f.floor_correlation,
+              f.segments);
+  ASSERT_TRUE(f.computed);
+  EXPECT_LE(f.residual_std_nT, 1.5 * f.floor_nT);  // at its white level: "complete" by that alone
+  EXPECT_EQ(f.floor_channel, "rpm");
+  EXPECT_GT(f.floor_correlation, 0.8);
+  // The verdict: at its white level, but that level follows rpm: not "complete".
+  Diagnosis dx;
+  dx.floor = f;
+  const std::string v = diagnose_search::verdict_of(dx, 0.03);
+  std::printf("  verdict: %s\n", v.c_str());
+  EXPECT_EQ(v.rfind("structure remains", 0), 0u) << v;
+  EXPECT_NE(v.find("follows rpm"), std::string::npos) << v;
+  dx.floor.floor_channel.clear();  // the same level, following nothing: the sensor's noise
+  EXPECT_EQ(diagnose_search::verdict_of(dx, 0.03).rfind("complete", 0), 0u);
 }
 
 TEST(ResidualFloor, PositionChannelsAreNotSources) {

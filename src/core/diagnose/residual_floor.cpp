@@ -109,6 +109,7 @@ ResidualFloor residual_floor(
   for (size_t j = 0; j < r; ++j) median_mean += 1.0 / static_cast<double>(nb - j);
   Eigen::FFT<double> fft;
   std::vector<double> seg(kSegment), band(nb), levels;
+  std::vector<Eigen::Index> starts;  // each segment's first sample
   std::vector<std::complex<double>> spec;
   Eigen::VectorXd x(kSegment), tk(kSegment);
   for (int k = 0; k < kSegment; ++k) tk[k] = k - 0.5 * (kSegment - 1);
@@ -124,10 +125,34 @@ ResidualFloor residual_floor(
         band[q] = 2.0 * std::norm(spec[static_cast<size_t>(bins[q])]) / (sample_rate_hz * w2);
       std::nth_element(band.begin(), band.begin() + static_cast<long>(nb / 2), band.end());
       levels.push_back(band[nb / 2] / median_mean);
+      starts.push_back(s);
       ++out.segments;
     }
   }
   if (out.segments == 0) return out;
+  // Whether the segments' levels follow a channel: half-overlapping segments count half.
+  const double effective = 0.5 * static_cast<double>(levels.size());
+  if (effective >= 12) {
+    const std::vector<double> lv = ranks(levels);
+    const double threshold = std::max(kMinRankCorr, 4.0 / std::sqrt(effective - 1));
+    for (const auto& [name, values] : channels) {
+      if (is_position_channel(name)) continue;
+      std::vector<double> m;
+      m.reserve(starts.size());
+      bool finite = true;
+      for (const Eigen::Index s : starts) {
+        const double v = values.segment(s, kSegment).mean();
+        finite = finite && std::isfinite(v);
+        m.push_back(v);
+      }
+      if (!finite) continue;
+      const double rho = pearson(lv, ranks(m));
+      if (std::abs(rho) >= threshold && std::abs(rho) > std::abs(out.floor_correlation)) {
+        out.floor_channel = name;
+        out.floor_correlation = rho;
+      }
+    }
+  }
   std::nth_element(levels.begin(), levels.begin() + static_cast<long>(levels.size() / 2),
                    levels.end());
   out.floor_nT = std::sqrt(levels[levels.size() / 2] * nyquist);

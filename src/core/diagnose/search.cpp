@@ -377,6 +377,21 @@ Scored Search::run(const Job& job) const {
     TransformKind kind = TransformKind::LowPass;
     for (const auto& tr : expr->signal().transforms)
       if (tr.free) kind = tr.kind;
+    if (kind == TransformKind::Step) {  // a threshold: scanned over the signal's quantiles
+      const std::vector<double> values = signal_values_sorted(expr->signal(), data);
+      if (values.empty() || !(values.back() > values.front())) return Scored{};
+      const double v = scan_threshold(values, [&](double x) {
+        ++fits;
+        return fit_rss(columns(*make_term(expr->with_parameters({x}))));
+      });
+      term = make_term(expr->with_parameters({v}));
+      const Eigen::MatrixXd cols = columns(*term);
+      Scored s = score(cols, slow_ok);
+      s.term = term;
+      if (!(cols.array().isFinite().any())) s.ok = false;
+      s.fits = fits + 1;
+      return s;
+    }
     const SignalRange range =
         in_signal_units(kind) ? signal_range(expr->signal(), data) : SignalRange{};
     std::vector<double> grid = parameter_grid(kind, dt, span, range.hi - range.lo, range.lo);

@@ -70,6 +70,10 @@ std::string remainder_description(const Diagnosis& dx) {
   o << "the held-out residual is " << f.residual_std_nT << " nT, " << f.residual_std_nT - f.floor_nT
     << " nT above a noise floor of " << f.floor_nT << " nT (its spectrum's white level above "
     << std::setprecision(1) << f.band_lo_hz << " Hz)";
+  if (!f.floor_channel.empty()) {
+    o << std::setprecision(2) << ", a level that follows " << f.floor_channel
+      << " (rank correlation " << f.floor_correlation << "): not the sensor's noise alone";
+  }
   const bool predictable = x.computed && !x.within_noise;
   if (predictable) {
     std::vector<std::string> chans;
@@ -132,6 +136,19 @@ std::string verdict_of(const Diagnosis& dx, double resolution_nT) {
     return buf;
   }
   const ResidualFloor& f = dx.floor;
+  if (f.computed && !f.floor_channel.empty() &&
+      f.residual_std_nT <=
+          f.floor_nT + std::max(resolution_nT, (kCompleteWithinFloor - 1) * f.floor_nT)) {
+    // At its high-frequency level, but that level follows the aircraft: not the sensor's noise.
+    std::snprintf(buf, sizeof(buf),
+                  "structure remains: the held-out residual (%.3f nT) is near its spectrum's "
+                  "white level above %.1f Hz (%.3f nT), but that level follows %s (rank "
+                  "correlation %.2f over %d segments): an effect of the aircraft (a relay "
+                  "chattering on its channel's noise, a vibration), not the sensor's noise",
+                  f.residual_std_nT, f.band_lo_hz, f.floor_nT, f.floor_channel.c_str(),
+                  f.floor_correlation, f.segments);
+    return buf;
+  }
   if (f.computed) {
     if (f.residual_std_nT <= kCompleteWithinFloor * f.floor_nT) {
       std::snprintf(buf, sizeof(buf),

@@ -94,6 +94,23 @@ Eigen::VectorXd RidgeProfile::solve(const Eigen::MatrixXd& cand, double* rss) co
   return c;
 }
 
+std::vector<double> signal_values_sorted(const SignalExpr& signal, const FlightData& data) {
+  Eigen::VectorXd v = Eigen::VectorXd::Ones(data.size());
+  bool any = false;
+  for (const auto& name : signal.sources) {
+    if (!data.has(name)) continue;
+    v.array() *= data.column(name).array();
+    any = true;
+  }
+  std::vector<double> x;
+  if (!any) return x;
+  for (Eigen::Index i = 0; i < v.size(); ++i)
+    if (std::isfinite(v[i])) x.push_back(v[i]);
+  if (x.size() < 20) return {};
+  std::sort(x.begin(), x.end());
+  return x;
+}
+
 SignalRange signal_range(const SignalExpr& signal, const FlightData& data) {
   Eigen::VectorXd v = Eigen::VectorXd::Ones(data.size());
   bool any = false;
@@ -236,6 +253,64 @@ double scan_parameter(TransformKind kind, const std::vector<double>& grid,
   return best_x;
 }
 
+double scan_threshold(const std::vector<double>& sorted_values,
+                      const std::function<double(double)>& objective, double* best_out) {
+  if (sorted_values.empty()) throw Error("threshold scan: no value of the signal");
+  const double last = static_cast<double>(sorted_values.size() - 1);
+  const auto at = [&](double p) {  // the quantile at level p, interpolated between samples
+    const double u = std::clamp(p, 0.0, 1.0) * last;
+    const auto k = static_cast<size_t>(std::floor(u));
+    const size_t k1 = std::min(k + 1, sorted_values.size() - 1);
+    return sorted_values[k] + (u - static_cast<double>(k)) * (sorted_values[k1] - sorted_values[k]);
+  };
+  std::vector<double> levels = {0.02};
+  for (int k = 1; k <= 19; ++k) levels.push_back(0.05 * k);
+  levels.push_back(0.98);
+  size_t k = 0;
+  double best = std::numeric_limits<double>::infinity();
+  for (size_t i = 0; i < levels.size(); ++i) {
+    const double f = objective(at(levels[i]));
+    if (f < best) {
+      best = f;
+      k = i;
+    }
+  }
+  double best_x = at(levels[k]);
+  double lo = levels[k > 0 ? k - 1 : 0], hi = levels[std::min(k + 1, levels.size() - 1)];
+  const double phi = 0.5 * (std::sqrt(5.0) - 1.0);
+  double p1 = hi - phi * (hi - lo), p2 = lo + phi * (hi - lo);
+  double f1 = objective(at(p1)), f2 = objective(at(p2));
+  // Down to a level of 1e-5: one sample in 100000 on the wrong side.
+  for (int it = 0; it < 24 && hi - lo > 1e-5; ++it) {
+    if (f1 < f2) {
+      hi = p2;
+      p2 = p1;
+      f2 = f1;
+      p1 = hi - phi * (hi - lo);
+      f1 = objective(at(p1));
+    } else {
+      lo = p1;
+      p1 = p2;
+      f1 = f2;
+      p2 = lo + phi * (hi - lo);
+      f2 = objective(at(p2));
+    }
+  }
+  for (const double x : {round3(at(0.5 * (lo + hi))), round3(best_x)}) {
+    const double f = objective(x);
+    if (f <= best) {
+      best = f;
+      best_x = x;
+    }
+  }
+  if (round3(best_x) != best_x) {
+    best_x = round3(best_x);
+    best = objective(best_x);
+  }
+  if (best_out) *best_out = best;
+  return best_x;
+}
+
 namespace {
 
 struct FreeRef {
@@ -341,6 +416,25 @@ std::vector<std::string> estimate_free_parameters(Model& model,
         return std::isfinite(rss) ? rss : std::numeric_limits<double>::infinity();
       };
       const ExprTerm* expr = free_terms[t].get();
+      if (refs[i].kind == TransformKind::Step) {
+        const std::vector<double> values =
+            expr && !flights.empty() ? signal_values_sorted(expr->signal(), *flights.front())
+                                     : std::vector<double>{};
+        if (values.empty() || !(values.back() > values.front()))
+          throw Error("fit: '" + model.terms[t].text() +
+                      "': no values of the signal to scan its threshold over");
+        value[i] = scan_threshold(values, objective);
+        if (sweep == sweeps - 1) {
+          char buf[256];
+          std::snprintf(buf, sizeof(buf),
+                        "'%s': %s estimated %.3g (scanned its quantiles %.3g to %.3g)",
+                        model.terms[t].text().c_str(),
+                        Transform{refs[i].kind, 0.0, false}.param_meaning().c_str(), value[i],
+                        values[values.size() / 50], values[values.size() - 1 - values.size() / 50]);
+          lines.push_back(buf);
+        }
+        continue;
+      }
       const SignalRange range = in_signal_units(refs[i].kind) && expr && !flights.empty()
                                     ? signal_range(expr->signal(), *flights.front())
                                     : SignalRange{};

@@ -24,6 +24,13 @@ struct ResidualFloor {
   std::string amplitude_channel;
   double amplitude_correlation = 0.0;
   int amplitude_windows = 0;  ///< windows the correlation was taken over
+  /// The channel whose mean over each spectral segment best ranks that segment's level above
+  /// band_lo_hz (Spearman), when the correlation is significant over every channel tested (4
+  /// sigma of the half-overlapping segments' effective count, and at least 0.3): the floor then
+  /// follows a state or a motion of the aircraft, so it is an effect (a relay chattering on its
+  /// channel's noise, a vibration), not the sensor's white noise. Empty otherwise.
+  std::string floor_channel;
+  double floor_correlation = 0.0;
 };
 
 /// Inputs: the residual (N, NaN where not held out), each sample's held-out unit (-1: not held

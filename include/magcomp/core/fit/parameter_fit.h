@@ -57,7 +57,9 @@ class RidgeProfile {
 /// lasting span_s (time constants on a geometric grid, delays on a uniform one). The parameters
 /// in the signal's unit are scanned over its range (signal_lo, signal_lo + signal_scale): a
 /// play(?) half-width over 2 % to 50 % of the spread, a sat(?) level over 0.1 to 3 times the
-/// largest |value|, a step(?) threshold over the range's 5 % to 95 % (steps of 5 %).
+/// largest |value|, a ramp(?) hinge (or a step(?) threshold) over the range's 5 % to 95 % (steps
+/// of 5 %); calibrate and diagnose scan a step's threshold over the signal's quantiles instead
+/// (scan_threshold()).
 std::vector<double> parameter_grid(TransformKind kind, double dt_s, double span_s,
                                    double signal_scale = 0.0, double signal_lo = 0.0);
 
@@ -78,6 +80,20 @@ double signal_scale(const SignalExpr& signal, const FlightData& data);
 /// neighbours (in log space for time constants). Returns the minimiser rounded to 3 significant
 /// digits and the objective there in *best.
 double scan_parameter(TransformKind kind, const std::vector<double>& grid,
+                      const std::function<double(double)>& objective, double* best = nullptr);
+
+/// The finite values of a signal's sources on a flight (their product), sorted; empty when fewer
+/// than 20. A step's threshold is scanned over them (scan_threshold()).
+std::vector<double> signal_values_sorted(const SignalExpr& signal, const FlightData& data);
+
+/// Minimises objective(threshold) over the signal's quantiles (sorted_values, in the signal's
+/// unit): a grid of quantile levels from 2 % to 98 %, then golden section in the quantile level
+/// between the best level's neighbours. A switched load's error changes with every sample on the
+/// wrong side of its threshold, so the threshold is sought where the samples are: a relay whose
+/// control sits in the noise of an idle channel is found to the sample, not skipped by an even
+/// grid over the channel's range. Returns the threshold rounded to 3 significant digits and the
+/// objective there in *best. Throws magcomp::Error when sorted_values is empty.
+double scan_threshold(const std::vector<double>& sorted_values,
                       const std::function<double(double)>& objective, double* best = nullptr);
 
 /// Estimates every free parameter ('?') of the model's terms by profile least squares on the fit
