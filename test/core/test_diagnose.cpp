@@ -292,7 +292,7 @@ TEST(Diagnose, NothingIsAcceptedWhereNothingIsHiddenAndTheRestIsWithinNoise) {
   }
 }
 
-TEST(Diagnose, ASwitchedLoadIsFoundAsAStepOfTheBusCurrent) {
+TEST(DiagnoseLong, ASwitchedLoadIsFoundAsAStepOfTheBusCurrent) {
   // A device switched on while the bus current cur_acpwr is above 21 A: a threshold the search
   // writes as field:cur_acpwr|step(?), its level fitted like every '?'. Adding it removes the
   // excess down to what the truth gives.

@@ -100,7 +100,7 @@ TEST(Discovery, ATermLeavesOnlyWhenLaterTermsMakeItRedundant) {
   EXPECT_TRUE(d.near_oracle()) << d.loop_next_nT << " against " << d.oracle_next_nT;
 }
 
-TEST(Discovery, ASlowHeaterIsSizedByTheSlowStageAndCarriesOver) {
+TEST(DiscoveryLong, ASlowHeaterIsSizedByTheSlowStageAndCarriesOver) {
   // Run 15: the fuel pump's current heats a part (|I| through a 171 s lag). On the calibration
   // maneuvers its band-pass content is noise: the loop adds it as a slow term (fitted against
   // mag_1_c on the same segments, unfiltered) and the next flight falls to the oracle's reach.
