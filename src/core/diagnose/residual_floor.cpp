@@ -6,7 +6,10 @@
 #include <complex>
 #include <numeric>
 #include <set>
+#include <string>
+#include <tuple>
 #include <unsupported/Eigen/FFT>
+#include <utility>
 
 #include "magcomp/core/math/constants.h"
 
@@ -66,6 +69,32 @@ double pearson(const std::vector<double>& a, const std::vector<double>& b) {
   return saa > 0 && sbb > 0 ? sab / std::sqrt(saa * sbb) : 0.0;
 }
 
+// The channel whose mean over each window (first sample, length) best ranks `levels` (Spearman),
+// when |rho| reaches `threshold`; position channels left out. Empty name and 0 otherwise.
+std::pair<std::string, double> channel_ranking(
+    const std::vector<double>& levels,
+    const std::vector<std::pair<Eigen::Index, Eigen::Index>>& windows,
+    const std::vector<std::pair<std::string, Eigen::Map<const Eigen::VectorXd>>>& channels,
+    double threshold) {
+  std::pair<std::string, double> best{"", 0.0};
+  const std::vector<double> lv = ranks(levels);
+  for (const auto& [name, values] : channels) {
+    if (is_position_channel(name)) continue;
+    std::vector<double> m;
+    m.reserve(windows.size());
+    bool finite = true;
+    for (const auto& [s, len] : windows) {
+      const double v = values.segment(s, len).mean();
+      finite = finite && std::isfinite(v);
+      m.push_back(v);
+    }
+    if (!finite) continue;
+    const double rho = pearson(lv, ranks(m));
+    if (std::abs(rho) >= threshold && std::abs(rho) > std::abs(best.second)) best = {name, rho};
+  }
+  return best;
+}
+
 }  // namespace
 
 ResidualFloor residual_floor(
@@ -109,7 +138,7 @@ ResidualFloor residual_floor(
   for (size_t j = 0; j < r; ++j) median_mean += 1.0 / static_cast<double>(nb - j);
   Eigen::FFT<double> fft;
   std::vector<double> seg(kSegment), band(nb), levels;
-  std::vector<Eigen::Index> starts;  // each segment's first sample
+  std::vector<std::pair<Eigen::Index, Eigen::Index>> segments;  // first sample, length
   std::vector<std::complex<double>> spec;
   Eigen::VectorXd x(kSegment), tk(kSegment);
   for (int k = 0; k < kSegment; ++k) tk[k] = k - 0.5 * (kSegment - 1);
@@ -125,7 +154,7 @@ ResidualFloor residual_floor(
         band[q] = 2.0 * std::norm(spec[static_cast<size_t>(bins[q])]) / (sample_rate_hz * w2);
       std::nth_element(band.begin(), band.begin() + static_cast<long>(nb / 2), band.end());
       levels.push_back(band[nb / 2] / median_mean);
-      starts.push_back(s);
+      segments.emplace_back(s, kSegment);
       ++out.segments;
     }
   }
@@ -133,25 +162,8 @@ ResidualFloor residual_floor(
   // Whether the segments' levels follow a channel: half-overlapping segments count half.
   const double effective = 0.5 * static_cast<double>(levels.size());
   if (effective >= 12) {
-    const std::vector<double> lv = ranks(levels);
-    const double threshold = std::max(kMinRankCorr, 4.0 / std::sqrt(effective - 1));
-    for (const auto& [name, values] : channels) {
-      if (is_position_channel(name)) continue;
-      std::vector<double> m;
-      m.reserve(starts.size());
-      bool finite = true;
-      for (const Eigen::Index s : starts) {
-        const double v = values.segment(s, kSegment).mean();
-        finite = finite && std::isfinite(v);
-        m.push_back(v);
-      }
-      if (!finite) continue;
-      const double rho = pearson(lv, ranks(m));
-      if (std::abs(rho) >= threshold && std::abs(rho) > std::abs(out.floor_correlation)) {
-        out.floor_channel = name;
-        out.floor_correlation = rho;
-      }
-    }
+    std::tie(out.floor_channel, out.floor_correlation) = channel_ranking(
+        levels, segments, channels, std::max(kMinRankCorr, 4.0 / std::sqrt(effective - 1)));
   }
   std::nth_element(levels.begin(), levels.begin() + static_cast<long>(levels.size() / 2),
                    levels.end());
@@ -171,27 +183,10 @@ ResidualFloor residual_floor(
   }
   out.amplitude_windows = static_cast<int>(windows.size());
   if (windows.size() < 12) return out;
-  const std::vector<double> rv = ranks(local_var);
   // Significant: beyond 3 sigma of no correlation, and at least kMinRankCorr.
-  const double threshold =
-      std::max(kMinRankCorr, 3.0 / std::sqrt(static_cast<double>(windows.size()) - 1));
-  for (const auto& [name, values] : channels) {
-    if (is_position_channel(name)) continue;
-    std::vector<double> m;
-    m.reserve(windows.size());
-    bool finite = true;
-    for (const auto& [s, len] : windows) {
-      const double v = values.segment(s, len).mean();
-      finite = finite && std::isfinite(v);
-      m.push_back(v);
-    }
-    if (!finite) continue;
-    const double rho = pearson(rv, ranks(m));
-    if (std::abs(rho) >= threshold && std::abs(rho) > std::abs(out.amplitude_correlation)) {
-      out.amplitude_channel = name;
-      out.amplitude_correlation = rho;
-    }
-  }
+  std::tie(out.amplitude_channel, out.amplitude_correlation) = channel_ranking(
+      local_var, windows, channels,
+      std::max(kMinRankCorr, 3.0 / std::sqrt(static_cast<double>(windows.size()) - 1)));
   return out;
 }
 

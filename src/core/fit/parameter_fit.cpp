@@ -195,6 +195,31 @@ double round3(double v) {
 bool logarithmic(TransformKind k) {
   return k == TransformKind::LowPass || k == TransformKind::HighPass || k == TransformKind::Decay;
 }
+// Golden-section search for a minimum of f between lo and hi: at most `iterations` steps, while
+// the bracket is wider than tolerance x max(1, |hi|) (in f's argument). Returns the bracket's
+// midpoint.
+double golden_section(double lo, double hi, int iterations, double tolerance,
+                      const std::function<double(double)>& f) {
+  const double phi = 0.5 * (std::sqrt(5.0) - 1.0);
+  double x1 = hi - phi * (hi - lo), x2 = lo + phi * (hi - lo);
+  double f1 = f(x1), f2 = f(x2);
+  for (int it = 0; it < iterations && hi - lo > tolerance * std::max(1.0, std::abs(hi)); ++it) {
+    if (f1 < f2) {
+      hi = x2;
+      x2 = x1;
+      f2 = f1;
+      x1 = hi - phi * (hi - lo);
+      f1 = f(x1);
+    } else {
+      lo = x1;
+      x1 = x2;
+      f1 = f2;
+      x2 = lo + phi * (hi - lo);
+      f2 = f(x2);
+    }
+  }
+  return 0.5 * (lo + hi);
+}
 }  // namespace
 
 double scan_parameter(TransformKind kind, const std::vector<double>& grid,
@@ -215,29 +240,12 @@ double scan_parameter(TransformKind kind, const std::vector<double>& grid,
     const bool lg = logarithmic(kind);
     auto to = [&](double v) { return lg ? std::log(v) : v; };
     auto from = [&](double u) { return lg ? std::exp(u) : u; };
-    double lo = to(grid[k > 0 ? k - 1 : 0]), hi = to(grid[std::min(k + 1, grid.size() - 1)]);
-    const double phi = 0.5 * (std::sqrt(5.0) - 1.0);
-    double x1 = hi - phi * (hi - lo), x2 = lo + phi * (hi - lo);
-    double f1 = objective(from(x1)), f2 = objective(from(x2));
     // A saturation level needs no more than 12 golden steps from its grid (a step's threshold
     // does: a switched load's error grows with every sample on the wrong side).
-    const int iterations = kind == TransformKind::Saturate ? 12 : 24;
-    for (int it = 0; it < iterations && hi - lo > 1e-4 * std::max(1.0, std::abs(hi)); ++it) {
-      if (f1 < f2) {
-        hi = x2;
-        x2 = x1;
-        f2 = f1;
-        x1 = hi - phi * (hi - lo);
-        f1 = objective(from(x1));
-      } else {
-        lo = x1;
-        x1 = x2;
-        f1 = f2;
-        x2 = lo + phi * (hi - lo);
-        f2 = objective(from(x2));
-      }
-    }
-    const double x = from(0.5 * (lo + hi));
+    const double x =
+        from(golden_section(to(grid[k > 0 ? k - 1 : 0]), to(grid[std::min(k + 1, grid.size() - 1)]),
+                            kind == TransformKind::Saturate ? 12 : 24, 1e-4,
+                            [&](double u) { return objective(from(u)); }));
     const double r = round3(x);
     const double fr = objective(r);
     if (fr <= best) {
@@ -276,27 +284,11 @@ double scan_threshold(const std::vector<double>& sorted_values,
     }
   }
   double best_x = at(levels[k]);
-  double lo = levels[k > 0 ? k - 1 : 0], hi = levels[std::min(k + 1, levels.size() - 1)];
-  const double phi = 0.5 * (std::sqrt(5.0) - 1.0);
-  double p1 = hi - phi * (hi - lo), p2 = lo + phi * (hi - lo);
-  double f1 = objective(at(p1)), f2 = objective(at(p2));
   // Down to a level of 1e-5: one sample in 100000 on the wrong side.
-  for (int it = 0; it < 24 && hi - lo > 1e-5; ++it) {
-    if (f1 < f2) {
-      hi = p2;
-      p2 = p1;
-      f2 = f1;
-      p1 = hi - phi * (hi - lo);
-      f1 = objective(at(p1));
-    } else {
-      lo = p1;
-      p1 = p2;
-      f1 = f2;
-      p2 = lo + phi * (hi - lo);
-      f2 = objective(at(p2));
-    }
-  }
-  for (const double x : {round3(at(0.5 * (lo + hi))), round3(best_x)}) {
+  const double level =
+      golden_section(levels[k > 0 ? k - 1 : 0], levels[std::min(k + 1, levels.size() - 1)], 24,
+                     1e-5, [&](double p) { return objective(at(p)); });
+  for (const double x : {round3(at(level)), round3(best_x)}) {
     const double f = objective(x);
     if (f <= best) {
       best = f;
