@@ -112,22 +112,10 @@ std::vector<double> signal_values_sorted(const SignalExpr& signal, const FlightD
 }
 
 SignalRange signal_range(const SignalExpr& signal, const FlightData& data) {
-  Eigen::VectorXd v = Eigen::VectorXd::Ones(data.size());
-  bool any = false;
-  for (const auto& name : signal.sources) {
-    if (!data.has(name)) continue;
-    v.array() *= data.column(name).array();
-    any = true;
-  }
-  if (!any) return {};
-  std::vector<double> x;
-  for (Eigen::Index i = 0; i < v.size(); ++i)
-    if (std::isfinite(v[i])) x.push_back(v[i]);
-  if (x.size() < 20) return {};
+  const std::vector<double> x = signal_values_sorted(signal, data);
+  if (x.empty()) return {};
   const auto at = [&](double q) {
-    const auto k = static_cast<long>(q * static_cast<double>(x.size() - 1));
-    std::nth_element(x.begin(), x.begin() + k, x.end());
-    return x[static_cast<size_t>(k)];
+    return x[static_cast<size_t>(q * static_cast<double>(x.size() - 1))];
   };
   const double lo = at(0.05), hi = at(0.95);
   return hi > lo ? SignalRange{lo, hi} : SignalRange{};
