@@ -52,25 +52,35 @@ void judge_and_rank(const Search& search, const DiagnoseOptions& options,
                      if (a.accepted != b.accepted) return a.accepted;
                      return a.ranking_share > b.ranking_share;
                    });
-  if (candidates->empty() || !candidates->front().accepted) return;
-  put_simplest_first(candidates, [](const Candidate& lead, const Candidate& c) {
-    return c.accepted && c.ranking_share >= lead.ranking_share - 0.01;
-  });
+  if (candidates->empty()) return;
+  const bool none_accepted = !candidates->front().accepted;
+  if (!none_accepted) {
+    put_simplest_first(candidates, [](const Candidate& lead, const Candidate& c) {
+      return c.accepted && c.ranking_share >= lead.ranking_share - 0.01;
+    });
+  }
   // The confirmation lines choose too. An effect that lives in a few lines (a current switched
   // on in some of them) may barely show on the selection lines, where a look-alike ranks first.
   // The best candidate on the confirmation lines -- lowering their error by the resolution, the
   // selection lines' by at least accept_fraction of the variance, and all held-out lines' by
   // the resolution -- takes the place of the selection lines' choice when it leaves a held-out
   // error lower by the resolution: either way a term is chosen on one half and confirmed on the
-  // other, and a term replaces one, never adds one where the selection lines accept none.
+  // other. Where the selection lines accept none, only a term the slow stage sizes on the
+  // held-out lines too is so chosen: a drift or a heater moves where its channel steps, a few
+  // times a flight and mostly in the turns between the lines, so that one half may hold most of
+  // it; cross-fitted, each half's gain is read with the size from the other half's lines, so the
+  // half that holds it confirms a size it was not fitted on. Sized on the calibration rows
+  // alone, where such a channel barely moves, its size does not carry over; a faster effect is
+  // on every piece of every line, and a half it barely lowers speaks against it.
   const Candidate& lead = candidates->front();
   // A lag ranked with the channel term whose timing it explains is worth that pair, which its
   // own held-out error does not show: it keeps its place.
-  if (lead.ranking_share > lead.explained_selection) return;
+  if (!none_accepted && lead.ranking_share > lead.explained_selection) return;
   size_t pick = candidates->size();
   for (size_t k = 0; k < candidates->size(); ++k) {
     const Candidate& c = (*candidates)[k];
     if (!passes(c, 1) || search.base_std[2] - c.std_after_nT < options.resolution_nT) continue;
+    if (none_accepted && !(c.slow && search.slow_cross_fitted())) continue;
     // Best on the confirmation lines; within one percentage point, the simplest.
     const Candidate* p = pick < candidates->size() ? &(*candidates)[pick] : nullptr;
     if (!p || c.explained_confirmation > p->explained_confirmation + 0.01 ||
@@ -78,8 +88,9 @@ void judge_and_rank(const Search& search, const DiagnoseOptions& options,
          term_complexity(c.term) < term_complexity(p->term)))
       pick = k;
   }
-  if (pick == 0 || pick == candidates->size() ||
-      !((*candidates)[pick].std_after_nT <= lead.std_after_nT - options.resolution_nT))
+  if (pick == candidates->size()) return;
+  if (!none_accepted && (pick == 0 || !((*candidates)[pick].std_after_nT <=
+                                        lead.std_after_nT - options.resolution_nT)))
     return;
   (*candidates)[pick].accepted = true;
   (*candidates)[pick].chosen_on_confirmation = true;

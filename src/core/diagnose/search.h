@@ -113,6 +113,9 @@ class Search {
   double slow_rss(const Eigen::MatrixXd& cols) const;
   // Whether the slow stage exists here: a band-pass fit on this flight's calibration segments.
   bool has_slow_stage() const { return slow_stage != nullptr; }
+  // Whether slow candidates are sized on the held-out lines too, cross-fitted: each half's
+  // error read with the size from the calibration rows and the other half's lines.
+  bool slow_cross_fitted() const { return slow_cross[0] != nullptr; }
   // Each column's mean over the held-out rows (its finite values; 0 where it has none), in the
   // columns' units.
   Eigen::RowVectorXd held_mean(const Eigen::MatrixXd& cols) const;
