@@ -12,6 +12,7 @@
 #include <cstdio>
 #include <set>
 
+#include "../../src/core/diagnose/loop_round.h"
 #include "../../src/core/diagnose/loop_steps.h"
 #include "discovery_run.h"
 #include "magcomp/core/diagnose/diagnose.h"
@@ -376,6 +377,34 @@ TEST(Discovery, ADriftThatMovesBetweenTheLinesIsChosenOnTheLinesThatShowIt) {
   const double with_next = evaluate_model(with, fb.flight, "mag_1_c", false).std_nT;
   std::printf("  next flight: TL %.3f nT, with the term %.3f nT\n", tl_next, with_next);
   EXPECT_LT(with_next, 0.5 * tl_next);
+}
+
+TEST(Discovery, ARoundTriesOneTermOfEachChannel) {
+  // Run 12, third aircraft (a 77.5 s drift of vol_block): after the ridge, three forms of the
+  // strobe current's heater rank first, and each raises the error on the calibration rows four-
+  // to fivefold; tried in rank order, they were the round's three tries and the loop kept TL,
+  // 0.508 nT on the next flight against the oracle's 0.167 (scripts/bench_discovery 1 12
+  // half-several draws=3). The tries take the best form of each set of channels: the next one is
+  // a voltage's slow term, kept, 0.207 nT there.
+  const auto e = [](const char* t) { return loop_steps::Eligible{TermSpec(t), false, 0.3, NAN}; };
+  const std::vector<loop_steps::Eligible> eligible = {e("field:cur_strb|lp(39.8)"),
+                                                      e("field:cur_strb|pow(2)|lp(39.9)|sat(5.32)"),
+                                                      e("field:cur_strb|pow(2)|lp(39.9)"),
+                                                      e("scalar:vol_acpwr|lp(173)|sat(80.5)"),
+                                                      e("scalar:vol_acpwr|lp(173)"),
+                                                      e("lag:0.3"),
+                                                      e("lag:0.25"),
+                                                      e("field:cur_strb*vol_acpwr")};
+  EXPECT_EQ(loop_steps::single_tries(eligible), (std::vector<size_t>{0, 3, 5}));
+  // A lag reads no channel: each is its own try; a product is its own set of channels.
+  const std::vector<loop_steps::Eligible> lags = {
+      e("lag:0.3"), e("lag:0.25"), e("field:cur_strb|lp(39.8)"), e("field:cur_strb*vol_acpwr")};
+  EXPECT_EQ(loop_steps::single_tries(lags), (std::vector<size_t>{0, 1, 2}));
+  const std::vector<loop_steps::Eligible> products = {e("field:cur_strb|lp(39.8)"),
+                                                      e("field:cur_strb*vol_acpwr"),
+                                                      e("field:vol_acpwr*cur_strb|lp(2)")};
+  EXPECT_EQ(loop_steps::single_tries(products), (std::vector<size_t>{0, 1}));
+  EXPECT_TRUE(loop_steps::single_tries({}).empty());
 }
 
 TEST(Discovery, AValidationFlightKeepsOutAStandInThatDoesNotCarryOver) {

@@ -31,7 +31,22 @@ std::vector<std::string> step_terms(const std::string& added) {
     from = to + 3;
   }
 }
+
 }  // namespace
+
+// The variants of one channel's term (lp(39.8), pow(2)|lp(39.9), ...) rank together and stand or
+// fall together: a term whose size does not hold on the calibration rows fails there in each of
+// its forms, and the next channel's term is the next try.
+std::vector<size_t> single_tries(const std::vector<Eligible>& eligible) {
+  std::vector<size_t> out;
+  std::set<std::set<std::string>> seen;
+  for (size_t k = 0; k < eligible.size() && out.size() < kTriesPerRound; ++k) {
+    const std::set<std::string> f = fields_of(eligible[k].term);
+    if (!f.empty() && !seen.insert(f).second) continue;
+    out.push_back(k);
+  }
+  return out;
+}
 
 bool Round::try_model(Model next, const std::string& added, double explained, bool black_box) {
   next.coefficients.resize(0);
@@ -110,7 +125,7 @@ void Round::keep_together(std::pair<Model, LoopRound> fitted, const std::vector<
 }
 
 double Round::first_single_nT(const std::vector<Eligible>& eligible) const {
-  for (size_t k = 0; k < eligible.size() && k < kTriesPerRound; ++k) {
+  for (size_t k : single_tries(eligible)) {
     Model next = r_->model;
     add_candidate_term(eligible[k].term, eligible[k].slow, c_.truth, &next);
     const LoopRound lr = fit_score(std::move(next)).second;
@@ -210,7 +225,7 @@ bool Round::lag_with_partner(const std::vector<Diagnosis>& dxs,
 }
 
 bool Round::first_single(const std::vector<Eligible>& eligible) {
-  for (size_t k = 0; k < eligible.size() && k < kTriesPerRound; ++k) {
+  for (size_t k : single_tries(eligible)) {
     const Model before = r_->model;
     Model next = before;
     add_candidate_term(eligible[k].term, eligible[k].slow, c_.truth, &next);

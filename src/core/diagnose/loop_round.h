@@ -21,6 +21,10 @@ namespace magcomp::loop_steps {
 constexpr size_t kTriesPerRound = 3;
 /// Exchanges (Round::exchange) made at most over one loop.
 constexpr int kExchanges = 3;
+/// The indices of the eligible candidates a round tries alone, in rank order: at most
+/// kTriesPerRound, the best ranked of each set of recorded channels (a lag, reading none, is
+/// always its own).
+std::vector<size_t> single_tries(const std::vector<Eligible>& eligible);
 /// Eligible candidates (in rank order, after the kept one) tried as look-alikes of a kept term.
 constexpr size_t kLookAlikeTries = 6;
 
@@ -55,8 +59,9 @@ class Round {
   // lowers the held-out error below the first single term that passes by the same. Over several
   // flights, the best such set.
   bool joint_set(const std::vector<Diagnosis>& dxs, const std::vector<Eligible>& eligible);
-  // The eligible candidates in rank order (at most kTriesPerRound): the first that passes every
-  // check is kept, with its look-alikes (look_alikes()).
+  // The eligible candidates in rank order (at most kTriesPerRound, the best ranked of each set
+  // of channels): the first that passes every check is kept, with its look-alikes
+  // (look_alikes()).
   bool first_single(const std::vector<Eligible>& eligible);
   // Effects that act together: when no term passes alone while the residual stays predictable,
   // pairs of terms of distinct channels, fitted together; the best pair by held-out error that
@@ -94,7 +99,7 @@ class Round {
   // Keeps terms fitted together as this round, with each one's held-out error alone (nT).
   void keep_together(std::pair<Model, LoopRound> fitted, const std::vector<std::string>& terms,
                      const std::vector<double>& alone_nT);
-  // The held-out error of the first of the eligible candidates (at most kTriesPerRound) that
+  // The held-out error of the first of the eligible candidates (as first_single tries them) that
   // passes refusal() alone, nT; infinity when none does.
   double first_single_nT(const std::vector<Eligible>& eligible) const;
   // After eligible[kept] was kept in place of `before`: of the eligible terms of the same
