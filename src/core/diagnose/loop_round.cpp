@@ -31,7 +31,6 @@ std::vector<std::string> step_terms(const std::string& added) {
     from = to + 3;
   }
 }
-
 }  // namespace
 
 // The variants of one channel's term (lp(39.8), pow(2)|lp(39.9), ...) rank together and stand or

@@ -21,12 +21,13 @@ namespace magcomp::loop_steps {
 constexpr size_t kTriesPerRound = 3;
 /// Exchanges (Round::exchange) made at most over one loop.
 constexpr int kExchanges = 3;
+/// Eligible candidates (in rank order, after the kept one) tried as look-alikes of a kept term.
+constexpr size_t kLookAlikeTries = 6;
+
 /// The indices of the eligible candidates a round tries alone, in rank order: at most
 /// kTriesPerRound, the best ranked of each set of recorded channels (a lag, reading none, is
 /// always its own).
 std::vector<size_t> single_tries(const std::vector<Eligible>& eligible);
-/// Eligible candidates (in rank order, after the kept one) tried as look-alikes of a kept term.
-constexpr size_t kLookAlikeTries = 6;
 
 // What every step of a round reads: the loop's start model, its flights and their held-out
 // halves, the validation flight (or nullptr) and the options.
