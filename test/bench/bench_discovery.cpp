@@ -15,18 +15,19 @@
 // Usage: magcomp_bench_discovery SCENARIO.yaml TL_MODEL.yaml [runs] [first_seed] [options]
 // options: one-at-a-time (no pairs, no backward pass); choose-lambda (each round first chooses
 // fit.lambda on the held-out lines); no-span-ridge (a term within the model's span is added as
-// any other, without the ridge step first); no-joint (no set of terms chosen together,
-// Diagnosis::joint); no-calibration-check (no step refused for raising the error on the
-// calibration rows); no-exchange (a kept term is never replaced by what the model without it
-// ranks first, DiagnoseOptions::exchange_terms); slow-on-calibration (a slow term sized on the
-// calibration rows alone, not on the held-out lines too); states (the aircraft's non-electrical
-// states recorded, and effects of a switched current times one of them drawn among the others);
-// half-several (runs alternate one effect and two or three, instead of 60 % one, 30 % two, 10 %
-// three); draws=N (each run on N aircraft: the same effects, other aircraft and flights); verbose
-// (each run's rounds with their held-out errors and look-alikes); validate (the loop learns from
-// the first flight with a second flight of the aircraft as its validation flight); two-flights (the
-// loop, TL and the references learn from both flights together). Every mode is scored on the same
-// next flight.
+// any other, without the ridge step first); span-terms (a term within the model's span may be
+// added once the ridge step is refused, DiagnoseOptions::refuse_within_span_terms false); no-joint
+// (no set of terms chosen together, Diagnosis::joint); no-calibration-check (no step refused for
+// raising the error on the calibration rows); no-exchange (a kept term is never replaced by what
+// the model without it ranks first, DiagnoseOptions::exchange_terms); slow-on-calibration (a slow
+// term sized on the calibration rows alone, not on the held-out lines too); states (the aircraft's
+// non-electrical states recorded, and effects of a switched current times one of them drawn among
+// the others); half-several (runs alternate one effect and two or three, instead of 60 % one, 30 %
+// two, 10 % three); draws=N (each run on N aircraft: the same effects, other aircraft and flights);
+// verbose (each run's rounds with their held-out errors and look-alikes); validate (the loop learns
+// from the first flight with a second flight of the aircraft as its validation flight); two-flights
+// (the loop, TL and the references learn from both flights together). Every mode is scored on the
+// same next flight.
 #include <array>
 #include <chrono>
 #include <cstdio>
@@ -59,6 +60,8 @@ int main(int argc, char** argv) {
         options.choose_lambda = true;
       } else if (opt == "no-span-ridge") {
         options.ridge_for_span_terms = false;
+      } else if (opt == "span-terms") {
+        options.refuse_within_span_terms = false;
       } else if (opt == "no-joint") {
         options.joint_selection = false;
       } else if (opt == "no-calibration-check") {
@@ -80,12 +83,11 @@ int main(int argc, char** argv) {
       } else if (opt.rfind("draws=", 0) == 0 && std::atoi(opt.c_str() + 6) >= 1) {
         draws = static_cast<unsigned>(std::atoi(opt.c_str() + 6));
       } else {
-        std::fprintf(
-            stderr,
-            "error: option '%s': one-at-a-time, choose-lambda, no-span-ridge, no-joint, "
-            "no-calibration-check, no-exchange, slow-on-calibration, validate, two-flights, "
-            "states, half-several, verbose or draws=N\n",
-            opt.c_str());
+        std::fprintf(stderr,
+                     "error: option '%s': one-at-a-time, choose-lambda, no-span-ridge, span-terms, "
+                     "no-joint, no-calibration-check, no-exchange, slow-on-calibration, validate, "
+                     "two-flights, states, half-several, verbose or draws=N\n",
+                     opt.c_str());
         return 2;
       }
     }

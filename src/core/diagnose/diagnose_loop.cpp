@@ -119,12 +119,14 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
     // on the confirmation lines, where the error may lie). Over several flights: accepted so on
     // at least one of them (an effect one flight barely shows is another's to find), ranked as
     // the flights' diagnoses together rank it (merge_diagnoses).
-    std::vector<Eligible> eligible = eligible_candidates(dxs, min_share);
-    std::optional<Eligible> within_span;
+    const bool span_too = !options.refuse_within_span_terms;
+    std::vector<Eligible> eligible = eligible_candidates(dxs, min_share, true);
+    std::optional<Eligible> span_term;
     if (options.ridge_for_span_terms && !eligible.empty() &&
-        eligible.front().base_span_share >= loop_steps::kWithinSpanShare)
-      within_span = eligible.front();
-    if ((options.choose_lambda || within_span) && round <= max_rounds) {
+        loop_steps::within_span(eligible.front().base_span_share))
+      span_term = eligible.front();
+    if (!span_too) eligible = eligible_candidates(dxs, min_share, false);
+    if ((options.choose_lambda || span_term) && round <= max_rounds) {
       if (auto step = better_lambda(r.model, start.fit.lambda, r.rounds.back(), flights, truth,
                                     held_out, validation, options)) {
         LoopRound lr = std::move(step->second);
@@ -134,14 +136,14 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
         lr.added = added;
         lr.explained = variance_share(lr.heldout_std_nT, r.rounds.back().heldout_std_nT);
         lr.regularisation = true;
-        if (within_span) {
-          lr.in_place_of = within_span->term.text();
-          lr.in_place_of_span_share = within_span->base_span_share;
+        if (span_term) {
+          lr.in_place_of = span_term->term.text();
+          lr.in_place_of_span_share = span_term->base_span_share;
         }
         r.rounds.push_back(std::move(lr));
         r.model = std::move(step->first);
         diagnose_all();
-        eligible = eligible_candidates(dxs, min_share);
+        eligible = eligible_candidates(dxs, min_share, span_too);
       }
     }
     for (size_t f = 0; on_round && f < flights.size(); ++f) on_round(round, f, dxs[f]);
@@ -173,6 +175,18 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
       return kept;
     };
     loop_steps::Round step(context, round, &r);
+    // The terms within the model's own span ranked before the first the round may add: never
+    // added, each said so among the round's refusals.
+    for (const Eligible& e : eligible_candidates(dxs, min_share, true)) {
+      if (span_too || !loop_steps::within_span(e.base_span_share)) break;
+      char why[300];
+      std::snprintf(why, sizeof(why),
+                    "%.4f%% of its columns' energy on the fit rows lies within the model's own "
+                    "columns: its size there is the ridge's split of its channel's level, which "
+                    "another flight would read through it",
+                    100 * e.base_span_share);
+      step.refuse(e.term.text(), why);
+    }
     bool kept = attempt(step, eligible);
     if (!kept && lines_fallback && !round_options.slow_terms_on_lines && !lines.empty()) {
       // Nothing kept with slow terms sized on the calibration rows: the same round with them
@@ -185,7 +199,7 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
       r.model.fit.slow_lines = lines;
       diagnose_all();
       loop_steps::Round on_lines(context, round, &r);
-      kept = attempt(on_lines, eligible_candidates(dxs, min_share));
+      kept = attempt(on_lines, eligible_candidates(dxs, min_share, span_too));
       if (kept) {
         LoopRound& kept_round = r.rounds.back();
         kept_round.slow_on_lines = true;

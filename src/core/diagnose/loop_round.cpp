@@ -31,6 +31,15 @@ std::vector<std::string> step_terms(const std::string& added) {
     from = to + 3;
   }
 }
+
+// The share of `term`'s fit-row energy within the model's own span, as diagnosis `d` scored it
+// (Candidate::base_span_share); NAN when `d` has no such candidate.
+double span_share_in(const Diagnosis& d, const std::string& term) {
+  for (const Candidate& c : d.candidates)
+    if (c.term.text() == term) return c.base_span_share;
+  return NAN;
+}
+
 }  // namespace
 
 // The variants of one channel's term (lp(39.8), pow(2)|lp(39.9), ...) rank together and stand or
@@ -142,6 +151,10 @@ bool Round::joint_set(const std::vector<Diagnosis>& dxs, const std::vector<Eligi
   for (const Diagnosis& d : dxs) {
     const std::vector<TermSpec>& terms = d.joint.terms;
     if (terms.size() < 2) continue;
+    if (c_.options.refuse_within_span_terms &&
+        std::any_of(terms.begin(), terms.end(),
+                    [&](const TermSpec& t) { return within_span(span_share_in(d, t.text())); }))
+      continue;
     try {
       const auto with = [&](size_t skip, size_t only) {
         Model m = r_->model;
@@ -316,7 +329,8 @@ bool Round::pair_acting_together(const std::vector<Diagnosis>& dxs) {
   constexpr size_t kResidualChannels = 3;
   std::vector<Candidate> pool;
   std::set<std::string> in_pool;
-  const auto take = [&](const Candidate& c) {
+  const auto take = [&](const Diagnosis& d, const Candidate& c) {
+    if (c_.options.refuse_within_span_terms && within_span(span_share_in(d, c.term.text()))) return;
     if (in_pool.insert(c.term.text()).second) pool.push_back(c);
   };
   for (const Diagnosis& d : dxs) {
@@ -330,8 +344,8 @@ bool Round::pair_acting_together(const std::vector<Diagnosis>& dxs) {
       Candidate plain;
       plain.term = TermSpec((is_electrical(channel) ? "current:" : "field:") + channel);
       plain.channel = channel;
-      take(plain);
-      take(*first);
+      take(d, plain);
+      take(d, *first);
     }
   }
   std::vector<LoopRound> alone(pool.size());
@@ -429,7 +443,8 @@ bool Round::exchange(const DiagnoseOptions& options, std::set<std::string>* take
     const auto [without, without_lr] = fit_score(without_term(r_->model, t));
     std::vector<Diagnosis> dxs;
     for (const FlightData* f : c_.flights) dxs.push_back(diagnose(without, *f, c_.truth, options));
-    const std::vector<Eligible> eligible = eligible_candidates(dxs, c_.min_share);
+    const std::vector<Eligible> eligible =
+        eligible_candidates(dxs, c_.min_share, !c_.options.refuse_within_span_terms);
     std::optional<std::pair<Model, LoopRound>> best;
     const Eligible* best_e = nullptr;
     for (size_t k = 0, tried = 0; k < eligible.size() && tried < kTriesPerRound; ++k) {

@@ -85,6 +85,10 @@ class Round {
   void backward_pass();
   // The changes refused this round that no kept change carried: (what, why).
   const std::vector<std::pair<std::string, std::string>>& rejected() const { return rejected_; }
+  // Records a term refused before any step tried it (a term within the model's own span).
+  void refuse(std::string what, std::string why) {
+    rejected_.emplace_back(std::move(what), std::move(why));
+  }
 
  private:
   // Fits `next` and keeps it if it passes every check; else records why in rejected_.

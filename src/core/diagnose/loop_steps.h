@@ -81,8 +81,13 @@ struct Eligible {
 /// ridge's hold on the model's coefficients, which the loop tries to relax first.
 constexpr double kWithinSpanShare = 0.9999;
 
+/// True when a share of a term's fit-row energy (Candidate::base_span_share) lies within the
+/// model's own span (kWithinSpanShare or more); false for NAN (a slow term, the lag).
+bool within_span(double base_span_share);
+
 /// The candidates of one round's diagnoses that the loop may add, in rank order (see
-/// diagnose_loop).
-std::vector<Eligible> eligible_candidates(const std::vector<Diagnosis>& dxs, double min_share);
+/// diagnose_loop); a term within the model's own span (within_span) only with `within_span_too`.
+std::vector<Eligible> eligible_candidates(const std::vector<Diagnosis>& dxs, double min_share,
+                                          bool within_span_too = false);
 
 }  // namespace magcomp::loop_steps

@@ -116,6 +116,12 @@ struct DiagnoseOptions {
   /// (Candidate::base_span_share), choose the ridge strength as choose_lambda does before adding
   /// it (false: add such a term as any other).
   bool ridge_for_span_terms = true;
+  /// diagnose_loop: never add a term that lies within the model's own span on the fit rows
+  /// (Candidate::base_span_share at loop_steps::kWithinSpanShare or more): its columns there are
+  /// the model's own times its channel's level, so its size is the ridge's split of that level,
+  /// and another flight's level is read through it (false: such a term is judged as any other
+  /// once the ridge step is refused).
+  bool refuse_within_span_terms = true;
   /// diagnose: choose a set of terms together (Diagnosis::joint, joint_selection.cpp), which
   /// diagnose_loop tries before the first single term (false: single terms and pairs only).
   bool joint_selection = true;
