@@ -11,6 +11,7 @@
 #include <set>
 #include <stdexcept>
 
+#include "../../src/core/diagnose/search.h"  // verdict_of
 #include "magcomp/core/diagnose/diagnose.h"
 #include "magcomp/core/diagnose/diagnose_loop.h"
 #include "magcomp/core/error.h"
@@ -446,6 +447,26 @@ TEST(Diagnose, ATermWithinTheModelsOwnColumnsIsMeasuredSo) {
   EXPECT_LE(steady_share, 1.0 + 1e-9);
   EXPECT_LT(strobe_share, 0.5);
   EXPECT_GE(strobe_share, 0.0);
+  // Told to add the steady bus's term, the verdict says that the loop never adds it; told to add
+  // the strobe's wire, it says nothing of the kind.
+  for (const bool steady_bus : {true, false}) {
+    Diagnosis told = dx;
+    const auto it =
+        std::find_if(told.candidates.begin(), told.candidates.end(), [&](const Candidate& c) {
+          return steady_bus ? (c.term == "current:vol_steady" || c.term == "field:vol_steady")
+                            : c.term == "current:cur_strb";
+        });
+    ASSERT_NE(it, told.candidates.end()) << steady_bus;
+    std::rotate(told.candidates.begin(), it, it + 1);
+    Candidate& top = told.candidates.front();
+    top.accepted = true;
+    top.explained_fraction = 0.3;
+    const std::string v = diagnose_search::verdict_of(told, 0.03);
+    std::printf("  %s\n", v.c_str());
+    EXPECT_EQ(v.rfind("add " + top.term.text() + ":", 0), 0u) << v;
+    EXPECT_EQ(top.within_model_span(), steady_bus);
+    EXPECT_EQ(v.find("never adds it") != std::string::npos, steady_bus) << v;
+  }
 }
 
 TEST(Diagnose, BadInputsGiveClearMessagesAndConstantChannelsAreSkipped) {

@@ -17,6 +17,8 @@
 
 namespace magcomp {
 
+bool Candidate::within_model_span() const { return base_span_share >= kWithinSpanShare; }
+
 using diagnose_search::is_rate;
 
 // How much a term says: its sources and transforms (a shorthand or TL family counts 1).

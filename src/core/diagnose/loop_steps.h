@@ -76,11 +76,6 @@ struct Eligible {
   double base_span_share = NAN;  ///< Candidate::base_span_share (on that flight)
 };
 
-/// A term whose fit-row columns lie this much within the model's own span (Candidate::
-/// base_span_share; within 1 % of their amplitude) adds no direction of its own: its gain is the
-/// ridge's hold on the model's coefficients, which the loop tries to relax first.
-constexpr double kWithinSpanShare = 0.9999;
-
 /// True when a share of a term's fit-row energy (Candidate::base_span_share) lies within the
 /// model's own span (kWithinSpanShare or more); false for NAN (a slow term, the lag).
 bool within_span(double base_span_share);

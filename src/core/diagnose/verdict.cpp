@@ -126,14 +126,24 @@ std::string verdict_of(const Diagnosis& dx, double resolution_nT) {
                     "error falls from %.3f to %.3f nT",
                     c.term.text().c_str(), 100 * c.explained_confirmation,
                     100 * c.explained_selection, dx.baseline_std_nT, c.std_after_nT);
-      return buf;
+    } else {
+      std::snprintf(buf, sizeof(buf),
+                    "add %s: it explains %.1f%% of the held-out error on the selection lines and "
+                    "%.1f%% on the confirmation lines",
+                    c.term.text().c_str(), 100 * c.explained_selection,
+                    100 * c.explained_confirmation);
     }
-    std::snprintf(buf, sizeof(buf),
-                  "add %s: it explains %.1f%% of the held-out error on the selection lines and "
-                  "%.1f%% on the confirmation lines",
-                  c.term.text().c_str(), 100 * c.explained_selection,
-                  100 * c.explained_confirmation);
-    return buf;
+    std::string out = buf;
+    if (c.within_model_span()) {
+      std::snprintf(buf, sizeof(buf),
+                    "; but %.4f%% of its columns' energy on the fit rows lies within the model's "
+                    "own columns: its size there is the ridge's split of its channel's level, "
+                    "which another flight reads through it (diagnose --apply tries a weaker "
+                    "ridge in its place and never adds it)",
+                    100 * c.base_span_share);
+      out += buf;
+    }
+    return out;
   }
   const ResidualFloor& f = dx.floor;
   if (f.computed && !f.floor_channel.empty() &&

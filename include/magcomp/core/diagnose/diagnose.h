@@ -65,7 +65,16 @@ struct Candidate {
   /// already span (NaN for a slow term): near 1, the term adds no direction of its own and only
   /// moves the ridge's hold on the model's coefficients.
   double base_span_share = NAN;
+  /// Its fit-row columns lie within the model's own span (base_span_share at kWithinSpanShare or
+  /// more): diagnose_loop never adds it.
+  bool within_model_span() const;
 };
+
+/// A term whose fit-row columns lie this much within the model's own span
+/// (Candidate::base_span_share; within 1 % of their amplitude) adds no direction of its own: its
+/// columns there are the model's own times its channel's level, so its size is the ridge's split
+/// of that level, and another flight's level is read through it.
+constexpr double kWithinSpanShare = 0.9999;
 
 /// A recorded channel a trained network leans on: its share (0..1) of the channels' importance in
 /// the network's attribution (permutation importance on a flight it never saw: `magcomp
@@ -117,7 +126,7 @@ struct DiagnoseOptions {
   /// it (false: add such a term as any other).
   bool ridge_for_span_terms = true;
   /// diagnose_loop: never add a term that lies within the model's own span on the fit rows
-  /// (Candidate::base_span_share at loop_steps::kWithinSpanShare or more): its columns there are
+  /// (Candidate::base_span_share at kWithinSpanShare or more): its columns there are
   /// the model's own times its channel's level, so its size is the ridge's split of that level,
   /// and another flight's level is read through it (false: such a term is judged as any other
   /// once the ridge step is refused).
