@@ -464,7 +464,7 @@ TEST(Diagnose, ATermWithinTheModelsOwnColumnsIsMeasuredSo) {
     const std::string v = diagnose_search::verdict_of(told, 0.03);
     std::printf("  %s\n", v.c_str());
     EXPECT_EQ(v.rfind("add " + top.term.text() + ":", 0), 0u) << v;
-    EXPECT_EQ(top.within_model_span(), steady_bus);
+    EXPECT_EQ(within_model_span(top.base_span_share), steady_bus);
     EXPECT_EQ(v.find("never adds it") != std::string::npos, steady_bus) << v;
   }
 }

@@ -17,8 +17,6 @@
 
 namespace magcomp {
 
-bool Candidate::within_model_span() const { return base_span_share >= kWithinSpanShare; }
-
 using diagnose_search::is_rate;
 
 // How much a term says: its sources and transforms (a shorthand or TL family counts 1).

@@ -123,7 +123,7 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
     std::vector<Eligible> eligible = eligible_candidates(dxs, min_share, true);
     std::optional<Eligible> span_term;
     if (options.ridge_for_span_terms && !eligible.empty() &&
-        loop_steps::within_span(eligible.front().base_span_share))
+        within_model_span(eligible.front().base_span_share))
       span_term = eligible.front();
     if (!span_too) eligible = eligible_candidates(dxs, min_share, false);
     if ((options.choose_lambda || span_term) && round <= max_rounds) {
@@ -178,7 +178,7 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
     // The terms within the model's own span ranked before the first the round may add: never
     // added, each said so among the round's refusals.
     for (const Eligible& e : eligible_candidates(dxs, min_share, true)) {
-      if (span_too || !loop_steps::within_span(e.base_span_share)) break;
+      if (span_too || !within_model_span(e.base_span_share)) break;
       char why[300];
       std::snprintf(why, sizeof(why),
                     "%.4f%% of its columns' energy on the fit rows lies within the model's own "

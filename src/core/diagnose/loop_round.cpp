@@ -152,8 +152,9 @@ bool Round::joint_set(const std::vector<Diagnosis>& dxs, const std::vector<Eligi
     const std::vector<TermSpec>& terms = d.joint.terms;
     if (terms.size() < 2) continue;
     if (c_.options.refuse_within_span_terms &&
-        std::any_of(terms.begin(), terms.end(),
-                    [&](const TermSpec& t) { return within_span(span_share_in(d, t.text())); }))
+        std::any_of(terms.begin(), terms.end(), [&](const TermSpec& t) {
+          return within_model_span(span_share_in(d, t.text()));
+        }))
       continue;
     try {
       const auto with = [&](size_t skip, size_t only) {
@@ -330,7 +331,8 @@ bool Round::pair_acting_together(const std::vector<Diagnosis>& dxs) {
   std::vector<Candidate> pool;
   std::set<std::string> in_pool;
   const auto take = [&](const Diagnosis& d, const Candidate& c) {
-    if (c_.options.refuse_within_span_terms && within_span(span_share_in(d, c.term.text()))) return;
+    if (c_.options.refuse_within_span_terms && within_model_span(span_share_in(d, c.term.text())))
+      return;
     if (in_pool.insert(c.term.text()).second) pool.push_back(c);
   };
   for (const Diagnosis& d : dxs) {

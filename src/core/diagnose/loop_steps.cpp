@@ -361,14 +361,12 @@ double variance_share(double with_nT, double without_nT) {
 
 // The candidates of one round's diagnoses that the loop may add, in rank order (see
 // diagnose_loop).
-bool within_span(double base_span_share) { return base_span_share >= kWithinSpanShare; }
-
 std::vector<Eligible> eligible_candidates(const std::vector<Diagnosis>& dxs, double min_share,
                                           bool within_span_too) {
   std::vector<Eligible> out;
   const auto ok = [&](const Candidate& c) {
     return c.accepted && c.explained_fraction >= min_share &&
-           (within_span_too || !within_span(c.base_span_share));
+           (within_span_too || !within_model_span(c.base_span_share));
   };
   if (dxs.size() == 1) {
     for (const Candidate& c : dxs.front().candidates)

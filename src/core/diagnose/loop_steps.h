@@ -76,12 +76,9 @@ struct Eligible {
   double base_span_share = NAN;  ///< Candidate::base_span_share (on that flight)
 };
 
-/// True when a share of a term's fit-row energy (Candidate::base_span_share) lies within the
-/// model's own span (kWithinSpanShare or more); false for NAN (a slow term, the lag).
-bool within_span(double base_span_share);
-
 /// The candidates of one round's diagnoses that the loop may add, in rank order (see
-/// diagnose_loop); a term within the model's own span (within_span) only with `within_span_too`.
+/// diagnose_loop); a term within the model's own span (within_model_span) only with
+/// `within_span_too`.
 std::vector<Eligible> eligible_candidates(const std::vector<Diagnosis>& dxs, double min_share,
                                           bool within_span_too = false);
 

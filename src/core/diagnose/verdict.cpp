@@ -134,7 +134,7 @@ std::string verdict_of(const Diagnosis& dx, double resolution_nT) {
                     100 * c.explained_confirmation);
     }
     std::string out = buf;
-    if (c.within_model_span()) {
+    if (within_model_span(c.base_span_share)) {
       std::snprintf(buf, sizeof(buf),
                     "; but %.4f%% of its columns' energy on the fit rows lies within the model's "
                     "own columns: its size there is the ridge's split of its channel's level, "

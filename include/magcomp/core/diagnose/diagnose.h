@@ -65,9 +65,6 @@ struct Candidate {
   /// already span (NaN for a slow term): near 1, the term adds no direction of its own and only
   /// moves the ridge's hold on the model's coefficients.
   double base_span_share = NAN;
-  /// Its fit-row columns lie within the model's own span (base_span_share at kWithinSpanShare or
-  /// more): diagnose_loop never adds it.
-  bool within_model_span() const;
 };
 
 /// A term whose fit-row columns lie this much within the model's own span
@@ -75,6 +72,13 @@ struct Candidate {
 /// columns there are the model's own times its channel's level, so its size is the ridge's split
 /// of that level, and another flight's level is read through it.
 constexpr double kWithinSpanShare = 0.9999;
+
+/// True when a term's share of fit-row energy within the model's own span
+/// (Candidate::base_span_share, 0..1) is kWithinSpanShare or more: diagnose_loop never adds it.
+/// False for NAN (a slow term, the lag).
+inline bool within_model_span(double base_span_share) {
+  return base_span_share >= kWithinSpanShare;
+}
 
 /// A recorded channel a trained network leans on: its share (0..1) of the channels' importance in
 /// the network's attribution (permutation importance on a flight it never saw: `magcomp
