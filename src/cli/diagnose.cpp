@@ -148,6 +148,17 @@ nlohmann::json to_json(const Diagnosis& dx) {
     // Where it is measured (a band-pass term): absent for a slow term, never null.
     if (std::isfinite(c.base_span_share))
       j["candidates"].back()["base_span_share"] = c.base_span_share;
+    // How well its fit rows size it (the first accepted candidates): absent when not computed.
+    if (std::isfinite(c.size_nT) && std::isfinite(c.size_sigma_nT)) {
+      auto& cj = j["candidates"].back();
+      cj["size_nT"] = c.size_nT;
+      cj["size_sigma_nT"] = c.size_sigma_nT;
+      cj["coefficient_sigma"] = c.coefficient_sigma;
+      if (c.switches >= 0) {
+        cj["switches"] = c.switches;
+        cj["switches_channel"] = c.switches_channel;
+      }
+    }
   }
   const ExplainableShare& x = dx.explainable;
   nlohmann::json e;

@@ -14,6 +14,7 @@
 #include "../../src/core/diagnose/search.h"  // verdict_of
 #include "magcomp/core/diagnose/diagnose.h"
 #include "magcomp/core/diagnose/diagnose_loop.h"
+#include "magcomp/core/diagnose/term_support.h"
 #include "magcomp/core/error.h"
 #include "magcomp/core/fit/model_fit.h"
 #include "magcomp/core/fit/parameter_fit.h"
@@ -339,6 +340,90 @@ TEST(Diagnose, ARelayChatteringOnItsChannelsNoiseIsFoundToTheSample) {
   EXPECT_GT(top.explained_selection, 0.8);
   EXPECT_GT(top.explained_confirmation, 0.8);
   EXPECT_TRUE(top.accepted);
+}
+
+TEST(Diagnose, ATermItsFitRowsBarelySwitchIsSizedWithItsUncertainty) {
+  // A device switched with the pitot heater (3 nT along a fixed direction while sw_pitot_heat is
+  // on; it switches every 400 s or so): the band-pass calibration (box and cloverleaf, 210 s)
+  // sees it switch once, so its size rests on that one transient. diagnose still names it, and
+  // its verdict says how little sizes it: the switch counted, the size's jackknife std a large
+  // share of the size, and the advice to size it on another flight or several. The same flight
+  // with a reference fit on five lines (the switch's before and after held for minutes,
+  // unfiltered) sizes it within a few percent. Both sizes agree with the truth file's within
+  // their stds, and the loop's note on an added term (term_support) says the same of it.
+  const sim::Simulation& s = test::scenario("rare_switch");
+  DiagnoseOptions o;
+  o.full_search = false;
+  const Model band = test::calibrated_tl(s.flight);
+  // The truth's size as a term's is measured: the std of the hidden field beyond what TL's
+  // columns and a constant take over the flight.
+  double truth_std = 0;
+  {
+    const Eigen::MatrixXd tl = design_matrix(band, s.flight);
+    Eigen::MatrixXd a(tl.rows(), tl.cols() + 1);
+    a << tl, s.truth.column("mag_5_uc.hidden.0.relay");
+    const Eigen::MatrixXd beyond = beyond_other_columns(a, tl.cols(), 1);
+    double sum = 0, sum2 = 0, n = 0;
+    for (Eigen::Index i = 0; i < beyond.rows(); ++i)
+      if (std::isfinite(beyond(i, 0))) {
+        sum += beyond(i, 0);
+        sum2 += beyond(i, 0) * beyond(i, 0);
+        n += 1;
+      }
+    truth_std = std::sqrt(sum2 / n - (sum / n) * (sum / n));
+  }
+  Model reference = test::reference_tl(s.flight);
+  reference.fit.lines = {1001.02, 1001.04, 1001.10, 1001.12, 1001.14};
+  fit_model(reference, {&s.flight});
+  const char* name[2] = {"band-pass on box and cloverleaf", "reference on five lines"};
+  const Model* models[2] = {&band, &reference};
+  double ratio[2] = {0, 0};
+  Diagnosis band_dx;
+  for (int k = 0; k < 2; ++k) {
+    const Diagnosis dx = diagnose(*models[k], s.flight, "mag_1_c", o);
+    ASSERT_FALSE(dx.candidates.empty());
+    const Candidate& top = dx.candidates.front();
+    std::printf("  %s: %s, size %.3f +- %.3f nT (truth %.3f), %d switch(es) of %s\n    %s\n",
+                name[k], top.term.text().c_str(), top.size_nT, top.size_sigma_nT, truth_std,
+                top.switches, top.switches_channel.c_str(), dx.verdict.c_str());
+    ASSERT_TRUE(top.accepted);
+    EXPECT_EQ(top.term.text(), "field:sw_pitot_heat");
+    EXPECT_EQ(top.switches_channel, "sw_pitot_heat");
+    EXPECT_GE(top.switches, 1);
+    EXPECT_LE(top.switches, 3);
+    ASSERT_EQ(top.coefficient_sigma.size(), 3u);
+    EXPECT_LT(std::abs(top.size_nT - truth_std), 2 * top.size_sigma_nT + 0.02);
+    ratio[k] = top.size_sigma_nT / top.size_nT;
+    EXPECT_NE(dx.verdict.find("; sw_pitot_heat switched " + std::to_string(top.switches) +
+                              " times on the rows that size it: its size, "),
+              std::string::npos);
+    if (k == 0) band_dx = dx;
+    // The loop's note on the same term added to the same model says the same.
+    if (k == 0) {
+      Model added = band;
+      added.add_term("field:sw_pitot_heat");
+      fit_model(added, {&s.flight});
+      const std::vector<TermSupport> support = term_support(added, band, s.flight);
+      ASSERT_EQ(support.size(), 1u);
+      std::printf("    the loop's note: %s (size %.3f +- %.3f nT)\n",
+                  support_note(support[0]).c_str(), support[0].size_nT, support[0].size_sigma_nT);
+      EXPECT_EQ(support[0].switches, top.switches);
+      EXPECT_NEAR(support[0].size_nT, top.size_nT, 0.05 * top.size_nT);
+    }
+  }
+  EXPECT_GT(ratio[0], 0.2);
+  EXPECT_LT(ratio[1], 0.1);
+  // The advice only where the std is a sizeable share of the size.
+  EXPECT_NE(band_dx.verdict.find("several flights together (--data A.h5,B.h5)"), std::string::npos);
+  Diagnosis told = band_dx;
+  told.candidates.front().size_sigma_nT = 0.05 * told.candidates.front().size_nT;
+  EXPECT_EQ(diagnose_search::verdict_of(told, 0.03).find("several flights"), std::string::npos);
+  EXPECT_NE(diagnose_search::verdict_of(told, 0.03).find("switched"), std::string::npos);
+  told.candidates.front().switches = 12;
+  EXPECT_EQ(diagnose_search::verdict_of(told, 0.03).find("switched"), std::string::npos);
+  told.candidates.front().size_sigma_nT = 0.6 * told.candidates.front().size_nT;
+  EXPECT_NE(diagnose_search::verdict_of(told, 0.03).find("is not determined by the rows that"),
+            std::string::npos);
 }
 
 TEST(Diagnose, ALawNoFormulaWritesIsLearnedAsHingesOfItsChannelAndCarriesOver) {

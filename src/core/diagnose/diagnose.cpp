@@ -156,6 +156,11 @@ Diagnosis diagnose(const Model& model_in, const FlightData& data, const std::str
   add_candidates(jobs, scored, search, &dx);
   add_lag_candidate(model, data, search, &dx);
   judge_and_rank(search, options, &dx.candidates);
+  for (size_t k = 0, sized = 0; k < dx.candidates.size() && sized < kSizedCandidates; ++k) {
+    if (!dx.candidates[k].accepted) break;
+    size_uncertainty(search, &dx.candidates[k]);
+    ++sized;
+  }
   mark_network_share(leads, &dx.candidates);
   dx.network = network_checks(data, all_sources, leads, dx.candidates, aircraft_sources);
   data.drop_mapped_pages();

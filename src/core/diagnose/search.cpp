@@ -184,6 +184,7 @@ Search::Search(const Model& m, const FlightData& d, const std::string& truth_nam
       e0 -= slow0;
       nuisance.resize(n, a0.cols() + sc.cols());
       nuisance << a0, sc;
+      slow_base_cols = sc;
     }
   }
   dx->heldout_fold.assign(static_cast<size_t>(n), -1);
@@ -212,6 +213,7 @@ Search::Search(const Model& m, const FlightData& d, const std::string& truth_nam
   // calibration rows and each half's rows (a run per unit), each half scored with the other's.
   if (fs.method == FitMethod::kBandpass && !slow_on_lines) {
     slow_stage = std::make_shared<SlowStage>(nuisance, e0, runs, fs.lambda);
+    slow_runs = runs;
   } else if (fs.method == FitMethod::kBandpass) {
     std::vector<std::pair<Eigen::Index, Eigen::Index>> half_runs[2] = {runs, runs};
     for (size_t k = 0; k < held.size();) {
@@ -225,6 +227,7 @@ Search::Search(const Model& m, const FlightData& d, const std::string& truth_nam
     for (int h = 0; h < 2; ++h)
       slow_cross[h] = std::make_shared<SlowStage>(nuisance, e0, half_runs[h], fs.lambda);
     slow_stage = slow_cross[0];
+    slow_runs = half_runs[0];
   }
   dx->baseline_selection_std_nT = base_std[0];
   dx->baseline_confirmation_std_nT = base_std[1];

@@ -169,6 +169,10 @@ class Search {
   // With slow_on_lines: the slow fit on the calibration rows and the lines of half h (0:
   // selection, 1: confirmation), which sizes the other half's error; slow_stage is the first.
   std::shared_ptr<SlowStage> slow_cross[2];
+  // The runs slow_stage is fitted on (first, last rows), and the base's slow columns it is
+  // fitted beside with a0 (N x s; no column when the base has no slow term).
+  std::vector<std::pair<Eigen::Index, Eigen::Index>> slow_runs;
+  Eigen::MatrixXd slow_base_cols;
   double base_std[3] = {0, 0, 0};  // selection, confirmation, all held out
   double dt = 0.1, span = 1.0;
 
@@ -251,6 +255,14 @@ void judge_and_rank(const Search& search, const DiagnoseOptions& options,
 // (joint_selection.cpp; JointSet in diagnose.h).
 JointSet joint_selection(const Search& search, const std::vector<Candidate>& candidates,
                          const ExplainableShare& explainable, const DiagnoseOptions& options);
+// How well the rows that size a candidate size it (term_uncertainty.cpp): Candidate::size_nT,
+// size_sigma_nT (the jackknife over kJackknifeBlocks contiguous blocks of those rows),
+// coefficient_sigma and switches. Filled for the first kSizedCandidates accepted candidates (not
+// the lag).
+constexpr int kJackknifeBlocks = 20;  // as coefficient_jackknife_covariance
+constexpr size_t kSizedCandidates = 3;
+void size_uncertainty(const Search& search, Candidate* candidate);
+
 // What remains, its floor and the verdict (verdict.cpp).
 ExplainableShare remaining_share(const FlightData& data, const Search& search,
                                  const std::vector<std::string>& sources, double baseline_std_nT,

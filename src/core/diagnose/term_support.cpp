@@ -10,11 +10,8 @@
 #include "magcomp/core/model/terms_expr.h"
 
 namespace magcomp {
-namespace {
 
-// Crossings of x on `rows` between the lower and upper quarter of its 1-99 % range over the
-// whole flight (a channel idle on the rows, its noise only, does not switch there).
-int switches_on(const Eigen::VectorXd& x, const std::vector<Eigen::Index>& rows) {
+int channel_switches(const Eigen::VectorXd& x, const std::vector<Eigen::Index>& rows) {
   std::vector<double> v;
   for (Eigen::Index i = 0; i < x.size(); ++i)
     if (std::isfinite(x[i])) v.push_back(x[i]);
@@ -33,10 +30,6 @@ int switches_on(const Eigen::VectorXd& x, const std::vector<Eigen::Index>& rows)
   return count;
 }
 
-// Columns [from, from + n) of `a` less their least-squares fit by the other columns and a
-// constant over the rows where every column is finite (NaN on the other rows): the part of the
-// term the model's other columns cannot take. A field term of a channel that holds a level is
-// mostly that level times the permanent columns; its size is what it adds to them.
 Eigen::MatrixXd beyond_other_columns(const Eigen::MatrixXd& a, Eigen::Index from, Eigen::Index n) {
   std::vector<Eigen::Index> rows;
   for (Eigen::Index i = 0; i < a.rows(); ++i)
@@ -60,8 +53,6 @@ Eigen::MatrixXd beyond_other_columns(const Eigen::MatrixXd& a, Eigen::Index from
     out.row(rows[static_cast<size_t>(r)]) = block.row(r) - fitted.row(r);
   return out;
 }
-
-}  // namespace
 
 std::vector<TermSupport> term_support(const Model& model, const Model& start,
                                       const FlightData& data) {
@@ -117,7 +108,7 @@ std::vector<TermSupport> term_support(const Model& model, const Model& start,
     for (size_t k = 0; k < out.size(); ++k) {
       TermSupport& s = out[k];
       if (!s.channel.empty() && data.has(s.channel))
-        s.switches = std::max(s.switches, 0) + switches_on(data.column(s.channel), rows);
+        s.switches = std::max(s.switches, 0) + channel_switches(data.column(s.channel), rows);
       Sums& m = sums[k];
       if (!m.sized || m.from + m.n > a.cols()) {
         m.sized = false;
@@ -146,29 +137,26 @@ std::vector<TermSupport> term_support(const Model& model, const Model& start,
   return out;
 }
 
-std::string support_note(const TermSupport& s, int few_switches) {
+std::string support_note(const TermSupport& s, int few_switches, const std::string& rows) {
   if (s.channel.empty() || s.switches < 0) return "";
   char buf[400];
   if (s.switches < few_switches) {
     if (std::isfinite(s.size_sigma_nT))
       std::snprintf(buf, sizeof(buf),
-                    "%s switched %d times on the calibration rows: its size, %.3g nT, is "
-                    "uncertain to +-%.2g nT",
-                    s.channel.c_str(), s.switches, s.size_nT, s.size_sigma_nT);
+                    "%s switched %d times on %s: its size, %.3g nT, is uncertain to +-%.2g nT",
+                    s.channel.c_str(), s.switches, rows.c_str(), s.size_nT, s.size_sigma_nT);
     else
-      std::snprintf(buf, sizeof(buf),
-                    "%s switched %d times on the calibration rows: its size, %.3g nT, is uncertain",
-                    s.channel.c_str(), s.switches, s.size_nT);
+      std::snprintf(buf, sizeof(buf), "%s switched %d times on %s: its size, %.3g nT, is uncertain",
+                    s.channel.c_str(), s.switches, rows.c_str(), s.size_nT);
     return buf;
   }
   // A size the calibration rows do not determine (within two sigma of none): the term fits
   // something its channel only stands in for (a slow drift of the fit, another channel).
   if (std::isfinite(s.size_sigma_nT) && s.size_nT < 2.0 * s.size_sigma_nT) {
     std::snprintf(buf, sizeof(buf),
-                  "its size, %.3g nT, is not determined by the calibration rows (+-%.2g nT over "
-                  "blocks of them): %s may stand in for another effect (a slow drift of the fit, "
-                  "another channel)",
-                  s.size_nT, s.size_sigma_nT, s.channel.c_str());
+                  "its size, %.3g nT, is not determined by %s (+-%.2g nT over blocks of them): %s "
+                  "may stand in for another effect (a slow drift of the fit, another channel)",
+                  s.size_nT, rows.c_str(), s.size_sigma_nT, s.channel.c_str());
     return buf;
   }
   return "";

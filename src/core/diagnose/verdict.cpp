@@ -11,6 +11,7 @@
 #include <set>
 #include <sstream>
 
+#include "magcomp/core/diagnose/term_support.h"
 #include "magcomp/core/error.h"
 #include "magcomp/core/evaluate/evaluation.h"
 #include "magcomp/core/fit/model_fit.h"
@@ -112,6 +113,29 @@ std::string remainder_description(const Diagnosis& dx) {
   return o.str();
 }
 
+// What the verdict adds of a term the rows that size it barely support: term_support's note on
+// it (its channel switched fewer than 10 times there, or its size within two stds of none),
+// and where its std is kAdviseSize of its size or more, where a better size comes from. Empty
+// otherwise.
+constexpr double kAdviseSize = 0.2;
+std::string size_caveat(const Candidate& c) {
+  if (!std::isfinite(c.size_nT) || !std::isfinite(c.size_sigma_nT)) return "";
+  TermSupport s;
+  s.term = c.term.text();
+  s.channel = c.switches_channel;
+  s.switches = c.switches;
+  s.size_nT = c.size_nT;
+  s.size_sigma_nT = c.size_sigma_nT;
+  const std::string note = support_note(s, 10, "the rows that size it");
+  if (note.empty()) return "";
+  std::string out = "; " + note;
+  if (c.size_sigma_nT >= kAdviseSize * c.size_nT)
+    out +=
+        "; a flight where it switches more, or several flights together (--data A.h5,B.h5), "
+        "sizes it";
+  return out;
+}
+
 // The verdict: add the top term, or complete (within the floor), or what remains and where.
 std::string verdict_of(const Diagnosis& dx, double resolution_nT) {
   char buf[512];
@@ -143,7 +167,7 @@ std::string verdict_of(const Diagnosis& dx, double resolution_nT) {
                     100 * c.base_span_share);
       out += buf;
     }
-    return out;
+    return out + size_caveat(c);
   }
   const ResidualFloor& f = dx.floor;
   if (f.computed && !f.floor_channel.empty() &&

@@ -13,6 +13,7 @@
 #include <thread>
 
 #include "magcomp/core/error.h"
+#include "magcomp/core/fit/block_jackknife.h"
 #include "magcomp/core/fit/model_fit.h"
 #include "magcomp/core/fit/parameter_fit.h"
 #include "magcomp/core/fit/slow_stage.h"
@@ -553,28 +554,14 @@ Eigen::MatrixXd coefficient_jackknife_covariance(const Model& model,
   if (rows < 2 * static_cast<Eigen::Index>(groups) * std::max<Eigen::Index>(k, 1) ||
       !a.allFinite() || !y.allFinite())
     return Eigen::MatrixXd();
-  // The normal equations of every group of rows; the whole fit's are their sum.
-  std::vector<Eigen::MatrixXd> g(static_cast<size_t>(groups));
-  std::vector<Eigen::VectorXd> b(static_cast<size_t>(groups));
-  Eigen::MatrixXd g_all = Eigen::MatrixXd::Zero(k, k);
-  Eigen::VectorXd b_all = Eigen::VectorXd::Zero(k);
-  for (int q = 0; q < groups; ++q) {
-    const Eigen::Index from = rows * q / groups, to = rows * (q + 1) / groups;
-    const auto part = a.middleRows(from, to - from);
-    g[static_cast<size_t>(q)] = gram(part);
-    b[static_cast<size_t>(q)] = part.transpose() * y.segment(from, to - from);
-    g_all += g[static_cast<size_t>(q)];
-    b_all += b[static_cast<size_t>(q)];
-  }
-  // The fit without each group in turn, and the spread of those fits.
-  Eigen::MatrixXd theta(k, groups);
-  for (int q = 0; q < groups; ++q)
-    theta.col(q) = ridge_from_normal(g_all - g[static_cast<size_t>(q)],
-                                     b_all - b[static_cast<size_t>(q)], model.fit.lambda);
-  if (!theta.allFinite()) return Eigen::MatrixXd();
-  const Eigen::MatrixXd centred = theta.colwise() - theta.rowwise().mean();
-  const Eigen::MatrixXd cov_fit =
-      (static_cast<double>(groups - 1) / groups) * centred * centred.transpose();
+  // The fit without each group of rows in turn, and the spread of those fits.
+  const double lambda = model.fit.lambda;
+  const Jackknife j =
+      block_jackknife(a, y, groups, [lambda](const Eigen::MatrixXd& g, const Eigen::VectorXd& b) {
+        return ridge_from_normal(g, b, lambda);
+      });
+  if (!j.replicates.allFinite()) return Eigen::MatrixXd();
+  const Eigen::MatrixXd cov_fit = j.covariance();
   Eigen::MatrixXd cov = to_all_columns(cov_fit, keep);
   return cov;
 }

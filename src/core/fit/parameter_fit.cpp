@@ -53,6 +53,24 @@ Eigen::MatrixXd FitRowSet::stack(const std::vector<Eigen::MatrixXd>& per_flight)
   return out;
 }
 
+Eigen::VectorXd ridge_normal_solve(const Eigen::MatrixXd& g, const Eigen::VectorXd& b,
+                                   double lambda) {
+  // (G + lambda I) c = b, solved on the column-normalised system by eigen-decomposition with
+  // directions below 1e-10 of the largest dropped: exactly collinear columns (second_order's
+  // quartics hold the induced quadratics) share their coefficients instead of blowing up.
+  Eigen::MatrixXd r = g;
+  r.diagonal().array() += lambda;
+  const Eigen::VectorXd scale = r.diagonal().cwiseMax(1e-300).cwiseSqrt().cwiseInverse();
+  const Eigen::MatrixXd rn = scale.asDiagonal() * r * scale.asDiagonal();
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(rn);
+  const Eigen::VectorXd ev = es.eigenvalues();
+  const double cut = 1e-10 * std::max(ev.maxCoeff(), 1e-300);
+  const Eigen::VectorXd bn = es.eigenvectors().transpose() * scale.asDiagonal() * b;
+  Eigen::VectorXd z(bn.size());
+  for (Eigen::Index i = 0; i < bn.size(); ++i) z[i] = ev[i] > cut ? bn[i] / ev[i] : 0.0;
+  return scale.asDiagonal() * (es.eigenvectors() * z);
+}
+
 RidgeProfile::RidgeProfile(const Eigen::MatrixXd& base, const Eigen::VectorXd& y, double lambda)
     : base_(base), y_(y), lambda_(lambda) {
   g00_ = base.transpose() * base;
@@ -72,20 +90,7 @@ Eigen::VectorXd RidgeProfile::solve(const Eigen::MatrixXd& cand, double* rss) co
   Eigen::VectorXd b(p + k);
   b.head(p) = b0_;
   if (k > 0) b.tail(k) = cand.transpose() * y_;
-  // (G + lambda I) c = b, solved on the column-normalised system by eigen-decomposition with
-  // directions below 1e-10 of the largest dropped: exactly collinear columns (second_order's
-  // quartics hold the induced quadratics) share their coefficients instead of blowing up.
-  Eigen::MatrixXd r = g;
-  r.diagonal().array() += lambda_;
-  const Eigen::VectorXd scale = r.diagonal().cwiseMax(1e-300).cwiseSqrt().cwiseInverse();
-  const Eigen::MatrixXd rn = scale.asDiagonal() * r * scale.asDiagonal();
-  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(rn);
-  const Eigen::VectorXd ev = es.eigenvalues();
-  const double cut = 1e-10 * std::max(ev.maxCoeff(), 1e-300);
-  const Eigen::VectorXd bn = es.eigenvectors().transpose() * scale.asDiagonal() * b;
-  Eigen::VectorXd z(bn.size());
-  for (Eigen::Index i = 0; i < bn.size(); ++i) z[i] = ev[i] > cut ? bn[i] / ev[i] : 0.0;
-  const Eigen::VectorXd c = scale.asDiagonal() * (es.eigenvectors() * z);
+  const Eigen::VectorXd c = ridge_normal_solve(g, b, lambda_);
   if (rss) {
     Eigen::VectorXd e = y_ - base_ * c.head(p);
     if (k > 0) e -= cand * c.tail(k);

@@ -9,11 +9,13 @@
 namespace magcomp {
 
 SlowStage::SlowStage(const Eigen::MatrixXd& fast, const Eigen::VectorXd& target,
-                     const std::vector<std::pair<Eigen::Index, Eigen::Index>>& runs, double lambda)
+                     const std::vector<std::pair<Eigen::Index, Eigen::Index>>& runs, double lambda,
+                     const std::vector<bool>* left_out)
     : lambda_(lambda) {
   for (const auto& [first, last] : runs) {
     const size_t begin = rows_.size();
     for (Eigen::Index i = first; i <= last; ++i) {
+      if (left_out && (*left_out)[static_cast<size_t>(i)]) continue;
       if (std::isfinite(target[i]) && fast.row(i).allFinite()) rows_.push_back(i);
     }
     if (rows_.size() - begin < 2) {

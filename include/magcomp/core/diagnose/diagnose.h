@@ -65,6 +65,18 @@ struct Candidate {
   /// already span (NaN for a slow term): near 1, the term adds no direction of its own and only
   /// moves the ridge's hold on the model's coefficients.
   double base_span_share = NAN;
+  /// How well the rows that size it (the fit rows; a slow term's: the slow stage's) size it, as
+  /// term_support measures a loop's added terms: its size over the flight, nT (the std of its
+  /// field beyond what the model's other columns and a constant take), and that size's std by
+  /// the jackknife over 20 contiguous blocks of those rows, each left out in turn, nT. NaN when
+  /// not computed (the lag; beyond the first 3 accepted candidates).
+  double size_nT = NAN, size_sigma_nT = NAN;
+  /// Each coefficient's jackknife std, in its unit (nT per unit of its column).
+  std::vector<double> coefficient_sigma;
+  /// Times its first channel (`switches_channel`) switched on those rows (channel_switches);
+  /// -1 when not computed or the term reads no channel.
+  int switches = -1;
+  std::string switches_channel;
 };
 
 /// A term whose fit-row columns lie this much within the model's own span

@@ -2,6 +2,7 @@
 // where the coefficients were fitted, and how uncertain the term's size is.
 #pragma once
 
+#include <Eigen/Core>
 #include <string>
 #include <vector>
 
@@ -46,7 +47,20 @@ std::vector<TermSupport> term_support(const Model& model, const Model& start,
 /// The words a user reads: "cur_X switched 2 times on the calibration rows: its size, 3.1 nT, is
 /// uncertain to ±0.8 nT" when it switched fewer than `few_switches` times; "its size, 17.4 nT,
 /// is not determined by the calibration rows (±10 nT over blocks of them): X may stand in for
-/// another effect" when the size lies within two sigma of none; else "".
-std::string support_note(const TermSupport& s, int few_switches = 10);
+/// another effect" when the size lies within two sigma of none; else "". `rows` names the rows
+/// that size it.
+std::string support_note(const TermSupport& s, int few_switches = 10,
+                         const std::string& rows = "the calibration rows");
+
+/// Times a channel's samples x (its unit) crossed, on `rows` (in time order), between the lower
+/// and upper quarter of its 1-99 % range over all of x (one switch on and off counts two; a
+/// channel idle on the rows, its noise only, does not switch there). 0 when x barely varies.
+int channel_switches(const Eigen::VectorXd& x, const std::vector<Eigen::Index>& rows);
+
+/// Columns [from, from + n) of `a` (N x p) less their least-squares fit by the other columns and
+/// a constant over the rows where every column is finite (NaN on the other rows): the part of a
+/// term the model's other columns cannot take. A field term of a channel that holds a level is
+/// mostly that level times the permanent columns; its size is what it adds to them.
+Eigen::MatrixXd beyond_other_columns(const Eigen::MatrixXd& a, Eigen::Index from, Eigen::Index n);
 
 }  // namespace magcomp

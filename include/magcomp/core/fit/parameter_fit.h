@@ -37,6 +37,12 @@ class FitRowSet {
   int segments_ = 0;
 };
 
+/// The ridge solution of normal equations G c = b (G = X'X, b = X'y, in the columns' units):
+/// (G + lambda I) c = b on the column-normalised system, directions below 1e-10 of the largest
+/// eigenvalue dropped (exactly collinear columns share their coefficients).
+Eigen::VectorXd ridge_normal_solve(const Eigen::MatrixXd& g, const Eigen::VectorXd& b,
+                                   double lambda);
+
 /// Ridge least squares of y on [base, candidate] with the base's normal equations formed once.
 class RidgeProfile {
  public:

@@ -13,11 +13,13 @@ namespace magcomp {
 /// removed, with the fast columns' span removed from both (`fast`, N x p: the band-pass
 /// columns, whose low-frequency misfit would otherwise leak into the slow coefficients; their
 /// own coefficients stay as the band-pass fitted them). Least squares with ridge `lambda`. Rows
-/// where the target or a fast column is not finite are skipped.
+/// where the target or a fast column is not finite are skipped, and so are the rows flagged in
+/// `left_out` (N, optional: a jackknife's block; each run's mean is then that of its other rows).
 class SlowStage {
  public:
   SlowStage(const Eigen::MatrixXd& fast, const Eigen::VectorXd& target,
-            const std::vector<std::pair<Eigen::Index, Eigen::Index>>& runs, double lambda);
+            const std::vector<std::pair<Eigen::Index, Eigen::Index>>& runs, double lambda,
+            const std::vector<bool>* left_out = nullptr);
   /// The coefficients of the columns `s` (N x k, per unit of column; a non-finite value counts as
   /// its run's mean); `rss` (nT², optional) gets the residual sum of squares.
   Eigen::VectorXd fit(const Eigen::MatrixXd& s, double* rss = nullptr) const;
