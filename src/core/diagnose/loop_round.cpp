@@ -79,6 +79,17 @@ bool Round::try_model(Model next, const std::string& added, double explained, bo
                   lr.heldout_std_nT);
     why = buf;
   }
+  // And, as every term must, lower the held-out error by the resolution: a smaller gain is what
+  // the loop calls noise, whatever share of a small residual it is.
+  if (why.empty() && black_box &&
+      now.heldout_std_nT - lr.heldout_std_nT < c_.options.resolution_nT) {
+    char buf[200];
+    std::snprintf(buf, sizeof(buf),
+                  "the held-out error would fall by less than the %.3f nT resolution (%.4f -> "
+                  "%.4f nT)",
+                  c_.options.resolution_nT, now.heldout_std_nT, lr.heldout_std_nT);
+    why = buf;
+  }
   if (!why.empty()) {
     rejected_.emplace_back(added, why);
     return false;
