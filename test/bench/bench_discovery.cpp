@@ -19,7 +19,9 @@
 // added once the ridge step is refused, DiagnoseOptions::refuse_within_span_terms false); no-joint
 // (no set of terms chosen together, Diagnosis::joint); no-calibration-check (no step refused for
 // raising the error on the calibration rows); no-exchange (a kept term is never replaced by what
-// the model without it ranks first, DiagnoseOptions::exchange_terms); slow-on-calibration (a slow
+// the model without it ranks first, DiagnoseOptions::exchange_terms); lenient-backward (the
+// backward pass drops a term only when it explains under a quarter of the accepted share,
+// DiagnoseOptions::backward_at_acceptance false); slow-on-calibration (a slow
 // term sized on the calibration rows alone, not on the held-out lines too); states (the aircraft's
 // non-electrical states recorded, and effects of a switched current times one of them drawn among
 // the others); half-several (runs alternate one effect and two or three, instead of 60 % one, 30 %
@@ -68,6 +70,8 @@ int main(int argc, char** argv) {
         options.check_calibration_rows = false;
       } else if (opt == "no-exchange") {
         options.exchange_terms = false;
+      } else if (opt == "lenient-backward") {
+        options.backward_at_acceptance = false;
       } else if (opt == "slow-on-calibration") {
         options.slow_terms_on_lines = false;
       } else if (opt == "validate") {
@@ -83,11 +87,12 @@ int main(int argc, char** argv) {
       } else if (opt.rfind("draws=", 0) == 0 && std::atoi(opt.c_str() + 6) >= 1) {
         draws = static_cast<unsigned>(std::atoi(opt.c_str() + 6));
       } else {
-        std::fprintf(stderr,
-                     "error: option '%s': one-at-a-time, choose-lambda, no-span-ridge, span-terms, "
-                     "no-joint, no-calibration-check, no-exchange, slow-on-calibration, validate, "
-                     "two-flights, states, half-several, verbose or draws=N\n",
-                     opt.c_str());
+        std::fprintf(
+            stderr,
+            "error: option '%s': one-at-a-time, choose-lambda, no-span-ridge, span-terms, "
+            "no-joint, no-calibration-check, no-exchange, lenient-backward, slow-on-calibration, "
+            "validate, two-flights, states, half-several, verbose or draws=N\n",
+            opt.c_str());
         return 2;
       }
     }

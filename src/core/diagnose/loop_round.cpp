@@ -517,10 +517,17 @@ void Round::backward_pass() {
       auto [m, lr] = fit_score(without_term(r_->model, t));
       // The share of the variance the term still explains: what its leaving would add.
       const double share = variance_share(now.heldout_std_nT, lr.heldout_std_nT);
+      // It leaves when it would not be added to the model without it (or, lenient, when it
+      // explains under a quarter of the accepted share).
+      const double leave = c_.options.backward_at_acceptance ? accept : 0.25 * accept;
+      const bool needed = c_.options.backward_at_acceptance
+                              ? share >= accept && lr.heldout_std_nT - now.heldout_std_nT >=
+                                                       c_.options.resolution_nT
+                              : share >= leave;
       const bool validation_ok =
           !std::isfinite(now.validation_std_nT) ||
-          variance_share(now.validation_std_nT, lr.validation_std_nT) < 0.25 * accept;
-      if (share < 0.25 * accept && validation_ok && lr.heldout_std_nT < before.heldout_std_nT &&
+          variance_share(now.validation_std_nT, lr.validation_std_nT) < leave;
+      if (!needed && validation_ok && lr.heldout_std_nT < before.heldout_std_nT &&
           share < drop_share) {
         drop_share = share;
         drop_term = t.text();

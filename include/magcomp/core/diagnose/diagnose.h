@@ -167,6 +167,12 @@ struct DiagnoseOptions {
   /// effects were still in the residual is chosen again once they are written (false: a kept
   /// term stays unless later terms make it redundant).
   bool exchange_terms = true;
+  /// diagnose_loop's backward pass: an earlier round's term leaves when the model without it
+  /// loses less than a term must gain to be added (accept_fraction of the held-out variance, or
+  /// resolution_nT of its std; and on the validation flight, accept_fraction), so long as the
+  /// round still lowers the error of the round before it (false: it leaves only when it explains
+  /// under a quarter of accept_fraction).
+  bool backward_at_acceptance = true;
   /// The channels a trained network leans on, as its attribution ranks them (empty: none). The
   /// leading ones (kNetworkChannels with kNetworkMinShare or more) are searched even where the
   /// search would leave them out (full_search false), their products with each other and with
