@@ -22,17 +22,16 @@ void size_uncertainty(const Search& s, Candidate* c) {
   // The coefficients and their jackknife over the rows that size them: the band-pass fit's
   // stacked rows, or the slow stage's rows (the calibration rows, and the selection lines when
   // slow terms are sized on the held-out lines too), each left out by blocks in time order.
+  if (c->slow && (!s.has_slow_stage() || s.slow_runs.empty())) return;
+  const std::vector<std::pair<Eigen::Index, Eigen::Index>>& sizing = c->slow ? s.slow_runs : s.runs;
+  std::vector<Eigen::Index> rows;  // the sizing rows of the flight, in time order
+  for (const auto& [first, last] : sizing)
+    for (Eigen::Index i = first; i <= last; ++i) rows.push_back(i);
   Jackknife j;
-  std::vector<std::pair<Eigen::Index, Eigen::Index>> sizing = s.runs;
   Eigen::MatrixXd others = s.a0;  // the model's columns the term is fitted beside
   if (c->slow) {
-    if (!s.has_slow_stage() || s.slow_runs.empty()) return;
-    sizing = s.slow_runs;
     others.resize(s.a0.rows(), s.a0.cols() + s.slow_base_cols.cols());
     others << s.a0, s.slow_base_cols;
-    std::vector<Eigen::Index> rows;
-    for (const auto& [first, last] : sizing)
-      for (Eigen::Index i = first; i <= last; ++i) rows.push_back(i);
     std::vector<bool> flight_out(static_cast<size_t>(s.data.size()), false);
     j = block_jackknife(
         static_cast<Eigen::Index>(rows.size()), kJackknifeBlocks,
@@ -76,9 +75,6 @@ void size_uncertainty(const Search& s, Candidate* c) {
   c->coefficient_sigma.assign(j.sigma.data(), j.sigma.data() + j.sigma.size());
   const ExprTerm* e = c->term.expr();
   if (e && !e->signal().sources.empty() && s.data.has(e->signal().sources.front())) {
-    std::vector<Eigen::Index> rows;
-    for (const auto& [first, last] : sizing)
-      for (Eigen::Index i = first; i <= last; ++i) rows.push_back(i);
     c->switches_channel = e->signal().sources.front();
     c->switches = channel_switches(s.data.column(c->switches_channel), rows);
   }
