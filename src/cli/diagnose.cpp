@@ -301,6 +301,7 @@ struct DiagnoseArgs {
   int top = 10, rounds = 5;
   double min_share = 0.05;
   bool apply = false, quick = false, choose_lambda = false, no_exchange = false;
+  bool no_refine = false;
 };
 
 // One round of the loop on one flight, as it runs: its baseline, its first candidates, its
@@ -460,6 +461,7 @@ void run_diagnose(const DiagnoseArgs& a) {
   if (!a.out.empty() && !a.apply) throw Error("--out: only with --apply (the final model)");
   if (a.choose_lambda && !a.apply) throw Error("--choose-lambda: only with --apply");
   if (a.no_exchange && !a.apply) throw Error("--no-exchange: only with --apply");
+  if (a.no_refine && !a.apply) throw Error("--no-refine: only with --apply");
   const std::vector<std::string> paths = flight_paths("--data", a.data);
   std::vector<OutputGuard::File> others = {
       {"--model", a.model_path}, {"--validate", a.validate}, {"--attribution", a.attribution}};
@@ -480,6 +482,7 @@ void run_diagnose(const DiagnoseArgs& a) {
   options.full_search = !a.quick;
   options.choose_lambda = a.choose_lambda;
   options.exchange_terms = !a.no_exchange;
+  options.refine_parameters = !a.no_refine;
   if (!a.attribution.empty()) options.network_channels = read_network_attribution(a.attribution);
   if (paths.size() > 1 && !a.apply) {
     diagnose_several(model, paths, a.model_path, a.truth, a.json_path, a.top, options, guard, read);
@@ -576,6 +579,10 @@ void add_diagnose(CLI::App& app) {
                 "with --apply: when no term passes, keep the kept terms as they are (by default "
                 "each is taken out in turn and the model without it diagnosed again: a better "
                 "term takes its place and the loop goes on)");
+  cmd->add_flag("--no-refine", a->no_refine,
+                "with --apply: when no term passes, keep the kept terms' parameters (by default "
+                "they are estimated again with every other term in place, alone and beside each "
+                "of the first candidates, before any exchange)");
   cmd->add_option("--attribution", a->attribution,
                   "a trained network's attribution (magcomp evaluate --explain --json on a "
                   "flight it never saw): the channels it leans on (10 % or more, at most 3) are "

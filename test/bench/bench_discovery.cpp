@@ -70,6 +70,8 @@ int main(int argc, char** argv) {
         options.check_calibration_rows = false;
       } else if (opt == "no-exchange") {
         options.exchange_terms = false;
+      } else if (opt == "no-refine") {
+        options.refine_parameters = false;
       } else if (opt == "lenient-backward") {
         options.backward_at_acceptance = false;
       } else if (opt == "slow-on-calibration") {
@@ -87,12 +89,12 @@ int main(int argc, char** argv) {
       } else if (opt.rfind("draws=", 0) == 0 && std::atoi(opt.c_str() + 6) >= 1) {
         draws = static_cast<unsigned>(std::atoi(opt.c_str() + 6));
       } else {
-        std::fprintf(
-            stderr,
-            "error: option '%s': one-at-a-time, choose-lambda, no-span-ridge, span-terms, "
-            "no-joint, no-calibration-check, no-exchange, lenient-backward, slow-on-calibration, "
-            "validate, two-flights, states, half-several, verbose or draws=N\n",
-            opt.c_str());
+        std::fprintf(stderr,
+                     "error: option '%s': one-at-a-time, choose-lambda, no-span-ridge, span-terms, "
+                     "no-joint, no-calibration-check, no-exchange, no-refine, lenient-backward, "
+                     "slow-on-calibration, "
+                     "validate, two-flights, states, half-several, verbose or draws=N\n",
+                     opt.c_str());
         return 2;
       }
     }

@@ -212,6 +212,17 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
         learned_channels = learned_before;
       }
     }
+    // Nothing passes: a kept term's parameters, estimated while other effects were still in the
+    // residual, are estimated again with the model's other terms (Round::refine_parameters); the
+    // loop goes on.
+    if (!kept && options.refine_parameters) {
+      loop_steps::Round refine(context, round, &r);
+      if (refine.refine_parameters(dxs)) {
+        auto& refused = r.rounds.back().rejected;
+        refused.insert(refused.begin(), step.rejected().begin(), step.rejected().end());
+        continue;
+      }
+    }
     // Nothing passes: a kept term chosen while other effects were still in the residual may
     // give way to what the model without it ranks first (Round::exchange); the loop goes on.
     if (!kept && options.exchange_terms && exchanges < loop_steps::kExchanges) {

@@ -501,6 +501,103 @@ bool Round::exchange(const DiagnoseOptions& options, std::set<std::string>* take
   return false;
 }
 
+bool Round::refine_parameters(const std::vector<Diagnosis>& dxs) {
+  const LoopRound now = r_->rounds.back();
+  const Model& model = r_->model;
+  // The kept terms whose parameters may be estimated again, and each one's freed spec.
+  std::vector<std::pair<size_t, std::string>> freeable;
+  for (size_t k = 0; k < model.terms.size(); ++k) {
+    const TermSpec& t = model.terms[k];
+    const ExprTerm* e = t.expr();
+    const auto listed = [&](const std::vector<std::string>& list) {
+      return std::find(list.begin(), list.end(), t.text()) != list.end();
+    };
+    if (!e || !removable(c_.start, t) || fields_of(t).empty() || listed(model.black_box_terms) ||
+        listed(model.slow_terms))
+      continue;
+    const std::string freed = e->shape();  // every parameter '?' (a ramp's knot stays)
+    if (freed != t.text()) freeable.emplace_back(k, freed);
+  }
+  if (freeable.empty()) return false;
+  std::optional<std::pair<Model, LoopRound>> best;
+  std::vector<std::pair<std::string, std::string>> best_changed;  // (old, new) texts
+  std::string best_new;                                           // the term added, or ""
+  const auto consider = [&](Model m, const std::string& added) {
+    try {
+      auto fitted = fit_score(std::move(m));
+      std::vector<std::pair<std::string, std::string>> changed;
+      for (const auto& [k, freed] : freeable)
+        if (fitted.first.terms[k].text() != model.terms[k].text())
+          changed.emplace_back(model.terms[k].text(), fitted.first.terms[k].text());
+      if (changed.empty()) return;  // the same parameters: nothing new to judge
+      const LoopRound& lr = fitted.second;
+      const bool halves_hold = !(lr.selection_std_nT > now.selection_std_nT) &&
+                               !(lr.confirmation_std_nT > now.confirmation_std_nT);
+      if (!refusal(lr, now, c_.options).empty() || !halves_hold ||
+          !passes(lr.heldout_std_nT, now.heldout_std_nT))
+        return;
+      if (best && !(lr.heldout_std_nT < best->second.heldout_std_nT)) return;
+      best.emplace(std::move(fitted));
+      best_changed = std::move(changed);
+      best_new = added;
+    } catch (const Error&) {
+    }
+  };
+  // Each term's parameters alone, with every other term in place.
+  for (const auto& [k, freed] : freeable) {
+    Model m = model;
+    m.terms[k] = TermSpec(freed);
+    consider(std::move(m), "");
+  }
+  // The diagnosis's first candidates (of distinct channels, whatever their share alone), each
+  // added with every kept term's parameters free: an effect whose signature a kept term took in
+  // part (a flex's time constant stretched over a scalar lag) is written where neither the new
+  // term alone nor the kept term's new parameters alone lowers the error.
+  std::set<std::string> tried_channels;
+  size_t tries = 0;
+  for (const Diagnosis& d : dxs) {
+    for (const Candidate& c : d.candidates) {
+      if (tries >= kTriesPerRound) break;
+      if (c_.options.refuse_within_span_terms && within_model_span(c.base_span_share)) continue;
+      if (std::find(model.terms.begin(), model.terms.end(), c.term) != model.terms.end()) continue;
+      const std::set<std::string> f = fields_of(c.term);
+      std::string key;
+      for (const std::string& x : f) key += x + ",";
+      if (!f.empty() && !tried_channels.insert(key).second) continue;
+      ++tries;
+      Model m = model;
+      try {
+        add_candidate_term(c.term, c.slow, c_.truth, &m);
+      } catch (const Error&) {
+        continue;
+      }
+      if (m.terms.size() != model.terms.size() + 1) continue;  // it replaced a kept term
+      for (const auto& [k, freed] : freeable) m.terms[k] = TermSpec(freed);
+      consider(std::move(m), c.term.text());
+    }
+  }
+  if (!best) return false;
+  LoopRound lr = std::move(best->second);
+  lr.round = round_;
+  lr.added = best_new;
+  for (const auto& [from, to] : best_changed) lr.added += (lr.added.empty() ? "" : " + ") + to;
+  lr.explained = variance_share(lr.heldout_std_nT, now.heldout_std_nT);
+  for (const auto& [from, to] : best_changed) {
+    char why[400];
+    std::snprintf(why, sizeof(why),
+                  "its parameters estimated again with every other term in place%s%s: held-out "
+                  "error %.4f -> %.4f nT",
+                  best_new.empty() ? "" : " and ", best_new.c_str(), now.heldout_std_nT,
+                  lr.heldout_std_nT);
+    lr.replaced.emplace_back(from, why);
+  }
+  lr.rejected = std::move(rejected_);
+  rejected_.clear();
+  r_->rounds.push_back(std::move(lr));
+  r_->model = std::move(best->first);
+  return true;
+}
+
 void Round::backward_pass() {
   if (r_->rounds.size() < 2) return;
   const double accept = c_.options.accept_fraction;

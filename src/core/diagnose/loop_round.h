@@ -80,6 +80,15 @@ class Round {
   // accepted share and the resolution, raises neither half and passes refusal(). One exchange
   // per call; the term taken out joins `taken_out`.
   bool exchange(const DiagnoseOptions& options, std::set<std::string>* taken_out);
+  // When nothing else passes: the kept terms of recorded channels with parameters (a step's
+  // threshold, a time constant, a saturation level, a delay; not a learned law's knots, not a
+  // slow term), estimated while other effects were still in the residual or at another ridge
+  // strength, have them estimated again with every other term in place: each such term alone,
+  // and all of them beside each of the first candidates of `dxs` (at most kTriesPerRound, of
+  // distinct channels, whatever their share alone; not within the model's span). The best by
+  // held-out error takes their place (and adds its candidate) if it lowers the model's held-out
+  // error by the accepted share and the resolution, raises neither half and passes refusal().
+  bool refine_parameters(const std::vector<Diagnosis>& dxs);
   // An earlier round's term that the model no longer needs leaves (the least needed first, one
   // at a time), so long as the round still lowers the error of the round before it.
   void backward_pass();

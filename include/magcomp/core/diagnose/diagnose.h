@@ -167,6 +167,16 @@ struct DiagnoseOptions {
   /// effects were still in the residual is chosen again once they are written (false: a kept
   /// term stays unless later terms make it redundant).
   bool exchange_terms = true;
+  /// diagnose_loop: when no term passes, before any exchange, the kept terms' parameters (a
+  /// step's threshold, a time constant, a saturation level, a delay) are estimated again with
+  /// every other term of the model in place: each term's alone, and all of them beside each of
+  /// the diagnosis's first three candidates (of distinct channels, whatever their share alone).
+  /// The best takes the old terms' place when it lowers the held-out error by the accepted share
+  /// and the resolution and raises neither half (LoopRound::replaced). A threshold estimated
+  /// while another effect was still in the residual, or at another ridge strength, and a time
+  /// constant that stood in for a lag not yet written, are estimated where the model no longer
+  /// biases them (false: a kept term keeps the parameters it was added with).
+  bool refine_parameters = true;
   /// diagnose_loop's backward pass: an earlier round's term leaves when the model without it
   /// loses less than a term must gain to be added (accept_fraction of the held-out variance, or
   /// resolution_nT of its std; and on the validation flight, accept_fraction), so long as the

@@ -114,6 +114,11 @@ struct LoopResult {
 /// flight biases the fit, and a term that only undoes the bias would otherwise be taken for an
 /// effect. It never exceeds the start model's: a stronger ridge hides an effect the model lacks
 /// instead of writing it.
+/// When no step passes, the kept terms' parameters are first estimated again with every other
+/// term in place, alone and beside each of the first candidates (DiagnoseOptions::
+/// refine_parameters): the best that lowers the held-out error by the accepted share and the
+/// resolution and raises neither half takes the terms' place as a round of its own
+/// (LoopRound::replaced), and the loop goes on.
 /// When no step passes (DiagnoseOptions::exchange_terms), the kept terms of recorded channels
 /// chosen before a later round's terms are revisited one at a time: the model without the term
 /// (with the later terms) is diagnosed again, and the best of its
