@@ -647,6 +647,20 @@ TEST(Discovery, AKeptTermsParametersAreEstimatedAgainBesideANewTerm) {
   // The time constant alone, estimated again: not enough.
   loop_steps::Round alone(context, 3, &r);
   EXPECT_FALSE(alone.refine_parameters({}));
+  {
+    // A term without parameters (current:X is field:X written as the wire it models) has none
+    // to estimate: beside the lag it is no way in for the lag.
+    LoopResult plain;
+    plain.model = start;
+    plain.model.add_term(TermSpec("current:cur_com_1"));
+    fit_model(plain.model, flights);
+    plain.rounds.push_back(loop_steps::score(plain.model, flights, "mag_1_c", held, nullptr));
+    Diagnosis lag;
+    lag.candidates.resize(1);
+    lag.candidates[0].term = TermSpec("lag:0.284");
+    loop_steps::Round round(context, 3, &plain);
+    EXPECT_FALSE(round.refine_parameters({lag}));
+  }
   // Beside the lag the round refused (and a candidate of the same channel, tried too).
   Diagnosis dx;
   dx.candidates.resize(2);

@@ -515,8 +515,12 @@ bool Round::refine_parameters(const std::vector<Diagnosis>& dxs) {
     if (!e || !removable(c_.start, t) || fields_of(t).empty() || listed(model.black_box_terms) ||
         listed(model.slow_terms))
       continue;
-    const std::string freed = e->shape();  // every parameter '?' (a ramp's knot stays)
-    if (freed != t.text()) freeable.emplace_back(k, freed);
+    const auto& transforms = e->signal().transforms;
+    if (std::none_of(transforms.begin(), transforms.end(), [](const Transform& x) {
+          return x.has_param() && x.kind != TransformKind::Ramp;
+        }))
+      continue;  // no parameter (an alias such as current:X is written without one)
+    freeable.emplace_back(k, e->shape());  // every parameter '?' (a ramp's knot stays)
   }
   if (freeable.empty()) return false;
   std::optional<std::pair<Model, LoopRound>> best;
@@ -535,6 +539,10 @@ bool Round::refine_parameters(const std::vector<Diagnosis>& dxs) {
                                !(lr.confirmation_std_nT > now.confirmation_std_nT);
       if (!refusal(lr, now, c_.options).empty() || !halves_hold ||
           !passes(lr.heldout_std_nT, now.heldout_std_nT))
+        return;
+      // A new term with them: the gain a candidate needs on each half.
+      if (!added.empty() && !(passes(lr.selection_std_nT, now.selection_std_nT) &&
+                              passes(lr.confirmation_std_nT, now.confirmation_std_nT)))
         return;
       if (best && !(lr.heldout_std_nT < best->second.heldout_std_nT)) return;
       best.emplace(std::move(fitted));

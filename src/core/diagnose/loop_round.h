@@ -87,7 +87,8 @@ class Round {
   // and all of them beside each of the first candidates of `dxs` (at most kTriesPerRound, of
   // distinct channels, whatever their share alone; not within the model's span). The best by
   // held-out error takes their place (and adds its candidate) if it lowers the model's held-out
-  // error by the accepted share and the resolution, raises neither half and passes refusal().
+  // error by the accepted share and the resolution, raises neither half and passes refusal();
+  // with a candidate, it lowers each half's error by the accepted share and the resolution.
   bool refine_parameters(const std::vector<Diagnosis>& dxs);
   // An earlier round's term that the model no longer needs leaves (the least needed first, one
   // at a time), so long as the round still lowers the error of the round before it.
