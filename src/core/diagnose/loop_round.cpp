@@ -523,9 +523,13 @@ bool Round::refine_parameters(const std::vector<Diagnosis>& dxs) {
     freeable.emplace_back(k, e->shape());  // every parameter '?' (a ramp's knot stays)
   }
   if (freeable.empty()) return false;
-  std::optional<std::pair<Model, LoopRound>> best;
-  std::vector<std::pair<std::string, std::string>> best_changed;  // (old, new) texts
-  std::string best_new;                                           // the term added, or ""
+  // The best that passes, without a new term ([0]) and with one ([1]).
+  struct Choice {
+    std::optional<std::pair<Model, LoopRound>> fitted;
+    std::vector<std::pair<std::string, std::string>> changed;  // (old, new) texts
+    std::string added;                                         // the term added, or ""
+  };
+  Choice choice[2];
   const auto consider = [&](Model m, const std::string& added) {
     try {
       auto fitted = fit_score(std::move(m));
@@ -544,10 +548,11 @@ bool Round::refine_parameters(const std::vector<Diagnosis>& dxs) {
       if (!added.empty() && !(passes(lr.selection_std_nT, now.selection_std_nT) &&
                               passes(lr.confirmation_std_nT, now.confirmation_std_nT)))
         return;
-      if (best && !(lr.heldout_std_nT < best->second.heldout_std_nT)) return;
-      best.emplace(std::move(fitted));
-      best_changed = std::move(changed);
-      best_new = added;
+      Choice& c = choice[added.empty() ? 0 : 1];
+      if (c.fitted && !(lr.heldout_std_nT < c.fitted->second.heldout_std_nT)) return;
+      c.fitted.emplace(std::move(fitted));
+      c.changed = std::move(changed);
+      c.added = added;
     } catch (const Error&) {
     }
   };
@@ -584,7 +589,16 @@ bool Round::refine_parameters(const std::vector<Diagnosis>& dxs) {
       consider(std::move(m), c.term.text());
     }
   }
-  if (!best) return false;
+  // A new term must earn its place over the parameters estimated again without it: the
+  // accepted share and the resolution.
+  Choice* pick = choice[0].fitted ? &choice[0] : choice[1].fitted ? &choice[1] : nullptr;
+  if (pick == &choice[0] && choice[1].fitted &&
+      passes(choice[1].fitted->second.heldout_std_nT, choice[0].fitted->second.heldout_std_nT))
+    pick = &choice[1];
+  if (!pick) return false;
+  auto& best = pick->fitted;
+  const std::string& best_new = pick->added;
+  const auto& best_changed = pick->changed;
   LoopRound lr = std::move(best->second);
   lr.round = round_;
   lr.added = best_new;

@@ -88,7 +88,8 @@ class Round {
   // distinct channels, whatever their share alone; not within the model's span). The best by
   // held-out error takes their place (and adds its candidate) if it lowers the model's held-out
   // error by the accepted share and the resolution, raises neither half and passes refusal();
-  // with a candidate, it lowers each half's error by the accepted share and the resolution.
+  // with a candidate, it lowers each half's error by the accepted share and the resolution, and
+  // the error of the best without one (when one passes) by the same.
   bool refine_parameters(const std::vector<Diagnosis>& dxs);
   // An earlier round's term that the model no longer needs leaves (the least needed first, one
   // at a time), so long as the round still lowers the error of the round before it.
