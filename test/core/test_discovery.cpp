@@ -549,6 +549,42 @@ std::vector<loop_steps::HeldOut> held_out_as_diagnose_splits(const FlightData& f
   return held;
 }
 
+// A round at a loop's end, built directly: run r's first and next flights on aircraft draw d
+// (states recorded), the TL start fitted at `lambda`, the model with `terms` added and fitted,
+// scored on the held-out lines as diagnose splits them.
+// The TL template's ridge strength.
+double base_lambda() {
+  return load_model_yaml(test::source_dir() + "/config/models/tl_sim.yaml").fit.lambda;
+}
+
+struct RoundAtTheEnd {
+  RoundAtTheEnd(const sim::Scenario& a, double lambda, const std::vector<std::string>& terms)
+      : fa(sim::simulate(a, Igrf::installed())), fb(sim::simulate(next_of(a), Igrf::installed())) {
+    start = load_model_yaml(test::source_dir() + "/config/models/tl_sim.yaml");
+    start.fit.lambda = lambda;
+    fit_model(start, {&fa.flight});
+    model = start;
+    for (const std::string& t : terms) model.add_term(TermSpec(t));
+    fit_model(model, {&fa.flight});
+    held = held_out_as_diagnose_splits(fa.flight, start);
+    flights = {&fa.flight};
+    r.model = model;
+    r.rounds.push_back(loop_steps::score(model, flights, "mag_1_c", held, nullptr));
+  }
+  static sim::Scenario next_of(sim::Scenario a) {
+    a.seed += 1;
+    return a;
+  }
+  const sim::Simulation fa, fb;
+  Model start, model;
+  std::vector<loop_steps::HeldOut> held;
+  std::vector<const FlightData*> flights;
+  const DiagnoseOptions options;
+  LoopResult r;
+  const std::string truth = "mag_1_c";
+  const loop_steps::LoopContext context{start, flights, truth, held, nullptr, options, 0.05};
+};
+
 TEST(Discovery, AThresholdEstimatedBeforeTheOtherTermsIsEstimatedAgainWithThem) {
   // Run 101, second aircraft, its states recorded: a relay of cur_outpwr above 13.9 A and a
   // product yaw_rate*vol_outpwr. The loop's first round takes the relay's step together with
@@ -565,24 +601,11 @@ TEST(Discovery, AThresholdEstimatedBeforeTheOtherTermsIsEstimatedAgainWithThem) 
   for (const auto& e : effects)
     if (e.type == "relay" && e.channel == "cur_outpwr") threshold = e.threshold;
   ASSERT_TRUE(std::isfinite(threshold)) << "run 101 draws no relay of cur_outpwr";
-  sim::Scenario b = a;
-  b.seed = a.seed + 1;
-  const sim::Simulation fa = sim::simulate(a, Igrf::installed());
-  const sim::Simulation fb = sim::simulate(b, Igrf::installed());
-  Model start = load_model_yaml(test::source_dir() + "/config/models/tl_sim.yaml");
-  start.fit.lambda = 1e-6;
-  fit_model(start, {&fa.flight});
-  Model model = start;
-  model.add_term(TermSpec("field:cur_outpwr|step(14)"));
-  model.add_term(TermSpec("field:ins_acc_y"));
-  fit_model(model, {&fa.flight});
-  const std::vector<loop_steps::HeldOut> held = held_out_as_diagnose_splits(fa.flight, start);
-  const std::vector<const FlightData*> flights = {&fa.flight};
-  const DiagnoseOptions options;
-  const loop_steps::LoopContext context{start, flights, "mag_1_c", held, nullptr, options, 0.05};
-  LoopResult r;
-  r.model = model;
-  r.rounds.push_back(loop_steps::score(model, flights, "mag_1_c", held, nullptr));
+  RoundAtTheEnd end(a, 1e-6, {"field:cur_outpwr|step(14)", "field:ins_acc_y"});
+  const sim::Simulation& fb = end.fb;
+  const Model& model = end.model;
+  LoopResult& r = end.r;
+  const loop_steps::LoopContext& context = end.context;
   loop_steps::Round round(context, 3, &r);
   ASSERT_TRUE(round.refine_parameters({}));
   ASSERT_EQ(r.rounds.size(), 2u);
@@ -627,23 +650,14 @@ TEST(Discovery, AKeptTermsParametersAreEstimatedAgainBesideANewTerm) {
     if (e.type == "lag") lag_s = e.lag_s;
   }
   ASSERT_TRUE(std::isfinite(flex_s) && std::isfinite(lag_s)) << "run 117 draws no flex and lag";
-  sim::Scenario b = a;
-  b.seed = a.seed + 1;
-  const sim::Simulation fa = sim::simulate(a, Igrf::installed());
-  const sim::Simulation fb = sim::simulate(b, Igrf::installed());
-  Model start = load_model_yaml(test::source_dir() + "/config/models/tl_sim.yaml");
-  fit_model(start, {&fa.flight});
-  Model model = start;
-  model.add_term(TermSpec("scalar:roll_rate|lp(2.72)"));
-  model.add_term(TermSpec("second_order"));
-  fit_model(model, {&fa.flight});
-  const std::vector<loop_steps::HeldOut> held = held_out_as_diagnose_splits(fa.flight, start);
-  const std::vector<const FlightData*> flights = {&fa.flight};
-  const DiagnoseOptions options;
-  const loop_steps::LoopContext context{start, flights, "mag_1_c", held, nullptr, options, 0.05};
-  LoopResult r;
-  r.model = model;
-  r.rounds.push_back(loop_steps::score(model, flights, "mag_1_c", held, nullptr));
+  RoundAtTheEnd end(a, base_lambda(), {"scalar:roll_rate|lp(2.72)", "second_order"});
+  const sim::Simulation& fb = end.fb;
+  const Model& model = end.model;
+  const Model& start = end.start;
+  LoopResult& r = end.r;
+  const loop_steps::LoopContext& context = end.context;
+  const std::vector<const FlightData*>& flights = end.flights;
+  const std::vector<loop_steps::HeldOut>& held = end.held;
   // The time constant alone, estimated again: not enough.
   loop_steps::Round alone(context, 3, &r);
   EXPECT_FALSE(alone.refine_parameters({}));
