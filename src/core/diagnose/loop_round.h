@@ -108,6 +108,9 @@ class Round {
   std::pair<Model, LoopRound> fit_score(Model m) const;
   // On one half of the held-out lines: the accepted share of the variance and the resolution.
   bool passes(double with_nT, double without_nT) const;
+  // A change scored `lr` against the model scored `now`: it passes refusal(), raises neither
+  // half, and lowers the held-out error by passes().
+  bool improves_on(const LoopRound& lr, const LoopRound& now) const;
   // A pair fitted together (`lr`): every check of a single term, passes() on each half, and
   // each of its terms needed (the pair lowers the error variance of each alone by the accepted
   // share).

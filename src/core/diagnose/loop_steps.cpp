@@ -391,4 +391,21 @@ std::vector<Eligible> eligible_candidates(const std::vector<Diagnosis>& dxs, dou
   return out;
 }
 
+// The recorded channels a term reads (none for a lag).
+std::set<std::string> fields_of(const TermSpec& t) {
+  const std::vector<std::string> f = t.term().required_fields();
+  return std::set<std::string>(f.begin(), f.end());
+}
+
+// The terms of a round's step as LoopRound::added writes them (" + " joins a pair or a law).
+std::vector<std::string> step_terms(const std::string& added) {
+  std::vector<std::string> out;
+  for (size_t from = 0;;) {
+    const size_t to = added.find(" + ", from);
+    out.push_back(added.substr(from, to == std::string::npos ? std::string::npos : to - from));
+    if (to == std::string::npos) return out;
+    from = to + 3;
+  }
+}
+
 }  // namespace magcomp::loop_steps

@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <optional>
+#include <set>
 #include <string>
 #include <utility>
 #include <vector>
@@ -57,6 +58,12 @@ std::vector<TermSpec> learned_law(const std::string& channel, const Candidate* s
 /// Adds a candidate's term to `m`; a slow one (Candidate::slow) joins Model::slow_terms, fitted
 /// against `truth` unless the model names its own reference.
 void add_candidate_term(const TermSpec& term, bool slow, const std::string& truth, Model* m);
+
+/// The recorded channels a term reads (none for a lag).
+std::set<std::string> fields_of(const TermSpec& t);
+
+/// The terms of a round's step as LoopRound::added writes them (" + " joins a pair or a law).
+std::vector<std::string> step_terms(const std::string& added);
 
 /// `m` without `term` (and out of its slow and black-box lists), unfitted.
 Model without_term(const Model& m, const TermSpec& term);

@@ -1,0 +1,248 @@
+// magcomp: the steps of a round of diagnose_loop that revisit the kept terms (loop_round.h): the
+// kept terms' parameters estimated again, the exchange of a term chosen before the others were
+// written, and the backward pass.
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <map>
+#include <optional>
+#include <set>
+
+#include "loop_round.h"
+#include "magcomp/core/error.h"
+#include "magcomp/core/fit/model_fit.h"
+#include "magcomp/core/model/terms_expr.h"
+
+namespace magcomp::loop_steps {
+
+bool Round::exchange(const DiagnoseOptions& options, std::set<std::string>* taken_out) {
+  const LoopRound now = r_->rounds.back();
+  const std::vector<std::string>& laws = r_->model.black_box_terms;
+  // The round that added each term last, and the last round that added any: a term added in
+  // that round was chosen with every other term in the model, and its diagnosis would be the same.
+  std::map<std::string, size_t> added_in;
+  size_t last_adding = 0;
+  for (size_t k = 1; k < r_->rounds.size(); ++k) {
+    const LoopRound& lr = r_->rounds[k];
+    if (lr.regularisation || lr.added.empty()) continue;
+    last_adding = k;
+    for (const std::string& t : step_terms(lr.added)) added_in[t] = k;
+  }
+  for (const TermSpec& t : r_->model.terms) {
+    const auto in = added_in.find(t.text());
+    if (!removable(c_.start, t) || fields_of(t).empty() || taken_out->count(t.text()) ||
+        std::find(laws.begin(), laws.end(), t.text()) != laws.end() || in == added_in.end() ||
+        in->second >= last_adding)
+      continue;
+    const auto [without, without_lr] = fit_score(without_term(r_->model, t));
+    std::vector<Diagnosis> dxs;
+    for (const FlightData* f : c_.flights) dxs.push_back(diagnose(without, *f, c_.truth, options));
+    const std::vector<Eligible> eligible =
+        eligible_candidates(dxs, c_.min_share, !c_.options.refuse_within_span_terms);
+    std::optional<std::pair<Model, LoopRound>> best;
+    const Eligible* best_e = nullptr;
+    for (size_t k = 0, tried = 0; k < eligible.size() && tried < kTriesPerRound; ++k) {
+      if (eligible[k].term.text() == t.text()) continue;
+      ++tried;
+      try {
+        Model m = without;
+        add_candidate_term(eligible[k].term, eligible[k].slow, c_.truth, &m);
+        auto fitted = fit_score(std::move(m));
+        const LoopRound& lr = fitted.second;
+        if (!improves_on(lr, now)) continue;
+        if (best && !(lr.heldout_std_nT < best->second.heldout_std_nT)) continue;
+        best.emplace(std::move(fitted));
+        best_e = &eligible[k];
+      } catch (const Error&) {
+      }
+    }
+    if (!best) continue;
+    LoopRound lr = std::move(best->second);
+    lr.round = round_;
+    lr.added = best_e->term.text();
+    lr.explained = best_e->explained;
+    char why[300];
+    std::snprintf(why, sizeof(why),
+                  "the model without it, diagnosed again, takes %s: held-out error %.4f -> %.4f "
+                  "nT (without either %.4f)",
+                  lr.added.c_str(), now.heldout_std_nT, lr.heldout_std_nT,
+                  without_lr.heldout_std_nT);
+    lr.replaced.emplace_back(t.text(), why);
+    lr.rejected = std::move(rejected_);
+    rejected_.clear();
+    taken_out->insert(t.text());
+    r_->rounds.push_back(std::move(lr));
+    r_->model = std::move(best->first);
+    return true;
+  }
+  return false;
+}
+
+bool Round::refine_parameters(const std::vector<Diagnosis>& dxs) {
+  const LoopRound now = r_->rounds.back();
+  const Model& model = r_->model;
+  // The kept terms whose parameters may be estimated again, and each one's freed spec.
+  std::vector<std::pair<size_t, std::string>> freeable;
+  for (size_t k = 0; k < model.terms.size(); ++k) {
+    const TermSpec& t = model.terms[k];
+    const ExprTerm* e = t.expr();
+    const auto listed = [&](const std::vector<std::string>& list) {
+      return std::find(list.begin(), list.end(), t.text()) != list.end();
+    };
+    if (!e || !removable(c_.start, t) || fields_of(t).empty() || listed(model.black_box_terms) ||
+        listed(model.slow_terms))
+      continue;
+    const auto& transforms = e->signal().transforms;
+    if (std::none_of(transforms.begin(), transforms.end(), [](const Transform& x) {
+          return x.has_param() && x.kind != TransformKind::Ramp;
+        }))
+      continue;  // no parameter (an alias such as current:X is written without one)
+    freeable.emplace_back(k, e->shape());  // every parameter '?' (a ramp's knot stays)
+  }
+  if (freeable.empty()) return false;
+  // The best that passes, without a new term ([0]) and with one ([1]).
+  struct Choice {
+    std::optional<std::pair<Model, LoopRound>> fitted;
+    std::vector<std::pair<std::string, std::string>> changed;  // (old, new) texts
+    std::string added;                                         // the term added, or ""
+  };
+  Choice choice[2];
+  const auto consider = [&](Model m, const std::string& added) {
+    try {
+      auto fitted = fit_score(std::move(m));
+      std::vector<std::pair<std::string, std::string>> changed;
+      for (const auto& [k, freed] : freeable)
+        if (fitted.first.terms[k].text() != model.terms[k].text())
+          changed.emplace_back(model.terms[k].text(), fitted.first.terms[k].text());
+      if (changed.empty()) return;  // the same parameters: nothing new to judge
+      const LoopRound& lr = fitted.second;
+      if (!improves_on(lr, now)) return;
+      // A new term with them: the gain a candidate needs on each half.
+      if (!added.empty() && !(passes(lr.selection_std_nT, now.selection_std_nT) &&
+                              passes(lr.confirmation_std_nT, now.confirmation_std_nT)))
+        return;
+      Choice& c = choice[added.empty() ? 0 : 1];
+      if (c.fitted && !(lr.heldout_std_nT < c.fitted->second.heldout_std_nT)) return;
+      c.fitted.emplace(std::move(fitted));
+      c.changed = std::move(changed);
+      c.added = added;
+    } catch (const Error&) {
+    }
+  };
+  // Each term's parameters alone, with every other term in place.
+  for (const auto& [k, freed] : freeable) {
+    Model m = model;
+    m.terms[k] = TermSpec(freed);
+    consider(std::move(m), "");
+  }
+  // The diagnosis's first candidates (of distinct channels, whatever their share alone), each
+  // added with every kept term's parameters free: an effect whose signature a kept term took in
+  // part (a flex's time constant stretched over a scalar lag) is written where neither the new
+  // term alone nor the kept term's new parameters alone lowers the error.
+  std::set<std::string> tried_channels;
+  size_t tries = 0;
+  for (const Diagnosis& d : dxs) {
+    for (const Candidate& c : d.candidates) {
+      if (tries >= kTriesPerRound) break;
+      if (c_.options.refuse_within_span_terms && within_model_span(c.base_span_share)) continue;
+      if (std::find(model.terms.begin(), model.terms.end(), c.term) != model.terms.end()) continue;
+      const std::set<std::string> f = fields_of(c.term);
+      std::string key;
+      for (const std::string& x : f) key += x + ",";
+      if (!f.empty() && !tried_channels.insert(key).second) continue;
+      ++tries;
+      Model m = model;
+      try {
+        add_candidate_term(c.term, c.slow, c_.truth, &m);
+      } catch (const Error&) {
+        continue;
+      }
+      if (m.terms.size() != model.terms.size() + 1) continue;  // it replaced a kept term
+      for (const auto& [k, freed] : freeable) m.terms[k] = TermSpec(freed);
+      consider(std::move(m), c.term.text());
+    }
+  }
+  // A new term must earn its place over the parameters estimated again without it: the
+  // accepted share and the resolution.
+  Choice* pick = choice[0].fitted ? &choice[0] : choice[1].fitted ? &choice[1] : nullptr;
+  if (pick == &choice[0] && choice[1].fitted &&
+      passes(choice[1].fitted->second.heldout_std_nT, choice[0].fitted->second.heldout_std_nT))
+    pick = &choice[1];
+  if (!pick) return false;
+  auto& best = pick->fitted;
+  const std::string& best_new = pick->added;
+  const auto& best_changed = pick->changed;
+  LoopRound lr = std::move(best->second);
+  lr.round = round_;
+  lr.added = best_new;
+  for (const auto& [from, to] : best_changed) lr.added += (lr.added.empty() ? "" : " + ") + to;
+  lr.explained = variance_share(lr.heldout_std_nT, now.heldout_std_nT);
+  for (const auto& [from, to] : best_changed) {
+    char why[400];
+    std::snprintf(why, sizeof(why),
+                  "its parameters estimated again with every other term in place%s%s: held-out "
+                  "error %.4f -> %.4f nT",
+                  best_new.empty() ? "" : " and ", best_new.c_str(), now.heldout_std_nT,
+                  lr.heldout_std_nT);
+    lr.replaced.emplace_back(from, why);
+  }
+  lr.rejected = std::move(rejected_);
+  rejected_.clear();
+  r_->rounds.push_back(std::move(lr));
+  r_->model = std::move(best->first);
+  return true;
+}
+
+void Round::backward_pass() {
+  if (r_->rounds.size() < 2) return;
+  const double accept = c_.options.accept_fraction;
+  const LoopRound before = r_->rounds[r_->rounds.size() - 2];
+  const std::vector<std::string> now_terms = step_terms(r_->rounds.back().added);
+  const std::set<std::string> added_now(now_terms.begin(), now_terms.end());  // this round's
+  for (;;) {
+    const LoopRound& now = r_->rounds.back();
+    std::optional<std::pair<Model, LoopRound>> drop;
+    std::string drop_term;
+    double drop_share = INFINITY;
+    for (const TermSpec& t : r_->model.terms) {
+      if (!removable(c_.start, t) || added_now.count(t.text())) continue;
+      auto [m, lr] = fit_score(without_term(r_->model, t));
+      // The share of the variance the term still explains: what its leaving would add.
+      const double share = variance_share(now.heldout_std_nT, lr.heldout_std_nT);
+      // It leaves when it would not be added to the model without it (or, lenient, when it
+      // explains under a quarter of the accepted share).
+      const double leave = c_.options.backward_at_acceptance ? accept : 0.25 * accept;
+      const bool needed = c_.options.backward_at_acceptance
+                              ? share >= accept && lr.heldout_std_nT - now.heldout_std_nT >=
+                                                       c_.options.resolution_nT
+                              : share >= leave;
+      const bool validation_ok =
+          !std::isfinite(now.validation_std_nT) ||
+          variance_share(now.validation_std_nT, lr.validation_std_nT) < leave;
+      if (!needed && validation_ok && lr.heldout_std_nT < before.heldout_std_nT &&
+          share < drop_share) {
+        drop_share = share;
+        drop_term = t.text();
+        drop.emplace(std::move(m), std::move(lr));
+      }
+    }
+    if (!drop) break;
+    char why[200];
+    std::snprintf(why, sizeof(why),
+                  "made redundant by later terms: without it the held-out error %.4f -> %.4f nT",
+                  now.heldout_std_nT, drop->second.heldout_std_nT);
+    LoopRound& last = r_->rounds.back();
+    last.removed.emplace_back(drop_term, why);
+    last.heldout_std_nT = drop->second.heldout_std_nT;
+    last.all_std_nT = drop->second.all_std_nT;
+    last.calibration_std_nT = drop->second.calibration_std_nT;
+    last.channel_terms = drop->second.channel_terms;
+    last.selection_std_nT = drop->second.selection_std_nT;
+    last.confirmation_std_nT = drop->second.confirmation_std_nT;
+    last.fom_nT = drop->second.fom_nT;
+    last.validation_std_nT = drop->second.validation_std_nT;
+    r_->model = std::move(drop->first);
+  }
+}
+
+}  // namespace magcomp::loop_steps
