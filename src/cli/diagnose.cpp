@@ -302,6 +302,7 @@ struct DiagnoseArgs {
   double min_share = 0.05;
   bool apply = false, quick = false, choose_lambda = false, no_exchange = false;
   bool no_refine = false;
+  bool keep_factors = false;
 };
 
 // One round of the loop on one flight, as it runs: its baseline, its first candidates, its
@@ -373,6 +374,16 @@ void print_rounds_table(const LoopResult& r, bool validation, size_t flights) {
           "       look-alike %s: held-out %.3f nT in its place; these flights cannot tell its "
           "channel from %s's\n",
           term.c_str(), std_nT, lr.added.c_str());
+    if (!lr.steady_factors.empty()) {
+      std::printf(
+          "       %s's field may scale with a channel these flights hold steady (the term "
+          "times it differs from it by less than the resolution; relative std):",
+          lr.added.c_str());
+      for (size_t k = 0; k < lr.steady_factors.size(); ++k)
+        std::printf("%s %s %.2g %%", k ? "," : "", lr.steady_factors[k].first.c_str(),
+                    100 * lr.steady_factors[k].second);
+      std::printf("\n");
+    }
   }
 }
 
@@ -413,6 +424,9 @@ nlohmann::json loop_json(const LoopResult& r, const std::vector<TermSupport>& su
     jr["look_alikes"] = nlohmann::json::array();
     for (const auto& [term, std_nT] : lr.look_alikes)
       jr["look_alikes"].push_back({{"term", term}, {"heldout_std_nT", std_nT}});
+    jr["steady_factors"] = nlohmann::json::array();
+    for (const auto& [channel, relative] : lr.steady_factors)
+      jr["steady_factors"].push_back({{"channel", channel}, {"relative_std", relative}});
   }
   j["stop"] = r.stop_reason;
   j["warnings"] = r.warnings;
@@ -462,6 +476,7 @@ void run_diagnose(const DiagnoseArgs& a) {
   if (a.choose_lambda && !a.apply) throw Error("--choose-lambda: only with --apply");
   if (a.no_exchange && !a.apply) throw Error("--no-exchange: only with --apply");
   if (a.no_refine && !a.apply) throw Error("--no-refine: only with --apply");
+  if (a.keep_factors && !a.apply) throw Error("--keep-factors: only with --apply");
   const std::vector<std::string> paths = flight_paths("--data", a.data);
   std::vector<OutputGuard::File> others = {
       {"--model", a.model_path}, {"--validate", a.validate}, {"--attribution", a.attribution}};
@@ -483,6 +498,7 @@ void run_diagnose(const DiagnoseArgs& a) {
   options.choose_lambda = a.choose_lambda;
   options.exchange_terms = !a.no_exchange;
   options.refine_parameters = !a.no_refine;
+  options.drop_idle_factors = !a.keep_factors;
   if (!a.attribution.empty()) options.network_channels = read_network_attribution(a.attribution);
   if (paths.size() > 1 && !a.apply) {
     diagnose_several(model, paths, a.model_path, a.truth, a.json_path, a.top, options, guard, read);
@@ -583,6 +599,10 @@ void add_diagnose(CLI::App& app) {
                 "with --apply: when no term passes, keep the kept terms' parameters (by default "
                 "they are estimated again with every other term in place, alone and beside each "
                 "of the first candidates, before any exchange)");
+  cmd->add_flag("--keep-factors", a->keep_factors,
+                "with --apply: when no term passes, keep every kept product as it is (by default "
+                "a product whose factor does not earn its place on the held-out lines is written "
+                "without it)");
   cmd->add_option("--attribution", a->attribution,
                   "a trained network's attribution (magcomp evaluate --explain --json on a "
                   "flight it never saw): the channels it leans on (10 % or more, at most 3) are "

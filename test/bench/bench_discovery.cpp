@@ -72,6 +72,8 @@ int main(int argc, char** argv) {
         options.exchange_terms = false;
       } else if (opt == "no-refine") {
         options.refine_parameters = false;
+      } else if (opt == "keep-factors") {
+        options.drop_idle_factors = false;
       } else if (opt == "lenient-backward") {
         options.backward_at_acceptance = false;
       } else if (opt == "slow-on-calibration") {
@@ -92,7 +94,7 @@ int main(int argc, char** argv) {
         std::fprintf(stderr,
                      "error: option '%s': one-at-a-time, choose-lambda, no-span-ridge, span-terms, "
                      "no-joint, no-calibration-check, no-exchange, no-refine, lenient-backward, "
-                     "slow-on-calibration, "
+                     "slow-on-calibration, keep-factors, "
                      "validate, two-flights, states, half-several, verbose or draws=N\n",
                      opt.c_str());
         return 2;
@@ -192,6 +194,12 @@ int main(int argc, char** argv) {
             std::printf("         in place of %s: %s\n", term.c_str(), why.c_str());
           for (const auto& [term, held_nT] : lr.look_alikes)
             std::printf("         look-alike %s: held out %.4f nT\n", term.c_str(), held_nT);
+          if (!lr.steady_factors.empty()) {
+            std::printf("         may scale with a steady");
+            for (const auto& [factor, relative] : lr.steady_factors)
+              std::printf(" %s (%.2g %%)", factor.c_str(), 100 * relative);
+            std::printf("\n");
+          }
         }
         std::fflush(stdout);
       }

@@ -214,8 +214,8 @@ TEST(HostileOutputs, AnUnknownTransformListsEveryKnownOne) {
 }
 
 TEST(HostileOutputs, LoopOnlyFlagsWithoutTheLoopAreRefused) {
-  // --choose-lambda, --validate and --no-exchange change the loop (--apply); without it they would
-  // be ignored.
+  // --choose-lambda, --validate, --no-exchange, --no-refine and --keep-factors change the loop
+  // (--apply); without it they would be ignored.
   expect_refusal(
       "diagnose --data " + files().flight + " --model " + files().model + " --choose-lambda",
       {"--choose-lambda: only with --apply"});
@@ -225,6 +225,9 @@ TEST(HostileOutputs, LoopOnlyFlagsWithoutTheLoopAreRefused) {
   expect_refusal(
       "diagnose --data " + files().flight + " --model " + files().model + " --no-exchange",
       {"--no-exchange: only with --apply"});
+  for (const std::string flag : {"--no-refine", "--keep-factors"})
+    expect_refusal("diagnose --data " + files().flight + " --model " + files().model + " " + flag,
+                   {flag + ": only with --apply"});
 }
 
 }  // namespace

@@ -80,9 +80,11 @@ struct DiscoveryRun {
     };
     for (const auto& [channels, alikes] : named_terms) {
       if (channels.empty()) continue;
+      // The one of them reading the most effects' channels (a look-alike that scales the kept
+      // term by the effect's second channel names more of it than the kept term).
       const std::set<std::string>* hit = within(channels) ? &channels : nullptr;
-      for (size_t k = 0; !hit && k < alikes.size(); ++k)
-        if (within(alikes[k])) hit = &alikes[k];
+      for (size_t k = 0; k < alikes.size(); ++k)
+        if (within(alikes[k]) && (!hit || alikes[k].size() > hit->size())) hit = &alikes[k];
       if (!hit) return false;
       covered.insert(hit->begin(), hit->end());
     }
@@ -247,8 +249,14 @@ inline DiscoveryRun discovery_run(unsigned r, int count, const sim::Scenario& ba
     out.named_channels.insert(channels.begin(), channels.end());
     std::vector<std::set<std::string>> alikes;
     for (const LoopRound& lr : loop.rounds)
-      if (lr.added == t)
+      if (lr.added == t) {
         for (const auto& la : lr.look_alikes) alikes.push_back(channels_of(la.first));
+        // The term times a channel the flights hold steady: the same held-out error.
+        for (const auto& [factor, relative] : lr.steady_factors) {
+          alikes.push_back(channels);
+          alikes.back().insert(factor);
+        }
+      }
     out.named_terms.emplace_back(channels, std::move(alikes));
   }
   {

@@ -212,6 +212,16 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
         learned_channels = learned_before;
       }
     }
+    // Nothing passes: a kept product whose factor earns no place is written without it
+    // (Round::drop_idle_factors); the loop goes on.
+    if (!kept && options.drop_idle_factors) {
+      loop_steps::Round simplify(context, round, &r);
+      if (simplify.drop_idle_factors()) {
+        auto& refused = r.rounds.back().rejected;
+        refused.insert(refused.begin(), step.rejected().begin(), step.rejected().end());
+        continue;
+      }
+    }
     // Nothing passes: a kept term's parameters, estimated while other effects were still in the
     // residual, are estimated again with the model's other terms (Round::refine_parameters); the
     // loop goes on.

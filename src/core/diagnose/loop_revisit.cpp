@@ -1,6 +1,6 @@
 // magcomp: the steps of a round of diagnose_loop that revisit the kept terms (loop_round.h): the
-// kept terms' parameters estimated again, the exchange of a term chosen before the others were
-// written, and the backward pass.
+// kept terms' parameters estimated again, a product's idle factor dropped, the exchange of a term
+// chosen before the others were written, and the backward pass.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -11,6 +11,7 @@
 #include "loop_round.h"
 #include "magcomp/core/error.h"
 #include "magcomp/core/fit/model_fit.h"
+#include "magcomp/core/io/channel_kinds.h"
 #include "magcomp/core/model/terms_expr.h"
 
 namespace magcomp::loop_steps {
@@ -76,6 +77,87 @@ bool Round::exchange(const DiagnoseOptions& options, std::set<std::string>* take
     return true;
   }
   return false;
+}
+
+namespace {
+
+// The spec of `e` without its source k (the shorthand current:X for a plain current's field).
+std::string without_source(const ExprTerm& e, size_t k) {
+  SignalExpr signal = e.signal();
+  signal.sources.erase(signal.sources.begin() + static_cast<std::ptrdiff_t>(k));
+  if (e.projection() == Projection::Field && signal.sources.size() == 1 &&
+      signal.transforms.empty() && is_electrical(signal.sources.front()))
+    return "current:" + signal.sources.front();
+  const char* projection = e.projection() == Projection::Field     ? "field:"
+                           : e.projection() == Projection::Induced ? "induced:"
+                                                                   : "scalar:";
+  return projection + signal.str();
+}
+
+}  // namespace
+
+bool Round::drop_idle_factors() {
+  const LoopRound now = r_->rounds.back();
+  const Model& model = r_->model;
+  struct Best {
+    std::pair<Model, LoopRound> fitted;
+    std::string old_text, new_text;
+    double without_nT;
+  };
+  std::optional<Best> best;
+  for (const TermSpec& t : model.terms) {
+    const ExprTerm* e = t.expr();
+    const auto listed = [&](const std::vector<std::string>& list) {
+      return std::find(list.begin(), list.end(), t.text()) != list.end();
+    };
+    // A product of recorded channels only (not B or Bt), added by the loop, not a law's hinge
+    // nor a slow term (its stage and lines are sized for the term as it is).
+    if (!e || !removable(c_.start, t) || listed(model.black_box_terms) ||
+        listed(model.slow_terms) || e->signal().sources.size() < 2 ||
+        fields_of(t).size() != e->signal().sources.size())
+      continue;
+    std::optional<std::pair<Model, LoopRound>> without;
+    for (size_t k = 0; k < e->signal().sources.size(); ++k) {
+      const std::string simpler = without_source(*e, k);
+      if (std::any_of(model.terms.begin(), model.terms.end(),
+                      [&](const TermSpec& x) { return x.text() == simpler; }))
+        continue;
+      try {
+        if (!without) without.emplace(fit_score(without_term(model, t)));
+        Model m = model;
+        for (TermSpec& x : m.terms)
+          if (x.text() == t.text()) x = TermSpec(simpler);
+        auto fitted = fit_score(std::move(m));
+        const LoopRound& lr = fitted.second;
+        // The factor earns its place: the product beats the term without it.
+        if (passes(now.heldout_std_nT, lr.heldout_std_nT)) continue;
+        // The term without it is still a term: it passes a new term's checks against the model
+        // without either.
+        const LoopRound& none = without->second;
+        if (!refusal(lr, none, c_.options).empty() ||
+            !passes(lr.heldout_std_nT, none.heldout_std_nT))
+          continue;
+        if (best && !(lr.heldout_std_nT < best->fitted.second.heldout_std_nT)) continue;
+        best.emplace(Best{std::move(fitted), t.text(), simpler, none.heldout_std_nT});
+      } catch (const Error&) {
+      }
+    }
+  }
+  if (!best) return false;
+  LoopRound lr = std::move(best->fitted.second);
+  lr.round = round_;
+  lr.added = best->new_text;
+  char why[300];
+  std::snprintf(why, sizeof(why),
+                "its factor earns no place: without it, held-out error %.4f -> %.4f nT (the model "
+                "without either %.4f)",
+                now.heldout_std_nT, lr.heldout_std_nT, best->without_nT);
+  lr.replaced.emplace_back(best->old_text, why);
+  lr.rejected = std::move(rejected_);
+  rejected_.clear();
+  r_->rounds.push_back(std::move(lr));
+  r_->model = std::move(best->fitted.first);
+  return true;
 }
 
 bool Round::refine_parameters(const std::vector<Diagnosis>& dxs) {

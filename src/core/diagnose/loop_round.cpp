@@ -244,7 +244,15 @@ bool Round::first_single(const std::vector<Eligible>& eligible) {
     Model next = before;
     add_candidate_term(eligible[k].term, eligible[k].slow, c_.truth, &next);
     if (try_model(std::move(next), eligible[k].term, eligible[k].explained, false)) {
-      look_alikes(before, eligible, fewer_columns(before, eligible, k));
+      const size_t kept = fewer_columns(before, eligible, k);
+      look_alikes(before, eligible, kept);
+      LoopRound& now = r_->rounds.back();
+      const double prev_nT =
+          r_->rounds.size() < 2 ? NAN : r_->rounds[r_->rounds.size() - 2].heldout_std_nT;
+      const double explained2 = prev_nT * prev_nT - now.heldout_std_nT * now.heldout_std_nT;
+      if (explained2 > 0)
+        now.steady_factors = steady_factors(c_.flights, fields_of(eligible[kept].term), c_.truth,
+                                            std::sqrt(explained2), c_.options.resolution_nT);
       return true;
     }
   }

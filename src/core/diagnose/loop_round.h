@@ -91,6 +91,14 @@ class Round {
   // with a candidate, it lowers each half's error by the accepted share and the resolution, and
   // the error of the best without one (when one passes) by the same.
   bool refine_parameters(const std::vector<Diagnosis>& dxs);
+  // When nothing else passes: a kept product of recorded channels (field:a*b, with its
+  // transforms) whose factor earns no place -- the product does not beat the same term without
+  // that factor by the accepted share and the resolution on the held-out lines (a factor the
+  // flights hold steady, or one that only rescales the other) -- is written without it, if that
+  // term alone still lowers the error of the model without either by the same and passes
+  // refusal() against it. The least needed factor first, one per call; the change is a round
+  // (LoopRound::replaced says why).
+  bool drop_idle_factors();
   // An earlier round's term that the model no longer needs leaves (the least needed first, one
   // at a time), so long as the round still lowers the error of the round before it.
   void backward_pass();

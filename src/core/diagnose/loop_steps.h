@@ -83,6 +83,15 @@ struct Eligible {
   double base_span_share = NAN;  ///< Candidate::base_span_share (on that flight)
 };
 
+/// The recorded states of the aircraft (is_aircraft_state, not among `kept_channels` nor the
+/// reference `truth`) that `flights` hold so steady that a term of `term_nT` (the std it
+/// explains on the held-out lines) times one of them differs from it by less than
+/// `resolution_nT`: their relative std (std / |mean| over the flights' samples) times term_nT is
+/// below it. Each with that relative std (dimensionless), steadiest first.
+std::vector<std::pair<std::string, double>> steady_factors(
+    const std::vector<const FlightData*>& flights, const std::set<std::string>& kept_channels,
+    const std::string& truth, double term_nT, double resolution_nT);
+
 /// The candidates of one round's diagnoses that the loop may add, in rank order (see
 /// diagnose_loop); a term within the model's own span (within_model_span) only with
 /// `within_span_too`.

@@ -177,6 +177,14 @@ struct DiagnoseOptions {
   /// constant that stood in for a lag not yet written, are estimated where the model no longer
   /// biases them (false: a kept term keeps the parameters it was added with).
   bool refine_parameters = true;
+  /// diagnose_loop: when no term passes, before the parameters are estimated again, a kept
+  /// product of recorded channels whose factor earns no place (the product does not beat the
+  /// same term without it by accepted_fraction of the held-out variance and resolution_nT: a
+  /// current times a bus the flights hold steady, or times a channel that only rescales it) is
+  /// written without that factor, if the simpler term still passes a new term's checks against
+  /// the model without either (LoopRound::replaced). The model then names the channels the
+  /// flights show (false: a product stays as it was added).
+  bool drop_idle_factors = true;
   /// diagnose_loop's backward pass: an earlier round's term leaves when the model without it
   /// loses less than a term must gain to be added (accept_fraction of the held-out variance, or
   /// resolution_nT of its std; and on the validation flight, accept_fraction), so long as the

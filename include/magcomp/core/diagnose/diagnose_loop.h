@@ -73,6 +73,13 @@ struct LoopRound {
   /// held-out error std, nT; empty when the kept term's channel is told apart (or for a step
   /// that is not a single term).
   std::vector<std::pair<std::string, double>> look_alikes;
+  /// For this round's single term: the recorded states the flights hold so steady that the term
+  /// times one of them (a product, such as a wire's current times a bus voltage held within a few
+  /// percent) differs from it by less than the resolution on the held-out lines: the flights
+  /// cannot tell whether the effect scales with one of them. Each with its relative std over the
+  /// flights (std / |mean|, dimensionless), steadiest first; empty for a lag or a step that is
+  /// not a single term (loop_steps::steady_factors).
+  std::vector<std::pair<std::string, double>> steady_factors;
 };
 
 struct LoopResult {
