@@ -39,7 +39,8 @@ struct DiscoveryRun {
   /// rate, in the band, follows the roll angle as TL's induced terms do).
   double true_terms_next_nT = NAN;
   std::vector<std::string> added;  ///< each round's step, in order (later removed or not)
-  /// The rounds' steps still in force at the end: not removed or exchanged by a later round.
+  /// The rounds' steps still in force at the end: each step's terms that no later round removed
+  /// or replaced (of a pair, the one that stays).
   std::vector<std::string> in_force;
   /// With MAGCOMP_DISCOVERY_DROP_ONE set: each added term of the final model, and the next
   /// flight's std of that model refitted without it (which term carries over, which hurts).
@@ -209,13 +210,24 @@ inline DiscoveryRun discovery_run(unsigned r, int count, const sim::Scenario& ba
   out.loop_next_nT = evaluate_model(loop.model, fb.flight, "mag_1_c", false).std_nT;
   for (size_t k = 1; k < loop.rounds.size(); ++k) {
     const std::string& a = loop.rounds[k].added;
-    bool gone = false;
-    for (size_t j = k + 1; j < loop.rounds.size(); ++j) {
-      for (const auto& [term, why] : loop.rounds[j].removed) gone = gone || term == a;
-      for (const auto& [term, why] : loop.rounds[j].replaced) gone = gone || term == a;
+    // Each term of the step (" + " joins a pair or a law) in force unless a later round removed
+    // or replaced it.
+    std::string kept;
+    for (size_t from = 0; from != std::string::npos;) {
+      const size_t to = a.find(" + ", from);
+      const std::string t = a.substr(from, to == std::string::npos ? std::string::npos : to - from);
+      from = to == std::string::npos ? to : to + 3;
+      bool gone = false;
+      for (size_t j = k + 1; j < loop.rounds.size(); ++j) {
+        for (const auto& [term, why] : loop.rounds[j].removed)
+          gone = gone || term == t || term == a;
+        for (const auto& [term, why] : loop.rounds[j].replaced)
+          gone = gone || term == t || term == a;
+      }
+      if (!gone) kept += (kept.empty() ? "" : " + ") + t;
     }
     out.added.push_back(a);
-    if (!gone) out.in_force.push_back(a);
+    if (!kept.empty()) out.in_force.push_back(kept);
   }
   if (std::getenv("MAGCOMP_DISCOVERY_DROP_ONE"))
     for (const std::string& t : loop.model.terms) {
