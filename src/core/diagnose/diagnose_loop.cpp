@@ -79,6 +79,12 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
   const loop_steps::LoopContext context{start,      flights, truth,    held_out,
                                         validation, options, min_share};
   for (int round = 1;; ++round) {
+    // The rounds spent: each kept product whose factor earns no place is still written without
+    // it (sharing the last round's number), before the last diagnosis.
+    while (round > max_rounds && round > 1 && options.drop_idle_factors) {
+      loop_steps::Round simplify(context, max_rounds, &r);
+      if (!simplify.drop_idle_factors()) break;
+    }
     std::vector<Diagnosis> dxs;
     const auto diagnose_all = [&] {
       dxs.clear();
@@ -212,16 +218,6 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
         learned_channels = learned_before;
       }
     }
-    // Nothing passes: a kept product whose factor earns no place is written without it
-    // (Round::drop_idle_factors); the loop goes on.
-    if (!kept && options.drop_idle_factors) {
-      loop_steps::Round simplify(context, round, &r);
-      if (simplify.drop_idle_factors()) {
-        auto& refused = r.rounds.back().rejected;
-        refused.insert(refused.begin(), step.rejected().begin(), step.rejected().end());
-        continue;
-      }
-    }
     // Nothing passes: a kept term's parameters, estimated while other effects were still in the
     // residual, are estimated again with the model's other terms (Round::refine_parameters); the
     // loop goes on.
@@ -241,6 +237,16 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
         auto& refused = r.rounds.back().rejected;
         refused.insert(refused.begin(), step.rejected().begin(), step.rejected().end());
         ++exchanges;
+        continue;
+      }
+    }
+    // Nothing passes and nothing kept changes: a kept product whose factor earns no place is
+    // written without it (Round::drop_idle_factors); the loop goes on.
+    if (!kept && options.drop_idle_factors) {
+      loop_steps::Round simplify(context, round, &r);
+      if (simplify.drop_idle_factors()) {
+        auto& refused = r.rounds.back().rejected;
+        refused.insert(refused.begin(), step.rejected().begin(), step.rejected().end());
         continue;
       }
     }

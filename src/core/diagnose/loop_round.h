@@ -91,7 +91,8 @@ class Round {
   // with a candidate, it lowers each half's error by the accepted share and the resolution, and
   // the error of the best without one (when one passes) by the same.
   bool refine_parameters(const std::vector<Diagnosis>& dxs);
-  // When nothing else passes: a kept product of recorded channels (field:a*b, with its
+  // When nothing else passes or changes (and when the loop's rounds are spent): a kept product
+  // of recorded channels (field:a*b, with its
   // transforms) whose factor earns no place -- the product does not beat the same term without
   // that factor by the accepted share and the resolution on the held-out lines (a factor the
   // flights hold steady, or one that only rescales the other) -- is written without it, if that

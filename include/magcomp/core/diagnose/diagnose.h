@@ -177,7 +177,8 @@ struct DiagnoseOptions {
   /// constant that stood in for a lag not yet written, are estimated where the model no longer
   /// biases them (false: a kept term keeps the parameters it was added with).
   bool refine_parameters = true;
-  /// diagnose_loop: when no term passes, before the parameters are estimated again, a kept
+  /// diagnose_loop: when no term passes and neither the parameters estimated again nor an
+  /// exchange change the model, and once more when the rounds are spent, a kept
   /// product of recorded channels whose factor earns no place (the product does not beat the
   /// same term without it by accepted_fraction of the held-out variance and resolution_nT: a
   /// current times a bus the flights hold steady, or times a channel that only rescales it) is
