@@ -618,6 +618,8 @@ TEST(Discovery, AProductsFactorThatEarnsNoPlaceIsDropped) {
     EXPECT_TRUE(after_nT < before_nT + o.resolution_nT ||
                 after_nT * after_nT * (1 - o.accept_fraction) < before_nT * before_nT);
     EXPECT_LT(next_after_nT, next_before_nT);
+    EXPECT_NEAR(lr.explained, loop_steps::variance_share(after_nT, before_nT), 1e-12);
+    EXPECT_GT(lr.explained, 0);  // here the term without the factor does better
     loop_steps::Round again(end.context, 3, &end.r);
     EXPECT_FALSE(again.drop_idle_factors());  // no product left
   }

@@ -147,6 +147,9 @@ bool Round::drop_idle_factors() {
   LoopRound lr = std::move(best->fitted.second);
   lr.round = round_;
   lr.added = best->new_text;
+  // As the parameters estimated again: the variance share the change gains (negative: what the
+  // simpler term costs, less than a term must gain).
+  lr.explained = variance_share(lr.heldout_std_nT, now.heldout_std_nT);
   char why[300];
   std::snprintf(why, sizeof(why),
                 "its factor earns no place: without it, held-out error %.4f -> %.4f nT (the model "
