@@ -557,6 +557,15 @@ double base_lambda() {
   return load_model_yaml(test::source_dir() + "/config/models/tl_sim.yaml").fit.lambda;
 }
 
+// The benchmark's base flight with the aircraft's states recorded (scripts/bench_discovery …
+// states): flaps, engine speed, outside air temperature, a heater switch.
+sim::Scenario base_with_states() {
+  sim::Scenario base =
+      sim::load_scenario(test::source_dir() + "/config/scenarios/random_base.yaml");
+  base.aircraft_states = true;
+  return base;
+}
+
 struct RoundAtTheEnd {
   RoundAtTheEnd(const sim::Scenario& a, double lambda, const std::vector<std::string>& terms)
       : fa(sim::simulate(a, Igrf::installed())), fb(sim::simulate(next_of(a), Igrf::installed())) {
@@ -591,9 +600,7 @@ TEST(Discovery, AProductsFactorThatEarnsNoPlaceIsDropped) {
   // naming cur_outpwr, 0.631 nT on the next flight against the oracle's 0.498
   // (scripts/bench_discovery 1 128 half-several states draws=3 keep-factors). Without the
   // factor the term does better on the held-out lines: it takes the product's place.
-  sim::Scenario base =
-      sim::load_scenario(test::source_dir() + "/config/scenarios/random_base.yaml");
-  base.aircraft_states = true;
+  const sim::Scenario base = base_with_states();
   std::vector<sim::HiddenEffect> effects;
   {
     const sim::Scenario a = test::discovery_scenario(128, 1, base, 2, &effects);
@@ -642,9 +649,7 @@ TEST(Discovery, AProductWithABusVoltageHeldSteadyIsReportedBesideTheWire) {
   // loop keeps the current's wire (0.085 nT on the next flight, oracle 0.090;
   // scripts/bench_discovery 1 130 half-several states verbose). What it must say is that the
   // current's field may scale with a channel the flight holds steady, the bus among them.
-  sim::Scenario base =
-      sim::load_scenario(test::source_dir() + "/config/scenarios/random_base.yaml");
-  base.aircraft_states = true;
+  const sim::Scenario base = base_with_states();
   const Model tl = load_model_yaml(test::source_dir() + "/config/models/tl_sim.yaml");
   const test::DiscoveryRun d = test::discovery_run(130, 1, base, tl, {}, 0);
   ASSERT_EQ(d.true_channels, (std::set<std::string>{"cur_heat", "vol_outpwr"})) << d.effects;
@@ -684,9 +689,7 @@ TEST(Discovery, AThresholdEstimatedBeforeTheOtherTermsIsEstimatedAgainWithThem) 
   // model's ridge; the ridge then falls to 1e-6 and no term passes (scripts/bench_discovery 1 101
   // half-several states draws=2 no-refine). The threshold estimated again with the other terms
   // in place is the relay's own, and the held-out error falls by far more than a term must gain.
-  sim::Scenario base =
-      sim::load_scenario(test::source_dir() + "/config/scenarios/random_base.yaml");
-  base.aircraft_states = true;
+  const sim::Scenario base = base_with_states();
   std::vector<sim::HiddenEffect> effects;
   const sim::Scenario a = test::discovery_scenario(101, 2, base, 1, &effects);
   double threshold = NAN;
@@ -731,9 +734,7 @@ TEST(Discovery, AKeptTermsParametersAreEstimatedAgainBesideANewTerm) {
   // stopped at 2.57 nT held out, 3.10 nT on the next flight (scripts/bench_discovery 1 117
   // half-several states draws=2 no-refine). Neither the lag alone nor the flex's time constant
   // estimated again alone passes; the lag beside it with the time constant free does.
-  sim::Scenario base =
-      sim::load_scenario(test::source_dir() + "/config/scenarios/random_base.yaml");
-  base.aircraft_states = true;
+  const sim::Scenario base = base_with_states();
   std::vector<sim::HiddenEffect> effects;
   const sim::Scenario a = test::discovery_scenario(117, 2, base, 1, &effects);
   double flex_s = NAN, lag_s = NAN;
