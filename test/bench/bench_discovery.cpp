@@ -10,7 +10,9 @@
 // The runs naming exactly the effects' channels: overall, among the look-alikes the loop reports,
 // and over the runs whose effects' channels move with no other recorded channel on the first
 // flight (|r| >= 0.95, look_alike_channels; a line ends "[the effects' channels move with ...]"
-// otherwise: that flight cannot tell them apart).
+// otherwise: that flight cannot tell them apart), and those naming every effect's channel and a
+// channel more (the names column says "more"), with how many of them end below the oracle on
+// the next flight (the term more carries something over).
 // Then the same figures per number of simultaneous effects, and per run over its draws.
 // Usage: magcomp_bench_discovery SCENARIO.yaml TL_MODEL.yaml [runs] [first_seed] [options]
 // options: one-at-a-time (no pairs, no backward pass); choose-lambda (each round first chooses
@@ -110,6 +112,9 @@ int main(int argc, char** argv) {
     std::map<std::string, std::array<int, 4>> by_kind;
     int runs_all_draws_near = 0, runs_predictable = 0;  // runs near the true terms on every draw
     int named_among_look_alikes = 0;  // predictable runs naming the truth among the look-alikes
+    // Predictable runs naming every effect's channel and a channel more, and those of them whose
+    // next flight is below the oracle's (what the term more writes carries over).
+    int named_and_more = 0, named_and_more_below_oracle = 0;
     // Predictable runs whose effects' channels have no look-alike on the first flight, and those
     // of them naming the truth exactly.
     int without_look_alike = 0, named_without_look_alike = 0;
@@ -153,6 +158,9 @@ int main(int argc, char** argv) {
           named[d.kind].first += d.names_truth();
           named[d.kind].second += 1;
           named_among_look_alikes += d.names_truth_among_look_alikes();
+          named_and_more += d.names_truth_and_more();
+          named_and_more_below_oracle +=
+              d.names_truth_and_more() && d.loop_next_nT < d.oracle_next_nT;
           if (!d.truth_has_look_alike()) {
             ++without_look_alike;
             named_without_look_alike += d.names_truth();
@@ -161,10 +169,12 @@ int main(int argc, char** argv) {
         std::string truth_alikes;
         for (const auto& c : d.truth_look_alikes)
           truth_alikes += (truth_alikes.empty() ? "" : ", ") + c;
-        // "alike": the truth among the look-alikes the loop reports, not its kept terms alone.
+        // "alike": the truth among the look-alikes the loop reports, not its kept terms alone;
+        // "more": every effect's channel and a channel more.
         const char* names = !d.predictable                      ? "-"
                             : d.names_truth()                   ? "yes"
                             : d.names_truth_among_look_alikes() ? "alike"
+                            : d.names_truth_and_more()          ? "more"
                                                                 : "NO";
         std::printf("%4u%s %8.3f %8.3f %8.3f %8.3f %6s %6s %5s %7.3f %7.3f  %-8s %s -> %s%s%s%s\n",
                     r, draws > 1 ? ("/" + std::to_string(draw)).c_str() : "", d.tl_next_nT,
@@ -229,6 +239,10 @@ int main(int argc, char** argv) {
     std::printf("names the effects' channels among the look-alikes it reports: %d/%d (%.0f %%)\n",
                 named_among_look_alikes, named_runs,
                 named_runs ? 100.0 * named_among_look_alikes / named_runs : 0.0);
+    std::printf(
+        "names every effect's channel and a channel more: %d/%d, the next flight below the "
+        "oracle's in %d of them\n",
+        named_and_more, named_runs, named_and_more_below_oracle);
     std::printf(
         "names them exactly where no effect's channel moves with another recorded channel "
         "(|r| >= 0.95 on the first flight): %d/%d (%.0f %%)\n",

@@ -65,6 +65,11 @@ struct DiscoveryRun {
   std::set<std::string> true_channels, named_channels;
   /// The final model names the truth: its added terms read exactly the effects' channels.
   bool names_truth() const { return named_channels == true_channels; }
+  /// The final model names every effect's channel and a channel more (not exactly).
+  bool names_truth_and_more() const {
+    return !names_truth() && std::includes(named_channels.begin(), named_channels.end(),
+                                           true_channels.begin(), true_channels.end());
+  }
   /// Each added term of the final model: the channels it reads, and those of each look-alike
   /// the loop reported beside it (LoopRound::look_alikes).
   std::vector<std::pair<std::set<std::string>, std::vector<std::set<std::string>>>> named_terms;

@@ -237,7 +237,7 @@ void expect_ridge_leaves_no_stand_in(bool choose) {
   EXPECT_LT(d.loop_next_nT, 0.2) << d.loop_next_nT;  // 0.430 nT: TL + the lag at 1e-4
 }
 
-TEST(Discovery, ARidgeChosenOnTheHeldOutLinesLeavesNoTermStandingInForIt) {
+TEST(DiscoveryLong, ARidgeChosenOnTheHeldOutLinesLeavesNoTermStandingInForIt) {
   // Run 3: a 0.491 s lag. With the shipped ridge (fit.lambda 1e-4) the loop would keep, beside
   // the lag, a slow term of a channel that carries no effect (field:vol_back_p|lp(665): 5 V times
   // the permanent term's columns), standing in for the ridge's bias on TL's permanent columns
