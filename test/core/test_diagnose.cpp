@@ -427,7 +427,7 @@ TEST(Diagnose, ATermItsFitRowsBarelySwitchIsSizedWithItsUncertainty) {
             std::string::npos);
 }
 
-TEST(Diagnose, ALawNoFormulaWritesIsLearnedAsHingesOfItsChannelAndCarriesOver) {
+TEST(DiagnoseLong, ALawNoFormulaWritesIsLearnedAsHingesOfItsChannelAndCarriesOver) {
   // The bus current through a core with a dead band that saturates above it (3 tanh(max(I - 19,
   // 0) / 3)): no closed form of the language writes it exactly. The loop ends with terms of
   // cur_acpwr: a learned law (hinges at its quantiles, marked as a black box in its round and in

@@ -55,7 +55,7 @@ bool reads(const Model& m, const std::string& channel) {
   return false;
 }
 
-TEST(DiagnoseFlights, AnEffectTheFirstFlightNeverCalibratesIsFoundOnTheSecondAndCarriesOver) {
+TEST(DiagnoseFlightsLong, AnEffectTheFirstFlightNeverCalibratesIsFoundOnTheSecondAndCarriesOver) {
   const Model tl = load_model_yaml(test::source_dir() + "/config/models/tl_sim.yaml");
   const std::vector<double>& cal = tl.fit.lines;
   const FlightData a = pump_flight(11, 40.0, true, cal);
