@@ -3,6 +3,7 @@
 
 #include <Eigen/Dense>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <future>
 #include <map>
@@ -154,20 +155,52 @@ struct Ranked {
   std::vector<double> unit_sse, unit_sst;  // of the combined model, per unit
 };
 
-Ranked rank_and_combine(const Problem& p, const std::vector<Functions>& functions,
-                        Eigen::Index shift, Eigen::VectorXd* prediction) {
+// The real fit (shift 0) and four nulls with the channels shifted by a fifth of the flight each.
+constexpr int kShifts = 5;
+Eigen::Index shift_of(const Problem& p, int s) { return (p.n * s) / 5; }
+
+using Channels = std::vector<std::pair<std::string, Eigen::Map<const Eigen::VectorXd>>>;
+
+// Each channel's share alone at each shift, the channel's functions computed once and let go
+// (a 5 h flight's hundred channels would hold ~0.7 GB of them at once): per channel, kShifts
+// shares. The channels are split between two workers.
+std::vector<std::array<double, kShifts>> shares_alone(
+    const Problem& p, const Channels& channels, const Eigen::Ref<const Eigen::VectorXd>& t_s) {
+  std::vector<std::array<double, kShifts>> alone(channels.size());
+  const auto work = [&](size_t first) {
+    for (size_t k = first; k < channels.size(); k += 2) {
+      const Functions f = channel_functions(channels[k].second, t_s);
+      for (int s = 0; s < kShifts; ++s)
+        alone[k][static_cast<size_t>(s)] = cross_fit(p, {&f}, shift_of(p, s));
+    }
+  };
+  auto other = std::async(std::launch::async, work, size_t{1});
+  work(0);
+  other.get();
+  return alone;
+}
+
+// At shift `s`: the channels ranked by their share alone, and the combined model of the first
+// kTopChannels that explain something (their functions computed again here).
+Ranked rank_and_combine(const Problem& p, const Channels& channels,
+                        const Eigen::Ref<const Eigen::VectorXd>& t_s,
+                        const std::vector<std::array<double, kShifts>>& alone, int s,
+                        Eigen::VectorXd* prediction) {
   Ranked r;
-  for (size_t k = 0; k < functions.size(); ++k) {
-    r.by_share.emplace_back(cross_fit(p, {&functions[k]}, shift), k);
-  }
+  for (size_t k = 0; k < channels.size(); ++k)
+    r.by_share.emplace_back(alone[k][static_cast<size_t>(s)], k);
   std::sort(r.by_share.begin(), r.by_share.end(),
             [](const auto& a, const auto& b) { return a.first > b.first; });
-  std::vector<const Functions*> top;
+  std::vector<Functions> top_functions;
   for (const auto& [share, k] : r.by_share) {
-    if (share > 0 && static_cast<int>(top.size()) < kTopChannels) top.push_back(&functions[k]);
+    if (share > 0 && static_cast<int>(top_functions.size()) < kTopChannels)
+      top_functions.push_back(channel_functions(channels[k].second, t_s));
   }
-  if (top.empty()) return r;
-  r.combined = std::max(0.0, cross_fit(p, top, shift, prediction, &r.unit_sse, &r.unit_sst));
+  if (top_functions.empty()) return r;
+  std::vector<const Functions*> top;
+  for (const Functions& f : top_functions) top.push_back(&f);
+  r.combined =
+      std::max(0.0, cross_fit(p, top, shift_of(p, s), prediction, &r.unit_sse, &r.unit_sst));
   return r;
 }
 
@@ -271,20 +304,15 @@ ExplainableShare explainable_share(
   int filled = 0;
   for (const auto& r : p.rows) filled += r.size() >= 20;
   if (filled < 2 || channels.empty()) return out;
-  std::vector<Functions> functions(channels.size());
-  for (size_t k = 0; k < channels.size(); ++k) {
-    functions[k] = channel_functions(channels[k].second, t_s);
-  }
+  const std::vector<std::array<double, kShifts>> alone = shares_alone(p, channels, t_s);
   if (channels_read) channels_read();
-  // The real fit, and four nulls with the channels shifted by a fifth of the flight each, in
-  // parallel (each is independent).
+  // The real fit and the four nulls, in parallel (each is independent).
   Eigen::VectorXd prediction = Eigen::VectorXd::Constant(p.n, NAN);
   auto real = std::async(std::launch::async,
-                         [&] { return rank_and_combine(p, functions, 0, &prediction); });
+                         [&] { return rank_and_combine(p, channels, t_s, alone, 0, &prediction); });
   std::vector<double> null;
-  for (int s = 1; s <= 4; ++s) {
-    null.push_back(rank_and_combine(p, functions, (p.n * s) / 5, nullptr).combined);
-  }
+  for (int s = 1; s < kShifts; ++s)
+    null.push_back(rank_and_combine(p, channels, t_s, alone, s, nullptr).combined);
   const Ranked r = real.get();
   double mean = 0, var = 0, mx = 0;
   for (double v : null) {
