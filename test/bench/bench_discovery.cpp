@@ -74,6 +74,8 @@ int main(int argc, char** argv) {
         options.exchange_terms = false;
       } else if (opt == "no-refine") {
         options.refine_parameters = false;
+      } else if (opt == "line-jackknife") {
+        options.line_jackknife = true;
       } else if (opt == "keep-factors") {
         options.drop_idle_factors = false;
       } else if (opt == "lenient-backward") {
@@ -96,7 +98,7 @@ int main(int argc, char** argv) {
         std::fprintf(stderr,
                      "error: option '%s': one-at-a-time, choose-lambda, no-span-ridge, span-terms, "
                      "no-joint, no-calibration-check, no-exchange, no-refine, lenient-backward, "
-                     "slow-on-calibration, keep-factors, "
+                     "slow-on-calibration, keep-factors, line-jackknife, "
                      "validate, two-flights, states, half-several, verbose or draws=N\n",
                      opt.c_str());
         return 2;

@@ -702,6 +702,38 @@ TEST(Discovery, AProductsFactorThatEarnsNoPlaceIsDropped) {
   }
 }
 
+TEST(Discovery, WithTheLineJackknifeATermMustGainBeyondItsBestLine) {
+  // Four held-out lines of 10 nT² each. A new channel term that takes 8 nT² from one line only
+  // (a clock's step, a state that fits one line's wander) lowers the pooled error by 20 %, and
+  // the other lines' by nothing: refused with the jackknife, kept without it. One that takes
+  // 2 nT² from every line keeps 20 % on the other three and passes either way.
+  const auto round = [](std::vector<double> line_ss, bool with_term) {
+    LoopRound r;
+    r.line_ss_nT2 = line_ss;
+    double ss = 0;
+    for (double v : line_ss) ss += v;
+    r.heldout_std_nT = std::sqrt(ss / 400.0);
+    if (with_term) r.channel_terms = {"current:cur_bat_2"};
+    return r;
+  };
+  const LoopRound now = round({10, 10, 10, 10}, false);
+  const LoopRound one_line = round({2, 10, 10, 10}, true);
+  const LoopRound every_line = round({8, 8, 8, 8}, true);
+  DiagnoseOptions pooled;
+  DiagnoseOptions jackknife;
+  jackknife.line_jackknife = true;
+  EXPECT_EQ(loop_steps::refusal(one_line, now, pooled), "");
+  const std::string why = loop_steps::refusal(one_line, now, jackknife);
+  EXPECT_NE(why.find("without the held-out line where it gains most (100.0% of its gain)"),
+            std::string::npos)
+      << why;
+  EXPECT_EQ(loop_steps::refusal(every_line, now, jackknife), "");
+  // A change that adds no channel term (a ridge strength) is judged pooled.
+  LoopRound ridge = one_line;
+  ridge.channel_terms.clear();
+  EXPECT_EQ(loop_steps::refusal(ridge, now, jackknife), "");
+}
+
 TEST(Discovery, ABusTheFlightHoldsSteadyIsListedAsAFactorOfTheWire) {
   // Run 130, first aircraft, its states recorded: the field of cur_heat times vol_outpwr, a bus
   // held at 27.8 V within a few tenths of a volt, which no flight tells apart from the heater

@@ -4,6 +4,7 @@
 #include "loop_steps.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <map>
@@ -43,6 +44,23 @@ std::pair<double, double> ss_on_fold(const Eigen::VectorXd& e, const HeldOut& h,
     count += 1;
   }
   return {ss, count};
+}
+
+// Sum of squares of an error on each held-out line (both halves, each line's mean removed), in
+// ascending line number.
+std::vector<double> ss_per_line(const Eigen::VectorXd& e, const HeldOut& h) {
+  std::map<double, std::array<double, 3>> sums;  // line -> sum, sum of squares, count
+  const Eigen::Index n = std::min<Eigen::Index>(e.size(), static_cast<Eigen::Index>(h.fold.size()));
+  for (Eigen::Index i = 0; i < n; ++i) {
+    if (h.fold[static_cast<size_t>(i)] < 0 || !std::isfinite(e[i])) continue;
+    auto& a = sums[h.line[i]];
+    a[0] += e[i];
+    a[1] += e[i] * e[i];
+    a[2] += 1;
+  }
+  std::vector<double> out;
+  for (const auto& [line, a] : sums) out.push_back(std::max(0.0, a[1] - a[0] * a[0] / a[2]));
+  return out;
 }
 
 // Sum of squares and count of an error over `rows` (ascending), each contiguous segment's mean
@@ -147,6 +165,8 @@ LoopRound score(const Model& model, const std::vector<const FlightData*>& flight
       }
     }
     r.flight_heldout_std_nT.push_back(flight_n > 0 ? std::sqrt(flight_ss / flight_n) : NAN);
+    const std::vector<double> lines = ss_per_line(held_error, held_out[f]);
+    r.line_ss_nT2.insert(r.line_ss_nT2.end(), lines.begin(), lines.end());
     all_ss += ev.std_nT * ev.std_nT * static_cast<double>(ev.n);
     all_n += static_cast<double>(ev.n);
     if (!ev.fom.signatures.empty()) {
@@ -234,6 +254,31 @@ std::string refusal(const LoopRound& next, const LoopRound& now, const DiagnoseO
                   "unfiltered): its size does not hold where it is fitted",
                   now.calibration_std_nT, next.calibration_std_nT);
     return buf;
+  }
+  // With line_jackknife: the gain must hold without the held-out line where it is largest.
+  if (options.line_jackknife && adds_channel_term && next.line_ss_nT2.size() > 2 &&
+      next.line_ss_nT2.size() == now.line_ss_nT2.size()) {
+    size_t best = 0;
+    double now_rest = 0, next_rest = 0;
+    for (size_t l = 0; l < now.line_ss_nT2.size(); ++l) {
+      if (now.line_ss_nT2[l] - next.line_ss_nT2[l] > now.line_ss_nT2[best] - next.line_ss_nT2[best])
+        best = l;
+      now_rest += now.line_ss_nT2[l];
+      next_rest += next.line_ss_nT2[l];
+    }
+    now_rest -= now.line_ss_nT2[best];
+    next_rest -= next.line_ss_nT2[best];
+    if (!(now_rest > 0) || 1.0 - next_rest / now_rest < options.accept_fraction) {
+      std::snprintf(buf, sizeof(buf),
+                    "without the held-out line where it gains most (%.1f%% of its gain), it "
+                    "lowers the error variance of the other lines by %.1f%%, under %.0f%%",
+                    100 * (now.line_ss_nT2[best] - next.line_ss_nT2[best]) /
+                        std::max(1e-300, now.line_ss_nT2[best] + now_rest - next.line_ss_nT2[best] -
+                                             next_rest),
+                    now_rest > 0 ? 100 * (1.0 - next_rest / now_rest) : 0.0,
+                    100 * options.accept_fraction);
+      return buf;
+    }
   }
   if (std::isfinite(now.validation_std_nT) && !(next.validation_std_nT < now.validation_std_nT)) {
     std::snprintf(buf, sizeof(buf),

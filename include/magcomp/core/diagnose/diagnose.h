@@ -192,6 +192,12 @@ struct DiagnoseOptions {
   /// round still lowers the error of the round before it (false: it leaves only when it explains
   /// under a quarter of accept_fraction).
   bool backward_at_acceptance = true;
+  /// diagnose_loop: a change that adds a term of a recorded channel must also hold without the
+  /// held-out line where it gains most: on the other lines it lowers the error variance by
+  /// accept_fraction (a clock's step or a slowly stepping state that fits one line's wander
+  /// gains on one or two lines; an effect gains wherever its channel moves). False (the
+  /// default): the held-out lines are judged pooled. `scripts/bench_discovery … line-jackknife`.
+  bool line_jackknife = false;
   /// The channels a trained network leans on, as its attribution ranks them (empty: none). The
   /// leading ones (kNetworkChannels with kNetworkMinShare or more) are searched even where the
   /// search would leave them out (full_search false), their products with each other and with

@@ -57,6 +57,9 @@ struct LoopRound {
   std::vector<std::pair<std::string, std::string>> replaced;
   /// The held-out error std on each flight the loop learns from, nT (in the order given).
   std::vector<double> flight_heldout_std_nT;
+  /// The held-out error's sum of squares on each held-out line (each line's mean removed), nT²:
+  /// the flights in the order given, each flight's lines in ascending number.
+  std::vector<double> line_ss_nT2;
   /// The ridge strength of this round's model (fit.lambda, dimensionless).
   double lambda = NAN;
   /// The round changed only the ridge strength (fit.lambda, chosen on the held-out lines;
