@@ -10,6 +10,7 @@
 #include <limits>
 
 #include "magcomp/core/error.h"
+#include "signal_pointwise.h"
 
 namespace magcomp {
 namespace {
@@ -212,34 +213,16 @@ class PlayStage : public SignalStage {
 
 class PointwiseStage : public SignalStage {
  public:
-  PointwiseStage(TransformKind k, double p)
-      : kind_(k),
-        p_(p),
-        integer_(std::abs(p - std::round(p)) < 1e-12),
-        square_(integer_ && std::round(p) == 2.0) {}
+  PointwiseStage(TransformKind k, double p) : law_(k, p) {}
   bool push(double t, double x, double* t_out, double* y) override {
     *t_out = t;
-    if (kind_ == TransformKind::Abs) {
-      *y = std::abs(x);
-    } else if (kind_ == TransformKind::Saturate) {
-      *y = p_ * std::tanh(x / p_);
-    } else if (kind_ == TransformKind::Step) {
-      *y = std::isfinite(x) ? (x > p_ ? 1.0 : 0.0) : kNaN;
-    } else if (kind_ == TransformKind::Ramp) {
-      *y = std::isfinite(x) ? std::max(x - p_, 0.0) : kNaN;
-    } else {
-      // x * x is pow(x, 2) exactly (one rounding either way), and the commonest law.
-      *y = square_ ? x * x : integer_ ? std::pow(x, std::round(p_)) : std::pow(std::abs(x), p_);
-    }
+    *y = law_(x);
     return true;
   }
   void reset() override {}
 
  private:
-  TransformKind kind_;
-  double p_;
-  bool integer_;
-  bool square_;
+  PointwiseLaw law_;
 };
 
 class DelayStage : public SignalStage {
@@ -454,157 +437,6 @@ TransformChain::TransformChain(const std::vector<Transform>& transforms) {
 
 void TransformChain::reset() {
   for (auto& s : stages_) s->reset();
-}
-
-namespace {
-
-// One transform over a whole series, in place (t_s and x of n samples): the arithmetic of its
-// stage above, sample by sample, without the per-sample calls of a chain. `tmp` is scratch of n.
-void transform_series(const Transform& tr, const double* t, double* x, Eigen::Index n,
-                      double* tmp) {
-  switch (tr.kind) {
-    case TransformKind::Derivative: {  // DerivativeStage: sample k's output, at t[k]
-      if (n == 0) return;
-      if (n == 1) {
-        x[0] = 0.0;
-        return;
-      }
-      std::copy(x, x + n, tmp);
-      x[0] = (tmp[1] - tmp[0]) / (t[1] - t[0]);
-      for (Eigen::Index k = 1; k + 1 < n; ++k)
-        x[k] = (tmp[k + 1] - tmp[k - 1]) / (t[k + 1] - t[k - 1]);
-      x[n - 1] = (tmp[n - 1] - tmp[n - 2]) / (t[n - 1] - t[n - 2]);
-      return;
-    }
-    case TransformKind::Integral: {  // IntegralStage
-      bool init = false;
-      double acc = 0, xp = 0, tp = 0;
-      for (Eigen::Index k = 0; k < n; ++k) {
-        const double v = x[k];
-        if (!std::isfinite(v)) {
-          x[k] = kNaN;
-          continue;
-        }
-        if (!init) {
-          acc = 0.0;
-          init = true;
-        } else {
-          acc += 0.5 * (v + xp) * (t[k] - tp);
-        }
-        xp = v;
-        tp = t[k];
-        x[k] = acc;
-      }
-      return;
-    }
-    case TransformKind::LowPass:
-    case TransformKind::HighPass: {  // LowPassStage
-      const bool high = tr.kind == TransformKind::HighPass;
-      const double tau = tr.param;
-      bool init = false;
-      double s = 0, tp = 0;
-      // The factors of the last few steps: a time base written as t0 + k dt rounds its steps to
-      // a few values, between which the stage's one-step memory would call exp at every sample.
-      // The same step gives the same factor, so the values are the stage's.
-      constexpr int kSteps = 4;
-      double step_s[kSteps] = {kNaN, kNaN, kNaN, kNaN}, factor[kSteps] = {1, 1, 1, 1};
-      int next_slot = 0;
-      for (Eigen::Index k = 0; k < n; ++k) {
-        const double v = x[k];
-        if (!std::isfinite(v)) {
-          x[k] = kNaN;
-          continue;
-        }
-        if (!init) {
-          s = v;
-          init = true;
-        } else {
-          const double dt = t[k] - tp;
-          int slot = 0;
-          while (slot < kSteps && !(step_s[slot] == dt)) ++slot;
-          if (slot == kSteps) {
-            slot = next_slot;
-            next_slot = (next_slot + 1) % kSteps;
-            step_s[slot] = dt;
-            factor[slot] = std::exp(-dt / tau);
-          }
-          const double a = factor[slot];
-          s = a * s + (1 - a) * v;
-        }
-        tp = t[k];
-        x[k] = high ? v - s : s;
-      }
-      return;
-    }
-    case TransformKind::Decay: {  // d, then lp
-      Transform d{TransformKind::Derivative, 0.0, false};
-      Transform lp{TransformKind::LowPass, tr.param, false};
-      transform_series(d, t, x, n, tmp);
-      transform_series(lp, t, x, n, tmp);
-      return;
-    }
-    case TransformKind::Play: {  // PlayStage
-      const double r = tr.param;
-      bool init = false;
-      double s = 0;
-      for (Eigen::Index k = 0; k < n; ++k) {
-        const double v = x[k];
-        if (!std::isfinite(v)) {
-          x[k] = kNaN;
-          continue;
-        }
-        s = init ? std::max(v - r, std::min(v + r, s)) : v;
-        init = true;
-        x[k] = s;
-      }
-      return;
-    }
-    case TransformKind::Delay: {  // DelayStage: the samples from `j` on are its history
-      const double delay = tr.param;
-      if (delay == 0.0) return;
-      std::copy(x, x + n, tmp);
-      Eigen::Index j = 0;
-      for (Eigen::Index k = 0; k < n; ++k) {
-        const double q = t[k] - delay;
-        while (j + 1 <= k && t[j + 1] <= q) ++j;
-        if (q <= t[j]) {
-          x[k] = tmp[j];
-        } else {
-          x[k] = tmp[j] + (tmp[j + 1] - tmp[j]) * ((q - t[j]) / (t[j + 1] - t[j]));
-        }
-      }
-      return;
-    }
-    case TransformKind::Abs:
-    case TransformKind::Power:
-    case TransformKind::Saturate:
-    case TransformKind::Step:
-    case TransformKind::Ramp: {  // PointwiseStage
-      PointwiseStage stage(tr.kind, tr.param);
-      double t_out = 0;
-      for (Eigen::Index k = 0; k < n; ++k) stage.push(t[k], x[k], &t_out, &x[k]);
-      return;
-    }
-  }
-}
-
-}  // namespace
-
-Eigen::MatrixXd apply_transforms(const std::vector<Transform>& transforms,
-                                 const Eigen::Ref<const Eigen::VectorXd>& t_s,
-                                 const Eigen::MatrixXd& x) {
-  if (transforms.empty()) return x;
-  for (const auto& tr : transforms)
-    if (tr.free) throw Error("signal: transform '" + tr.str() + "' has no value yet");
-  // Transform by transform over each column: each stage maps sample k at t[k] to sample k at
-  // t[k] (a derivative looks one ahead, a delay back), so the composition is the chain's.
-  if (t_s.size() < x.rows()) throw Error("signal: the time base is shorter than the series");
-  Eigen::MatrixXd y = x;
-  std::vector<double> tmp(static_cast<size_t>(x.rows()));
-  for (Eigen::Index c = 0; c < y.cols(); ++c)
-    for (const auto& tr : transforms)
-      transform_series(tr, t_s.data(), y.col(c).data(), y.rows(), tmp.data());
-  return y;
 }
 
 }  // namespace magcomp
