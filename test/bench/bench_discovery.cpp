@@ -28,7 +28,8 @@
 // non-electrical states recorded, and effects of a switched current times one of them drawn among
 // the others); half-several (runs alternate one effect and two or three, instead of 60 % one, 30 %
 // two, 10 % three); draws=N (each run on N aircraft: the same effects, other aircraft and flights);
-// verbose (each run's rounds with their held-out errors and look-alikes); validate (the loop learns
+// verbose (each run's rounds with their held-out errors and look-alikes); why (verbose, and the
+// changes each round refused, with why); validate (the loop learns
 // from the first flight with a second flight of the aircraft as its validation flight); two-flights
 // (the loop, TL and the references learn from both flights together). Every mode is scored on the
 // same next flight.
@@ -53,7 +54,7 @@ int main(int argc, char** argv) {
     const int runs = argc > 3 ? std::atoi(argv[3]) : 50;
     const unsigned first = argc > 4 ? static_cast<unsigned>(std::atoi(argv[4])) : 1;
     magcomp::DiagnoseOptions options;
-    bool half_several = false, states = false, verbose = false;
+    bool half_several = false, states = false, verbose = false, why = false;
     unsigned draws = 1;
     magcomp::test::Learn learn = magcomp::test::Learn::kOneFlight;
     for (int a = 5; a < argc; ++a) {
@@ -76,6 +77,8 @@ int main(int argc, char** argv) {
         options.refine_parameters = false;
       } else if (opt == "line-jackknife") {
         options.line_jackknife = true;
+      } else if (opt == "first-kept") {
+        options.better_look_alike = false;
       } else if (opt == "keep-factors") {
         options.drop_idle_factors = false;
       } else if (opt == "lenient-backward") {
@@ -90,6 +93,8 @@ int main(int argc, char** argv) {
         states = true;
       } else if (opt == "verbose") {
         verbose = true;
+      } else if (opt == "why") {
+        verbose = why = true;
       } else if (opt == "half-several") {
         half_several = true;
       } else if (opt.rfind("draws=", 0) == 0 && std::atoi(opt.c_str() + 6) >= 1) {
@@ -98,8 +103,8 @@ int main(int argc, char** argv) {
         std::fprintf(stderr,
                      "error: option '%s': one-at-a-time, choose-lambda, no-span-ridge, span-terms, "
                      "no-joint, no-calibration-check, no-exchange, no-refine, lenient-backward, "
-                     "slow-on-calibration, keep-factors, line-jackknife, "
-                     "validate, two-flights, states, half-several, verbose or draws=N\n",
+                     "slow-on-calibration, keep-factors, first-kept, line-jackknife, "
+                     "validate, two-flights, states, half-several, verbose, why or draws=N\n",
                      opt.c_str());
         return 2;
       }
@@ -206,6 +211,9 @@ int main(int argc, char** argv) {
             std::printf("         in place of %s: %s\n", term.c_str(), why.c_str());
           for (const auto& [term, held_nT] : lr.look_alikes)
             std::printf("         look-alike %s: held out %.4f nT\n", term.c_str(), held_nT);
+          for (size_t k = 0; why && k < lr.rejected.size(); ++k)
+            std::printf("         refused %s: %s\n", lr.rejected[k].first.c_str(),
+                        lr.rejected[k].second.c_str());
           if (!lr.steady_factors.empty()) {
             std::printf("         may scale with a steady");
             for (const auto& [factor, relative] : lr.steady_factors)
@@ -213,6 +221,7 @@ int main(int argc, char** argv) {
             std::printf("\n");
           }
         }
+        if (why) std::printf("       stopped: %s\n", d.stop_reason.c_str());
         std::fflush(stdout);
       }
       runs_predictable += run_predictable;

@@ -244,8 +244,7 @@ bool Round::first_single(const std::vector<Eligible>& eligible) {
     Model next = before;
     add_candidate_term(eligible[k].term, eligible[k].slow, c_.truth, &next);
     if (try_model(std::move(next), eligible[k].term, eligible[k].explained, false)) {
-      const size_t kept = fewer_columns(before, eligible, k);
-      look_alikes(before, eligible, kept);
+      const size_t kept = look_alikes(before, eligible, fewer_columns(before, eligible, k));
       LoopRound& now = r_->rounds.back();
       const double prev_nT =
           r_->rounds.size() < 2 ? NAN : r_->rounds[r_->rounds.size() - 2].heldout_std_nT;
@@ -303,12 +302,14 @@ size_t Round::fewer_columns(const Model& before, const std::vector<Eligible>& el
   return best_j;
 }
 
-void Round::look_alikes(const Model& before, const std::vector<Eligible>& eligible, size_t kept) {
+size_t Round::look_alikes(const Model& before, const std::vector<Eligible>& eligible, size_t kept) {
   const std::set<std::string> kept_fields = fields_of(eligible[kept].term);
-  if (kept_fields.empty() || r_->rounds.size() < 2) return;  // a lag names no channel
+  if (kept_fields.empty() || r_->rounds.size() < 2) return kept;  // a lag names no channel
   LoopRound& now = r_->rounds.back();
   const LoopRound previous = r_->rounds[r_->rounds.size() - 2];
-  std::set<std::string> named = kept_fields;  // one look-alike per channel set
+  std::set<std::string> named = kept_fields;          // one look-alike per channel set
+  std::optional<std::pair<Model, LoopRound>> better;  // a look-alike that does better
+  size_t better_j = kept;
   for (size_t j = 0, tried = 0; j < eligible.size() && tried < kLookAlikeTries; ++j) {
     if (j == kept) continue;
     const std::set<std::string> fields = fields_of(eligible[j].term);
@@ -320,15 +321,41 @@ void Round::look_alikes(const Model& before, const std::vector<Eligible>& eligib
     try {
       Model m = before;
       add_candidate_term(eligible[j].term, eligible[j].slow, c_.truth, &m);
-      const LoopRound lr = fit_score(std::move(m)).second;
+      auto fitted = fit_score(std::move(m));
+      const LoopRound& lr = fitted.second;
       if (!refusal(lr, previous, c_.options).empty()) continue;
       // Not told apart: the kept term is not better by the accepted share and the resolution.
       if (passes(now.heldout_std_nT, lr.heldout_std_nT)) continue;
       now.look_alikes.emplace_back(eligible[j].term.text(), lr.heldout_std_nT);
       named.insert(fields.begin(), fields.end());
+      if (c_.options.better_look_alike && refusal(lr, now, c_.options).empty() &&
+          passes(lr.heldout_std_nT, now.heldout_std_nT) &&
+          (!better || lr.heldout_std_nT < better->second.heldout_std_nT)) {
+        better = std::move(fitted);
+        better_j = j;
+      }
     } catch (const Error&) {
     }
   }
+  if (!better) return kept;
+  // A look-alike that beats the kept term by what a term must gain takes its place, and its own
+  // look-alikes are listed (each such exchange lowers the held-out error by the accepted share,
+  // so it ends).
+  LoopRound lr = std::move(better->second);
+  lr.round = now.round;
+  lr.added = eligible[better_j].term.text();
+  lr.explained = eligible[better_j].explained;
+  lr.black_box = false;
+  lr.rejected = std::move(now.rejected);
+  char why[300];
+  std::snprintf(why, sizeof(why),
+                "a look-alike of another channel does better: %s leaves %.4f nT held out, this "
+                "term %.4f",
+                lr.added.c_str(), lr.heldout_std_nT, now.heldout_std_nT);
+  lr.rejected.emplace_back(now.added, why);
+  now = std::move(lr);
+  r_->model = std::move(better->first);
+  return look_alikes(before, eligible, better_j);
 }
 
 bool Round::pair_acting_together(const std::vector<Diagnosis>& dxs) {

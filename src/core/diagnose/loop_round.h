@@ -137,9 +137,13 @@ class Round {
   // must earn their place on the held-out lines. Returns the index now kept.
   size_t fewer_columns(const Model& before, const std::vector<Eligible>& eligible, size_t kept);
   // After eligible[kept] was kept in place of `before`: the eligible terms of other channels
-  // that, each in its place, pass the same checks and leave a held-out error within the
-  // resolution and the accepted share of the kept one's (LoopRound::look_alikes).
-  void look_alikes(const Model& before, const std::vector<Eligible>& eligible, size_t kept);
+  // (at most kLookAlikeTries, in rank order) that, each in its place, pass the same checks and
+  // that the kept one does not beat by the accepted share and the resolution
+  // (LoopRound::look_alikes). With DiagnoseOptions::better_look_alike, the best of them that
+  // beats the kept term so, as a step beats the model it changes (refusal() and passes() on the
+  // held-out lines), takes its place, and its own look-alikes are listed.
+  // Returns the index now kept.
+  size_t look_alikes(const Model& before, const std::vector<Eligible>& eligible, size_t kept);
 
   const LoopContext& c_;
   int round_;

@@ -186,6 +186,12 @@ struct DiagnoseOptions {
   /// the model without either (LoopRound::replaced). The model then names the channels the
   /// flights show (false: a product stays as it was added).
   bool drop_idle_factors = true;
+  /// diagnose_loop: after a single term is kept, the eligible terms of other channels that it
+  /// does not beat are listed as its look-alikes; the best of them that beats it by
+  /// accept_fraction of the held-out variance and resolution_nT takes its
+  /// place (the screen ranks on the selection lines; the held-out lines decide which of two
+  /// channels that move together carries the effect). False: the first term that passes stays.
+  bool better_look_alike = true;
   /// diagnose_loop's backward pass: an earlier round's term leaves when the model without it
   /// loses less than a term must gain to be added (accept_fraction of the held-out variance, or
   /// resolution_nT of its std; and on the validation flight, accept_fraction), so long as the
