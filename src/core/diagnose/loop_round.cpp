@@ -284,22 +284,27 @@ size_t Round::fewer_columns(const Model& before, const std::vector<Eligible>& el
     }
   }
   if (!best) return kept;
-  LoopRound& now = r_->rounds.back();
-  LoopRound lr = std::move(best->second);
-  lr.round = now.round;
-  lr.added = eligible[best_j].term.text();
-  lr.explained = eligible[best_j].explained;
-  lr.black_box = false;
-  lr.rejected = std::move(now.rejected);
   char why[200];
   std::snprintf(why, sizeof(why),
                 "as few columns do as well: %s leaves %.4f nT held out, %.4f with %lld columns",
-                lr.added.c_str(), lr.heldout_std_nT, now.heldout_std_nT,
-                static_cast<long long>(kept_columns));
+                eligible[best_j].term.text().c_str(), best->second.heldout_std_nT,
+                r_->rounds.back().heldout_std_nT, static_cast<long long>(kept_columns));
+  in_place_of_kept(std::move(*best), eligible[best_j], why);
+  return best_j;
+}
+
+void Round::in_place_of_kept(std::pair<Model, LoopRound> fitted, const Eligible& term,
+                             const std::string& why) {
+  LoopRound& now = r_->rounds.back();
+  LoopRound lr = std::move(fitted.second);
+  lr.round = now.round;
+  lr.added = term.term.text();
+  lr.explained = term.explained;
+  lr.black_box = false;
+  lr.rejected = std::move(now.rejected);
   lr.rejected.emplace_back(now.added, why);
   now = std::move(lr);
-  r_->model = std::move(best->first);
-  return best_j;
+  r_->model = std::move(fitted.first);
 }
 
 size_t Round::look_alikes(const Model& before, const std::vector<Eligible>& eligible, size_t kept) {
@@ -341,20 +346,13 @@ size_t Round::look_alikes(const Model& before, const std::vector<Eligible>& elig
   // A look-alike that beats the kept term by what a term must gain takes its place, and its own
   // look-alikes are listed (each such exchange lowers the held-out error by the accepted share,
   // so it ends).
-  LoopRound lr = std::move(better->second);
-  lr.round = now.round;
-  lr.added = eligible[better_j].term.text();
-  lr.explained = eligible[better_j].explained;
-  lr.black_box = false;
-  lr.rejected = std::move(now.rejected);
   char why[300];
   std::snprintf(why, sizeof(why),
                 "a look-alike of another channel does better: %s leaves %.4f nT held out, this "
                 "term %.4f",
-                lr.added.c_str(), lr.heldout_std_nT, now.heldout_std_nT);
-  lr.rejected.emplace_back(now.added, why);
-  now = std::move(lr);
-  r_->model = std::move(better->first);
+                eligible[better_j].term.text().c_str(), better->second.heldout_std_nT,
+                now.heldout_std_nT);
+  in_place_of_kept(std::move(*better), eligible[better_j], why);
   return look_alikes(before, eligible, better_j);
 }
 

@@ -145,6 +145,11 @@ class Round {
   // Returns the index now kept.
   size_t look_alikes(const Model& before, const std::vector<Eligible>& eligible, size_t kept);
 
+  // `term`, fitted in place of the last round's kept term (`fitted`), becomes that round: the
+  // term it replaces joins the round's refusals with `why`, its look-alikes are dropped.
+  void in_place_of_kept(std::pair<Model, LoopRound> fitted, const Eligible& term,
+                        const std::string& why);
+
   const LoopContext& c_;
   int round_;
   LoopResult* r_;
