@@ -28,6 +28,7 @@
 // non-electrical states recorded, and effects of a switched current times one of them drawn among
 // the others); half-several (runs alternate one effect and two or three, instead of 60 % one, 30 %
 // two, 10 % three); draws=N (each run on N aircraft: the same effects, other aircraft and flights);
+// rounds=N (the loop's rounds at most; 5, diagnose --apply's default, otherwise);
 // verbose (each run's rounds with their held-out errors and look-alikes); why (verbose, and the
 // changes each round refused, with why); validate (the loop learns
 // from the first flight with a second flight of the aircraft as its validation flight); two-flights
@@ -56,6 +57,7 @@ int main(int argc, char** argv) {
     magcomp::DiagnoseOptions options;
     bool half_several = false, states = false, verbose = false, why = false;
     unsigned draws = 1;
+    int max_rounds = 5;  // the loop's rounds at most (diagnose --apply --rounds)
     magcomp::test::Learn learn = magcomp::test::Learn::kOneFlight;
     for (int a = 5; a < argc; ++a) {
       const std::string opt = argv[a];
@@ -97,15 +99,18 @@ int main(int argc, char** argv) {
         verbose = why = true;
       } else if (opt == "half-several") {
         half_several = true;
+      } else if (opt.rfind("rounds=", 0) == 0 && std::atoi(opt.c_str() + 7) >= 1) {
+        max_rounds = std::atoi(opt.c_str() + 7);
       } else if (opt.rfind("draws=", 0) == 0 && std::atoi(opt.c_str() + 6) >= 1) {
         draws = static_cast<unsigned>(std::atoi(opt.c_str() + 6));
       } else {
-        std::fprintf(stderr,
-                     "error: option '%s': one-at-a-time, choose-lambda, no-span-ridge, span-terms, "
-                     "no-joint, no-calibration-check, no-exchange, no-refine, lenient-backward, "
-                     "slow-on-calibration, keep-factors, first-kept, line-jackknife, "
-                     "validate, two-flights, states, half-several, verbose, why or draws=N\n",
-                     opt.c_str());
+        std::fprintf(
+            stderr,
+            "error: option '%s': one-at-a-time, choose-lambda, no-span-ridge, span-terms, "
+            "no-joint, no-calibration-check, no-exchange, no-refine, lenient-backward, "
+            "slow-on-calibration, keep-factors, first-kept, line-jackknife, "
+            "validate, two-flights, states, half-several, verbose, why, rounds=N or draws=N\n",
+            opt.c_str());
         return 2;
       }
     }
@@ -136,7 +141,7 @@ int main(int argc, char** argv) {
       bool every_draw = true, run_predictable = true;
       for (unsigned draw = 0; draw < draws; ++draw) {
         const magcomp::test::DiscoveryRun d =
-            magcomp::test::discovery_run(r, count, base, tl, options, draw, learn);
+            magcomp::test::discovery_run(r, count, base, tl, options, draw, learn, max_rounds);
         ++total;
         run_predictable = d.predictable;
         every_draw = every_draw && d.near_true_terms();

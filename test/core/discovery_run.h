@@ -165,10 +165,11 @@ enum class Learn { kOneFlight, kValidated, kTwoFlights };
 /// Run `r` with `count` effects on `base` (aircraft seed 5000 + r, flights 1000 + 2r and the
 /// next), starting from `tl` (a TL template, fitted here), the loop with `options`. Draw d > 0
 /// puts the same effects on another aircraft and other flights (both seeds + 100000 d), so that a
-/// run's result is not one draw's luck.
+/// run's result is not one draw's luck. The loop runs at most `max_rounds` rounds (diagnose
+/// --apply's default, 5).
 inline DiscoveryRun discovery_run(unsigned r, int count, const sim::Scenario& base, const Model& tl,
                                   const DiagnoseOptions& options = {}, unsigned draw = 0,
-                                  Learn learn = Learn::kOneFlight) {
+                                  Learn learn = Learn::kOneFlight, int max_rounds = 5) {
   const Igrf& igrf = Igrf::installed();
   std::vector<sim::HiddenEffect> effects;
   const sim::Scenario a = discovery_scenario(r, count, base, draw, &effects);
@@ -208,8 +209,8 @@ inline DiscoveryRun discovery_run(unsigned r, int count, const sim::Scenario& ba
   fit_model(start, fit_on);
   const LoopResult loop =
       learn == Learn::kTwoFlights
-          ? diagnose_loop(start, fit_on, "mag_1_c", 5, 0.05, options)
-          : diagnose_loop(start, fa.flight, "mag_1_c", 5, 0.05, options, {},
+          ? diagnose_loop(start, fit_on, "mag_1_c", max_rounds, 0.05, options)
+          : diagnose_loop(start, fa.flight, "mag_1_c", max_rounds, 0.05, options, {},
                           learn == Learn::kValidated ? &second->flight : nullptr);
   out.tl_next_nT = evaluate_model(start, fb.flight, "mag_1_c", false).std_nT;
   out.loop_next_nT = evaluate_model(loop.model, fb.flight, "mag_1_c", false).std_nT;
