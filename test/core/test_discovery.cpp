@@ -557,6 +557,15 @@ double base_lambda() {
   return load_model_yaml(test::source_dir() + "/config/models/tl_sim.yaml").fit.lambda;
 }
 
+// The first of a run's drawn effects of `type` on `channel` (any channel when empty); nullptr
+// when the run draws none.
+const sim::HiddenEffect* drawn(const std::vector<sim::HiddenEffect>& effects,
+                               const std::string& type, const std::string& channel = "") {
+  for (const auto& e : effects)
+    if (e.type == type && (channel.empty() || e.channel == channel)) return &e;
+  return nullptr;
+}
+
 // The benchmark's base flight with the aircraft's states recorded (scripts/bench_discovery …
 // states): flaps, engine speed, outside air temperature, a heater switch.
 sim::Scenario base_with_states() {
@@ -839,10 +848,7 @@ TEST(Discovery, ALookAlikeThatDoesBetterTakesTheKeptTermsPlace) {
   const sim::Scenario base = base_with_states();
   std::vector<sim::HiddenEffect> effects;
   const sim::Scenario a = test::discovery_scenario(119, 3, base, 0, &effects);
-  bool flex_of_yaw_rate = false;
-  for (const auto& e : effects)
-    flex_of_yaw_rate = flex_of_yaw_rate || (e.type == "flex" && e.channel == "yaw_rate");
-  ASSERT_TRUE(flex_of_yaw_rate) << "run 119 draws no flex of the yaw rate";
+  ASSERT_TRUE(drawn(effects, "flex", "yaw_rate")) << "run 119 draws no flex of the yaw rate";
   RoundAtTheEnd end(a, base_lambda(), {"field:cur_srvo_i|step(0.307)", "field:cur_com_1*vol_fan"});
   const auto e = [](const char* t) { return loop_steps::Eligible{TermSpec(t), false, 0.1, NAN}; };
   const std::vector<loop_steps::Eligible> eligible = {
@@ -902,10 +908,9 @@ TEST(Discovery, AThresholdEstimatedBeforeTheOtherTermsIsEstimatedAgainWithThem) 
   const sim::Scenario base = base_with_states();
   std::vector<sim::HiddenEffect> effects;
   const sim::Scenario a = test::discovery_scenario(101, 2, base, 1, &effects);
-  double threshold = NAN;
-  for (const auto& e : effects)
-    if (e.type == "relay" && e.channel == "cur_outpwr") threshold = e.threshold;
-  ASSERT_TRUE(std::isfinite(threshold)) << "run 101 draws no relay of cur_outpwr";
+  const sim::HiddenEffect* relay = drawn(effects, "relay", "cur_outpwr");
+  ASSERT_TRUE(relay) << "run 101 draws no relay of cur_outpwr";
+  const double threshold = relay->threshold;
   RoundAtTheEnd end(a, 1e-6, {"field:cur_outpwr|step(14)", "field:ins_acc_y"});
   const sim::Simulation& fb = end.fb;
   const Model& model = end.model;
@@ -947,12 +952,10 @@ TEST(Discovery, AKeptTermsParametersAreEstimatedAgainBesideANewTerm) {
   const sim::Scenario base = base_with_states();
   std::vector<sim::HiddenEffect> effects;
   const sim::Scenario a = test::discovery_scenario(117, 2, base, 1, &effects);
-  double flex_s = NAN, lag_s = NAN;
-  for (const auto& e : effects) {
-    if (e.type == "flex" && e.channel == "roll_rate") flex_s = e.time_constant_s;
-    if (e.type == "lag") lag_s = e.lag_s;
-  }
-  ASSERT_TRUE(std::isfinite(flex_s) && std::isfinite(lag_s)) << "run 117 draws no flex and lag";
+  const sim::HiddenEffect* flex = drawn(effects, "flex", "roll_rate");
+  const sim::HiddenEffect* lag = drawn(effects, "lag");
+  ASSERT_TRUE(flex && lag) << "run 117 draws no flex and lag";
+  const double flex_s = flex->time_constant_s, lag_s = lag->lag_s;
   RoundAtTheEnd end(a, base_lambda(), {"scalar:roll_rate|lp(2.72)", "second_order"});
   const sim::Simulation& fb = end.fb;
   const Model& model = end.model;
