@@ -341,8 +341,18 @@ nlohmann::json loop_json(const LoopResult& r, const std::vector<TermSupport>& su
     for (const auto& [term, why] : lr.replaced)
       jr["replaced"].push_back({{"term", term}, {"why", why}});
     jr["look_alikes"] = nlohmann::json::array();
-    for (const auto& [term, std_nT] : lr.look_alikes)
-      jr["look_alikes"].push_back({{"term", term}, {"heldout_std_nT", std_nT}});
+    for (const auto& [term, std_nT] : lr.look_alikes) {
+      nlohmann::json entry = {{"term", term}, {"heldout_std_nT", std_nT}};
+      for (const LookAlikeRatio& q : lr.look_alike_ratios) {
+        if (q.term != term) continue;
+        entry["ratio_follows"] = {{"kept_channel", q.kept_channel},
+                                  {"look_alike_channel", q.alike_channel},
+                                  {"channel", q.channel},
+                                  {"correlation", json_figure(q.correlation)},
+                                  {"relative_std", json_figure(q.relative_std)}};
+      }
+      jr["look_alikes"].push_back(std::move(entry));
+    }
     jr["steady_factors"] = nlohmann::json::array();
     for (const auto& [channel, relative] : lr.steady_factors)
       jr["steady_factors"].push_back({{"channel", channel}, {"relative_std", relative}});

@@ -77,6 +77,12 @@ void print_rounds_table(const LoopResult& r, bool validation, size_t flights) {
           "       look-alike %s: held-out %.3f nT in its place; these flights cannot tell its "
           "channel from %s's\n",
           term.c_str(), std_nT, lr.added.c_str());
+    for (const LookAlikeRatio& q : lr.look_alike_ratios)
+      std::printf(
+          "       %s / %s follows %s (r %.3f), which these flights hold within %.2g %% (relative "
+          "std): a flight where %s varies more tells %s from %s\n",
+          q.kept_channel.c_str(), q.alike_channel.c_str(), q.channel.c_str(), q.correlation,
+          100 * q.relative_std, q.channel.c_str(), q.term.c_str(), lr.added.c_str());
     if (!lr.steady_factors.empty()) {
       std::printf(
           "       %s's field may scale with a channel these flights hold steady (the term "

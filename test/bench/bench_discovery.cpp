@@ -216,6 +216,10 @@ int main(int argc, char** argv) {
             std::printf("         in place of %s: %s\n", term.c_str(), why.c_str());
           for (const auto& [term, held_nT] : lr.look_alikes)
             std::printf("         look-alike %s: held out %.4f nT\n", term.c_str(), held_nT);
+          for (const magcomp::LookAlikeRatio& q : lr.look_alike_ratios)
+            std::printf("         %s / %s follows %s (r %.3f; %s's relative std %.2g %%)\n",
+                        q.kept_channel.c_str(), q.alike_channel.c_str(), q.channel.c_str(),
+                        q.correlation, q.channel.c_str(), 100 * q.relative_std);
           for (size_t k = 0; why && k < lr.rejected.size(); ++k)
             std::printf("         refused %s: %s\n", lr.rejected[k].first.c_str(),
                         lr.rejected[k].second.c_str());

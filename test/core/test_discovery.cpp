@@ -796,6 +796,58 @@ TEST(Discovery, ABusTheFlightHoldsSteadyIsListedAsAFactorOfTheWire) {
   for (size_t k = 1; k < steady.size(); ++k) EXPECT_LE(steady[k - 1].second, steady[k].second);
 }
 
+TEST(Discovery, WhatTellsTwoLookAlikesApartIsTheChannelTheirRatioFollows) {
+  // A coordinated turn's lateral acceleration is the yaw rate times the airspeed: on a flight
+  // held near one speed the two are look-alikes, and the airspeed is what tells them apart
+  // (loop_steps::look_alike_ratio). Closed form: 10 min at 10 Hz, turns every minute, the
+  // airspeed 100 +- 10 m/s over a slow cycle; a battery voltage exactly twice another (their
+  // ratio follows nothing); a current that switches at random.
+  const Eigen::Index n = 6000;
+  const double dt = 0.1, pi = 3.14159265358979323846;
+  FlightData f;
+  Eigen::VectorXd tt(n), yaw(n), tas(n), acc(n), vol_a(n), vol_b(n), cur(n);
+  std::srand(7);
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const double t = dt * static_cast<double>(i);
+    tt[i] = t;
+    yaw[i] = 3.0 * std::sin(2 * pi * t / 60.0);            // deg/s
+    tas[i] = 100.0 + 10.0 * std::sin(2 * pi * t / 700.0);  // m/s
+    acc[i] = yaw[i] * pi / 180.0 * tas[i];                 // m/s^2
+    vol_a[i] = 28.0 + 0.1 * std::cos(2 * pi * t / 37.0);
+    vol_b[i] = 2.0 * vol_a[i];
+    cur[i] = (std::rand() % 2) ? 3.0 : 0.5;
+  }
+  f.set("tt", tt);
+  for (const auto& [name, x] :
+       std::vector<std::pair<const char*, Eigen::VectorXd>>{{"yaw_rate", yaw},
+                                                            {"tas", tas},
+                                                            {"ins_acc_y", acc},
+                                                            {"vol_bat_1", vol_a},
+                                                            {"vol_bat_2", vol_b},
+                                                            {"cur_strb", cur},
+                                                            {"mag_1_c", Eigen::VectorXd::Zero(n)}})
+    f.set(name, x);
+  const auto ratio = loop_steps::look_alike_ratio({&f}, "ins_acc_y", "yaw_rate", "mag_1_c");
+  ASSERT_TRUE(ratio.has_value());
+  EXPECT_EQ(ratio->channel, "tas");
+  EXPECT_EQ(ratio->kept_channel, "ins_acc_y");
+  EXPECT_EQ(ratio->alike_channel, "yaw_rate");
+  EXPECT_GT(ratio->correlation, 0.999999);  // the ratio is pi/180 times the airspeed
+  const double sd = std::sqrt((tas.array() - tas.mean()).square().mean());
+  EXPECT_NEAR(ratio->relative_std, sd / tas.mean(), 1e-9);
+  // Each way round: yaw rate / acceleration is 180/pi over the airspeed, which falls as it rises.
+  const auto inverse = loop_steps::look_alike_ratio({&f}, "yaw_rate", "ins_acc_y", "mag_1_c");
+  ASSERT_TRUE(inverse.has_value());
+  EXPECT_EQ(inverse->channel, "tas");
+  EXPECT_LT(inverse->correlation, -0.99);
+  // Two channels in a constant ratio: no channel tells them apart.
+  EXPECT_FALSE(loop_steps::look_alike_ratio({&f}, "vol_bat_2", "vol_bat_1", "mag_1_c"));
+  // The airspeed as the reference: no other channel follows the ratio.
+  EXPECT_FALSE(loop_steps::look_alike_ratio({&f}, "ins_acc_y", "yaw_rate", "tas"));
+  // A channel the flights do not record.
+  EXPECT_FALSE(loop_steps::look_alike_ratio({&f}, "ins_acc_y", "cur_heat", "mag_1_c"));
+}
+
 TEST(DiscoveryLong, AProductWithABusVoltageHeldSteadyIsReportedBesideTheWire) {
   // Run 130, first aircraft, its states recorded: the field of cur_heat times vol_outpwr, a bus
   // held at 27.8 V within a few tenths of a volt. The product's columns differ from the heater
@@ -880,6 +932,21 @@ TEST(Discovery, ALookAlikeThatDoesBetterTakesTheKeptTermsPlace) {
     }
   }
   EXPECT_FALSE(alikes.count("field:tas|lp(0.894)"));
+  // What would tell the two apart: their channels' ratio follows the airspeed, which the flight
+  // holds within about one percent.
+  const auto yaw_alike = std::find_if(
+      better.look_alike_ratios.begin(), better.look_alike_ratios.end(),
+      [&](const LookAlikeRatio& x) { return yaw.count(x.term) && x.term != better.added; });
+  ASSERT_NE(yaw_alike, better.look_alike_ratios.end()) << "no ratio for the other yaw term";
+  const LookAlikeRatio& q = *yaw_alike;
+  EXPECT_EQ(q.channel, "tas");
+  EXPECT_GT(std::abs(q.correlation), 0.99);
+  const Eigen::VectorXd tas = end.fa.flight.column("tas");
+  const double tas_sd = std::sqrt((tas.array() - tas.mean()).square().mean());
+  EXPECT_NEAR(q.relative_std, tas_sd / tas.mean(), 1e-6);
+  EXPECT_LT(q.relative_std, 0.05);
+  std::printf("  %s / %s follows %s (r %.4f), relative std %.3f %%\n", q.kept_channel.c_str(),
+              q.alike_channel.c_str(), q.channel.c_str(), q.correlation, 100 * q.relative_std);
   bool said = false;
   for (const auto& [what, why] : better.rejected)
     said = said || (what == "field:tas|lp(0.894)" &&

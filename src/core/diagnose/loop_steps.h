@@ -92,6 +92,21 @@ std::vector<std::pair<std::string, double>> steady_factors(
     const std::vector<const FlightData*>& flights, const std::set<std::string>& kept_channels,
     const std::string& truth, double term_nT, double resolution_nT);
 
+// A look-alike's ratio follows a channel when Pearson's |r| of the two reaches this, over at
+// least kLookAlikeRatioMinSamples samples (look_alike_ratio).
+constexpr double kLookAlikeRatioFollows = 0.9;
+constexpr size_t kLookAlikeRatioMinSamples = 50;
+
+/// What would tell two look-alike channels apart on `flights`: the recorded channel (a state of
+/// the aircraft or motion and air data; not a position, bookkeeping, `truth` or either of the
+/// two) that the ratio `kept` / `alike` follows most closely (Pearson's |r| at least
+/// kLookAlikeRatioFollows), over the samples where |alike| reaches half its 95th percentile on
+/// its flight. Its `term` is left empty; nullopt when no channel follows the ratio (two channels
+/// proportional on these flights, or a relation no single recorded channel carries).
+std::optional<LookAlikeRatio> look_alike_ratio(const std::vector<const FlightData*>& flights,
+                                               const std::string& kept, const std::string& alike,
+                                               const std::string& truth);
+
 /// The candidates of one round's diagnoses that the loop may add, in rank order (see
 /// diagnose_loop); a term within the model's own span (within_model_span) only with
 /// `within_span_too`.

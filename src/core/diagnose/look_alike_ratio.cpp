@@ -1,0 +1,108 @@
+// magcomp: what would tell a look-alike from the kept term: the recorded channel that the ratio
+// of their two channels follows (LoopRound::look_alike_ratios), such as a lateral acceleration
+// over a yaw rate following the airspeed.
+#include <algorithm>
+#include <cmath>
+
+#include "loop_steps.h"
+#include "magcomp/core/io/channel_kinds.h"
+
+namespace magcomp::loop_steps {
+
+namespace {
+
+// A sample of the ratio: its flight, its row and kept / alike there.
+struct RatioSample {
+  size_t flight;
+  Eigen::Index row;
+  double ratio;
+};
+
+// Pearson's correlation of x and y (NaN when either is constant or fewer than three pairs).
+double pearson(const std::vector<double>& x, const std::vector<double>& y) {
+  const double n = static_cast<double>(x.size());
+  if (x.size() < 3 || y.size() != x.size()) return NAN;
+  double mx = 0, my = 0;
+  for (size_t i = 0; i < x.size(); ++i) mx += x[i], my += y[i];
+  mx /= n;
+  my /= n;
+  double sxy = 0, sxx = 0, syy = 0;
+  for (size_t i = 0; i < x.size(); ++i) {
+    sxy += (x[i] - mx) * (y[i] - my);
+    sxx += (x[i] - mx) * (x[i] - mx);
+    syy += (y[i] - my) * (y[i] - my);
+  }
+  if (!(sxx > 0) || !(syy > 0)) return NAN;
+  return sxy / std::sqrt(sxx * syy);
+}
+
+}  // namespace
+
+std::optional<LookAlikeRatio> look_alike_ratio(const std::vector<const FlightData*>& flights,
+                                               const std::string& kept, const std::string& alike,
+                                               const std::string& truth) {
+  if (flights.empty() || kept == alike) return std::nullopt;
+  // The ratio where the look-alike's channel is large: |alike| at least half its 95th percentile
+  // on each flight (a rate crosses zero between turns, where the ratio is noise over noise).
+  std::vector<RatioSample> samples;
+  for (size_t f = 0; f < flights.size(); ++f) {
+    const FlightData& d = *flights[f];
+    if (!d.has(kept) || !d.has(alike)) return std::nullopt;
+    const FlightData::Column k = d.column(kept), a = d.column(alike);
+    std::vector<double> magnitude;
+    for (Eigen::Index i = 0; i < a.size(); ++i)
+      if (std::isfinite(a[i]) && std::isfinite(k[i])) magnitude.push_back(std::fabs(a[i]));
+    if (magnitude.empty()) continue;
+    const size_t q = std::min(magnitude.size() - 1, magnitude.size() * 95 / 100);
+    std::nth_element(magnitude.begin(), magnitude.begin() + static_cast<std::ptrdiff_t>(q),
+                     magnitude.end());
+    const double threshold = 0.5 * magnitude[q];
+    if (!(threshold > 0)) continue;
+    for (Eigen::Index i = 0; i < a.size(); ++i) {
+      if (std::isfinite(a[i]) && std::isfinite(k[i]) && std::fabs(a[i]) >= threshold)
+        samples.push_back({f, i, k[i] / a[i]});
+    }
+  }
+  if (samples.size() < kLookAlikeRatioMinSamples) return std::nullopt;
+  std::optional<LookAlikeRatio> best;
+  for (const std::string& name : flights.front()->names()) {
+    if (name == kept || name == alike || name == truth || is_position_channel(name) ||
+        is_bookkeeping_channel(name) || !(is_aircraft_state(name) || is_motion_channel(name)))
+      continue;
+    bool everywhere = true;
+    for (const FlightData* f : flights) everywhere = everywhere && f->has(name);
+    if (!everywhere) continue;
+    std::vector<double> ratio, value;
+    ratio.reserve(samples.size());
+    value.reserve(samples.size());
+    for (const RatioSample& s : samples) {
+      const double v = flights[s.flight]->column(name)[s.row];
+      if (!std::isfinite(v)) continue;
+      ratio.push_back(s.ratio);
+      value.push_back(v);
+    }
+    if (ratio.size() < samples.size() * 9 / 10) continue;
+    const double r = pearson(ratio, value);
+    if (!(std::fabs(r) >= kLookAlikeRatioFollows) ||
+        (best && std::fabs(r) <= std::fabs(best->correlation)))
+      continue;
+    // The channel's own spread over the flights' finite samples.
+    double n = 0, sum = 0, sum2 = 0;
+    for (const FlightData* f : flights) {
+      const FlightData::Column x = f->column(name);
+      for (Eigen::Index i = 0; i < x.size(); ++i) {
+        if (!std::isfinite(x[i])) continue;
+        n += 1;
+        sum += x[i];
+        sum2 += x[i] * x[i];
+      }
+    }
+    const double mean = sum / n;
+    const double sd = std::sqrt(std::max(sum2 / n - mean * mean, 0.0));
+    best =
+        LookAlikeRatio{"", kept, alike, name, r, std::fabs(mean) > 0 ? sd / std::fabs(mean) : NAN};
+  }
+  return best;
+}
+
+}  // namespace magcomp::loop_steps
