@@ -827,7 +827,7 @@ TEST(Discovery, WhatTellsTwoLookAlikesApartIsTheChannelTheirRatioFollows) {
                                                             {"cur_strb", cur},
                                                             {"mag_1_c", Eigen::VectorXd::Zero(n)}})
     f.set(name, x);
-  const auto ratio = loop_steps::look_alike_ratio({&f}, "ins_acc_y", "yaw_rate", "mag_1_c");
+  const auto ratio = loop_steps::look_alike_ratio({&f}, {"ins_acc_y"}, {"yaw_rate"}, "mag_1_c");
   ASSERT_TRUE(ratio.has_value());
   EXPECT_EQ(ratio->channel, "tas");
   EXPECT_EQ(ratio->kept_channel, "ins_acc_y");
@@ -836,16 +836,31 @@ TEST(Discovery, WhatTellsTwoLookAlikesApartIsTheChannelTheirRatioFollows) {
   const double sd = std::sqrt((tas.array() - tas.mean()).square().mean());
   EXPECT_NEAR(ratio->relative_std, sd / tas.mean(), 1e-9);
   // Each way round: yaw rate / acceleration is 180/pi over the airspeed, which falls as it rises.
-  const auto inverse = loop_steps::look_alike_ratio({&f}, "yaw_rate", "ins_acc_y", "mag_1_c");
+  const auto inverse = loop_steps::look_alike_ratio({&f}, {"yaw_rate"}, {"ins_acc_y"}, "mag_1_c");
   ASSERT_TRUE(inverse.has_value());
   EXPECT_EQ(inverse->channel, "tas");
   EXPECT_LT(inverse->correlation, -0.99);
   // Two channels in a constant ratio: no channel tells them apart.
-  EXPECT_FALSE(loop_steps::look_alike_ratio({&f}, "vol_bat_2", "vol_bat_1", "mag_1_c"));
+  EXPECT_FALSE(loop_steps::look_alike_ratio({&f}, {"vol_bat_2"}, {"vol_bat_1"}, "mag_1_c"));
   // The airspeed as the reference: no other channel follows the ratio.
-  EXPECT_FALSE(loop_steps::look_alike_ratio({&f}, "ins_acc_y", "yaw_rate", "tas"));
+  EXPECT_FALSE(loop_steps::look_alike_ratio({&f}, {"ins_acc_y"}, {"yaw_rate"}, "tas"));
+  // A look-alike of two channels, the lateral acceleration times a bus held at 28 +- 0.1 V: read
+  // through the acceleration alone, the ratio follows the airspeed exactly.
+  const auto product =
+      loop_steps::look_alike_ratio({&f}, {"yaw_rate"}, {"ins_acc_y", "vol_bat_1"}, "mag_1_c");
+  ASSERT_TRUE(product.has_value());
+  EXPECT_EQ(product->channel, "tas");
+  EXPECT_EQ(product->kept_channel, "yaw_rate");
+  EXPECT_EQ(product->alike_channel, "ins_acc_y");
+  EXPECT_LT(product->correlation, -0.99);
+  // The bus's own ratio to the product: it follows the airspeed (1 / tas) only through the
+  // acceleration, and the bus is never the channel named.
+  EXPECT_NE(product->channel, "vol_bat_1");
+  // Sets that share a channel are no pair of look-alikes.
+  EXPECT_FALSE(
+      loop_steps::look_alike_ratio({&f}, {"yaw_rate"}, {"yaw_rate", "vol_bat_1"}, "mag_1_c"));
   // A channel the flights do not record.
-  EXPECT_FALSE(loop_steps::look_alike_ratio({&f}, "ins_acc_y", "cur_heat", "mag_1_c"));
+  EXPECT_FALSE(loop_steps::look_alike_ratio({&f}, {"ins_acc_y"}, {"cur_heat"}, "mag_1_c"));
 }
 
 TEST(DiscoveryLong, AProductWithABusVoltageHeldSteadyIsReportedBesideTheWire) {

@@ -3,6 +3,7 @@
 // over a yaw rate following the airspeed.
 #include <algorithm>
 #include <cmath>
+#include <set>
 
 #include "loop_steps.h"
 #include "magcomp/core/io/channel_kinds.h"
@@ -36,19 +37,36 @@ double pearson(const std::vector<double>& x, const std::vector<double>& y) {
   return sxy / std::sqrt(sxx * syy);
 }
 
-}  // namespace
+// The product of a flight's columns `names`, sample by sample (a term's channels together).
+Eigen::VectorXd product_of(const FlightData& d, const std::set<std::string>& names) {
+  Eigen::VectorXd p = Eigen::VectorXd::Ones(d.size());
+  for (const std::string& x : names) p.array() *= d.column(x).array();
+  return p;
+}
 
-std::optional<LookAlikeRatio> look_alike_ratio(const std::vector<const FlightData*>& flights,
-                                               const std::string& kept, const std::string& alike,
-                                               const std::string& truth) {
-  if (flights.empty() || kept == alike) return std::nullopt;
+// Channel names joined as a product writes them ("a*b").
+std::string joined(const std::set<std::string>& names) {
+  std::string out;
+  for (const std::string& x : names) out += (out.empty() ? "" : "*") + x;
+  return out;
+}
+
+// The channel (neither among `excluded` nor `truth`) that the ratio of the product of `kept` to
+// the product of `alike` follows most closely, as look_alike_ratio says.
+std::optional<LookAlikeRatio> ratio_of_products(const std::vector<const FlightData*>& flights,
+                                                const std::set<std::string>& kept,
+                                                const std::set<std::string>& alike,
+                                                const std::set<std::string>& excluded,
+                                                const std::string& truth) {
   // The ratio where the look-alike's channel is large: |alike| at least half its 95th percentile
   // on each flight (a rate crosses zero between turns, where the ratio is noise over noise).
   std::vector<RatioSample> samples;
   for (size_t f = 0; f < flights.size(); ++f) {
     const FlightData& d = *flights[f];
-    if (!d.has(kept) || !d.has(alike)) return std::nullopt;
-    const FlightData::Column k = d.column(kept), a = d.column(alike);
+    for (const auto* names : {&kept, &alike})
+      for (const std::string& x : *names)
+        if (!d.has(x)) return std::nullopt;
+    const Eigen::VectorXd k = product_of(d, kept), a = product_of(d, alike);
     std::vector<double> magnitude;
     for (Eigen::Index i = 0; i < a.size(); ++i)
       if (std::isfinite(a[i]) && std::isfinite(k[i])) magnitude.push_back(std::fabs(a[i]));
@@ -66,7 +84,7 @@ std::optional<LookAlikeRatio> look_alike_ratio(const std::vector<const FlightDat
   if (samples.size() < kLookAlikeRatioMinSamples) return std::nullopt;
   std::optional<LookAlikeRatio> best;
   for (const std::string& name : flights.front()->names()) {
-    if (name == kept || name == alike || name == truth || is_position_channel(name) ||
+    if (excluded.count(name) || name == truth || is_position_channel(name) ||
         is_bookkeeping_channel(name) || !(is_aircraft_state(name) || is_motion_channel(name)))
       continue;
     bool everywhere = true;
@@ -99,8 +117,46 @@ std::optional<LookAlikeRatio> look_alike_ratio(const std::vector<const FlightDat
     }
     const double mean = sum / n;
     const double sd = std::sqrt(std::max(sum2 / n - mean * mean, 0.0));
-    best =
-        LookAlikeRatio{"", kept, alike, name, r, std::fabs(mean) > 0 ? sd / std::fabs(mean) : NAN};
+    best = LookAlikeRatio{
+        "", joined(kept), joined(alike), name, r, std::fabs(mean) > 0 ? sd / std::fabs(mean) : NAN};
+  }
+  return best;
+}
+
+// The non-empty subsets of `names` (all of them first); a set of more than three channels:
+// itself only.
+std::vector<std::set<std::string>> subsets(const std::set<std::string>& names) {
+  std::vector<std::set<std::string>> out = {names};
+  if (names.size() > 3) return out;
+  const std::vector<std::string> v(names.begin(), names.end());
+  const unsigned all = (1u << v.size()) - 1;
+  for (unsigned mask = 1; mask < all; ++mask) {
+    std::set<std::string> s;
+    for (size_t i = 0; i < v.size(); ++i)
+      if (mask & (1u << i)) s.insert(v[i]);
+    out.push_back(std::move(s));
+  }
+  return out;
+}
+
+}  // namespace
+
+std::optional<LookAlikeRatio> look_alike_ratio(const std::vector<const FlightData*>& flights,
+                                               const std::set<std::string>& kept,
+                                               const std::set<std::string>& alike,
+                                               const std::string& truth) {
+  if (flights.empty() || kept.empty() || alike.empty()) return std::nullopt;
+  for (const std::string& x : kept)
+    if (alike.count(x)) return std::nullopt;
+  std::set<std::string> excluded = kept;
+  excluded.insert(alike.begin(), alike.end());
+  std::optional<LookAlikeRatio> best;
+  for (const auto& k : subsets(kept)) {
+    for (const auto& a : subsets(alike)) {
+      auto ratio = ratio_of_products(flights, k, a, excluded, truth);
+      if (ratio && (!best || std::fabs(ratio->correlation) > std::fabs(best->correlation)))
+        best = std::move(ratio);
+    }
   }
   return best;
 }

@@ -332,12 +332,9 @@ size_t Round::look_alikes(const Model& before, const std::vector<Eligible>& elig
       // Not told apart: the kept term is not better by the accepted share and the resolution.
       if (passes(now.heldout_std_nT, lr.heldout_std_nT)) continue;
       now.look_alikes.emplace_back(eligible[j].term.text(), lr.heldout_std_nT);
-      if (kept_fields.size() == 1 && fields.size() == 1) {
-        if (auto ratio =
-                look_alike_ratio(c_.flights, *kept_fields.begin(), *fields.begin(), c_.truth)) {
-          ratio->term = eligible[j].term.text();
-          now.look_alike_ratios.push_back(std::move(*ratio));
-        }
+      if (auto ratio = look_alike_ratio(c_.flights, kept_fields, fields, c_.truth)) {
+        ratio->term = eligible[j].term.text();
+        now.look_alike_ratios.push_back(std::move(*ratio));
       }
       named.insert(fields.begin(), fields.end());
       if (c_.options.better_look_alike && refusal(lr, now, c_.options).empty() &&

@@ -97,14 +97,19 @@ std::vector<std::pair<std::string, double>> steady_factors(
 constexpr double kLookAlikeRatioFollows = 0.9;
 constexpr size_t kLookAlikeRatioMinSamples = 50;
 
-/// What would tell two look-alike channels apart on `flights`: the recorded channel (a state of
-/// the aircraft or motion and air data; not a position, bookkeeping, `truth` or either of the
-/// two) that the ratio `kept` / `alike` follows most closely (Pearson's |r| at least
-/// kLookAlikeRatioFollows), over the samples where |alike| reaches half its 95th percentile on
-/// its flight. Its `term` is left empty; nullopt when no channel follows the ratio (two channels
-/// proportional on these flights, or a relation no single recorded channel carries).
+/// What would tell two look-alike terms' channels apart on `flights`: the recorded channel (a
+/// state of the aircraft or motion and air data; not a position, bookkeeping, `truth` or one of
+/// the terms' channels) that the ratio of the product of the `kept` channels to the product of
+/// the `alike` channels follows most closely (Pearson's |r| at least kLookAlikeRatioFollows),
+/// over the samples where |alike's product| reaches half its 95th percentile on its flight. A
+/// term of two or three channels is also read through each part of them (a product with a bus
+/// the flights hold steady: the ratio of the moving channels), and the closest of all is kept;
+/// the channels the ratio reads are joined with "*" in the result, its `term` left empty.
+/// Nullopt when no channel follows the ratio (channels proportional on these flights, or a
+/// relation no single recorded channel carries), or when the two sets share a channel.
 std::optional<LookAlikeRatio> look_alike_ratio(const std::vector<const FlightData*>& flights,
-                                               const std::string& kept, const std::string& alike,
+                                               const std::set<std::string>& kept,
+                                               const std::set<std::string>& alike,
                                                const std::string& truth);
 
 /// The candidates of one round's diagnoses that the loop may add, in rank order (see

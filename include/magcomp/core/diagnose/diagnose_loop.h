@@ -11,13 +11,13 @@
 
 namespace magcomp {
 
-/// What would tell a look-alike from a round's kept term, both of one channel each: the recorded
-/// channel that the ratio of their channels (kept / look-alike) follows over the flights, such
-/// as a lateral acceleration over a yaw rate following the airspeed.
+/// What would tell a look-alike from a round's kept term: the recorded channel that the ratio of
+/// their channels (kept / look-alike; a term of several channels: their product) follows over
+/// the flights, such as a lateral acceleration over a yaw rate following the airspeed.
 struct LookAlikeRatio {
   std::string term;           ///< the look-alike, as LoopRound::look_alikes names it
-  std::string kept_channel;   ///< the kept term's channel
-  std::string alike_channel;  ///< the look-alike's channel
+  std::string kept_channel;   ///< the kept term's channel (several: joined with "*")
+  std::string alike_channel;  ///< the look-alike's channel (several: joined with "*")
   std::string channel;        ///< the channel their ratio follows
   double correlation = NAN;   ///< Pearson's r of the ratio with `channel`, dimensionless
   double relative_std = NAN;  ///< `channel`'s std / |mean| over the flights, dimensionless
@@ -88,9 +88,10 @@ struct LoopRound {
   /// held-out error std, nT; empty when the kept term's channel is told apart (or for a step
   /// that is not a single term).
   std::vector<std::pair<std::string, double>> look_alikes;
-  /// For look-alikes of one channel each, of a kept term of one channel: the recorded channel
-  /// the ratio of the kept channel to the look-alike's follows over the flights, which a flight
-  /// where that channel varies more would tell them apart by (loop_steps::look_alike_ratio).
+  /// For look-alikes of this round's single term: the recorded channel the ratio of the kept
+  /// term's channels to the look-alike's follows over the flights, which a flight where that
+  /// channel varies more would tell them apart by (loop_steps::look_alike_ratio); only those
+  /// whose ratio some channel follows.
   std::vector<LookAlikeRatio> look_alike_ratios;
   /// For this round's single term: the recorded states the flights hold so steady that the term
   /// times one of them (a product, such as a wire's current times a bus voltage held within a few
