@@ -93,8 +93,10 @@ std::optional<LookAlikeRatio> ratio_of_products(const std::vector<const FlightDa
     std::vector<double> ratio, value;
     ratio.reserve(samples.size());
     value.reserve(samples.size());
+    std::vector<const double*> columns;  // each flight's column, looked up once
+    for (const FlightData* f : flights) columns.push_back(f->column(name).data());
     for (const RatioSample& s : samples) {
-      const double v = flights[s.flight]->column(name)[s.row];
+      const double v = columns[s.flight][s.row];
       if (!std::isfinite(v)) continue;
       ratio.push_back(s.ratio);
       value.push_back(v);
