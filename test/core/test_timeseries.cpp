@@ -1,10 +1,11 @@
 // Time-series helpers: Catmull-Rom interpolation is exact for quadratics (central differences
 // are their exact slopes), whole-sample shifts move samples exactly, and the ends are NaN or
-// held as documented.
+// held as documented; Pearson's r and ranks match their closed forms.
 #include <gtest/gtest.h>
 
 #include <cmath>
 
+#include "magcomp/core/math/correlation.h"
 #include "magcomp/core/math/timeseries.h"
 
 namespace magcomp {
@@ -128,3 +129,30 @@ TEST(Timeseries, CentralRateIsExactOnALineAndWrapsAnAngleAcrossPi) {
 
 }  // namespace
 }  // namespace magcomp
+
+TEST(Correlation, PearsonAndRanksInClosedForm) {
+  // Pearson's r of a line with itself rescaled is +-1, of anything with a constant 0; ranks are
+  // 0-based with ties given their average (Spearman's rho is pearson() of ranks).
+  Eigen::VectorXd x(5), y(5), c(5);
+  x << 1.0, 4.0, 2.0, 8.0, 5.0;
+  y = 3.0 * x.array() - 7.0;
+  c.setConstant(2.5);
+  EXPECT_NEAR(magcomp::pearson(x, y), 1.0, 1e-15);
+  EXPECT_NEAR(magcomp::pearson(x, -y), -1.0, 1e-15);
+  EXPECT_EQ(magcomp::pearson(x, c), 0.0);
+  // x and its squares: r from the sums by hand, 0.9856..., rho 1 (the same order).
+  const Eigen::VectorXd x2 = x.array().square();
+  const double mx = x.mean(), my = x2.mean();
+  const double sxy = ((x.array() - mx) * (x2.array() - my)).sum();
+  const double sxx = (x.array() - mx).square().sum(), syy = (x2.array() - my).square().sum();
+  EXPECT_NEAR(magcomp::pearson(x, x2), sxy / std::sqrt(sxx * syy), 1e-15);
+  EXPECT_LT(magcomp::pearson(x, x2), 0.999);
+  EXPECT_NEAR(magcomp::pearson(magcomp::ranks(x), magcomp::ranks(x2)), 1.0, 1e-15);
+  Eigen::VectorXd t(4);
+  t << 3.0, 1.0, 3.0, 2.0;
+  const Eigen::VectorXd r = magcomp::ranks(t);
+  EXPECT_EQ(r[0], 2.5);
+  EXPECT_EQ(r[1], 0.0);
+  EXPECT_EQ(r[2], 2.5);
+  EXPECT_EQ(r[3], 1.0);
+}

@@ -7,31 +7,10 @@
 #include <numeric>
 #include <set>
 
+#include "magcomp/core/math/correlation.h"
+
 namespace magcomp {
 namespace {
-
-// Ranks with ties averaged (for Spearman).
-Eigen::VectorXd ranks(const Eigen::VectorXd& x) {
-  std::vector<Eigen::Index> order(static_cast<size_t>(x.size()));
-  std::iota(order.begin(), order.end(), 0);
-  std::sort(order.begin(), order.end(),
-            [&](Eigen::Index a, Eigen::Index b) { return x[a] < x[b]; });
-  Eigen::VectorXd r(x.size());
-  for (size_t i = 0; i < order.size();) {
-    size_t j = i;
-    while (j + 1 < order.size() && x[order[j + 1]] == x[order[i]]) ++j;
-    const double avg = 0.5 * static_cast<double>(i + j);
-    for (size_t k = i; k <= j; ++k) r[order[k]] = avg;
-    i = j + 1;
-  }
-  return r;
-}
-
-double pearson(const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
-  const Eigen::ArrayXd da = a.array() - a.mean(), db = b.array() - b.mean();
-  const double den = std::sqrt((da * da).sum() * (db * db).sum());
-  return den > 0 ? (da * db).sum() / den : 0.0;
-}
 
 // Mutual information in bits with equal-frequency bins on both variables.
 double mutual_information(const Eigen::VectorXd& a, const Eigen::VectorXd& b, int bins) {

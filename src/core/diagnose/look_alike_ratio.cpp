@@ -7,6 +7,7 @@
 
 #include "loop_steps.h"
 #include "magcomp/core/io/channel_kinds.h"
+#include "magcomp/core/math/correlation.h"
 
 namespace magcomp::loop_steps {
 
@@ -18,24 +19,6 @@ struct RatioSample {
   Eigen::Index row;
   double ratio;
 };
-
-// Pearson's correlation of x and y (NaN when either is constant or fewer than three pairs).
-double pearson(const std::vector<double>& x, const std::vector<double>& y) {
-  const double n = static_cast<double>(x.size());
-  if (x.size() < 3 || y.size() != x.size()) return NAN;
-  double mx = 0, my = 0;
-  for (size_t i = 0; i < x.size(); ++i) mx += x[i], my += y[i];
-  mx /= n;
-  my /= n;
-  double sxy = 0, sxx = 0, syy = 0;
-  for (size_t i = 0; i < x.size(); ++i) {
-    sxy += (x[i] - mx) * (y[i] - my);
-    sxx += (x[i] - mx) * (x[i] - mx);
-    syy += (y[i] - my) * (y[i] - my);
-  }
-  if (!(sxx > 0) || !(syy > 0)) return NAN;
-  return sxy / std::sqrt(sxx * syy);
-}
 
 // The product of a flight's columns `names`, sample by sample (a term's channels together).
 Eigen::VectorXd product_of(const FlightData& d, const std::set<std::string>& names) {
@@ -102,7 +85,9 @@ std::optional<LookAlikeRatio> ratio_of_products(const std::vector<const FlightDa
       value.push_back(v);
     }
     if (ratio.size() < samples.size() * 9 / 10) continue;
-    const double r = pearson(ratio, value);
+    const auto n_pairs = static_cast<Eigen::Index>(ratio.size());
+    const double r = pearson(Eigen::Map<const Eigen::VectorXd>(ratio.data(), n_pairs),
+                             Eigen::Map<const Eigen::VectorXd>(value.data(), n_pairs));
     if (!(std::fabs(r) >= kLookAlikeRatioFollows) ||
         (best && std::fabs(r) <= std::fabs(best->correlation)))
       continue;

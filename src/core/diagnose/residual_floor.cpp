@@ -12,6 +12,7 @@
 #include <utility>
 
 #include "magcomp/core/math/constants.h"
+#include "magcomp/core/math/correlation.h"
 
 namespace magcomp {
 namespace {
@@ -41,34 +42,6 @@ std::vector<std::pair<Eigen::Index, Eigen::Index>> unit_runs(const std::vector<i
   return runs;
 }
 
-// Ranks (average ranks for ties), 0-based.
-std::vector<double> ranks(const std::vector<double>& x) {
-  std::vector<size_t> order(x.size());
-  std::iota(order.begin(), order.end(), 0);
-  std::sort(order.begin(), order.end(), [&](size_t a, size_t b) { return x[a] < x[b]; });
-  std::vector<double> r(x.size());
-  for (size_t k = 0; k < order.size();) {
-    size_t m = k + 1;
-    while (m < order.size() && x[order[m]] == x[order[k]]) ++m;
-    for (size_t q = k; q < m; ++q) r[order[q]] = 0.5 * static_cast<double>(k + m - 1);
-    k = m;
-  }
-  return r;
-}
-
-double pearson(const std::vector<double>& a, const std::vector<double>& b) {
-  const double n = static_cast<double>(a.size());
-  const double ma = std::accumulate(a.begin(), a.end(), 0.0) / n;
-  const double mb = std::accumulate(b.begin(), b.end(), 0.0) / n;
-  double sab = 0, saa = 0, sbb = 0;
-  for (size_t k = 0; k < a.size(); ++k) {
-    sab += (a[k] - ma) * (b[k] - mb);
-    saa += (a[k] - ma) * (a[k] - ma);
-    sbb += (b[k] - mb) * (b[k] - mb);
-  }
-  return saa > 0 && sbb > 0 ? sab / std::sqrt(saa * sbb) : 0.0;
-}
-
 // The channel whose mean over each window (first sample, length) best ranks `levels` (Spearman),
 // when |rho| reaches `threshold`; position channels left out. Empty name and 0 otherwise.
 std::pair<std::string, double> channel_ranking(
@@ -77,16 +50,17 @@ std::pair<std::string, double> channel_ranking(
     const std::vector<std::pair<std::string, Eigen::Map<const Eigen::VectorXd>>>& channels,
     double threshold) {
   std::pair<std::string, double> best{"", 0.0};
-  const std::vector<double> lv = ranks(levels);
+  const Eigen::VectorXd lv = ranks(
+      Eigen::Map<const Eigen::VectorXd>(levels.data(), static_cast<Eigen::Index>(levels.size())));
   for (const auto& [name, values] : channels) {
     if (is_position_channel(name)) continue;
-    std::vector<double> m;
-    m.reserve(windows.size());
+    Eigen::VectorXd m(static_cast<Eigen::Index>(windows.size()));
     bool finite = true;
-    for (const auto& [s, len] : windows) {
+    for (size_t w = 0; w < windows.size(); ++w) {
+      const auto& [s, len] = windows[w];
       const double v = values.segment(s, len).mean();
       finite = finite && std::isfinite(v);
-      m.push_back(v);
+      m[static_cast<Eigen::Index>(w)] = v;
     }
     if (!finite) continue;
     const double rho = pearson(lv, ranks(m));
