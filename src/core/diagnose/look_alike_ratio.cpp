@@ -91,21 +91,8 @@ std::optional<LookAlikeRatio> ratio_of_products(const std::vector<const FlightDa
     if (!(std::fabs(r) >= kLookAlikeRatioFollows) ||
         (best && std::fabs(r) <= std::fabs(best->correlation)))
       continue;
-    // The channel's own spread over the flights' finite samples.
-    double n = 0, sum = 0, sum2 = 0;
-    for (const FlightData* f : flights) {
-      const FlightData::Column x = f->column(name);
-      for (Eigen::Index i = 0; i < x.size(); ++i) {
-        if (!std::isfinite(x[i])) continue;
-        n += 1;
-        sum += x[i];
-        sum2 += x[i] * x[i];
-      }
-    }
-    const double mean = sum / n;
-    const double sd = std::sqrt(std::max(sum2 / n - mean * mean, 0.0));
     best = LookAlikeRatio{
-        "", joined(kept), joined(alike), name, r, std::fabs(mean) > 0 ? sd / std::fabs(mean) : NAN};
+        "", joined(kept), joined(alike), name, r, pooled_relative_std(flights, name)};
   }
   return best;
 }

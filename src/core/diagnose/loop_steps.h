@@ -83,6 +83,11 @@ struct Eligible {
   double base_span_share = NAN;  ///< Candidate::base_span_share (on that flight)
 };
 
+/// A channel's relative std over `flights` (std / |mean| of its finite samples pooled over
+/// them), dimensionless; NaN when fewer than two are finite or the mean is 0. Every flight must
+/// record the channel.
+double pooled_relative_std(const std::vector<const FlightData*>& flights, const std::string& name);
+
 /// The recorded states of the aircraft (is_aircraft_state, not among `kept_channels` nor the
 /// reference `truth`) that `flights` hold so steady that a term of `term_nT` (the std it
 /// explains on the held-out lines) times one of them differs from it by less than

@@ -1,6 +1,7 @@
 // magcomp: the channels a kept term's field may scale with unseen: recorded states that the
 // loop's flights hold so steady that the term times one of them differs from the term alone by
-// less than the resolution (LoopRound::steady_factors).
+// less than the resolution (LoopRound::steady_factors); and a channel's relative std over flights,
+// which the look-alike ratio reports too.
 #include <algorithm>
 #include <cmath>
 
@@ -9,6 +10,23 @@
 #include "magcomp/core/io/channel_kinds.h"
 
 namespace magcomp::loop_steps {
+
+double pooled_relative_std(const std::vector<const FlightData*>& flights, const std::string& name) {
+  double n = 0, sum = 0, sum2 = 0;
+  for (const FlightData* f : flights) {
+    const FlightData::Column x = f->column(name);
+    for (Eigen::Index i = 0; i < x.size(); ++i) {
+      if (!std::isfinite(x[i])) continue;
+      n += 1;
+      sum += x[i];
+      sum2 += x[i] * x[i];
+    }
+  }
+  if (n < 2) return NAN;
+  const double mean = sum / n;
+  const double sd = std::sqrt(std::max(sum2 / n - mean * mean, 0.0));
+  return std::fabs(mean) > 0 ? sd / std::fabs(mean) : NAN;
+}
 
 std::vector<std::pair<std::string, double>> steady_factors(
     const std::vector<const FlightData*>& flights, const std::set<std::string>& kept_channels,
@@ -20,7 +38,6 @@ std::vector<std::pair<std::string, double>> steady_factors(
     // Pooled over the flights' finite samples; a channel missing from a flight, more than a
     // tenth NaN on one, constant, or recording a constant and its noise only is no source the
     // search reads (diagnose's source_fields), and none here.
-    double n = 0, sum = 0, sum2 = 0;
     bool usable = true;
     for (const FlightData* f : flights) {
       if (!f->has(name)) {
@@ -33,9 +50,6 @@ std::vector<std::pair<std::string, double>> steady_factors(
       for (Eigen::Index i = 0; i < x.size(); ++i) {
         if (!std::isfinite(x[i])) continue;
         ++finite;
-        n += 1;
-        sum += x[i];
-        sum2 += x[i] * x[i];
         lo = std::min(lo, x[i]);
         hi = std::max(hi, x[i]);
       }
@@ -44,11 +58,9 @@ std::vector<std::pair<std::string, double>> steady_factors(
         break;
       }
     }
-    if (!usable || n < 2) continue;
-    const double mean = sum / n;
-    const double sd = std::sqrt(std::max(sum2 / n - mean * mean, 0.0));
-    if (!(std::fabs(mean) > 0)) continue;
-    const double relative = sd / std::fabs(mean);
+    if (!usable) continue;
+    const double relative = pooled_relative_std(flights, name);
+    if (!std::isfinite(relative)) continue;
     // The term times x is the term times x's mean plus the term times x's deviation: the
     // latter's std is at most the term's std times x's relative std (x independent of it),
     // and below the resolution no held-out line tells the two apart.
