@@ -85,6 +85,14 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
       loop_steps::Round simplify(context, max_rounds, &r);
       if (!simplify.drop_idle_factors()) break;
     }
+    // And each kept term that a look-alike beats with every other term in place gives way to it
+    // (at most one swap per kept term).
+    for (size_t swaps = 0; round > max_rounds && round > 1 && options.better_look_alike &&
+                           swaps < r.model.terms.size();
+         ++swaps) {
+      loop_steps::Round rename(context, max_rounds, &r);
+      if (!rename.better_look_alike_in_place()) break;
+    }
     std::vector<Diagnosis> dxs;
     const auto diagnose_all = [&] {
       dxs.clear();
@@ -245,6 +253,16 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
     if (!kept && options.drop_idle_factors) {
       loop_steps::Round simplify(context, round, &r);
       if (simplify.drop_idle_factors()) {
+        auto& refused = r.rounds.back().rejected;
+        refused.insert(refused.begin(), step.rejected().begin(), step.rejected().end());
+        continue;
+      }
+    }
+    // Nothing passes and nothing kept changes: a kept term that a look-alike beats with every
+    // other term in place gives way to it (Round::better_look_alike_in_place); the loop goes on.
+    if (!kept && options.better_look_alike) {
+      loop_steps::Round rename(context, round, &r);
+      if (rename.better_look_alike_in_place()) {
         auto& refused = r.rounds.back().rejected;
         refused.insert(refused.begin(), step.rejected().begin(), step.rejected().end());
         continue;

@@ -100,6 +100,20 @@ class Round {
   // refusal() against it. The least needed factor first, one per call; the change is a round
   // (LoopRound::replaced says why).
   bool drop_idle_factors();
+  // When nothing else passes or changes (and when the loop's rounds are spent): a kept term of
+  // recorded channels (not a learned law's hinge nor a slow term) gives way to one of its
+  // look-alikes (look_alikes_of) when, with every other term in place, the look-alike leaves a
+  // lower held-out error and passes refusal(). The two have the same place in the model, so no
+  // share is asked: once the other effects are written, what the two channels differ by (a ratio
+  // that follows a third channel) is no longer buried under them. The best swap, one per call;
+  // it is a round (LoopRound::replaced says why).
+  bool better_look_alike_in_place();
+  // The look-alikes of kept term `t`: those the rounds listed beside a term of its channels
+  // (LoopRound::look_alikes), and `t` with one of its channels replaced by each recorded source
+  // channel that moves with it on every flight (|r| >= kLookAlikeCorrelation; not a position or
+  // an earth-frame velocity, not one of `model_fields`).
+  std::vector<std::string> look_alikes_of(const TermSpec& t,
+                                          const std::set<std::string>& model_fields) const;
   // An earlier round's term that the model no longer needs leaves (the least needed first, one
   // at a time), so long as the round still lowers the error of the round before it.
   void backward_pass();

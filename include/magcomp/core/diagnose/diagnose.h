@@ -190,7 +190,10 @@ struct DiagnoseOptions {
   /// does not beat are listed as its look-alikes; the best of them that beats it by
   /// accept_fraction of the held-out variance and resolution_nT takes its
   /// place (the screen ranks on the selection lines; the held-out lines decide which of two
-  /// channels that move together carries the effect). False: the first term that passes stays.
+  /// channels that move together carries the effect). And when no term passes (or the rounds
+  /// are spent), a kept term gives way to a look-alike that leaves a lower held-out error with
+  /// every other term in place (loop_steps::Round::better_look_alike_in_place). False: the first
+  /// term that passes stays.
   bool better_look_alike = true;
   /// diagnose_loop's backward pass: an earlier round's term leaves when the model without it
   /// loses less than a term must gain to be added (accept_fraction of the held-out variance, or
