@@ -226,48 +226,38 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
         learned_channels = learned_before;
       }
     }
-    // Nothing passes: a kept term's parameters, estimated while other effects were still in the
-    // residual, are estimated again with the model's other terms (Round::refine_parameters); the
-    // loop goes on.
-    if (!kept && options.refine_parameters) {
-      loop_steps::Round refine(context, round, &r);
-      if (refine.refine_parameters(dxs)) {
-        auto& refused = r.rounds.back().rejected;
-        refused.insert(refused.begin(), step.rejected().begin(), step.rejected().end());
-        continue;
-      }
+    // Nothing passes: the kept terms are revisited, each way below in turn; a change is a round
+    // of its own (the round's refusals go with it), and the loop goes on.
+    const auto revisited = [&](bool enabled, const auto& change) {
+      if (kept || !enabled) return false;
+      loop_steps::Round revisit(context, round, &r);
+      if (!change(revisit)) return false;
+      auto& refused = r.rounds.back().rejected;
+      refused.insert(refused.begin(), step.rejected().begin(), step.rejected().end());
+      return true;
+    };
+    // A kept term's parameters, estimated while other effects were still in the residual, are
+    // estimated again with the model's other terms (Round::refine_parameters).
+    if (revisited(options.refine_parameters,
+                  [&](loop_steps::Round& x) { return x.refine_parameters(dxs); }))
+      continue;
+    // A kept term chosen while other effects were still in the residual may give way to what the
+    // model without it ranks first (Round::exchange).
+    if (revisited(options.exchange_terms && exchanges < loop_steps::kExchanges,
+                  [&](loop_steps::Round& x) { return x.exchange(round_options, &taken_out); })) {
+      ++exchanges;
+      continue;
     }
-    // Nothing passes: a kept term chosen while other effects were still in the residual may
-    // give way to what the model without it ranks first (Round::exchange); the loop goes on.
-    if (!kept && options.exchange_terms && exchanges < loop_steps::kExchanges) {
-      loop_steps::Round swap(context, round, &r);
-      if (swap.exchange(round_options, &taken_out)) {
-        auto& refused = r.rounds.back().rejected;
-        refused.insert(refused.begin(), step.rejected().begin(), step.rejected().end());
-        ++exchanges;
-        continue;
-      }
-    }
-    // Nothing passes and nothing kept changes: a kept product whose factor earns no place is
-    // written without it (Round::drop_idle_factors); the loop goes on.
-    if (!kept && options.drop_idle_factors) {
-      loop_steps::Round simplify(context, round, &r);
-      if (simplify.drop_idle_factors()) {
-        auto& refused = r.rounds.back().rejected;
-        refused.insert(refused.begin(), step.rejected().begin(), step.rejected().end());
-        continue;
-      }
-    }
-    // Nothing passes and nothing kept changes: a kept term that a look-alike beats with every
-    // other term in place gives way to it (Round::better_look_alike_in_place); the loop goes on.
-    if (!kept && options.better_look_alike) {
-      loop_steps::Round rename(context, round, &r);
-      if (rename.better_look_alike_in_place()) {
-        auto& refused = r.rounds.back().rejected;
-        refused.insert(refused.begin(), step.rejected().begin(), step.rejected().end());
-        continue;
-      }
-    }
+    // Nothing kept changes: a kept product whose factor earns no place is written without it
+    // (Round::drop_idle_factors).
+    if (revisited(options.drop_idle_factors,
+                  [](loop_steps::Round& x) { return x.drop_idle_factors(); }))
+      continue;
+    // Nothing kept changes: a kept term that a look-alike beats with every other term in place
+    // gives way to it (Round::better_look_alike_in_place).
+    if (revisited(options.better_look_alike,
+                  [](loop_steps::Round& x) { return x.better_look_alike_in_place(); }))
+      continue;
     const auto& rejected = step.rejected();
     if (!kept) {
       if (rejected.empty()) {

@@ -145,22 +145,12 @@ bool Round::drop_idle_factors() {
     }
   }
   if (!best) return false;
-  LoopRound lr = std::move(best->fitted.second);
-  lr.round = round_;
-  lr.added = best->new_text;
-  // As the parameters estimated again: the variance share the change gains (negative: what the
-  // simpler term costs, less than a term must gain).
-  lr.explained = variance_share(lr.heldout_std_nT, now.heldout_std_nT);
   char why[300];
   std::snprintf(why, sizeof(why),
                 "its factor earns no place: without it, held-out error %.4f -> %.4f nT (the model "
                 "without either %.4f)",
-                now.heldout_std_nT, lr.heldout_std_nT, best->without_nT);
-  lr.replaced.emplace_back(best->old_text, why);
-  lr.rejected = std::move(rejected_);
-  rejected_.clear();
-  r_->rounds.push_back(std::move(lr));
-  r_->model = std::move(best->fitted.first);
+                now.heldout_std_nT, best->fitted.second.heldout_std_nT, best->without_nT);
+  replaced_as_round(std::move(best->fitted), best->old_text, best->new_text, why);
   return true;
 }
 
@@ -277,22 +267,30 @@ bool Round::better_look_alike_in_place() {
     }
   }
   if (!best) return false;
-  LoopRound lr = std::move(best->fitted.second);
-  lr.round = round_;
-  lr.added = best->new_text;
-  lr.explained = variance_share(lr.heldout_std_nT, now.heldout_std_nT);
+  const LoopRound& lr = best->fitted.second;
   char why[300];
   std::snprintf(why, sizeof(why),
                 "a look-alike of it does better with every other term in place: held-out error "
                 "%.4f -> %.4f nT (halves %.4f -> %.4f, %.4f -> %.4f)",
                 now.heldout_std_nT, lr.heldout_std_nT, now.selection_std_nT, lr.selection_std_nT,
                 now.confirmation_std_nT, lr.confirmation_std_nT);
-  lr.replaced.emplace_back(best->old_text, why);
+  replaced_as_round(std::move(best->fitted), best->old_text, best->new_text, why);
+  return true;
+}
+
+void Round::replaced_as_round(std::pair<Model, LoopRound> fitted, const std::string& old_text,
+                              const std::string& new_text, const std::string& why) {
+  LoopRound lr = std::move(fitted.second);
+  lr.round = round_;
+  lr.added = new_text;
+  // As the parameters estimated again: the variance share the change gains (negative: what a
+  // simpler term costs, less than a term must gain).
+  lr.explained = variance_share(lr.heldout_std_nT, r_->rounds.back().heldout_std_nT);
+  lr.replaced.emplace_back(old_text, why);
   lr.rejected = std::move(rejected_);
   rejected_.clear();
   r_->rounds.push_back(std::move(lr));
-  r_->model = std::move(best->fitted.first);
-  return true;
+  r_->model = std::move(fitted.first);
 }
 
 bool Round::refine_parameters(const std::vector<Diagnosis>& dxs) {

@@ -159,6 +159,10 @@ class Round {
   // Returns the index now kept.
   size_t look_alikes(const Model& before, const std::vector<Eligible>& eligible, size_t kept);
 
+  // `fitted`, the model with kept term `old_text` written as `new_text`, becomes a round of its
+  // own (LoopRound::replaced gives `why`; the round's refusals go with it).
+  void replaced_as_round(std::pair<Model, LoopRound> fitted, const std::string& old_text,
+                         const std::string& new_text, const std::string& why);
   // `term`, fitted in place of the last round's kept term (`fitted`), becomes that round: the
   // term it replaces joins the round's refusals with `why`, its look-alikes are dropped.
   void in_place_of_kept(std::pair<Model, LoopRound> fitted, const Eligible& term,
