@@ -188,9 +188,10 @@ std::vector<std::string> Round::look_alikes_of(const TermSpec& t,
     if (fields_of(TermSpec(lr.added)) != fields) continue;
     for (const auto& [term, heldout_nT] : lr.look_alikes) add(term);
   }
-  // The same term through each recorded channel that moves with one of its channels on every
-  // flight (|r| >= kLookAlikeCorrelation): what a round kept beside another term, a set or
-  // while other effects were still in the residual was never compared with them.
+  // The same term through each recorded state or angular rate that moves with one of its
+  // channels on every flight (|r| >= kLookAlikeCorrelation): what a round kept beside another
+  // term, in a set or while other effects were still in the residual was never compared with
+  // them.
   const ExprTerm* e = t.expr();
   if (!e) return out;
   const std::vector<std::string>& sources = e->signal().sources;

@@ -109,9 +109,10 @@ class Round {
   // it is a round (LoopRound::replaced says why).
   bool better_look_alike_in_place();
   // The look-alikes of kept term `t`: those the rounds listed beside a term of its channels
-  // (LoopRound::look_alikes), and `t` with one of its channels replaced by each recorded source
-  // channel that moves with it on every flight (|r| >= kLookAlikeCorrelation; not a position or
-  // an earth-frame velocity, not one of `model_fields`).
+  // (LoopRound::look_alikes), and `t` with one of its channels replaced by each recorded state
+  // of the aircraft or angular rate (source_fields without the full search; not an earth-frame
+  // velocity, not one of `model_fields`) that moves with it on every flight
+  // (|r| >= kLookAlikeCorrelation).
   std::vector<std::string> look_alikes_of(const TermSpec& t,
                                           const std::set<std::string>& model_fields) const;
   // An earlier round's term that the model no longer needs leaves (the least needed first, one
