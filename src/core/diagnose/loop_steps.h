@@ -100,10 +100,6 @@ std::vector<std::pair<std::string, double>> steady_factors(
 // A look-alike's ratio follows a channel when Pearson's |r| of the two reaches this, over at
 // least kLookAlikeRatioMinSamples samples (look_alike_ratio).
 constexpr double kLookAlikeRatioFollows = 0.9;
-// Two recorded channels that move together on every flight the loop learns from (Pearson's |r|
-// at least this): a term of one has the same term of the other as a look-alike
-// (Round::look_alikes_of), as scripts/bench_discovery counts an effect's channel as having one.
-constexpr double kLookAlikeCorrelation = 0.95;
 constexpr size_t kLookAlikeRatioMinSamples = 50;
 
 /// What would tell two look-alike terms' channels apart on `flights`: the recorded channel (a

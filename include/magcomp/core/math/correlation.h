@@ -6,6 +6,11 @@
 
 namespace magcomp {
 
+/// The correlation above which two recorded channels are look-alikes of one another (|r|,
+/// Pearson): a flight cannot tell an effect of one from an effect of the other. The network's
+/// attribution and the diagnosis loop both use it.
+constexpr double kLookAlikeCorrelation = 0.95;
+
 /// Pearson's correlation of `a` and `b` (same length, any unit each), dimensionless; 0 when
 /// either is constant.
 double pearson(const Eigen::Ref<const Eigen::VectorXd>& a,

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "magcomp/core/io/flight_data.h"
+#include "magcomp/core/math/correlation.h"
 #include "magcomp/core/model/model.h"
 #include "magcomp/core/neural/network.h"
 
@@ -42,9 +43,6 @@ struct ChannelImportance {
   /// it is leakage (the map, the diurnal, TL's heading error on a flight it was not fitted on).
   bool trajectory = false;
 };
-
-/// The correlation above which two channels are look-alikes of one another (|r|, Pearson).
-constexpr double kLookAlikeCorrelation = 0.95;
 
 /// For each of `channels`, the others whose values on `rows` of `data` correlate with it at
 /// |r| >= min_abs_r (Pearson, over the rows where both are finite), as (channel, r), the
