@@ -259,7 +259,8 @@ bool Round::better_look_alike_in_place() {
           if (x.text() == t.text()) x = TermSpec(a);
         auto fitted = fit_score(std::move(m));
         const LoopRound& lr = fitted.second;
-        if (!refusal(lr, now, c_.options).empty() || !(lr.heldout_std_nT < now.heldout_std_nT))
+        if (!refusal(lr, now, c_.options).empty() || !(lr.heldout_std_nT < now.heldout_std_nT) ||
+            !holds_where_sized(lr, now))
           continue;
         if (best && !(lr.heldout_std_nT < best->fitted.second.heldout_std_nT)) continue;
         best.emplace(Best{std::move(fitted), t.text(), a});

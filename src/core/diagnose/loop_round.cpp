@@ -107,6 +107,11 @@ bool Round::improves_on(const LoopRound& lr, const LoopRound& now) const {
          passes(lr.heldout_std_nT, now.heldout_std_nT);
 }
 
+bool Round::holds_where_sized(const LoopRound& lr, const LoopRound& now) const {
+  return !(lr.calibration_std_nT * lr.calibration_std_nT * (1.0 - c_.options.accept_fraction) >
+           now.calibration_std_nT * now.calibration_std_nT);
+}
+
 bool Round::pair_passes(const LoopRound& lr, const LoopRound& alone_a,
                         const LoopRound& alone_b) const {
   const LoopRound& now = r_->rounds.back();
@@ -338,7 +343,7 @@ size_t Round::look_alikes(const Model& before, const std::vector<Eligible>& elig
       }
       named.insert(fields.begin(), fields.end());
       if (c_.options.better_look_alike && refusal(lr, now, c_.options).empty() &&
-          passes(lr.heldout_std_nT, now.heldout_std_nT) &&
+          holds_where_sized(lr, now) && passes(lr.heldout_std_nT, now.heldout_std_nT) &&
           (!better || lr.heldout_std_nT < better->second.heldout_std_nT)) {
         better = std::move(fitted);
         better_j = j;

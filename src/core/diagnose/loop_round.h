@@ -135,6 +135,14 @@ class Round {
   // A change scored `lr` against the model scored `now`: it passes refusal(), raises neither
   // half, and lowers the held-out error by passes().
   bool improves_on(const LoopRound& lr, const LoopRound& now) const;
+  // A look-alike scored `lr` in place of the kept term of the model scored `now` describes the
+  // same effect no worse where both are sized: on the calibration rows its error (unfiltered) is
+  // not above the kept term's by more than the accepted share of the variance. A look-alike that
+  // gains on the held-out lines while it fits those rows worse gains through a part of its
+  // channel the fit never sized there (a bus voltage's slow wander beside its sag under the
+  // load the kept current draws), which this flight's lines follow and another flight's do not.
+  // True when either error is unknown.
+  bool holds_where_sized(const LoopRound& lr, const LoopRound& now) const;
   // A pair fitted together (`lr`): every check of a single term, passes() on each half, and
   // each of its terms needed (the pair lowers the error variance of each alone by the accepted
   // share).
