@@ -11,6 +11,7 @@
 #include "loop_round.h"
 #include "magcomp/core/error.h"
 #include "magcomp/core/fit/model_fit.h"
+#include "magcomp/core/fit/parameter_fit.h"
 #include "magcomp/core/io/channel_kinds.h"
 #include "magcomp/core/math/correlation.h"
 #include "magcomp/core/model/terms_expr.h"
@@ -295,6 +296,70 @@ void Round::replaced_as_round(std::pair<Model, LoopRound> fitted, const std::str
   r_->model = std::move(fitted.first);
 }
 
+namespace {
+
+// `model` with its term k written as `spec` (a slow term stays one), unfitted.
+Model with_term_as(const Model& model, size_t k, const std::string& spec) {
+  Model m = model;
+  const std::string old_text = m.terms[k].text();
+  m.terms[k] = TermSpec(spec);
+  for (std::string& x : m.slow_terms)
+    if (x == old_text) x = m.terms[k].text();
+  m.coefficients.resize(0);
+  return m;
+}
+
+}  // namespace
+
+std::string Round::retimed_slow_term(const Model& model, size_t k) const {
+  const ExprTerm* e = model.terms[k].expr();
+  if (!e) return "";
+  const auto& chain = e->signal().transforms;
+  size_t lp = chain.size();
+  for (size_t j = 0; j < chain.size(); ++j) {
+    if (chain[j].free) return "";
+    if (chain[j].kind == TransformKind::LowPass) {
+      if (lp < chain.size()) return "";  // two low-passes: not one time constant
+      lp = j;
+    }
+  }
+  if (lp == chain.size() || !(chain[lp].param > 0)) return "";
+  const double tau0_s = chain[lp].param;
+  // The term's shape (every parameter '?' but a ramp's knot) with its own parameters back and
+  // tau_s in the low-pass's place.
+  const TermSpec shape(e->shape());
+  const ExprTerm* free = shape.expr();
+  if (!free) return "";
+  const auto spec_with = [&](double tau_s) {
+    std::vector<double> values;
+    for (const Transform& x : chain)
+      if (x.has_param() && x.kind != TransformKind::Ramp)
+        values.push_back(&x == &chain[lp] ? tau_s : x.param);
+    return free->with_parameters(values);
+  };
+  // The calibration rows' error with the time constant tau_s, nT (infinite where the fit fails).
+  const auto calibration_nT = [&](double tau_s) {
+    try {
+      const double nT =
+          fit_score(with_term_as(model, k, spec_with(tau_s))).second.calibration_std_nT;
+      return std::isfinite(nT) ? nT : std::numeric_limits<double>::infinity();
+    } catch (const Error&) {
+      return std::numeric_limits<double>::infinity();
+    }
+  };
+  // The grid within a factor kSlowRetimeRange either way, then golden section in log(tau)
+  // between the best point's neighbours (scan_parameter; three significant digits).
+  std::vector<double> grid;
+  for (int j = -kSlowRetimeSteps; j <= kSlowRetimeSteps; ++j)
+    grid.push_back(tau0_s * std::pow(kSlowRetimeRange, static_cast<double>(j) / kSlowRetimeSteps));
+  double best_nT = NAN;
+  const double tau_s = scan_parameter(TransformKind::LowPass, grid, calibration_nT, &best_nT);
+  if (!(tau_s > 0) || std::abs(std::log(tau_s / tau0_s)) < kSlowRetimeTolerance) return "";
+  if (!(best_nT < calibration_nT(tau0_s))) return "";
+  const std::string spec = spec_with(tau_s);
+  return spec == model.terms[k].text() ? "" : spec;
+}
+
 bool Round::refine_parameters(const std::vector<Diagnosis>& dxs) {
   const LoopRound now = r_->rounds.back();
   const Model& model = r_->model;
@@ -316,7 +381,18 @@ bool Round::refine_parameters(const std::vector<Diagnosis>& dxs) {
       continue;  // no parameter (an alias such as current:X is written without one)
     freeable.emplace_back(k, e->shape());  // every parameter '?' (a ramp's knot stays)
   }
-  if (freeable.empty()) return false;
+  // The kept slow terms with one fixed low-pass, each with its time constant estimated again
+  // (retimed_slow_term): (index, the spec with it).
+  std::vector<std::pair<size_t, std::string>> retimed;
+  for (size_t k = 0; k < model.terms.size(); ++k) {
+    const TermSpec& t = model.terms[k];
+    if (!removable(c_.start, t) || std::find(model.slow_terms.begin(), model.slow_terms.end(),
+                                             t.text()) == model.slow_terms.end())
+      continue;
+    const std::string spec = retimed_slow_term(model, k);
+    if (!spec.empty()) retimed.emplace_back(k, spec);
+  }
+  if (freeable.empty() && retimed.empty()) return false;
   // The best that passes, without a new term ([0]) and with one ([1]).
   struct Choice {
     std::optional<std::pair<Model, LoopRound>> fitted;
@@ -328,7 +404,7 @@ bool Round::refine_parameters(const std::vector<Diagnosis>& dxs) {
     try {
       auto fitted = fit_score(std::move(m));
       std::vector<std::pair<std::string, std::string>> changed;
-      for (const auto& [k, freed] : freeable)
+      for (size_t k = 0; k < model.terms.size() && k < fitted.first.terms.size(); ++k)
         if (fitted.first.terms[k].text() != model.terms[k].text())
           changed.emplace_back(model.terms[k].text(), fitted.first.terms[k].text());
       if (changed.empty()) return;  // the same parameters: nothing new to judge
@@ -352,6 +428,7 @@ bool Round::refine_parameters(const std::vector<Diagnosis>& dxs) {
     m.terms[k] = TermSpec(freed);
     consider(std::move(m), "");
   }
+  for (const auto& [k, spec] : retimed) consider(with_term_as(model, k, spec), "");
   // The diagnosis's first candidates (of distinct channels, whatever their share alone), each
   // added with every kept term's parameters free: an effect whose signature a kept term took in
   // part (a flex's time constant stretched over a scalar lag) is written where neither the new

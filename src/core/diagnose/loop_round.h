@@ -23,6 +23,13 @@ constexpr size_t kTriesPerRound = 3;
 constexpr int kExchanges = 3;
 /// Eligible candidates (in rank order, after the kept one) tried as look-alikes of a kept term.
 constexpr size_t kLookAlikeTries = 6;
+/// A kept slow term's time constant is searched again within this factor either way of its own
+/// (Round::retimed_slow_term).
+constexpr double kSlowRetimeRange = 1.5;
+/// ... on a grid of 2 kSlowRetimeSteps + 1 points even in log(tau), then by golden section
+/// (scan_parameter); a time constant within this share of the kept one is the kept one.
+constexpr int kSlowRetimeSteps = 3;
+constexpr double kSlowRetimeTolerance = 0.01;
 
 /// The indices of the eligible candidates a round tries alone, in rank order: at most
 /// kTriesPerRound, the best ranked of each set of recorded channels (a lag, reading none, is
@@ -81,16 +88,24 @@ class Round {
   // per call; the term taken out joins `taken_out`.
   bool exchange(const DiagnoseOptions& options, std::set<std::string>* taken_out);
   // When nothing else passes: the kept terms of recorded channels with parameters (a step's
-  // threshold, a time constant, a saturation level, a delay; not a learned law's knots, not a
-  // slow term), estimated while other effects were still in the residual or at another ridge
-  // strength, have them estimated again with every other term in place: each such term alone,
-  // and all of them beside each of the first candidates of `dxs` (at most kTriesPerRound, of
-  // distinct channels, whatever their share alone; not within the model's span). The best by
-  // held-out error takes their place (and adds its candidate) if it lowers the model's held-out
-  // error by the accepted share and the resolution, raises neither half and passes refusal();
-  // with a candidate, it lowers each half's error by the accepted share and the resolution, and
-  // the error of the best without one (when one passes) by the same.
+  // threshold, a time constant, a saturation level, a delay; not a learned law's knots; a slow
+  // term's time constant by retimed_slow_term), estimated while other effects were still in the
+  // residual or at another ridge strength, have them estimated again with every other term in
+  // place: each such term alone, and all of them beside each of the first candidates of `dxs` (at
+  // most kTriesPerRound, of distinct channels, whatever their share alone; not within the model's
+  // span). The best by held-out error takes their place (and adds its candidate) if it lowers the
+  // model's held-out error by the accepted share and the resolution, raises neither half and passes
+  // refusal(); with a candidate, it lowers each half's error by the accepted share and the
+  // resolution, and the error of the best without one (when one passes) by the same.
   bool refine_parameters(const std::vector<Diagnosis>& dxs);
+  // Kept slow term k of `model` (Model::slow_terms, one fixed low-pass in its chain) with its
+  // time constant estimated again with every other term in place, by what the slow stage fits:
+  // the error on the calibration rows (LoopRound::calibration_std_nT, unfiltered), searched in
+  // log(tau) within a factor kSlowRetimeRange of the kept time constant (scan_parameter). A
+  // heater's time constant estimated while another heater was still in the residual is off by a few
+  // percent, which leaves its field's steps half-written. Its spec, or "" when no other time
+  // constant does better there (within kSlowRetimeTolerance of the kept one).
+  std::string retimed_slow_term(const Model& model, size_t k) const;
   // When nothing else passes or changes (and when the loop's rounds are spent): a kept product
   // of recorded channels (field:a*b, with its
   // transforms) whose factor earns no place -- the product does not beat the same term without

@@ -175,7 +175,9 @@ struct DiagnoseOptions {
   /// and the resolution and raises neither half (LoopRound::replaced). A threshold estimated
   /// while another effect was still in the residual, or at another ridge strength, and a time
   /// constant that stood in for a lag not yet written, are estimated where the model no longer
-  /// biases them (false: a kept term keeps the parameters it was added with).
+  /// biases them; a slow term's time constant (a heater's, a drift's) by the error on the
+  /// calibration rows the slow stage sizes it on (false: a kept term keeps the parameters it was
+  /// added with).
   bool refine_parameters = true;
   /// diagnose_loop: when no term passes and neither the parameters estimated again nor an
   /// exchange change the model, and once more when the rounds are spent, a kept
