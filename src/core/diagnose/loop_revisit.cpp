@@ -83,6 +83,17 @@ bool Round::exchange(const DiagnoseOptions& options, std::set<std::string>* take
 
 namespace {
 
+// `model` with its term `old_text` written as `spec` (a slow term stays one), unfitted.
+Model with_term_as(const Model& model, const std::string& old_text, const std::string& spec) {
+  Model m = model;
+  for (TermSpec& x : m.terms)
+    if (x.text() == old_text) x = TermSpec(spec);
+  for (std::string& x : m.slow_terms)
+    if (x == old_text) x = TermSpec(spec).text();
+  m.coefficients.resize(0);
+  return m;
+}
+
 // The spec of `e` without its source k (the shorthand current:X for a plain current's field).
 std::string without_source(const ExprTerm& e, size_t k) {
   SignalExpr signal = e.signal();
@@ -126,10 +137,7 @@ bool Round::drop_idle_factors() {
         continue;
       try {
         if (!without) without.emplace(fit_score(without_term(model, t)));
-        Model m = model;
-        for (TermSpec& x : m.terms)
-          if (x.text() == t.text()) x = TermSpec(simpler);
-        auto fitted = fit_score(std::move(m));
+        auto fitted = fit_score(with_term_as(model, t.text(), simpler));
         const LoopRound& lr = fitted.second;
         // The factor earns its place: the product beats the term without it.
         if (passes(now.heldout_std_nT, lr.heldout_std_nT)) continue;
@@ -255,10 +263,7 @@ bool Round::better_look_alike_in_place() {
               return model_fields.count(x) > 0 && !fields_of(t).count(x);
             }))
           continue;
-        Model m = model;
-        for (TermSpec& x : m.terms)
-          if (x.text() == t.text()) x = TermSpec(a);
-        auto fitted = fit_score(std::move(m));
+        auto fitted = fit_score(with_term_as(model, t.text(), a));
         const LoopRound& lr = fitted.second;
         if (!refusal(lr, now, c_.options).empty() || !(lr.heldout_std_nT < now.heldout_std_nT) ||
             !holds_where_sized(lr, now))
@@ -296,21 +301,6 @@ void Round::replaced_as_round(std::pair<Model, LoopRound> fitted, const std::str
   r_->model = std::move(fitted.first);
 }
 
-namespace {
-
-// `model` with its term k written as `spec` (a slow term stays one), unfitted.
-Model with_term_as(const Model& model, size_t k, const std::string& spec) {
-  Model m = model;
-  const std::string old_text = m.terms[k].text();
-  m.terms[k] = TermSpec(spec);
-  for (std::string& x : m.slow_terms)
-    if (x == old_text) x = m.terms[k].text();
-  m.coefficients.resize(0);
-  return m;
-}
-
-}  // namespace
-
 std::string Round::retimed_slow_term(const Model& model, size_t k) const {
   const ExprTerm* e = model.terms[k].expr();
   if (!e) return "";
@@ -340,8 +330,8 @@ std::string Round::retimed_slow_term(const Model& model, size_t k) const {
   // The calibration rows' error with the time constant tau_s, nT (infinite where the fit fails).
   const auto calibration_nT = [&](double tau_s) {
     try {
-      const double nT =
-          fit_score(with_term_as(model, k, spec_with(tau_s))).second.calibration_std_nT;
+      const double nT = fit_score(with_term_as(model, model.terms[k].text(), spec_with(tau_s)))
+                            .second.calibration_std_nT;
       return std::isfinite(nT) ? nT : std::numeric_limits<double>::infinity();
     } catch (const Error&) {
       return std::numeric_limits<double>::infinity();
@@ -428,7 +418,8 @@ bool Round::refine_parameters(const std::vector<Diagnosis>& dxs) {
     m.terms[k] = TermSpec(freed);
     consider(std::move(m), "");
   }
-  for (const auto& [k, spec] : retimed) consider(with_term_as(model, k, spec), "");
+  for (const auto& [k, spec] : retimed)
+    consider(with_term_as(model, model.terms[k].text(), spec), "");
   // The diagnosis's first candidates (of distinct channels, whatever their share alone), each
   // added with every kept term's parameters free: an effect whose signature a kept term took in
   // part (a flex's time constant stretched over a scalar lag) is written where neither the new
