@@ -213,7 +213,17 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
       r.model.fit.slow_lines = lines;
       diagnose_all();
       loop_steps::Round on_lines(context, round, &r);
-      kept = attempt(on_lines, eligible_candidates(dxs, min_share, span_too));
+      // The candidates of the diagnosis with slow terms sized on the lines, then the slow ones
+      // the calibration-sized round could not keep: the screen sizes a slow candidate on the
+      // lines, which the fit now does too (a heater the calibration rows barely show, sized
+      // there, can raise the held-out error its screen said it lowers).
+      std::vector<Eligible> on_lines_eligible = eligible_candidates(dxs, min_share, span_too);
+      for (const Eligible& e : eligible) {
+        const bool listed = std::any_of(on_lines_eligible.begin(), on_lines_eligible.end(),
+                                        [&](const Eligible& o) { return o.term == e.term; });
+        if (e.slow && !listed) on_lines_eligible.push_back(e);
+      }
+      kept = attempt(on_lines, on_lines_eligible);
       if (kept) {
         LoopRound& kept_round = r.rounds.back();
         kept_round.slow_on_lines = true;
