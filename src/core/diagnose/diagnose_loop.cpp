@@ -216,12 +216,21 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
       // The candidates of the diagnosis with slow terms sized on the lines, then the slow ones
       // the calibration-sized round could not keep: the screen sizes a slow candidate on the
       // lines, which the fit now does too (a heater the calibration rows barely show, sized
-      // there, can raise the held-out error its screen said it lowers).
+      // there, can raise the held-out error its screen said it lowers). Not a channel a kept
+      // slow term reads: a second time constant of it is the kept term's shape, which
+      // Round::retimed_slow_term estimates.
+      std::set<std::string> slow_channels;
+      for (const std::string& t : r.model.slow_terms)
+        for (const std::string& c : loop_steps::fields_of(TermSpec(t))) slow_channels.insert(c);
       std::vector<Eligible> on_lines_eligible = eligible_candidates(dxs, min_share, span_too);
       for (const Eligible& e : eligible) {
         const bool listed = std::any_of(on_lines_eligible.begin(), on_lines_eligible.end(),
                                         [&](const Eligible& o) { return o.term == e.term; });
-        if (e.slow && !listed) on_lines_eligible.push_back(e);
+        const std::set<std::string> channels = loop_steps::fields_of(e.term);
+        const bool slow_channel =
+            std::any_of(channels.begin(), channels.end(),
+                        [&](const std::string& c) { return slow_channels.count(c) > 0; });
+        if (e.slow && !listed && !slow_channel) on_lines_eligible.push_back(e);
       }
       kept = attempt(on_lines, on_lines_eligible);
       if (kept) {

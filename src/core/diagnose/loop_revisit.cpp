@@ -94,6 +94,18 @@ Model with_term_as(const Model& model, const std::string& old_text, const std::s
   return m;
 }
 
+// True when a low-pass of `t` has its corner, 1 / (2 pi tau), below `band_low_hz`: the low-pass
+// itself puts the term below the band the band-pass stage sizes terms in (a heater's minutes,
+// not a relay's 0.2 s smoothing of a slow channel).
+bool low_pass_below_band(const TermSpec& t, double band_low_hz) {
+  const ExprTerm* e = t.expr();
+  if (!e) return false;
+  for (const Transform& x : e->signal().transforms)
+    if (x.kind == TransformKind::LowPass && x.param > 0 && 1.0 / (2 * M_PI * x.param) < band_low_hz)
+      return true;
+  return false;
+}
+
 // The spec of `e` without its source k (the shorthand current:X for a plain current's field).
 std::string without_source(const ExprTerm& e, size_t k) {
   SignalExpr signal = e.signal();
@@ -390,7 +402,9 @@ bool Round::refine_parameters(const std::vector<Diagnosis>& dxs) {
     std::string added;                                         // the term added, or ""
   };
   Choice choice[2];
-  const auto consider = [&](Model m, const std::string& added) {
+  // `retimed`: a slow term's time constant below the band estimated again on the calibration
+  // rows, judged by improves_in_place (the lines only confirm it); otherwise by improves_on.
+  const auto consider = [&](Model m, const std::string& added, bool retimed = false) {
     try {
       auto fitted = fit_score(std::move(m));
       std::vector<std::pair<std::string, std::string>> changed;
@@ -399,7 +413,7 @@ bool Round::refine_parameters(const std::vector<Diagnosis>& dxs) {
           changed.emplace_back(model.terms[k].text(), fitted.first.terms[k].text());
       if (changed.empty()) return;  // the same parameters: nothing new to judge
       const LoopRound& lr = fitted.second;
-      if (!improves_on(lr, now)) return;
+      if (retimed ? !improves_in_place(lr, now) : !improves_on(lr, now)) return;
       // A new term with them: the gain a candidate needs on each half.
       if (!added.empty() && !(passes(lr.selection_std_nT, now.selection_std_nT) &&
                               passes(lr.confirmation_std_nT, now.confirmation_std_nT)))
@@ -419,7 +433,8 @@ bool Round::refine_parameters(const std::vector<Diagnosis>& dxs) {
     consider(std::move(m), "");
   }
   for (const auto& [k, spec] : retimed)
-    consider(with_term_as(model, model.terms[k].text(), spec), "");
+    consider(with_term_as(model, model.terms[k].text(), spec), "",
+             low_pass_below_band(model.terms[k], model.fit.band_low_hz));
   // The diagnosis's first candidates (of distinct channels, whatever their share alone), each
   // added with every kept term's parameters free: an effect whose signature a kept term took in
   // part (a flex's time constant stretched over a scalar lag) is written where neither the new

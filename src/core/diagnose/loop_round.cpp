@@ -107,6 +107,13 @@ bool Round::improves_on(const LoopRound& lr, const LoopRound& now) const {
          passes(lr.heldout_std_nT, now.heldout_std_nT);
 }
 
+bool Round::improves_in_place(const LoopRound& lr, const LoopRound& now) const {
+  const bool halves_hold = !(lr.selection_std_nT > now.selection_std_nT) &&
+                           !(lr.confirmation_std_nT > now.confirmation_std_nT);
+  return refusal(lr, now, c_.options).empty() && halves_hold &&
+         variance_share(lr.heldout_std_nT, now.heldout_std_nT) >= c_.options.accept_fraction;
+}
+
 bool Round::holds_where_sized(const LoopRound& lr, const LoopRound& now) const {
   return !(lr.calibration_std_nT * lr.calibration_std_nT * (1.0 - c_.options.accept_fraction) >
            now.calibration_std_nT * now.calibration_std_nT);

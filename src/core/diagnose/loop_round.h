@@ -94,9 +94,10 @@ class Round {
   // place: each such term alone, and all of them beside each of the first candidates of `dxs` (at
   // most kTriesPerRound, of distinct channels, whatever their share alone; not within the model's
   // span). The best by held-out error takes their place (and adds its candidate) if it lowers the
-  // model's held-out error by the accepted share and the resolution, raises neither half and passes
-  // refusal(); with a candidate, it lowers each half's error by the accepted share and the
-  // resolution, and the error of the best without one (when one passes) by the same.
+  // model's held-out error by the accepted share and the resolution (a slow term retimed below
+  // the band: the share alone, improves_in_place), raises neither half and passes refusal(); with a
+  // candidate, it lowers each half's error by the accepted share and the resolution, and the
+  // error of the best without one (when one passes) by the same.
   bool refine_parameters(const std::vector<Diagnosis>& dxs);
   // Kept slow term k of `model` (Model::slow_terms, one fixed low-pass in its chain) with its
   // time constant estimated again with every other term in place, by what the slow stage fits:
@@ -150,6 +151,15 @@ class Round {
   // A change scored `lr` against the model scored `now`: it passes refusal(), raises neither
   // half, and lowers the held-out error by passes().
   bool improves_on(const LoopRound& lr, const LoopRound& now) const;
+  // The same for a kept slow term's time constant estimated again (retimed_slow_term) when its
+  // low-pass's corner lies below the fit's band: every check but the resolution. The
+  // resolution is what a new channel must gain over the held-out lines' noise, where the lines
+  // choose it; a time constant the slow stage estimates on the calibration rows adds no channel,
+  // and the lines only confirm it, by the accepted share of their variance with neither half
+  // higher. A term's freed parameters, and a fast low-pass of a slow channel (a relay's
+  // smoothing), keep the resolution: a small gain there takes the round in which an exchange of
+  // the term would have gained more.
+  bool improves_in_place(const LoopRound& lr, const LoopRound& now) const;
   // A look-alike scored `lr` in place of the kept term of the model scored `now` describes the
   // same effect no worse where both are sized: on the calibration rows its error (unfiltered) is
   // not above the kept term's by more than the accepted share of the variance. A look-alike that
