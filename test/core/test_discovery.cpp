@@ -589,6 +589,14 @@ struct RoundAtTheEnd {
     r.model = model;
     r.rounds.push_back(loop_steps::score(model, flights, "mag_1_c", held, nullptr));
   }
+  // The loop's state with `term` added as a slow term, fitted, and scored as its last round.
+  LoopResult with_slow_term(const std::string& term) const {
+    LoopResult out = r;
+    loop_steps::add_candidate_term(TermSpec(term), true, truth, &out.model);
+    fit_model(out.model, flights);
+    out.rounds.push_back(loop_steps::score(out.model, flights, truth, held, nullptr));
+    return out;
+  }
   static sim::Scenario next_of(sim::Scenario a) {
     a.seed += 1;
     return a;
@@ -1043,10 +1051,7 @@ TEST(Discovery, ASlowTermsTimeConstantIsEstimatedAgainWithTheOtherTermsInPlace) 
   ASSERT_TRUE(heater) << "run 111 draws no heater of cur_strb";
   RoundAtTheEnd end(a, base_lambda(), {"dcurrent:cur_heat"});
   const std::string kept = "field:cur_strb|lp(64.9)";
-  LoopResult r = end.r;
-  loop_steps::add_candidate_term(TermSpec(kept), true, end.truth, &r.model);
-  fit_model(r.model, end.flights);
-  r.rounds.push_back(loop_steps::score(r.model, end.flights, end.truth, end.held, nullptr));
+  LoopResult r = end.with_slow_term(kept);
   const LoopRound before = r.rounds.back();
   const Model model_before = r.model;
   loop_steps::Round round(end.context, 3, &r);
@@ -1093,10 +1098,7 @@ TEST(Discovery, ARetimedSlowTermNeedsNoResolutionOnTheLines) {
   ASSERT_TRUE(heater) << "run 111 draws no heater of cur_strb";
   RoundAtTheEnd end(a, base_lambda(), {"dcurrent:cur_heat"});
   const std::string kept = "field:cur_strb|lp(63.2)";
-  LoopResult r = end.r;
-  loop_steps::add_candidate_term(TermSpec(kept), true, end.truth, &r.model);
-  fit_model(r.model, end.flights);
-  r.rounds.push_back(loop_steps::score(r.model, end.flights, end.truth, end.held, nullptr));
+  LoopResult r = end.with_slow_term(kept);
   const LoopRound before = r.rounds.back();
   const Model model_before = r.model;
   loop_steps::Round round(end.context, 3, &r);
@@ -1376,10 +1378,9 @@ TEST(Discovery, ASlowCandidateTheCalibrationRowsCannotSizeIsTriedSizedOnTheLines
   const sim::Scenario a = test::discovery_scenario(111, 3, base, 1, &effects);
   ASSERT_TRUE(drawn(effects, "thermal", "cur_srvo_o")) << "run 111 draws no heater of cur_srvo_o";
   RoundAtTheEnd end(a, base_lambda(), {"dcurrent:cur_heat"});
-  Model start = end.model;
-  loop_steps::add_candidate_term(TermSpec("field:cur_strb|lp(64.9)"), true, end.truth, &start);
-  fit_model(start, end.flights);
-  const LoopRound before = loop_steps::score(start, end.flights, end.truth, end.held, nullptr);
+  const LoopResult written = end.with_slow_term("field:cur_strb|lp(64.9)");
+  const Model& start = written.model;
+  const LoopRound& before = written.rounds.back();
   // The servo heater sized on the calibration rows: the held-out error rises.
   Model on_rows = start;
   loop_steps::add_candidate_term(TermSpec("field:cur_srvo_o|pow(2)|lp(48.6)"), true, end.truth,
