@@ -101,10 +101,8 @@ bool Round::passes(double with_nT, double without_nT) const {
 }
 
 bool Round::improves_on(const LoopRound& lr, const LoopRound& now) const {
-  const bool halves_hold = !(lr.selection_std_nT > now.selection_std_nT) &&
-                           !(lr.confirmation_std_nT > now.confirmation_std_nT);
-  return refusal(lr, now, c_.options).empty() && halves_hold &&
-         passes(lr.heldout_std_nT, now.heldout_std_nT);
+  return improves_in_place(lr, now) &&
+         now.heldout_std_nT - lr.heldout_std_nT >= c_.options.resolution_nT;
 }
 
 bool Round::improves_in_place(const LoopRound& lr, const LoopRound& now) const {
