@@ -1406,5 +1406,41 @@ TEST(Discovery, ASlowCandidateTheCalibrationRowsCannotSizeIsTriedSizedOnTheLines
   EXPECT_LT(next_now_nT, 0.85 * next_before_nT);
 }
 
+TEST(Discovery, ALoadsFieldWhoseSizeFollowsAStateIsWrittenAsThePair) {
+  // Run 105, first aircraft, its states recorded: a wire of cur_heat and a product
+  // cur_heat*oat_degC, one field whose size follows the outside air temperature. The
+  // calibration boxes are flown at 3000 m (-4.5 degC), the survey lines at 487 m (12 degC): the
+  // band-pass sizes the heater's field at the boxes' temperature, and neither term alone holds
+  // on the lines, so no single term passes (without this step the loop ends at TL, 0.515 nT on
+  // the next flight; scripts/bench_discovery 1 105 half-several states draws=3 why). The screen
+  // ranks the pair of cur_heat with oat_degC first, and the pair, sized as slow terms, is kept.
+  const sim::Scenario base = base_with_states();
+  std::vector<sim::HiddenEffect> effects;
+  const sim::Scenario a = test::discovery_scenario(105, 2, base, 0, &effects);
+  ASSERT_TRUE(drawn(effects, "wire", "cur_heat")) << "run 105 draws no wire of cur_heat";
+  ASSERT_TRUE(drawn(effects, "product", "cur_heat")) << "run 105 draws no product of cur_heat";
+  RoundAtTheEnd end(a, base_lambda(), {});
+  const double before_nT = end.r.rounds.back().heldout_std_nT;
+  const double next_tl_nT = evaluate_model(end.start, end.fb.flight, "mag_1_c", false).std_nT;
+  loop_steps::Round round(end.context, 1, &end.r);
+  ASSERT_TRUE(round.size_following_a_state({}));
+  const LoopRound& kept = end.r.rounds.back();
+  EXPECT_EQ(kept.added, "current:cur_heat + field:cur_heat*oat_degC");
+  EXPECT_TRUE(kept.together);
+  ASSERT_EQ(kept.alone_std_nT.size(), 2u);
+  const double next_nT = evaluate_model(end.r.model, end.fb.flight, "mag_1_c", false).std_nT;
+  std::printf("  %s: held out %.4f -> %.4f nT (alone %.4f, %.4f), next flight %.3f -> %.3f nT\n",
+              kept.added.c_str(), before_nT, kept.heldout_std_nT, kept.alone_std_nT[0],
+              kept.alone_std_nT[1], next_tl_nT, next_nT);
+  // Neither term alone lowers the held-out error by the accepted share; the pair, by far more.
+  for (double alone_nT : kept.alone_std_nT)
+    EXPECT_GT(alone_nT * alone_nT, 0.95 * before_nT * before_nT);
+  EXPECT_LT(kept.heldout_std_nT, 0.6 * before_nT);
+  EXPECT_LT(next_nT, 0.4 * next_tl_nT);
+  // With the pair written, no other pair of a load and a state passes.
+  loop_steps::Round again(end.context, 2, &end.r);
+  EXPECT_FALSE(again.size_following_a_state({})) << end.r.rounds.back().added;
+}
+
 }  // namespace
 }  // namespace magcomp
