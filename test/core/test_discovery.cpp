@@ -1413,7 +1413,8 @@ TEST(Discovery, ALoadsFieldWhoseSizeFollowsAStateIsWrittenAsThePair) {
   // band-pass sizes the heater's field at the boxes' temperature, and neither term alone holds
   // on the lines, so no single term passes (without this step the loop ends at TL, 0.515 nT on
   // the next flight; scripts/bench_discovery 1 105 half-several states draws=3 why). The screen
-  // ranks the pair of cur_heat with oat_degC first, and the pair, sized as slow terms, is kept.
+  // ranks the pair of cur_heat with oat_degC first, and the pair, sized as slow terms on the
+  // calibration rows and the lines, is kept.
   const sim::Scenario base = base_with_states();
   std::vector<sim::HiddenEffect> effects;
   const sim::Scenario a = test::discovery_scenario(105, 2, base, 0, &effects);
@@ -1422,8 +1423,19 @@ TEST(Discovery, ALoadsFieldWhoseSizeFollowsAStateIsWrittenAsThePair) {
   RoundAtTheEnd end(a, base_lambda(), {});
   const double before_nT = end.r.rounds.back().heldout_std_nT;
   const double next_tl_nT = evaluate_model(end.start, end.fb.flight, "mag_1_c", false).std_nT;
+  // As the loop's round that sizes slow terms on the lines too: every line beside the
+  // calibration's (the model has no slow term yet, so its scores do not change).
+  {
+    std::set<double> lines;
+    const auto line = end.fa.flight.column("line");
+    const FitSettings& fit = end.r.model.fit;
+    for (Eigen::Index i = 0; i < line.size(); ++i)
+      if (std::find(fit.lines.begin(), fit.lines.end(), line[i]) == fit.lines.end())
+        lines.insert(line[i]);
+    end.r.model.fit.slow_lines.assign(lines.begin(), lines.end());
+  }
   loop_steps::Round round(end.context, 1, &end.r);
-  ASSERT_TRUE(round.size_following_a_state({}));
+  ASSERT_TRUE(round.size_following_a_state());
   const LoopRound& kept = end.r.rounds.back();
   EXPECT_EQ(kept.added, "current:cur_heat + field:cur_heat*oat_degC");
   EXPECT_TRUE(kept.together);
@@ -1439,7 +1451,7 @@ TEST(Discovery, ALoadsFieldWhoseSizeFollowsAStateIsWrittenAsThePair) {
   EXPECT_LT(next_nT, 0.4 * next_tl_nT);
   // With the pair written, no other pair of a load and a state passes.
   loop_steps::Round again(end.context, 2, &end.r);
-  EXPECT_FALSE(again.size_following_a_state({})) << end.r.rounds.back().added;
+  EXPECT_FALSE(again.size_following_a_state()) << end.r.rounds.back().added;
 }
 
 }  // namespace

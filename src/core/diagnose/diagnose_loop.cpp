@@ -185,7 +185,7 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
           dxs.begin(), dxs.end(), [](const Diagnosis& d) { return !d.explainable.within_noise; });
       kept = kept || (options.joint_steps && predictable && step.pair_acting_together(dxs));
       kept = kept || step.learned_law_of_channel(dxs, &learned_channels);
-      kept = kept || (options.joint_steps && step.size_following_a_state(dxs));
+      kept = kept || (options.joint_steps && step.size_following_a_state());
       if (options.joint_steps && kept) step.backward_pass();
       return kept;
     };

@@ -77,16 +77,17 @@ class Round {
   bool pair_acting_together(const std::vector<Diagnosis>& dxs);
   // When nothing else passes: a load's field whose size follows another recorded state of the
   // aircraft (a heater's wire whose pull changes with the outside air temperature), written as
-  // the pair current:x + field:x*s, both slow terms (sized unfiltered against the reference, on
-  // the calibration rows, and on the held-out lines in the loop's round that sizes slow terms
-  // there). A screen on the held-out lines (each line's mean removed) ranks every pair of an
-  // electrical channel x and a non-electrical state s that no kept term reads by the share of
-  // the error the pair's six columns explain beyond the better of its halves alone (both at
-  // least the accepted share); the best kTriesPerRound are fitted, and the best that passes a
-  // pair's checks (pair_passes) is kept as the round's terms together. Where the state is
-  // steady on the calibration rows, neither term alone holds on lines flown at another value of
-  // it, and the band-pass sizes only their sum there.
-  bool size_following_a_state(const std::vector<Diagnosis>& dxs);
+  // the pair current:x + field:x*s, both slow terms sized unfiltered against the reference on
+  // the calibration rows and the held-out lines (only where the model's slow terms are sized on
+  // the lines too: the loop's round that sizes them there, or fit.slow_lines). A screen on the
+  // held-out lines (each line's mean removed) ranks every pair of an electrical channel x and a
+  // non-electrical state s that no kept term reads by the share of the error the pair's six columns
+  // explain beyond the better of its halves alone (both at least the accepted share); the best
+  // kTriesPerRound are fitted, and the best that passes a pair's checks (pair_passes) is kept as
+  // the round's terms together. Where the state is steady on the calibration rows, neither term
+  // alone holds on lines flown at another value of it, and the band-pass sizes only their sum
+  // there.
+  bool size_following_a_state();
   // When no term of the language passes while the residual stays predictable: a learned law of
   // the channel that predicts most of it (one per channel over the loop: `learned_channels`).
   bool learned_law_of_channel(const std::vector<Diagnosis>& dxs,

@@ -63,9 +63,13 @@ double explained(const Eigen::MatrixXd& gram, const Eigen::VectorXd& xe, double 
 
 }  // namespace
 
-bool Round::size_following_a_state(const std::vector<Diagnosis>& dxs) {
-  (void)dxs;
+bool Round::size_following_a_state() {
   const Model& model = r_->model;
+  // The pair is sized where the state moves: only with slow terms sized on the lines too (the
+  // loop's round that sizes them there, or a model that lists fit.slow_lines). On calibration
+  // rows that hold the state steady, the two terms are one column, and their sizes there are
+  // the ridge's.
+  if (model.fit.slow_lines.empty() || model.fit.method != FitMethod::kBandpass) return false;
   std::set<std::string> in_model;
   for (const std::string& t : model.terms)
     for (const std::string& f : fields_of(TermSpec(t))) in_model.insert(f);
