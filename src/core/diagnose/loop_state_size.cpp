@@ -96,11 +96,13 @@ bool Round::size_following_a_state() {
     const FlightData& data = *c_.flights[f];
     const HeldOut& ho = c_.held_out[f];
     const Evaluation ev = evaluate_model(model, data, c_.truth, false);
+    const TermInputs inputs = make_term_inputs(data, model.vector, model.bt_scale_nT);
     ScreenRows s;
     double last_line = NAN;
     for (Eigen::Index i = 0; i < ev.error_nT.size(); ++i) {
+      // Held out, with an error and a field direction (a gap of the vector sensor: not screened).
       if (static_cast<size_t>(i) >= ho.fold.size() || ho.fold[static_cast<size_t>(i)] < 0 ||
-          !std::isfinite(ev.error_nT[i]))
+          !std::isfinite(ev.error_nT[i]) || !inputs.direction.row(i).allFinite())
         continue;
       const double line = i < ho.line.size() ? ho.line[i] : 0.0;
       if (s.rows.empty() || line != last_line)
@@ -110,14 +112,12 @@ bool Round::size_following_a_state() {
     }
     const auto m = static_cast<Eigen::Index>(s.rows.size());
     if (m < 100) continue;
-    const TermInputs inputs = make_term_inputs(data, model.vector, model.bt_scale_nT);
     s.error_nT.resize(m);
     s.direction.resize(m, 3);
     for (Eigen::Index r = 0; r < m; ++r) {
       s.error_nT[r] = ev.error_nT[s.rows[static_cast<size_t>(r)]];
       s.direction.row(r) = inputs.direction.row(s.rows[static_cast<size_t>(r)]);
     }
-    if (!s.direction.allFinite()) continue;
     remove_line_means(s, s.error_nT);
     ee += s.error_nT.squaredNorm();
     std::vector<Eigen::VectorXd> state_values;
