@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "line_means.h"
 #include "loop_round.h"
 #include "magcomp/core/error.h"
 #include "magcomp/core/evaluate/evaluation.h"
@@ -19,6 +20,8 @@ namespace magcomp::loop_steps {
 
 namespace {
 
+using diagnose_search::remove_line_means;
+
 // One flight's held-out rows for the screen: the model's error (nT) and the field's direction
 // in the sensor frame, each held-out line's rows contiguous in `rows`.
 struct ScreenRows {
@@ -27,18 +30,6 @@ struct ScreenRows {
   Eigen::VectorXd error_nT;              // on `rows`, each line's mean removed
   Eigen::MatrixX3d direction;            // on `rows`
 };
-
-// Each line's mean removed from the columns of `x` (rows of `s`).
-void remove_line_means(const ScreenRows& s, Eigen::Ref<Eigen::MatrixXd> x) {
-  for (size_t k = 0; k < s.line_start.size(); ++k) {
-    const Eigen::Index from = s.line_start[k];
-    const Eigen::Index to = k + 1 < s.line_start.size() ? s.line_start[k + 1]
-                                                        : static_cast<Eigen::Index>(s.rows.size());
-    if (to <= from) continue;
-    auto block = x.middleRows(from, to - from);
-    block.rowwise() -= block.colwise().mean();
-  }
-}
 
 // A channel on the screen's rows, standardised over them; empty when it has gaps or is steady.
 Eigen::VectorXd standardised(const FlightData& data, const std::string& channel,
@@ -51,14 +42,6 @@ Eigen::VectorXd standardised(const FlightData& data, const std::string& channel,
   const double sd = std::sqrt(out.squaredNorm() / static_cast<double>(out.size()));
   if (!(sd > 0)) return {};
   return out / sd;
-}
-
-// The share of the error's energy that the columns `x` explain by least squares.
-double explained(const Eigen::MatrixXd& gram, const Eigen::VectorXd& xe, double ee) {
-  Eigen::MatrixXd g = gram;
-  g.diagonal().array() += 1e-9 * std::max(g.trace(), 1e-300);
-  const double out = xe.dot(g.ldlt().solve(xe)) / ee;
-  return std::isfinite(out) ? out : 0.0;
 }
 
 }  // namespace
@@ -118,7 +101,7 @@ bool Round::size_following_a_state() {
       s.error_nT[r] = ev.error_nT[s.rows[static_cast<size_t>(r)]];
       s.direction.row(r) = inputs.direction.row(s.rows[static_cast<size_t>(r)]);
     }
-    remove_line_means(s, s.error_nT);
+    remove_line_means(s.line_start, s.error_nT);
     ee += s.error_nT.squaredNorm();
     std::vector<Eigen::VectorXd> state_values;
     for (const std::string& n : states) state_values.push_back(standardised(data, n, s));
@@ -132,7 +115,7 @@ bool Round::size_following_a_state() {
           x.col(k) = load.cwiseProduct(s.direction.col(k));
           x.col(3 + k) = x.col(k).cwiseProduct(state_values[b]);
         }
-        remove_line_means(s, x);
+        remove_line_means(s.line_start, x);
         gram[a * states.size() + b] += x.transpose() * x;
         xe[a * states.size() + b] += x.transpose() * s.error_nT;
       }
@@ -144,9 +127,13 @@ bool Round::size_following_a_state() {
   std::vector<std::pair<double, size_t>> gains;
   for (size_t p = 0; p < pairs; ++p) {
     if (gram[p].isZero()) continue;
-    const double both = explained(gram[p], xe[p], ee);
-    const double load_alone = explained(gram[p].topLeftCorner(3, 3), xe[p].head(3), ee);
-    const double product_alone = explained(gram[p].bottomRightCorner(3, 3), xe[p].tail(3), ee);
+    const auto explained = [&](const Eigen::MatrixXd& g, const Eigen::VectorXd& h) {
+      const double v = diagnose_search::explained_share(g, h, ee);
+      return std::isfinite(v) ? v : 0.0;
+    };
+    const double both = explained(gram[p], xe[p]);
+    const double load_alone = explained(gram[p].topLeftCorner(3, 3), xe[p].head(3));
+    const double product_alone = explained(gram[p].bottomRightCorner(3, 3), xe[p].tail(3));
     const double gain = both - std::max(load_alone, product_alone);
     if (both >= c_.options.accept_fraction && gain >= c_.options.accept_fraction)
       gains.emplace_back(gain, p);

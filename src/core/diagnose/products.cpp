@@ -11,6 +11,7 @@
 #include <set>
 #include <sstream>
 
+#include "line_means.h"
 #include "magcomp/core/error.h"
 #include "magcomp/core/evaluate/evaluation.h"
 #include "magcomp/core/fit/model_fit.h"
@@ -35,28 +36,20 @@ std::vector<Job> screened_products(const Search& search, const std::vector<std::
   const std::vector<Eigen::Index>& rows = search.held;
   const auto m = static_cast<Eigen::Index>(rows.size());
   if (m < 100 || sources.size() < 2) return {};
-  // Each line's mean removed from the columns of `x` (rows in held order).
-  const auto remove_line_means = [&](Eigen::Ref<Eigen::MatrixXd> x) {
-    for (Eigen::Index start = 0, r = 1; r <= m; ++r) {
-      if (r < m && search.line[rows[static_cast<size_t>(r)]] ==
-                       search.line[rows[static_cast<size_t>(start)]])
-        continue;
-      auto block = x.middleRows(start, r - start);
-      block.rowwise() -= block.colwise().mean();
-      start = r;
-    }
-  };
+  // Each line's rows, in held order.
+  const std::vector<Eigen::Index> starts =
+      line_starts(m, [&](Eigen::Index r) { return search.line[rows[static_cast<size_t>(r)]]; });
   // The residual, each line's mean removed.
   Eigen::MatrixXd e(m, 1);
   for (Eigen::Index r = 0; r < m; ++r) e(r, 0) = search.e0[rows[static_cast<size_t>(r)]];
-  remove_line_means(e);
+  remove_line_means(starts, e);
   // An orthonormal basis of the base's columns on these rows (line means removed as well).
   Eigen::MatrixXd q(m, 0);
   if (search.a0.cols() > 0) {
     Eigen::MatrixXd a(m, search.a0.cols());
     for (Eigen::Index r = 0; r < m; ++r) a.row(r) = search.a0.row(rows[static_cast<size_t>(r)]);
     a = a.unaryExpr([](double v) { return std::isfinite(v) ? v : 0.0; });
-    remove_line_means(a);
+    remove_line_means(starts, a);
     const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(a);
     const Eigen::Index rank = qr.rank();
     q = (qr.householderQ() * Eigen::MatrixXd::Identity(m, rank)).eval();
@@ -115,8 +108,7 @@ std::vector<Job> screened_products(const Search& search, const std::vector<std::
             g -= c.transpose() * c;
             h -= c.transpose() * qe;
           }
-          g.diagonal().array() += 1e-9 * std::max(g.trace(), 1e-300);
-          const double explained = h.dot(g.ldlt().solve(h)) / ee;
+          const double explained = explained_share(g, h, ee);
           if (std::isfinite(explained)) out.push_back({explained, {a, b0 + j}});
         }
       }
