@@ -106,6 +106,27 @@ bool low_pass_below_band(const TermSpec& t, double band_low_hz) {
   return false;
 }
 
+// Whether kept term k of `model` may be sized by the slow stage in place of the band-pass: a
+// band-pass fit's term (not slow, not a black box, not the start model's) of recorded aircraft
+// states only (is_aircraft_state: a slow fit of motion or position would size the map's
+// leakage) whose low-pass's corner lies below the band. The band-pass sees such a column only
+// through what little of it its band passes (a heater's field switched on and off), and sizes it
+// there no better than the ridge; the calibration rows, unfiltered, show all of it.
+bool slow_form_of(const Model& model, size_t k, const Model& start) {
+  const TermSpec& t = model.terms[k];
+  const auto listed = [&](const std::vector<std::string>& list) {
+    return std::find(list.begin(), list.end(), t.text()) != list.end();
+  };
+  if (model.fit.method != FitMethod::kBandpass || !removable(start, t) ||
+      listed(model.slow_terms) || listed(model.black_box_terms))
+    return false;
+  const std::set<std::string> fields = fields_of(t);
+  if (fields.empty() || !std::all_of(fields.begin(), fields.end(), is_aircraft_state)) return false;
+  const ExprTerm* e = t.expr();
+  if (!e || e->signal().has_free()) return false;
+  return low_pass_below_band(t, model.fit.band_low_hz);
+}
+
 // The spec of `e` without its source k (the shorthand current:X for a plain current's field).
 std::string without_source(const ExprTerm& e, size_t k) {
   SignalExpr signal = e.signal();
@@ -313,6 +334,15 @@ void Round::replaced_as_round(std::pair<Model, LoopRound> fitted, const std::str
   r_->model = std::move(fitted.first);
 }
 
+bool Round::moves_to_slow_stage(const LoopRound& lr, const LoopRound& now) const {
+  const double accept = c_.options.accept_fraction;
+  return refusal(lr, now, c_.options).empty() &&
+         variance_share(lr.calibration_std_nT, now.calibration_std_nT) >= accept &&
+         variance_share(lr.heldout_std_nT, now.heldout_std_nT) >= accept &&
+         !passes(now.selection_std_nT, lr.selection_std_nT) &&
+         !passes(now.confirmation_std_nT, lr.confirmation_std_nT);
+}
+
 std::string Round::retimed_slow_term(const Model& model, size_t k) const {
   const ExprTerm* e = model.terms[k].expr();
   if (!e) return "";
@@ -394,26 +424,39 @@ bool Round::refine_parameters(const std::vector<Diagnosis>& dxs) {
     const std::string spec = retimed_slow_term(model, k);
     if (!spec.empty()) retimed.emplace_back(k, spec);
   }
-  if (freeable.empty() && retimed.empty()) return false;
+  // The kept band-pass terms of aircraft states whose low-pass lies below the band, each to be
+  // sized by the slow stage in its place (slow_form_of).
+  std::vector<size_t> to_slow;
+  for (size_t k = 0; k < model.terms.size(); ++k)
+    if (slow_form_of(model, k, c_.start)) to_slow.push_back(k);
+  if (freeable.empty() && retimed.empty() && to_slow.empty()) return false;
   // The best that passes, without a new term ([0]) and with one ([1]).
   struct Choice {
     std::optional<std::pair<Model, LoopRound>> fitted;
     std::vector<std::pair<std::string, std::string>> changed;  // (old, new) texts
     std::string added;                                         // the term added, or ""
+    bool to_slow = false;  // the change moves a kept term to the slow stage
   };
   Choice choice[2];
   // `retimed`: a slow term's time constant below the band estimated again on the calibration
   // rows, judged by improves_in_place (the lines only confirm it); otherwise by improves_on.
-  const auto consider = [&](Model m, const std::string& added, bool retimed = false) {
+  // `slow_text`: kept term moved to the slow stage (its text unchanged), judged by
+  // moves_to_slow_stage.
+  const auto consider = [&](Model m, const std::string& added, bool retimed = false,
+                            const std::string& slow_text = "") {
     try {
       auto fitted = fit_score(std::move(m));
       std::vector<std::pair<std::string, std::string>> changed;
       for (size_t k = 0; k < model.terms.size() && k < fitted.first.terms.size(); ++k)
         if (fitted.first.terms[k].text() != model.terms[k].text())
           changed.emplace_back(model.terms[k].text(), fitted.first.terms[k].text());
+      if (!slow_text.empty()) changed.emplace_back(slow_text, slow_text);
       if (changed.empty()) return;  // the same parameters: nothing new to judge
       const LoopRound& lr = fitted.second;
-      if (retimed ? !improves_in_place(lr, now) : !improves_on(lr, now)) return;
+      if (!slow_text.empty() ? !moves_to_slow_stage(lr, now)
+          : retimed          ? !improves_in_place(lr, now)
+                             : !improves_on(lr, now))
+        return;
       // A new term with them: the gain a candidate needs on each half.
       if (!added.empty() && !(passes(lr.selection_std_nT, now.selection_std_nT) &&
                               passes(lr.confirmation_std_nT, now.confirmation_std_nT)))
@@ -423,6 +466,7 @@ bool Round::refine_parameters(const std::vector<Diagnosis>& dxs) {
       c.fitted.emplace(std::move(fitted));
       c.changed = std::move(changed);
       c.added = added;
+      c.to_slow = !slow_text.empty();
     } catch (const Error&) {
     }
   };
@@ -435,6 +479,12 @@ bool Round::refine_parameters(const std::vector<Diagnosis>& dxs) {
   for (const auto& [k, spec] : retimed)
     consider(with_term_as(model, model.terms[k].text(), spec), "",
              low_pass_below_band(model.terms[k], model.fit.band_low_hz));
+  for (size_t k : to_slow) {
+    Model m = model;
+    m.slow_terms.push_back(model.terms[k].text());
+    if (m.fit.reference.empty()) m.fit.reference = c_.truth;
+    consider(std::move(m), "", false, model.terms[k].text());
+  }
   // The diagnosis's first candidates (of distinct channels, whatever their share alone), each
   // added with every kept term's parameters free: an effect whose signature a kept term took in
   // part (a flex's time constant stretched over a scalar lag) is written where neither the new
@@ -479,11 +529,19 @@ bool Round::refine_parameters(const std::vector<Diagnosis>& dxs) {
   lr.explained = variance_share(lr.heldout_std_nT, now.heldout_std_nT);
   for (const auto& [from, to] : best_changed) {
     char why[400];
-    std::snprintf(why, sizeof(why),
-                  "its parameters estimated again with every other term in place%s%s: held-out "
-                  "error %.4f -> %.4f nT",
-                  best_new.empty() ? "" : " and ", best_new.c_str(), now.heldout_std_nT,
-                  lr.heldout_std_nT);
+    if (pick->to_slow)
+      std::snprintf(why, sizeof(why),
+                    "sized by the slow stage (the calibration rows, unfiltered) in place of the "
+                    "band-pass, which passes little of its low-pass: calibration rows %.4f -> "
+                    "%.4f nT, held-out error %.4f -> %.4f nT",
+                    now.calibration_std_nT, lr.calibration_std_nT, now.heldout_std_nT,
+                    lr.heldout_std_nT);
+    else
+      std::snprintf(why, sizeof(why),
+                    "its parameters estimated again with every other term in place%s%s: held-out "
+                    "error %.4f -> %.4f nT",
+                    best_new.empty() ? "" : " and ", best_new.c_str(), now.heldout_std_nT,
+                    lr.heldout_std_nT);
     lr.replaced.emplace_back(from, why);
   }
   lr.rejected = std::move(rejected_);

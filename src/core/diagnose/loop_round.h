@@ -110,7 +110,11 @@ class Round {
   // model's held-out error by the accepted share and the resolution (a slow term retimed below
   // the band: the share alone, improves_in_place), raises neither half and passes refusal(); with a
   // candidate, it lowers each half's error by the accepted share and the resolution, and the
-  // error of the best without one (when one passes) by the same.
+  // error of the best without one (when one passes) by the same. A kept band-pass term of
+  // aircraft states whose low-pass lies below the band (slow_form_of in loop_revisit.cpp) is
+  // also tried sized by the slow stage in its place, judged by moves_to_slow_stage: a heater's
+  // field chosen in its band-pass form by a hair on the held-out lines, whose size the band
+  // only guesses, leaves the calibration rows (and another flight's) unexplained.
   bool refine_parameters(const std::vector<Diagnosis>& dxs);
   // Kept slow term k of `model` (Model::slow_terms, one fixed low-pass in its chain) with its
   // time constant estimated again with every other term in place, by what the slow stage fits:
@@ -173,6 +177,14 @@ class Round {
   // smoothing), keep the resolution: a small gain there takes the round in which an exchange of
   // the term would have gained more.
   bool improves_in_place(const LoopRound& lr, const LoopRound& now) const;
+  // A kept term moved from the band-pass to the slow stage (slow_form_of in loop_revisit.cpp),
+  // scored `lr` against the model scored `now`: it passes refusal(), lowers the calibration
+  // rows' error (unfiltered: what the slow stage sizes it on) and the held-out error each by the
+  // accepted share of the variance, and raises neither half by what a term must gain there
+  // (passes()). The held-out lines hold such a term's channel nearly steady (a heater's field
+  // settles within a line), so a half may move by what its noise moves it; the change adds no
+  // channel.
+  bool moves_to_slow_stage(const LoopRound& lr, const LoopRound& now) const;
   // A look-alike scored `lr` in place of the kept term of the model scored `now` describes the
   // same effect no worse where both are sized: on the calibration rows its error (unfiltered) is
   // not above the kept term's by more than the accepted share of the variance. A look-alike that
