@@ -4,6 +4,7 @@
 #include "magcomp/core/apply/apply.h"
 #include "magcomp/core/error.h"
 #include "magcomp/core/fit/model_fit.h"
+#include "magcomp/core/fit/parameter_fit.h"
 #include "magcomp/core/model/terms_expr.h"
 #include "scenario_cache.h"
 
@@ -98,6 +99,37 @@ TEST(TermsExpr, FreeParametersAreEstimatedByTheFitAndWrittenBack) {
   EXPECT_EQ(r.terms.size(), back.terms.size());
   EXPECT_TRUE(r.add_term("field:cur_heat|lp(80)"));  // another shape: added
   EXPECT_EQ(r.terms.size(), back.terms.size() + 1);
+}
+
+TEST(TermsExpr, AThresholdIsWrittenWithTheDigitsThatKeepEverySampleOnItsSide) {
+  // A relay's control current dwelling near its 0.30743 A threshold: samples every 0.1 mA from
+  // 0.3 A to 0.32 A. The objective counts the samples on the wrong side of the true threshold.
+  const double truth_A = 0.30743;
+  const auto wrong_side = [&](const std::vector<double>& values) {
+    return [&values, truth_A](double threshold_A) {
+      double n = 0;
+      for (double v : values) n += (v > threshold_A) != (v > truth_A);
+      return n;
+    };
+  };
+  std::vector<double> dense;
+  for (int k = 0; k <= 200; ++k) dense.push_back(0.3 + 1e-4 * k);
+  double best = NAN;
+  const double found_A = scan_threshold(dense, wrong_side(dense), &best);
+  EXPECT_EQ(best, 0.0) << found_A;
+  EXPECT_EQ(wrong_side(dense)(found_A), 0.0) << found_A;
+  // Three significant digits would put 0.3071..0.3074 A on the wrong side.
+  EXPECT_EQ(wrong_side(dense)(0.307), 4.0);
+  EXPECT_GT(found_A, 0.3074);
+  EXPECT_LE(found_A, 0.3075);
+  // Where the samples are sparse near it, three digits keep every one on its side.
+  std::vector<double> sparse;
+  for (int k = 0; k <= 20; ++k) sparse.push_back(0.2 + 1e-2 * k);
+  const double written_A = scan_threshold(sparse, wrong_side(sparse), &best);
+  EXPECT_EQ(best, 0.0);
+  char three[32];
+  std::snprintf(three, sizeof(three), "%.3g", written_A);
+  EXPECT_EQ(std::strtod(three, nullptr), written_A) << written_A;
 }
 
 TEST(TermsExpr, TheStreamingCompensatorRunsEveryTransformAsTheBatchDoes) {

@@ -97,8 +97,10 @@ std::vector<double> signal_values_sorted(const SignalExpr& signal, const FlightD
 /// between the best level's neighbours. A switched load's error changes with every sample on the
 /// wrong side of its threshold, so the threshold is sought where the samples are: a relay whose
 /// control sits in the noise of an idle channel is found to the sample, not skipped by an even
-/// grid over the channel's range. Returns the threshold rounded to 3 significant digits and the
-/// objective there in *best. Throws magcomp::Error when sorted_values is empty.
+/// grid over the channel's range. Returns the middle of the gap between the two values of
+/// sorted_values around the best threshold, written with the fewest significant digits (3 at
+/// least) that leave every value on the side of it it was on, and the objective there in *best.
+/// Throws magcomp::Error when sorted_values is empty.
 double scan_threshold(const std::vector<double>& sorted_values,
                       const std::function<double(double)>& objective, double* best = nullptr);
 
