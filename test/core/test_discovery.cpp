@@ -14,9 +14,11 @@
 
 #include "../../src/core/diagnose/loop_round.h"
 #include "../../src/core/diagnose/loop_steps.h"
+#include "../../src/core/diagnose/search.h"
 #include "discovery_run.h"
 #include "magcomp/core/diagnose/diagnose.h"
 #include "magcomp/core/evaluate/evaluation.h"
+#include "magcomp/core/fit/parameter_fit.h"
 #include "magcomp/core/model/term.h"
 #include "test_util.h"
 
@@ -1125,6 +1127,37 @@ TEST(Discovery, ARetimedSlowTermNeedsNoResolutionOnTheLines) {
   EXPECT_GE(loop_steps::variance_share(now.confirmation_std_nT, before.confirmation_std_nT),
             DiagnoseOptions{}.accept_fraction);
   EXPECT_LT(next_now_nT, 0.9 * next_before_nT);
+}
+
+TEST(Discovery, AStepOfAChannelThatCrossesItsThresholdOnceIsAStepInTime) {
+  // The simulated aircraft's battery charge currents decay through every level once
+  // (2 A e^(-t/1800 s) and 0.9 of it, 0.02 A of noise); its loads cycle. A step of a battery
+  // current is a step in time, which fits whatever changed at that moment (the loop wrote
+  // field:cur_bat_2|step(1.75) beside the true terms of run 129's first aircraft and
+  // field:cur_bat_1|step(1.76) beside run 119's); a relay of a load is not.
+  const sim::Simulation s = sim::simulate(base_with_states(), Igrf::installed());
+  const FlightData& f = s.flight;
+  const auto median = [&](const std::string& channel) {
+    std::vector<double> v = signal_values_sorted(parse_signal(channel, "t"), f);
+    return v[v.size() / 2];
+  };
+  using diagnose_search::step_in_time;
+  for (const char* battery : {"cur_bat_1", "cur_bat_2"}) {
+    EXPECT_TRUE(
+        step_in_time(parse_signal(std::string(battery) + "|step(?)", "t"), median(battery), f))
+        << battery;
+    // Near its start too: 1.75 A is crossed about 30 s into the flight.
+    EXPECT_TRUE(step_in_time(parse_signal(std::string(battery) + "|step(?)", "t"), 1.75, f))
+        << battery;
+  }
+  EXPECT_TRUE(step_in_time(parse_signal("cur_bat_1|step(?)", "t"), 1.76, f));
+  for (const char* load : {"cur_tank", "cur_strb", "cur_srvo_i", "cur_heat", "cur_com_1"})
+    EXPECT_FALSE(step_in_time(parse_signal(std::string(load) + "|step(?)", "t"), median(load), f))
+        << load;
+  EXPECT_FALSE(step_in_time(parse_signal("cur_tank|step(?)", "t"), 1.25, f));
+  EXPECT_FALSE(step_in_time(parse_signal("cur_srvo_i|step(?)", "t"), 0.3074, f));
+  // A step after another transform is not judged.
+  EXPECT_FALSE(step_in_time(parse_signal("cur_bat_1|abs|step(?)", "t"), 1.76, f));
 }
 
 TEST(Discovery, ABandPassTermSlowerThanTheBandIsSizedByTheSlowStage) {

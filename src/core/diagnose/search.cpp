@@ -47,6 +47,52 @@ double fold_std(const Eigen::VectorXd& e, const std::vector<Eigen::Index>& held,
   return n > 1 && n >= 0.9 * rows ? std::sqrt(ss / n) : NAN;
 }
 
+bool step_in_time(const SignalExpr& signal, double threshold, const FlightData& data) {
+  if (signal.sources.empty() || signal.transforms.empty() ||
+      signal.transforms.front().kind != TransformKind::Step)
+    return false;
+  Eigen::VectorXd v = Eigen::VectorXd::Ones(data.size());
+  for (const std::string& name : signal.sources) {
+    if (!data.has(name)) return false;
+    v.array() *= data.column(name).array();
+  }
+  std::vector<double> on;  // the finite samples in time order: 1 above the threshold
+  for (Eigen::Index i = 0; i < v.size(); ++i)
+    if (std::isfinite(v[i])) on.push_back(v[i] > threshold ? 1.0 : 0.0);
+  double dt_s = 0.1;
+  if (data.has("tt") && data.size() > 1) {
+    const auto tt = data.column("tt");
+    const double span_s = tt[data.size() - 1] - tt[0];
+    if (std::isfinite(span_s) && span_s > 0) dt_s = span_s / static_cast<double>(data.size() - 1);
+  }
+  const auto w = static_cast<size_t>(std::max(1.0, std::round(kClockWindow_s / dt_s)));
+  const size_t n = on.size();
+  if (n < 4 * w) return false;
+  std::vector<double> sum(n + 1, 0.0);  // prefix sums
+  for (size_t i = 0; i < n; ++i) sum[i + 1] = sum[i] + on[i];
+  // The majority within w samples either side; a tie keeps the state before.
+  std::vector<size_t> changes;
+  int state = -1;
+  for (size_t i = 0; i < n; ++i) {
+    const size_t lo = i > w ? i - w : 0, hi = std::min(n, i + w + 1);
+    const double share = (sum[hi] - sum[lo]) / static_cast<double>(hi - lo);
+    const int s = share > 0.5 ? 1 : share < 0.5 ? 0 : state;
+    if (state >= 0 && s != state) changes.push_back(i);
+    if (s >= 0) state = s;
+  }
+  if (changes.empty()) return false;
+  // Changes within two windows of each other are one switch (the chatter of a slow crossing);
+  // an even number of them returns to the state before.
+  size_t switches = 0, first = 0;
+  for (size_t k = 0; k < changes.size(); ++k) {
+    const bool ends = k + 1 == changes.size() || changes[k + 1] - changes[k] > 2 * w;
+    if (!ends) continue;
+    if ((k - first + 1) % 2 == 1) ++switches;
+    first = k + 1;
+  }
+  return switches == 1 && changes.front() >= w && n - changes.back() >= w;
+}
+
 Search::Search(const Model& m, const FlightData& d, const std::string& truth_name, Diagnosis* dx,
                bool slow_on_lines)
     : model(m), data(d) {
@@ -388,6 +434,7 @@ Scored Search::run(const Job& job) const {
         return fit_rss(columns(*make_term(expr->with_parameters({x}))));
       });
       term = make_term(expr->with_parameters({v}));
+      if (step_in_time(expr->signal(), v, data)) return Scored{};
       const Eigen::MatrixXd cols = columns(*term);
       Scored s = score(cols, slow_ok);
       s.term = term;

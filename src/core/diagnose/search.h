@@ -65,6 +65,19 @@ constexpr double kSlowBandFraction = 0.01;
 // leakage hide, and would stand in for a state's slow effect that turns follow.
 constexpr double kMaxMotionLowPass_s = 20.0;
 
+// A step whose control crosses its threshold once over the flight is a step in time (a
+// battery's charge current decaying through it): its on/off state, each sample replaced by the
+// majority within kClockWindow_s either side (a switch shorter than that, and the noise's chatter
+// where a slow channel crosses the threshold, leave no mark), changes once, with at least
+// kClockWindow_s on either side. Such a step fits whatever changed at that moment -- the map's
+// level between segments, a drift, the diurnal -- and no relay's field: it is not a candidate
+// (step_in_time).
+constexpr double kClockWindow_s = 30.0;
+// Whether `signal`'s step at `threshold` (the first transform of its chain; samples of the
+// sources' product above it on) switches once in time over `data`'s rows (kClockWindow_s; the
+// rows 0.1 s apart where `data` has no time column "tt").
+bool step_in_time(const SignalExpr& signal, double threshold, const FlightData& data);
+
 // A held-out half is quiet when its error is under this many resolutions: gaining the
 // resolution there takes more than half of its variance. A candidate may then remove
 // kQuietHalfShare of that half's variance in place of the resolution, when all held-out lines
