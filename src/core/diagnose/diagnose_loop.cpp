@@ -79,8 +79,18 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
   const loop_steps::LoopContext context{start,      flights, truth,    held_out,
                                         validation, options, min_share};
   for (int round = 1;; ++round) {
-    // The rounds spent: each kept product whose factor earns no place is still written without
-    // it (sharing the last round's number), before the last diagnosis.
+    // The rounds spent: the rounds limit what is added, not what is corrected. A kept term chosen
+    // while other effects were still in the residual still gives way to what the model without
+    // it ranks first (Round::exchange, within the loop's kExchanges; sharing the last round's
+    // number).
+    while (round > max_rounds && round > 1 && options.exchange_terms &&
+           exchanges < loop_steps::kExchanges) {
+      loop_steps::Round swap(context, max_rounds, &r);
+      if (!swap.exchange(round_options, &taken_out)) break;
+      ++exchanges;
+    }
+    // Then each kept product whose factor earns no place is still written without it, before
+    // the last diagnosis.
     while (round > max_rounds && round > 1 && options.drop_idle_factors) {
       loop_steps::Round simplify(context, max_rounds, &r);
       if (!simplify.drop_idle_factors()) break;
