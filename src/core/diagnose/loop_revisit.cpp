@@ -83,50 +83,6 @@ bool Round::exchange(const DiagnoseOptions& options, std::set<std::string>* take
 
 namespace {
 
-// `model` with its term `old_text` written as `spec` (a slow term stays one), unfitted.
-Model with_term_as(const Model& model, const std::string& old_text, const std::string& spec) {
-  Model m = model;
-  for (TermSpec& x : m.terms)
-    if (x.text() == old_text) x = TermSpec(spec);
-  for (std::string& x : m.slow_terms)
-    if (x == old_text) x = TermSpec(spec).text();
-  m.coefficients.resize(0);
-  return m;
-}
-
-// True when a low-pass of `t` has its corner, 1 / (2 pi tau), below `band_low_hz`: the low-pass
-// itself puts the term below the band the band-pass stage sizes terms in (a heater's minutes,
-// not a relay's 0.2 s smoothing of a slow channel).
-bool low_pass_below_band(const TermSpec& t, double band_low_hz) {
-  const ExprTerm* e = t.expr();
-  if (!e) return false;
-  for (const Transform& x : e->signal().transforms)
-    if (x.kind == TransformKind::LowPass && x.param > 0 && 1.0 / (2 * M_PI * x.param) < band_low_hz)
-      return true;
-  return false;
-}
-
-// Whether kept term k of `model` may be sized by the slow stage in place of the band-pass: a
-// band-pass fit's term (not slow, not a black box, not the start model's) of recorded aircraft
-// states only (is_aircraft_state: a slow fit of motion or position would size the map's
-// leakage) whose low-pass's corner lies below the band. The band-pass sees such a column only
-// through what little of it its band passes (a heater's field switched on and off), and sizes it
-// there no better than the ridge; the calibration rows, unfiltered, show all of it.
-bool slow_form_of(const Model& model, size_t k, const Model& start) {
-  const TermSpec& t = model.terms[k];
-  const auto listed = [&](const std::vector<std::string>& list) {
-    return std::find(list.begin(), list.end(), t.text()) != list.end();
-  };
-  if (model.fit.method != FitMethod::kBandpass || !removable(start, t) ||
-      listed(model.slow_terms) || listed(model.black_box_terms))
-    return false;
-  const std::set<std::string> fields = fields_of(t);
-  if (fields.empty() || !std::all_of(fields.begin(), fields.end(), is_aircraft_state)) return false;
-  const ExprTerm* e = t.expr();
-  if (!e || e->signal().has_free()) return false;
-  return low_pass_below_band(t, model.fit.band_low_hz);
-}
-
 // The spec of `e` without its source k (the shorthand current:X for a plain current's field).
 std::string without_source(const ExprTerm& e, size_t k) {
   SignalExpr signal = e.signal();
@@ -141,6 +97,16 @@ std::string without_source(const ExprTerm& e, size_t k) {
 }
 
 }  // namespace
+
+Model with_term_as(const Model& model, const std::string& old_text, const std::string& spec) {
+  Model m = model;
+  for (TermSpec& x : m.terms)
+    if (x.text() == old_text) x = TermSpec(spec);
+  for (std::string& x : m.slow_terms)
+    if (x == old_text) x = TermSpec(spec).text();
+  m.coefficients.resize(0);
+  return m;
+}
 
 bool Round::drop_idle_factors() {
   const LoopRound now = r_->rounds.back();
@@ -332,64 +298,6 @@ void Round::replaced_as_round(std::pair<Model, LoopRound> fitted, const std::str
   rejected_.clear();
   r_->rounds.push_back(std::move(lr));
   r_->model = std::move(fitted.first);
-}
-
-bool Round::moves_to_slow_stage(const LoopRound& lr, const LoopRound& now) const {
-  const double accept = c_.options.accept_fraction;
-  return refusal(lr, now, c_.options).empty() &&
-         variance_share(lr.calibration_std_nT, now.calibration_std_nT) >= accept &&
-         variance_share(lr.heldout_std_nT, now.heldout_std_nT) >= accept &&
-         !passes(now.selection_std_nT, lr.selection_std_nT) &&
-         !passes(now.confirmation_std_nT, lr.confirmation_std_nT);
-}
-
-std::string Round::retimed_slow_term(const Model& model, size_t k) const {
-  const ExprTerm* e = model.terms[k].expr();
-  if (!e) return "";
-  const auto& chain = e->signal().transforms;
-  size_t lp = chain.size();
-  for (size_t j = 0; j < chain.size(); ++j) {
-    if (chain[j].free) return "";
-    if (chain[j].kind == TransformKind::LowPass) {
-      if (lp < chain.size()) return "";  // two low-passes: not one time constant
-      lp = j;
-    }
-  }
-  if (lp == chain.size() || !(chain[lp].param > 0)) return "";
-  const double tau0_s = chain[lp].param;
-  // The term's shape (every parameter '?' but a ramp's knot) with its own parameters back and
-  // tau_s in the low-pass's place.
-  const TermSpec shape(e->shape());
-  const ExprTerm* free = shape.expr();
-  if (!free) return "";
-  const auto spec_with = [&](double tau_s) {
-    std::vector<double> values;
-    for (const Transform& x : chain)
-      if (x.has_param() && x.kind != TransformKind::Ramp)
-        values.push_back(&x == &chain[lp] ? tau_s : x.param);
-    return free->with_parameters(values);
-  };
-  // The calibration rows' error with the time constant tau_s, nT (infinite where the fit fails).
-  const auto calibration_nT = [&](double tau_s) {
-    try {
-      const double nT = fit_score(with_term_as(model, model.terms[k].text(), spec_with(tau_s)))
-                            .second.calibration_std_nT;
-      return std::isfinite(nT) ? nT : std::numeric_limits<double>::infinity();
-    } catch (const Error&) {
-      return std::numeric_limits<double>::infinity();
-    }
-  };
-  // The grid within a factor kSlowRetimeRange either way, then golden section in log(tau)
-  // between the best point's neighbours (scan_parameter; three significant digits).
-  std::vector<double> grid;
-  for (int j = -kSlowRetimeSteps; j <= kSlowRetimeSteps; ++j)
-    grid.push_back(tau0_s * std::pow(kSlowRetimeRange, static_cast<double>(j) / kSlowRetimeSteps));
-  double best_nT = NAN;
-  const double tau_s = scan_parameter(TransformKind::LowPass, grid, calibration_nT, &best_nT);
-  if (!(tau_s > 0) || std::abs(std::log(tau_s / tau0_s)) < kSlowRetimeTolerance) return "";
-  if (!(best_nT < calibration_nT(tau0_s))) return "";
-  const std::string spec = spec_with(tau_s);
-  return spec == model.terms[k].text() ? "" : spec;
 }
 
 bool Round::refine_parameters(const std::vector<Diagnosis>& dxs) {

@@ -31,6 +31,22 @@ constexpr double kSlowRetimeRange = 1.5;
 constexpr int kSlowRetimeSteps = 3;
 constexpr double kSlowRetimeTolerance = 0.01;
 
+/// `model` with its term `old_text` written as `spec` (a slow term stays one), unfitted
+/// (loop_revisit.cpp).
+Model with_term_as(const Model& model, const std::string& old_text, const std::string& spec);
+/// True when a low-pass of `t` has its corner, 1 / (2 pi tau), below `band_low_hz` (Hz): the
+/// low-pass itself puts the term below the band the band-pass stage sizes terms in (a heater's
+/// minutes, not a relay's 0.2 s smoothing of a slow channel) (loop_slow_terms.cpp).
+bool low_pass_below_band(const TermSpec& t, double band_low_hz);
+/// Whether kept term k of `model` may be sized by the slow stage in place of the band-pass: a
+/// band-pass fit's term (not slow, not a black box, not one of `start`'s) of recorded aircraft
+/// states only (is_aircraft_state: a slow fit of motion or position would size the map's
+/// leakage) whose low-pass's corner lies below the band. The band-pass sees such a column only
+/// through what little of it its band passes (a heater's field switched on and off), and sizes
+/// it there no better than the ridge; the calibration rows, unfiltered, show all of it
+/// (loop_slow_terms.cpp).
+bool slow_form_of(const Model& model, size_t k, const Model& start);
+
 /// The indices of the eligible candidates a round tries alone, in rank order: at most
 /// kTriesPerRound, the best ranked of each set of recorded channels (a lag, reading none, is
 /// always its own).
@@ -111,7 +127,7 @@ class Round {
   // the band: the share alone, improves_in_place), raises neither half and passes refusal(); with a
   // candidate, it lowers each half's error by the accepted share and the resolution, and the
   // error of the best without one (when one passes) by the same. A kept band-pass term of
-  // aircraft states whose low-pass lies below the band (slow_form_of in loop_revisit.cpp) is
+  // aircraft states whose low-pass lies below the band (slow_form_of) is
   // also tried sized by the slow stage in its place, judged by moves_to_slow_stage: a heater's
   // field chosen in its band-pass form by a hair on the held-out lines, whose size the band
   // only guesses, leaves the calibration rows (and another flight's) unexplained.
@@ -177,7 +193,7 @@ class Round {
   // smoothing), keep the resolution: a small gain there takes the round in which an exchange of
   // the term would have gained more.
   bool improves_in_place(const LoopRound& lr, const LoopRound& now) const;
-  // A kept term moved from the band-pass to the slow stage (slow_form_of in loop_revisit.cpp),
+  // A kept term moved from the band-pass to the slow stage (slow_form_of),
   // scored `lr` against the model scored `now`: it passes refusal(), lowers the calibration
   // rows' error (unfiltered: what the slow stage sizes it on) and the held-out error each by the
   // accepted share of the variance, and raises neither half by what a term must gain there
