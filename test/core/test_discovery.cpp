@@ -599,6 +599,10 @@ struct RoundAtTheEnd {
     out.rounds.push_back(loop_steps::score(out.model, flights, truth, held, nullptr));
     return out;
   }
+  // The std of `m`'s error on the aircraft's next flight, nT.
+  double next_nT(const Model& m) const {
+    return evaluate_model(m, fb.flight, "mag_1_c", false).std_nT;
+  }
   static sim::Scenario next_of(sim::Scenario a) {
     a.seed += 1;
     return a;
@@ -1072,9 +1076,8 @@ TEST(Discovery, ASlowTermsTimeConstantIsEstimatedAgainWithTheOtherTermsInPlace) 
   EXPECT_EQ(now.added, retimed);
   EXPECT_NE(std::find(r.model.slow_terms.begin(), r.model.slow_terms.end(), retimed),
             r.model.slow_terms.end());
-  const double next_before_nT =
-      evaluate_model(model_before, end.fb.flight, "mag_1_c", false).std_nT;
-  const double next_now_nT = evaluate_model(r.model, end.fb.flight, "mag_1_c", false).std_nT;
+  const double next_before_nT = end.next_nT(model_before);
+  const double next_now_nT = end.next_nT(r.model);
   std::printf(
       "  %s -> %s: calibration rows %.4f -> %.4f nT, held out %.4f -> %.4f nT, next "
       "flight %.3f -> %.3f nT\n",
@@ -1110,9 +1113,8 @@ TEST(Discovery, ARetimedSlowTermNeedsNoResolutionOnTheLines) {
   EXPECT_EQ(now.replaced.front().first, kept);
   double tau_s = NAN;
   ASSERT_EQ(std::sscanf(now.added.c_str(), "field:cur_strb|lp(%lf)", &tau_s), 1) << now.added;
-  const double next_before_nT =
-      evaluate_model(model_before, end.fb.flight, "mag_1_c", false).std_nT;
-  const double next_now_nT = evaluate_model(r.model, end.fb.flight, "mag_1_c", false).std_nT;
+  const double next_before_nT = end.next_nT(model_before);
+  const double next_now_nT = end.next_nT(r.model);
   std::printf(
       "  %s -> %s: held out %.4f (%.4f, %.4f) -> %.4f (%.4f, %.4f) nT, next flight %.3f "
       "-> %.3f nT\n",
@@ -1188,9 +1190,8 @@ TEST(Discovery, ABandPassTermSlowerThanTheBandIsSizedByTheSlowStage) {
       << now.replaced.front().second;
   EXPECT_EQ(now.added, kept);
   EXPECT_EQ(r.model.slow_terms, std::vector<std::string>{kept});
-  const double next_before_nT =
-      evaluate_model(model_before, end.fb.flight, "mag_1_c", false).std_nT;
-  const double next_now_nT = evaluate_model(r.model, end.fb.flight, "mag_1_c", false).std_nT;
+  const double next_before_nT = end.next_nT(model_before);
+  const double next_now_nT = end.next_nT(r.model);
   std::printf(
       "  %s to the slow stage: calibration rows %.4f -> %.4f nT, held out %.4f (%.4f, %.4f) -> "
       "%.4f (%.4f, %.4f) nT, next flight %.3f -> %.3f nT\n",

@@ -51,11 +51,9 @@ bool step_in_time(const SignalExpr& signal, double threshold, const FlightData& 
   if (signal.sources.empty() || signal.transforms.empty() ||
       signal.transforms.front().kind != TransformKind::Step)
     return false;
-  Eigen::VectorXd v = Eigen::VectorXd::Ones(data.size());
-  for (const std::string& name : signal.sources) {
-    if (!data.has(name)) return false;
-    v.array() *= data.column(name).array();
-  }
+  size_t missing = 0;
+  const Eigen::VectorXd v = signal_sources_product(signal, data, &missing);
+  if (missing > 0) return false;
   std::vector<double> on;  // the finite samples in time order: 1 above the threshold
   for (Eigen::Index i = 0; i < v.size(); ++i)
     if (std::isfinite(v[i])) on.push_back(v[i] > threshold ? 1.0 : 0.0);

@@ -100,16 +100,26 @@ Eigen::VectorXd RidgeProfile::solve(const Eigen::MatrixXd& cand, double* rss) co
   return c;
 }
 
-std::vector<double> signal_values_sorted(const SignalExpr& signal, const FlightData& data) {
+Eigen::VectorXd signal_sources_product(const SignalExpr& signal, const FlightData& data,
+                                       size_t* missing) {
   Eigen::VectorXd v = Eigen::VectorXd::Ones(data.size());
-  bool any = false;
+  size_t absent = 0;
   for (const auto& name : signal.sources) {
-    if (!data.has(name)) continue;
+    if (!data.has(name)) {
+      ++absent;
+      continue;
+    }
     v.array() *= data.column(name).array();
-    any = true;
   }
+  if (missing) *missing = absent;
+  return v;
+}
+
+std::vector<double> signal_values_sorted(const SignalExpr& signal, const FlightData& data) {
+  size_t missing = 0;
+  const Eigen::VectorXd v = signal_sources_product(signal, data, &missing);
   std::vector<double> x;
-  if (!any) return x;
+  if (missing == signal.sources.size()) return x;
   for (Eigen::Index i = 0; i < v.size(); ++i)
     if (std::isfinite(v[i])) x.push_back(v[i]);
   if (x.size() < 20) return {};

@@ -88,6 +88,11 @@ double signal_scale(const SignalExpr& signal, const FlightData& data);
 double scan_parameter(TransformKind kind, const std::vector<double>& grid,
                       const std::function<double(double)>& objective, double* best = nullptr);
 
+/// The product of a signal's sources on a flight, per row; the sources `data` does not have are
+/// left out, and *missing (when given) is their count.
+Eigen::VectorXd signal_sources_product(const SignalExpr& signal, const FlightData& data,
+                                       size_t* missing = nullptr);
+
 /// The finite values of a signal's sources on a flight (their product), sorted; empty when fewer
 /// than 20. A step's threshold is scanned over them (scan_threshold()).
 std::vector<double> signal_values_sorted(const SignalExpr& signal, const FlightData& data);
