@@ -1532,5 +1532,59 @@ TEST(Discovery, ALoadsFieldWhoseSizeFollowsAStateIsWrittenAsThePair) {
   EXPECT_FALSE(again.size_following_a_state()) << end.r.rounds.back().added;
 }
 
+TEST(Discovery, TheKeptTermsParametersAreEstimatedAgainOnceTheRoundsAreSpent) {
+  // Run 107, second aircraft: drifts of vol_fan (120 s) and vol_acpwr (141 s) and an inductive
+  // pick-up of cur_tank. The loop's five rounds add a stand-in of vol_block, the pick-up, the fan's
+  // drift through 74.1 s (sized while the bus drift was still in the residual) and a stand-in of
+  // cur_acpwr, and the fifth estimates the first's time constant again. The rounds limit what is
+  // added, not what is corrected: once they are spent, the kept terms' parameters are estimated
+  // again with every other term in place (the fan's drift through 100 s, the bus stand-in's
+  // through 119 s), each a round sharing the last round's number.
+  const sim::Scenario base = base_with_states();
+  std::vector<sim::HiddenEffect> effects;
+  const sim::Scenario a = test::discovery_scenario(107, 3, base, 1, &effects);
+  const sim::HiddenEffect* fan = drawn(effects, "drift", "vol_fan");
+  ASSERT_TRUE(fan) << "run 107 draws no drift of vol_fan";
+  sim::Scenario b = a;
+  b.seed = a.seed + 1;
+  const sim::Simulation fa = sim::simulate(a, Igrf::installed());
+  const sim::Simulation fb = sim::simulate(b, Igrf::installed());
+  Model start = load_model_yaml(test::source_dir() + "/config/models/tl_sim.yaml");
+  fit_model(start, {&fa.flight});
+  constexpr int kRounds = 5;
+  const LoopResult loop = diagnose_loop(start, fa.flight, "mag_1_c", kRounds, 0.05, {});
+  // The rows after the last round's first: the corrections made once the rounds are spent.
+  size_t first_last = 0;
+  while (first_last < loop.rounds.size() && loop.rounds[first_last].round != kRounds) ++first_last;
+  ASSERT_LT(first_last + 1, loop.rounds.size()) << "no correction after the last round";
+  Model undone = loop.model;
+  std::string fan_term;
+  for (size_t k = first_last + 1; k < loop.rounds.size(); ++k) {
+    const LoopRound& lr = loop.rounds[k];
+    EXPECT_EQ(lr.round, kRounds);
+    const std::vector<std::string> to = loop_steps::step_terms(lr.added);
+    ASSERT_EQ(to.size(), lr.replaced.size()) << lr.added;
+    for (size_t i = 0; i < to.size(); ++i) {
+      const auto& [from, why] = lr.replaced[i];
+      EXPECT_NE(why.find("its parameters estimated again"), std::string::npos) << why;
+      undone = loop_steps::with_term_as(undone, to[i], from);
+      if (from.find("vol_fan|lp(") != std::string::npos) fan_term = from;
+    }
+  }
+  double tau_before_s = NAN, tau_after_s = NAN;
+  for (const TermSpec& t : loop.model.terms)
+    if (const ExprTerm* e = t.expr(); e && t.text().find("vol_fan|lp(") != std::string::npos)
+      tau_after_s = e->parameters().at(0).second;
+  if (const auto e = parse_expr_term(fan_term)) tau_before_s = e->parameters().at(0).second;
+  fit_model(undone, {&fa.flight});
+  const double next_before_nT = evaluate_model(undone, fb.flight, "mag_1_c", false).std_nT;
+  const double next_after_nT = evaluate_model(loop.model, fb.flight, "mag_1_c", false).std_nT;
+  std::printf("  fan's drift through %.0f s: %.1f s -> %.1f s; next flight %.3f -> %.3f nT\n",
+              fan->time_constant_s, tau_before_s, tau_after_s, next_before_nT, next_after_nT);
+  EXPECT_LT(std::abs(tau_after_s - fan->time_constant_s),
+            0.5 * std::abs(tau_before_s - fan->time_constant_s));
+  EXPECT_LT(next_after_nT, 0.9 * next_before_nT);
+}
+
 }  // namespace
 }  // namespace magcomp

@@ -89,6 +89,14 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
       if (!swap.exchange(round_options, &taken_out)) break;
       ++exchanges;
     }
+    // Each kept term's parameters are still estimated again with every other term in place (no
+    // candidate added: Round::refine_parameters without diagnoses), once per kept term at most.
+    for (size_t refits = 0; round > max_rounds && round > 1 && options.refine_parameters &&
+                            refits < r.model.terms.size();
+         ++refits) {
+      loop_steps::Round refit(context, max_rounds, &r);
+      if (!refit.refine_parameters({})) break;
+    }
     // Then each kept product whose factor earns no place is still written without it, before
     // the last diagnosis.
     while (round > max_rounds && round > 1 && options.drop_idle_factors) {
