@@ -90,12 +90,15 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
       ++exchanges;
     }
     // Each kept term's parameters are still estimated again with every other term in place (no
-    // candidate added: Round::refine_parameters without diagnoses), once per kept term at most.
-    for (size_t refits = 0; round > max_rounds && round > 1 && options.refine_parameters &&
-                            refits < r.model.terms.size();
-         ++refits) {
+    // candidate added: Round::refine_parameters without diagnoses), once per kept term at most: a
+    // term so written keeps its parameters after (a slow stand-in's time constant would otherwise
+    // walk out by the retiming's range each time).
+    for (std::set<std::string> refined; round > max_rounds && round > 1 &&
+                                        options.refine_parameters &&
+                                        refined.size() < r.model.terms.size();) {
       loop_steps::Round refit(context, max_rounds, &r);
-      if (!refit.refine_parameters({})) break;
+      if (!refit.refine_parameters({}, refined)) break;
+      for (const std::string& t : loop_steps::step_terms(r.rounds.back().added)) refined.insert(t);
     }
     // Then each kept product whose factor earns no place is still written without it, before
     // the last diagnosis.

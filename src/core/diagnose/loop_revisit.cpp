@@ -300,7 +300,8 @@ void Round::replaced_as_round(std::pair<Model, LoopRound> fitted, const std::str
   r_->model = std::move(fitted.first);
 }
 
-bool Round::refine_parameters(const std::vector<Diagnosis>& dxs) {
+bool Round::refine_parameters(const std::vector<Diagnosis>& dxs,
+                              const std::set<std::string>& fixed) {
   const LoopRound now = r_->rounds.back();
   const Model& model = r_->model;
   // The kept terms whose parameters may be estimated again, and each one's freed spec.
@@ -312,7 +313,7 @@ bool Round::refine_parameters(const std::vector<Diagnosis>& dxs) {
       return std::find(list.begin(), list.end(), t.text()) != list.end();
     };
     if (!e || !removable(c_.start, t) || fields_of(t).empty() || listed(model.black_box_terms) ||
-        listed(model.slow_terms))
+        listed(model.slow_terms) || fixed.count(t.text()))
       continue;
     const auto& transforms = e->signal().transforms;
     if (std::none_of(transforms.begin(), transforms.end(), [](const Transform& x) {
@@ -326,8 +327,9 @@ bool Round::refine_parameters(const std::vector<Diagnosis>& dxs) {
   std::vector<std::pair<size_t, std::string>> retimed;
   for (size_t k = 0; k < model.terms.size(); ++k) {
     const TermSpec& t = model.terms[k];
-    if (!removable(c_.start, t) || std::find(model.slow_terms.begin(), model.slow_terms.end(),
-                                             t.text()) == model.slow_terms.end())
+    if (!removable(c_.start, t) || fixed.count(t.text()) ||
+        std::find(model.slow_terms.begin(), model.slow_terms.end(), t.text()) ==
+            model.slow_terms.end())
       continue;
     const std::string spec = retimed_slow_term(model, k);
     if (!spec.empty()) retimed.emplace_back(k, spec);
@@ -336,7 +338,8 @@ bool Round::refine_parameters(const std::vector<Diagnosis>& dxs) {
   // sized by the slow stage in its place (slow_form_of).
   std::vector<size_t> to_slow;
   for (size_t k = 0; k < model.terms.size(); ++k)
-    if (slow_form_of(model, k, c_.start)) to_slow.push_back(k);
+    if (!fixed.count(model.terms[k].text()) && slow_form_of(model, k, c_.start))
+      to_slow.push_back(k);
   if (freeable.empty() && retimed.empty() && to_slow.empty()) return false;
   // The best that passes, without a new term ([0]) and with one ([1]).
   struct Choice {

@@ -131,7 +131,9 @@ class Round {
   // also tried sized by the slow stage in its place, judged by moves_to_slow_stage: a heater's
   // field chosen in its band-pass form by a hair on the held-out lines, whose size the band
   // only guesses, leaves the calibration rows (and another flight's) unexplained.
-  bool refine_parameters(const std::vector<Diagnosis>& dxs);
+  // Terms whose text is in `fixed` keep their parameters.
+  bool refine_parameters(const std::vector<Diagnosis>& dxs,
+                         const std::set<std::string>& fixed = {});
   // Kept slow term k of `model` (Model::slow_terms, one fixed low-pass in its chain) with its
   // time constant estimated again with every other term in place, by what the slow stage fits:
   // the error on the calibration rows (LoopRound::calibration_std_nT, unfiltered), searched in
