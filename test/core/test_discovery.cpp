@@ -1586,57 +1586,5 @@ TEST(Discovery, TheKeptTermsParametersAreEstimatedAgainOnceTheRoundsAreSpent) {
   EXPECT_LT(next_after_nT, 0.9 * next_before_nT);
 }
 
-TEST(Discovery, AThresholdTheCalibrationRowsCannotPlaceIsPlacedOnTheSelectionLines) {
-  // Run 101, second aircraft: a relay of cur_outpwr above 13.885 A, a current that carries 0.1 A
-  // of noise, and a product yaw_rate*vol_outpwr. The calibration rows (210 s) hold three samples
-  // of the current between 13.885 and 13.951 A; their best threshold and the thresholds a few
-  // samples either side of it fit them within the noise. The diagnosis breaks the tie on the
-  // selection lines, whose 19 000 samples hold 35 there.
-  const sim::Scenario base = base_with_states();
-  std::vector<sim::HiddenEffect> effects;
-  const sim::Scenario a = test::discovery_scenario(101, 2, base, 1, &effects);
-  const sim::HiddenEffect* relay = drawn(effects, "relay", "cur_outpwr");
-  ASSERT_TRUE(relay) << "run 101 draws no relay of cur_outpwr";
-  sim::Scenario b = a;
-  b.seed = a.seed + 1;
-  const sim::Simulation fa = sim::simulate(a, Igrf::installed());
-  const sim::Simulation fb = sim::simulate(b, Igrf::installed());
-  Model tl = load_model_yaml(test::source_dir() + "/config/models/tl_sim.yaml");
-  fit_model(tl, {&fa.flight});
-  const Diagnosis dx = diagnose(tl, fa.flight, "mag_1_c", {});
-  double diagnosed = NAN;
-  for (const Candidate& c : dx.candidates)
-    if (const ExprTerm* e = c.term.expr();
-        std::isnan(diagnosed) && e && c.term.text().rfind("field:cur_outpwr|step(", 0) == 0)
-      diagnosed = e->parameters().at(0).second;
-  ASSERT_TRUE(std::isfinite(diagnosed)) << "no step of cur_outpwr among the candidates";
-  // The calibration rows' own best: the threshold scanned by the fit (calibrate's step(?)).
-  Model scanned = tl;
-  scanned.add_term(TermSpec("field:cur_outpwr|step(?)"));
-  scanned.coefficients.resize(0);
-  fit_model(scanned, {&fa.flight});
-  const double on_calibration = scanned.terms.back().expr()->parameters().at(0).second;
-  // Each with the yaw rate's term, fitted on the first flight, read on the next.
-  const auto next_nT = [&](double threshold) {
-    Model m = tl;
-    char spec[80];
-    std::snprintf(spec, sizeof(spec), "field:cur_outpwr|step(%.17g)", threshold);
-    m.add_term(TermSpec(spec));
-    m.add_term(TermSpec("rate:yaw_rate"));
-    m.fit.lambda = 1e-6;
-    m.coefficients.resize(0);
-    fit_model(m, {&fa.flight});
-    return evaluate_model(m, fb.flight, "mag_1_c", false).std_nT;
-  };
-  const double next_diagnosed_nT = next_nT(diagnosed);
-  const double next_calibration_nT = next_nT(on_calibration);
-  std::printf(
-      "  relay above %.4f A: calibration rows %.6g A (next flight %.3f nT), diagnosis "
-      "%.6g A (%.3f nT)\n",
-      relay->threshold, on_calibration, next_calibration_nT, diagnosed, next_diagnosed_nT);
-  EXPECT_LT(std::abs(diagnosed - relay->threshold), std::abs(on_calibration - relay->threshold));
-  EXPECT_LT(next_diagnosed_nT, 0.8 * next_calibration_nT);
-}
-
 }  // namespace
 }  // namespace magcomp

@@ -408,58 +408,6 @@ Scored Search::score(const Eigen::MatrixXd& cols, bool slow_ok) const {
   return s;
 }
 
-double Search::threshold_on_selection_lines(const ExprTerm& expr, const std::vector<double>& values,
-                                            double v, double sel_nT, double best_rss,
-                                            const std::function<double(double)>& rss_at,
-                                            long* fits) const {
-  const auto rows = stacked(columns_of(*make_term(expr.with_parameters({v})))).rows();
-  if (!(best_rss > 0) || !std::isfinite(best_rss) || rows < 2) return v;
-  const double tolerance = best_rss * kThresholdTieChi2 / static_cast<double>(rows);
-  // The gaps between the flight's distinct samples next to v's, outward, while the fit rows'
-  // error stays within the tolerance: thresholds those rows cannot tell from v.
-  std::vector<double> ties;
-  const auto split = static_cast<std::ptrdiff_t>(std::upper_bound(values.begin(), values.end(), v) -
-                                                 values.begin());
-  const auto n = static_cast<std::ptrdiff_t>(values.size());
-  for (const int dir : {-1, 1}) {
-    // The gap below values[k] (between values[k - 1] and values[k]); v's gap is k = split.
-    std::ptrdiff_t k = split;
-    for (size_t steps = 0; steps < kThresholdTieGaps; ++steps) {
-      // Next distinct gap in this direction.
-      if (dir < 0) {
-        do --k;
-        while (k > 0 && values[static_cast<size_t>(k)] == values[static_cast<size_t>(k - 1)]);
-      } else {
-        do ++k;
-        while (k < n && values[static_cast<size_t>(k)] == values[static_cast<size_t>(k - 1)]);
-      }
-      if (k <= 0 || k >= n) break;
-      const double x = 0.5 * (values[static_cast<size_t>(k - 1)] + values[static_cast<size_t>(k)]);
-      if (rss_at(x) > best_rss + tolerance) break;
-      ties.push_back(x);
-    }
-  }
-  if (ties.empty()) return v;
-  // At most kThresholdTieTries of them, evenly over the sorted ties, each scored on the
-  // selection lines with v itself; the best there is kept.
-  std::sort(ties.begin(), ties.end());
-  std::vector<double> tries;
-  const size_t m = std::min(ties.size(), kThresholdTieTries);
-  for (size_t i = 0; i < m; ++i)
-    tries.push_back(ties[m == 1 ? 0 : i * (ties.size() - 1) / (m - 1)]);
-  double best_x = v, best_sel = sel_nT;
-  for (const double x : tries) {
-    const double written = threshold_written(values, x);
-    const Scored s = score(columns_of(*make_term(expr.with_parameters({written}))));
-    ++*fits;
-    if (s.ok && s.sel < best_sel) {
-      best_sel = s.sel;
-      best_x = written;
-    }
-  }
-  return best_x;
-}
-
 Scored Search::run(const Job& job) const {
   TermPtr term = job.term.shared();
   auto columns = [&](const Term& t) { return columns_of(t); };
@@ -479,29 +427,14 @@ Scored Search::run(const Job& job) const {
     if (kind == TransformKind::Step) {  // a threshold: scanned over the signal's quantiles
       const std::vector<double> values = signal_values_sorted(expr->signal(), data);
       if (values.empty() || !(values.back() > values.front())) return Scored{};
-      const auto rss_at = [&](double x) {
+      const double v = scan_threshold(values, [&](double x) {
         ++fits;
         return fit_rss(columns(*make_term(expr->with_parameters({x}))));
-      };
-      double best_rss = INFINITY;
-      double v = scan_threshold(values, rss_at, &best_rss);
+      });
       term = make_term(expr->with_parameters({v}));
-      Eigen::MatrixXd cols = columns(*term);
-      Scored s = score(cols, slow_ok);
-      // A step that explains a share of the selection lines has its threshold's ties broken
-      // there (the others are not candidates the loop would take).
-      const double sel_share = 1.0 - std::pow(s.sel / base_std[0], 2);
-      if (s.ok && std::isfinite(sel_share) && sel_share >= kThresholdTieShare) {
-        const double tied =
-            threshold_on_selection_lines(*expr, values, v, s.sel, best_rss, rss_at, &fits);
-        if (tied != v) {
-          v = tied;
-          term = make_term(expr->with_parameters({v}));
-          cols = columns(*term);
-          s = score(cols, slow_ok);
-        }
-      }
       if (step_in_time(expr->signal(), v, data)) return Scored{};
+      const Eigen::MatrixXd cols = columns(*term);
+      Scored s = score(cols, slow_ok);
       s.term = term;
       if (!(cols.array().isFinite().any())) s.ok = false;
       s.fits = fits + 1;

@@ -5,7 +5,6 @@
 #pragma once
 
 #include <Eigen/Core>
-#include <functional>
 #include <memory>
 #include <set>
 #include <string>
@@ -74,17 +73,6 @@ constexpr double kMaxMotionLowPass_s = 20.0;
 // level between segments, a drift, the diurnal -- and no relay's field: it is not a candidate
 // (step_in_time).
 constexpr double kClockWindow_s = 30.0;
-// A step's thresholds whose fit-row residual sum of squares lies within this many times the
-// noise variance (RSS / rows) of the best are ties the fit rows cannot tell apart (the 95 %
-// point of chi-squared with one degree of freedom); at most kThresholdTieGaps gaps between the
-// flight's samples are walked either way, and kThresholdTieTries of the ties scored on the
-// selection lines.
-constexpr double kThresholdTieChi2 = 3.84;
-constexpr size_t kThresholdTieGaps = 64;
-constexpr size_t kThresholdTieTries = 12;
-// ... only for a step that explains at least this share of the selection lines' variance at the
-// fit rows' best threshold.
-constexpr double kThresholdTieShare = 0.05;
 // Whether `signal`'s step at `threshold` (the first transform of its chain; samples of the
 // sources' product above it on) switches once in time over `data`'s rows (kClockWindow_s; the
 // rows 0.1 s apart where `data` has no time column "tt").
@@ -156,17 +144,6 @@ class Search {
   double fit_rss(const Eigen::MatrixXd& cols) const;
   // Builds, scans (free parameters) and scores one job.
   Scored run(const Job& job) const;
-  // A step's threshold `v` (in its signal's unit), best on the fit rows (residual sum of squares
-  // best_rss, nT²; rss_at(x) gives it at x): among the thresholds between the flight's samples
-  // (`values`, sorted) next to v whose fit-row error lies within kThresholdTieChi2 of the noise
-  // variance of it (the calibration rows cannot tell them from v: a relay whose control crosses
-  // its threshold in the noise of a few calibration samples), the one with the least error on
-  // the selection lines (v's error there: sel_nT), written as scan_threshold() writes one.
-  // `fits` counts the fits made.
-  double threshold_on_selection_lines(const ExprTerm& expr, const std::vector<double>& values,
-                                      double v, double sel_nT, double best_rss,
-                                      const std::function<double(double)>& rss_at,
-                                      long* fits) const;
   // The lag scan, alone or with partner columns (N x k, built without a lag: columns_of(spec,
   // false)): each trial realigns the scalar by tau and gives every column tau's round trip.
   Scored lag_candidate(double* tau_out, const Eigen::MatrixXd& partner) const;
