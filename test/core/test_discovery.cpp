@@ -1545,10 +1545,8 @@ TEST(Discovery, TheKeptTermsParametersAreEstimatedAgainOnceTheRoundsAreSpent) {
   const sim::Scenario a = test::discovery_scenario(107, 3, base, 1, &effects);
   const sim::HiddenEffect* fan = drawn(effects, "drift", "vol_fan");
   ASSERT_TRUE(fan) << "run 107 draws no drift of vol_fan";
-  sim::Scenario b = a;
-  b.seed = a.seed + 1;
   const sim::Simulation fa = sim::simulate(a, Igrf::installed());
-  const sim::Simulation fb = sim::simulate(b, Igrf::installed());
+  const sim::Simulation fb = sim::simulate(RoundAtTheEnd::next_of(a), Igrf::installed());
   Model start = load_model_yaml(test::source_dir() + "/config/models/tl_sim.yaml");
   fit_model(start, {&fa.flight});
   constexpr int kRounds = 5;
