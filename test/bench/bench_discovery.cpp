@@ -85,6 +85,8 @@ int main(int argc, char** argv) {
         options.drop_idle_factors = false;
       } else if (opt == "lenient-backward") {
         options.backward_at_acceptance = false;
+      } else if (opt == "backward-after-adds") {
+        options.backward_after_revisits = false;
       } else if (opt == "slow-on-calibration") {
         options.slow_terms_on_lines = false;
       } else if (opt == "validate") {
@@ -108,6 +110,7 @@ int main(int argc, char** argv) {
             stderr,
             "error: option '%s': one-at-a-time, choose-lambda, no-span-ridge, span-terms, "
             "no-joint, no-calibration-check, no-exchange, no-refine, lenient-backward, "
+            "backward-after-adds, "
             "slow-on-calibration, keep-factors, first-kept, line-jackknife, "
             "validate, two-flights, states, half-several, verbose, why, rounds=N or draws=N\n",
             opt.c_str());

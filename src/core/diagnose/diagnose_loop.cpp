@@ -61,6 +61,7 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
   std::set<std::string> learned_channels;  // one learned law per channel
   std::set<std::string> taken_out;         // terms an exchange took out (never put back by one)
   int exchanges = 0;
+  bool lag_corrected = false;  // the lag estimated again once the rounds are spent
   LoopResult r;
   r.model = start;
   if (!r.model.fitted()) fit_model(r.model, flights);
@@ -78,7 +79,9 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
   std::vector<HeldOut> held_out(flights.size());  // each flight's held-out samples, in two halves
   const loop_steps::LoopContext context{start,      flights, truth,    held_out,
                                         validation, options, min_share};
+  const bool backward_after_revisits = options.joint_steps && options.backward_after_revisits;
   for (int round = 1;; ++round) {
+    const size_t rounds_before_end = r.rounds.size();
     // The rounds spent: the rounds limit what is added, not what is corrected. A kept term chosen
     // while other effects were still in the residual still gives way to what the model without
     // it ranks first (Round::exchange, within the loop's kExchanges; sharing the last round's
@@ -113,6 +116,11 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
          ++swaps) {
       loop_steps::Round rename(context, max_rounds, &r);
       if (!rename.better_look_alike_in_place()) break;
+    }
+    // Then a term the model so changed makes redundant leaves (Round::backward_pass).
+    if (backward_after_revisits && r.rounds.size() > rounds_before_end) {
+      loop_steps::Round last(context, max_rounds, &r);
+      last.backward_pass();
     }
     std::vector<Diagnosis> dxs;
     const auto diagnose_all = [&] {
@@ -190,6 +198,32 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
       r.last = dxs.front();
       r.last_flights = std::move(dxs);
     };
+    // The rounds spent, the model's own lag is still estimated again with every other term in
+    // place when the diagnosis ranks its new value as a candidate that passes (once): a lag
+    // found before the other effects were written is a correction, not an added term.
+    if (round > max_rounds && options.refine_parameters && !lag_corrected &&
+        r.model.scalar_lag_s() != 0.0) {
+      lag_corrected = true;
+      std::vector<Eligible> lag;
+      for (const Eligible& e : eligible)
+        if (e.term.text().rfind("lag:", 0) == 0) lag.push_back(e);
+      std::string old_lag;
+      for (const TermSpec& t : r.model.terms)
+        if (t.text().rfind("lag:", 0) == 0) old_lag = t.text();
+      loop_steps::Round fix(context, max_rounds, &r);
+      const double before_nT = r.rounds.back().heldout_std_nT;
+      if (!lag.empty() && fix.first_single(lag)) {
+        LoopRound& now = r.rounds.back();
+        char why[200];
+        std::snprintf(why, sizeof(why),
+                      "its value estimated again with every other term in place: held-out error "
+                      "%.4f -> %.4f nT",
+                      before_nT, now.heldout_std_nT);
+        if (!old_lag.empty()) now.replaced.emplace_back(old_lag, why);
+        if (backward_after_revisits) fix.backward_pass();
+        continue;
+      }
+    }
     if (round > max_rounds) {
       finish("stopped after " + std::to_string(max_rounds) + " rounds; " + verdict);
       break;
@@ -273,6 +307,7 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
       if (kept || !enabled) return false;
       loop_steps::Round revisit(context, round, &r);
       if (!change(revisit)) return false;
+      if (backward_after_revisits) revisit.backward_pass();
       auto& refused = r.rounds.back().rejected;
       refused.insert(refused.begin(), step.rejected().begin(), step.rejected().end());
       return true;

@@ -203,6 +203,11 @@ struct DiagnoseOptions {
   /// round still lowers the error of the round before it (false: it leaves only when it explains
   /// under a quarter of accept_fraction).
   bool backward_at_acceptance = true;
+  /// diagnose_loop: the backward pass also follows each change that revisits the kept terms
+  /// (parameters estimated again, an exchange, a factor dropped, a look-alike swapped in) and the
+  /// changes made once the rounds are spent: a term the changed model makes redundant leaves
+  /// there too. False: only after a round that adds a term.
+  bool backward_after_revisits = true;
   /// diagnose_loop: a change that adds a term of a recorded channel must also hold without the
   /// held-out line where it gains most: on the other lines it lowers the error variance by
   /// accept_fraction (a clock's step or a slowly stepping state that fits one line's wander
