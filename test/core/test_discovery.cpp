@@ -1532,6 +1532,34 @@ TEST(Discovery, ALoadsFieldWhoseSizeFollowsAStateIsWrittenAsThePair) {
   EXPECT_FALSE(again.size_following_a_state()) << end.r.rounds.back().added;
 }
 
+// The rows of `loop` that share its last round's number after that round's first: the changes
+// made once the rounds are spent.
+std::vector<const LoopRound*> rows_after_the_rounds(const LoopResult& loop, int rounds) {
+  std::vector<const LoopRound*> rows;
+  size_t first = 0;
+  while (first < loop.rounds.size() && loop.rounds[first].round != rounds) ++first;
+  for (size_t k = first + 1; k < loop.rounds.size(); ++k) rows.push_back(&loop.rounds[k]);
+  return rows;
+}
+
+// Run r's first and next flights on aircraft draw d (states recorded, `count` effects drawn,
+// in `effects`), and the loop of kLoopRounds rounds from TL fitted on the first flight.
+constexpr int kLoopRounds = 5;
+struct WholeLoop {
+  sim::Simulation first, next;
+  LoopResult loop;
+};
+WholeLoop whole_loop(unsigned r, int count, unsigned d, std::vector<sim::HiddenEffect>* effects) {
+  const sim::Scenario a = test::discovery_scenario(r, count, base_with_states(), d, effects);
+  WholeLoop w{sim::simulate(a, Igrf::installed()),
+              sim::simulate(RoundAtTheEnd::next_of(a), Igrf::installed()),
+              {}};
+  Model start = load_model_yaml(test::source_dir() + "/config/models/tl_sim.yaml");
+  fit_model(start, {&w.first.flight});
+  w.loop = diagnose_loop(start, w.first.flight, "mag_1_c", kLoopRounds, 0.05, {});
+  return w;
+}
+
 TEST(Discovery, TheKeptTermsParametersAreEstimatedAgainOnceTheRoundsAreSpent) {
   // Run 107, second aircraft: drifts of vol_fan (120 s) and vol_acpwr (141 s) and an inductive
   // pick-up of cur_tank. The loop's five rounds add a stand-in of vol_block, the pick-up, the fan's
@@ -1540,26 +1568,20 @@ TEST(Discovery, TheKeptTermsParametersAreEstimatedAgainOnceTheRoundsAreSpent) {
   // added, not what is corrected: once they are spent, the kept terms' parameters are estimated
   // again with every other term in place (the fan's drift through 100 s, the bus stand-in's
   // through 119 s), each a round sharing the last round's number.
-  const sim::Scenario base = base_with_states();
   std::vector<sim::HiddenEffect> effects;
-  const sim::Scenario a = test::discovery_scenario(107, 3, base, 1, &effects);
+  const WholeLoop w = whole_loop(107, 3, 1, &effects);
   const sim::HiddenEffect* fan = drawn(effects, "drift", "vol_fan");
   ASSERT_TRUE(fan) << "run 107 draws no drift of vol_fan";
-  const sim::Simulation fa = sim::simulate(a, Igrf::installed());
-  const sim::Simulation fb = sim::simulate(RoundAtTheEnd::next_of(a), Igrf::installed());
-  Model start = load_model_yaml(test::source_dir() + "/config/models/tl_sim.yaml");
-  fit_model(start, {&fa.flight});
-  constexpr int kRounds = 5;
-  const LoopResult loop = diagnose_loop(start, fa.flight, "mag_1_c", kRounds, 0.05, {});
+  const sim::Simulation &fa = w.first, &fb = w.next;
+  const LoopResult& loop = w.loop;
   // The rows after the last round's first: the corrections made once the rounds are spent.
-  size_t first_last = 0;
-  while (first_last < loop.rounds.size() && loop.rounds[first_last].round != kRounds) ++first_last;
-  ASSERT_LT(first_last + 1, loop.rounds.size()) << "no correction after the last round";
+  const std::vector<const LoopRound*> rows = rows_after_the_rounds(loop, kLoopRounds);
+  ASSERT_FALSE(rows.empty()) << "no correction after the last round";
   Model undone = loop.model;
   std::string fan_term;
-  for (size_t k = first_last + 1; k < loop.rounds.size(); ++k) {
-    const LoopRound& lr = loop.rounds[k];
-    EXPECT_EQ(lr.round, kRounds);
+  for (const LoopRound* row : rows) {
+    const LoopRound& lr = *row;
+    EXPECT_EQ(lr.round, kLoopRounds);
     const std::vector<std::string> to = loop_steps::step_terms(lr.added);
     ASSERT_EQ(to.size(), lr.replaced.size()) << lr.added;
     for (size_t i = 0; i < to.size(); ++i) {
@@ -1584,16 +1606,6 @@ TEST(Discovery, TheKeptTermsParametersAreEstimatedAgainOnceTheRoundsAreSpent) {
   EXPECT_LT(next_after_nT, 0.9 * next_before_nT);
 }
 
-// The rows of `loop` that share its last round's number after that round's first: the changes
-// made once the rounds are spent.
-std::vector<const LoopRound*> rows_after_the_rounds(const LoopResult& loop, int rounds) {
-  std::vector<const LoopRound*> rows;
-  size_t first = 0;
-  while (first < loop.rounds.size() && loop.rounds[first].round != rounds) ++first;
-  for (size_t k = first + 1; k < loop.rounds.size(); ++k) rows.push_back(&loop.rounds[k]);
-  return rows;
-}
-
 TEST(Discovery, TheModelsLagIsEstimatedAgainOnceTheRoundsAreSpent) {
   // Run 117, second aircraft: a 0.271 s lag of the scalar and a flex of the roll rate through
   // 0.825 s. The lag is written in round 3 (0.284 s) beside a stand-in of the flex; the flex's
@@ -1601,20 +1613,15 @@ TEST(Discovery, TheModelsLagIsEstimatedAgainOnceTheRoundsAreSpent) {
   // again at 0.273 s, explaining over half the held-out error on both halves. A lag found before
   // the other effects were written is a correction, not an added term: taken once the rounds
   // are spent, in place of the old value.
-  const sim::Scenario base = base_with_states();
   std::vector<sim::HiddenEffect> effects;
-  const sim::Scenario a = test::discovery_scenario(117, 2, base, 1, &effects);
+  const WholeLoop w = whole_loop(117, 2, 1, &effects);
   const sim::HiddenEffect* lag = drawn(effects, "lag");
   ASSERT_TRUE(lag) << "run 117 draws no lag";
-  const sim::Simulation fa = sim::simulate(a, Igrf::installed());
-  const sim::Simulation fb = sim::simulate(RoundAtTheEnd::next_of(a), Igrf::installed());
-  Model start = load_model_yaml(test::source_dir() + "/config/models/tl_sim.yaml");
-  fit_model(start, {&fa.flight});
-  constexpr int kRounds = 5;
-  const LoopResult loop = diagnose_loop(start, fa.flight, "mag_1_c", kRounds, 0.05, {});
+  const sim::Simulation &fa = w.first, &fb = w.next;
+  const LoopResult& loop = w.loop;
   std::string old_lag, new_lag;
   double before_nT = NAN, after_nT = NAN;
-  const std::vector<const LoopRound*> rows = rows_after_the_rounds(loop, kRounds);
+  const std::vector<const LoopRound*> rows = rows_after_the_rounds(loop, kLoopRounds);
   for (size_t k = 0; k < rows.size(); ++k)
     for (const auto& [from, why] : rows[k]->replaced)
       if (from.rfind("lag:", 0) == 0) {
@@ -1651,18 +1658,13 @@ TEST(Discovery, ATermAnExchangeMakesRedundantLeaves) {
   // pitch rate's term in place of its derivative. With these in place the derivative of the roll
   // rate no longer earns its place: the backward pass follows every change, not only a round
   // that adds a term, and the term leaves.
-  const sim::Scenario base = base_with_states();
   std::vector<sim::HiddenEffect> effects;
-  const sim::Scenario a = test::discovery_scenario(117, 2, base, 0, &effects);
-  const sim::Simulation fa = sim::simulate(a, Igrf::installed());
-  const sim::Simulation fb = sim::simulate(RoundAtTheEnd::next_of(a), Igrf::installed());
-  Model start = load_model_yaml(test::source_dir() + "/config/models/tl_sim.yaml");
-  fit_model(start, {&fa.flight});
-  constexpr int kRounds = 5;
-  const LoopResult loop = diagnose_loop(start, fa.flight, "mag_1_c", kRounds, 0.05, {});
+  const WholeLoop w = whole_loop(117, 2, 0, &effects);
+  const sim::Simulation &fa = w.first, &fb = w.next;
+  const LoopResult& loop = w.loop;
   std::string gone;
   const LoopRound* at = nullptr;
-  for (const LoopRound* lr : rows_after_the_rounds(loop, kRounds))
+  for (const LoopRound* lr : rows_after_the_rounds(loop, kLoopRounds))
     if (!lr->replaced.empty() && !lr->removed.empty()) {
       at = lr;
       gone = lr->removed.front().first;
