@@ -24,16 +24,19 @@
 // the model without it ranks first, DiagnoseOptions::exchange_terms); lenient-backward (the
 // backward pass drops a term only when it explains under a quarter of the accepted share,
 // DiagnoseOptions::backward_at_acceptance false); slow-on-calibration (a slow
-// term sized on the calibration rows alone, not on the held-out lines too); states (the aircraft's
-// non-electrical states recorded, and effects of a switched current times one of them drawn among
-// the others); half-several (runs alternate one effect and two or three, instead of 60 % one, 30 %
-// two, 10 % three); draws=N (each run on N aircraft: the same effects, other aircraft and flights);
-// rounds=N (the loop's rounds at most; 5, diagnose --apply's default, otherwise);
-// verbose (each run's rounds with their held-out errors and look-alikes); why (verbose, and the
-// changes each round refused, with why); validate (the loop learns
-// from the first flight with a second flight of the aircraft as its validation flight); two-flights
-// (the loop, TL and the references learn from both flights together). Every mode is scored on the
-// same next flight.
+// term sized on the calibration rows alone, not on the held-out lines too);
+// thresholds-on-selection (every step candidate's threshold moved by the selection lines within
+// the calibration rows' tie, DiagnoseOptions::thresholds_on_selection); thresholds-on-calibration
+// (a kept step's threshold never placed again by the held-out lines,
+// DiagnoseOptions::place_thresholds_again false); states (the aircraft's non-electrical states
+// recorded, and effects of a switched current times one of them drawn among the others);
+// half-several (runs alternate one effect and two or three, instead of 60 % one, 30 % two, 10 %
+// three); draws=N (each run on N aircraft: the same effects, other aircraft and flights); rounds=N
+// (the loop's rounds at most; 5, diagnose --apply's default, otherwise); verbose (each run's rounds
+// with their held-out errors and look-alikes); why (verbose, and the changes each round refused,
+// with why); validate (the loop learns from the first flight with a second flight of the aircraft
+// as its validation flight); two-flights (the loop, TL and the references learn from both flights
+// together). Every mode is scored on the same next flight.
 #include <array>
 #include <chrono>
 #include <cstdio>
@@ -89,6 +92,10 @@ int main(int argc, char** argv) {
         options.backward_after_revisits = false;
       } else if (opt == "slow-on-calibration") {
         options.slow_terms_on_lines = false;
+      } else if (opt == "thresholds-on-selection") {
+        options.thresholds_on_selection = true;
+      } else if (opt == "thresholds-on-calibration") {
+        options.place_thresholds_again = false;
       } else if (opt == "validate") {
         learn = magcomp::test::Learn::kValidated;
       } else if (opt == "two-flights") {
@@ -111,7 +118,8 @@ int main(int argc, char** argv) {
             "error: option '%s': one-at-a-time, choose-lambda, no-span-ridge, span-terms, "
             "no-joint, no-calibration-check, no-exchange, no-refine, lenient-backward, "
             "backward-after-adds, "
-            "slow-on-calibration, keep-factors, first-kept, line-jackknife, "
+            "slow-on-calibration, thresholds-on-selection, thresholds-on-calibration, "
+            "keep-factors, first-kept, line-jackknife, "
             "validate, two-flights, states, half-several, verbose, why, rounds=N or draws=N\n",
             opt.c_str());
         return 2;

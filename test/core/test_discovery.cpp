@@ -1292,6 +1292,72 @@ TEST(Discovery, AThresholdEstimatedBeforeTheOtherTermsIsEstimatedAgainWithThem) 
   EXPECT_FALSE(again.refine_parameters({}));
 }
 
+TEST(Discovery, AThresholdIsPlacedWhereTheHeldOutLinesCrossIt) {
+  // Run 101, second aircraft (the relay of cur_outpwr above 13.885 A and the product
+  // yaw_rate*vol_outpwr; the model the loop reaches, scripts/bench_discovery 1 101 half-several
+  // states draws=3 thresholds-on-calibration): the relay's step written at 13.951 A beside
+  // field:ins_acc_y. The first flight's calibration segments hold 2 samples of cur_outpwr between
+  // the two thresholds, its held-out lines 35, the next flight 193: the calibration rows cannot
+  // tell the thresholds apart, the held-out lines can. The model without the step, diagnosed
+  // again, ranks the same switch with the threshold its selection lines pin
+  // (Search::threshold_on_selection); the refinement takes it without the resolution a new
+  // channel needs (the gain sits in few samples, each far off).
+  const sim::Scenario base = base_with_states();
+  std::vector<sim::HiddenEffect> effects;
+  const sim::Scenario a = test::discovery_scenario(101, 2, base, 1, &effects);
+  const sim::HiddenEffect* relay = drawn(effects, "relay", "cur_outpwr");
+  ASSERT_TRUE(relay) << "run 101 draws no relay of cur_outpwr";
+  RoundAtTheEnd end(a, 1e-6, {"field:cur_outpwr|step(13.951)", "field:ins_acc_y"});
+  const std::vector<double> next_values =
+      signal_values_sorted(parse_signal("cur_outpwr", "t"), end.fb.flight);
+  // The next flight's samples between a threshold and the relay's own.
+  const auto between = [&](double x) {
+    const double lo = std::min(x, relay->threshold), hi = std::max(x, relay->threshold);
+    return std::upper_bound(next_values.begin(), next_values.end(), hi) -
+           std::upper_bound(next_values.begin(), next_values.end(), lo);
+  };
+  const double before_nT = end.r.rounds[0].heldout_std_nT;
+  const double next_before_nT = end.next_nT(end.model);
+  // Placed by the calibration rows alone: nothing moves, or not to the relay's threshold.
+  DiagnoseOptions calibration_only;
+  calibration_only.place_thresholds_again = false;
+  const loop_steps::LoopContext by_rows{end.start, end.flights,      end.truth, end.held,
+                                        nullptr,   calibration_only, 0.05};
+  LoopResult rows_r = end.r;
+  loop_steps::Round by_rows_round(by_rows, 3, &rows_r);
+  const bool rows_moved = by_rows_round.refine_parameters({});
+  const double next_rows_nT = end.next_nT(rows_r.model);
+  std::string rows_step = "unchanged";
+  for (const TermSpec& t : rows_r.model.terms)
+    if (rows_moved && t.text().rfind("field:cur_outpwr|step(", 0) == 0) rows_step = t.text();
+  // Placed by the held-out lines.
+  LoopResult& r = end.r;
+  loop_steps::Round round(end.context, 3, &r);
+  ASSERT_TRUE(round.refine_parameters({}));
+  const LoopRound& lr = r.rounds.back();
+  ASSERT_EQ(lr.replaced.size(), 1u);
+  EXPECT_EQ(lr.replaced[0].first, "field:cur_outpwr|step(13.951)");
+  EXPECT_NE(lr.replaced[0].second.find("threshold placed again"), std::string::npos)
+      << lr.replaced[0].second;
+  const auto e = parse_expr_term(lr.added);
+  ASSERT_TRUE(e) << lr.added;
+  const double placed = e->parameters().at(0).second;
+  const double next_after_nT = end.next_nT(r.model);
+  std::printf(
+      "  relay above %.4f A (next flight: %ld samples below 13.951): by the calibration rows %s "
+      "(next flight %.3f nT); by the held-out lines %s (%ld samples off): held out %.4f -> "
+      "%.4f nT, next flight %.3f -> %.3f nT\n",
+      relay->threshold, static_cast<long>(between(13.951)), rows_step.c_str(), next_rows_nT,
+      lr.added.c_str(), static_cast<long>(between(placed)), before_nT, lr.heldout_std_nT,
+      next_before_nT, next_after_nT);
+  EXPECT_LT(between(placed), between(13.951) / 10);
+  EXPECT_LT(lr.heldout_std_nT, before_nT);
+  EXPECT_LE(lr.selection_std_nT, r.rounds[0].selection_std_nT);
+  EXPECT_LE(lr.confirmation_std_nT, r.rounds[0].confirmation_std_nT);
+  EXPECT_LT(next_after_nT, 0.6 * next_before_nT);
+  EXPECT_LT(next_after_nT, 0.6 * next_rows_nT);
+}
+
 TEST(Discovery, AKeptTermsParametersAreEstimatedAgainBesideANewTerm) {
   // Run 117, second aircraft: a flex of roll_rate through 0.825 s and a 0.271 s scalar lag. The
   // first round takes scalar:roll_rate|lp(2.72) (its time constant stretched over the lag), the

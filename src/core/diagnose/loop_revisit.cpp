@@ -96,6 +96,20 @@ std::string without_source(const ExprTerm& e, size_t k) {
   return projection + signal.str();
 }
 
+// Whether b is a with every parameter but its steps' thresholds the same: a switch written
+// again with another threshold.
+bool differs_in_thresholds_only(const TermSpec& a, const TermSpec& b) {
+  const ExprTerm* x = a.expr();
+  const ExprTerm* y = b.expr();
+  if (!x || !y || x->shape() != y->shape() || a.text() == b.text()) return false;
+  const auto& tx = x->signal().transforms;
+  const auto& ty = y->signal().transforms;
+  if (tx.size() != ty.size()) return false;
+  for (size_t k = 0; k < tx.size(); ++k)
+    if (tx[k].kind != TransformKind::Step && tx[k].param != ty[k].param) return false;
+  return true;
+}
+
 }  // namespace
 
 Model with_term_as(const Model& model, const std::string& old_text, const std::string& spec) {
@@ -346,15 +360,17 @@ bool Round::refine_parameters(const std::vector<Diagnosis>& dxs,
     std::optional<std::pair<Model, LoopRound>> fitted;
     std::vector<std::pair<std::string, std::string>> changed;  // (old, new) texts
     std::string added;                                         // the term added, or ""
-    bool to_slow = false;  // the change moves a kept term to the slow stage
+    bool to_slow = false;    // the change moves a kept term to the slow stage
+    bool threshold = false;  // the change places a kept step's threshold again
   };
   Choice choice[2];
-  // `retimed`: a slow term's time constant below the band estimated again on the calibration
-  // rows, judged by improves_in_place (the lines only confirm it); otherwise by improves_on.
+  // `in_place`: a slow term's time constant below the band estimated again on the calibration
+  // rows, or a step's threshold placed again by the held-out lines, judged by improves_in_place
+  // (neither adds a channel); otherwise by improves_on.
   // `slow_text`: kept term moved to the slow stage (its text unchanged), judged by
   // moves_to_slow_stage.
-  const auto consider = [&](Model m, const std::string& added, bool retimed = false,
-                            const std::string& slow_text = "") {
+  const auto consider = [&](Model m, const std::string& added, bool in_place = false,
+                            const std::string& slow_text = "", bool threshold = false) {
     try {
       auto fitted = fit_score(std::move(m));
       std::vector<std::pair<std::string, std::string>> changed;
@@ -365,7 +381,7 @@ bool Round::refine_parameters(const std::vector<Diagnosis>& dxs,
       if (changed.empty()) return;  // the same parameters: nothing new to judge
       const LoopRound& lr = fitted.second;
       if (!slow_text.empty() ? !moves_to_slow_stage(lr, now)
-          : retimed          ? !improves_in_place(lr, now)
+          : in_place         ? !improves_in_place(lr, now)
                              : !improves_on(lr, now))
         return;
       // A new term with them: the gain a candidate needs on each half.
@@ -378,6 +394,7 @@ bool Round::refine_parameters(const std::vector<Diagnosis>& dxs,
       c.changed = std::move(changed);
       c.added = added;
       c.to_slow = !slow_text.empty();
+      c.threshold = threshold;
     } catch (const Error&) {
     }
   };
@@ -390,6 +407,38 @@ bool Round::refine_parameters(const std::vector<Diagnosis>& dxs,
   for (const auto& [k, spec] : retimed)
     consider(with_term_as(model, model.terms[k].text(), spec), "",
              low_pass_below_band(model.terms[k], model.fit.band_low_hz));
+  // Each kept step's threshold placed again where the held-out lines cross it: the model
+  // without the step, diagnosed again with DiagnoseOptions::thresholds_on_selection, ranks the
+  // same switch with the threshold its selection lines pin within what the calibration rows
+  // cannot tell apart (DiagnoseOptions::place_thresholds_again). The fit rows alone, above,
+  // place it where the calibration segments happen to cross it.
+  if (c_.options.place_thresholds_again) {
+    DiagnoseOptions options = c_.options;
+    options.explainable_share = false;
+    options.thresholds_on_selection = true;
+    for (const auto& [k, freed] : freeable) {
+      const TermSpec& kept = model.terms[k];
+      const auto& transforms = kept.expr()->signal().transforms;
+      if (std::none_of(transforms.begin(), transforms.end(),
+                       [](const Transform& x) { return x.kind == TransformKind::Step; }))
+        continue;
+      try {
+        const Model without = without_term(model, kept);
+        std::optional<TermSpec> again;
+        for (const FlightData* f : c_.flights) {
+          const Diagnosis d = diagnose(without, *f, c_.truth, options);
+          for (const Candidate& c : d.candidates)
+            if (c.term.expr() && c.term.expr()->shape() == freed) {
+              if (differs_in_thresholds_only(kept, c.term)) again = c.term;
+              break;
+            }
+          if (again) break;
+        }
+        if (again) consider(with_term_as(model, kept.text(), again->text()), "", true, "", true);
+      } catch (const Error&) {
+      }
+    }
+  }
   for (size_t k : to_slow) {
     Model m = model;
     m.slow_terms.push_back(model.terms[k].text());
@@ -447,6 +496,11 @@ bool Round::refine_parameters(const std::vector<Diagnosis>& dxs,
                     "%.4f nT, held-out error %.4f -> %.4f nT",
                     now.calibration_std_nT, lr.calibration_std_nT, now.heldout_std_nT,
                     lr.heldout_std_nT);
+    else if (pick->threshold)
+      std::snprintf(why, sizeof(why),
+                    "its threshold placed again where the held-out lines cross it (the model "
+                    "without it, diagnosed again, ranks %s): held-out error %.4f -> %.4f nT",
+                    to.c_str(), now.heldout_std_nT, lr.heldout_std_nT);
     else
       std::snprintf(why, sizeof(why),
                     "its parameters estimated again with every other term in place%s%s: held-out "

@@ -92,8 +92,8 @@ bool step_in_time(const SignalExpr& signal, double threshold, const FlightData& 
 }
 
 Search::Search(const Model& m, const FlightData& d, const std::string& truth_name, Diagnosis* dx,
-               bool slow_on_lines)
-    : model(m), data(d) {
+               bool slow_on_lines, bool thresholds_on_selection)
+    : model(m), data(d), pin_thresholds(thresholds_on_selection) {
   require_model_fields_in_range(model, data, {truth_name});
   truth = data.column(truth_name);
   const auto terms = model.make_terms();
@@ -433,8 +433,22 @@ Scored Search::run(const Job& job) const {
       });
       term = make_term(expr->with_parameters({v}));
       if (step_in_time(expr->signal(), v, data)) return Scored{};
-      const Eigen::MatrixXd cols = columns(*term);
+      Eigen::MatrixXd cols = columns(*term);
       Scored s = score(cols, slow_ok);
+      if (s.ok && pin_thresholds && share(s.sel, base_std[0]) >= kThresholdRefineShare) {
+        const double pinned = threshold_on_selection(*expr, values, v, s.sel, slow_ok, &fits);
+        if (pinned != v && !step_in_time(expr->signal(), pinned, data)) {
+          TermPtr moved = make_term(expr->with_parameters({pinned}));
+          Eigen::MatrixXd moved_cols = columns(*moved);
+          Scored m = score(moved_cols, slow_ok);
+          ++fits;
+          if (m.ok && m.sel < s.sel) {
+            s = std::move(m);
+            term = std::move(moved);
+            cols = std::move(moved_cols);
+          }
+        }
+      }
       s.term = term;
       if (!(cols.array().isFinite().any())) s.ok = false;
       s.fits = fits + 1;

@@ -78,6 +78,19 @@ constexpr double kClockWindow_s = 30.0;
 // rows 0.1 s apart where `data` has no time column "tt").
 bool step_in_time(const SignalExpr& signal, double threshold, const FlightData& data);
 
+// A step's threshold, scanned on the calibration rows, can fall anywhere within the thresholds
+// those rows cannot tell apart, while the held-out lines cross it many times more (a relay whose
+// control dwells near its threshold on the survey lines and sweeps through it on the maneuvers):
+// the calibration rows' residual sum of squares within kThresholdTieChi2 times its per-row
+// variance of the best (the 95 % profile-likelihood interval of one parameter), searched over
+// at most kThresholdTiePieces of their pieces each side, bounds the thresholds the selection
+// lines then choose among (Search::threshold_on_selection), kThresholdProbes at a time, coarse
+// to fine. Only for a step that explains kThresholdRefineShare of the selection lines' variance.
+constexpr double kThresholdTieChi2 = 3.84;
+constexpr long kThresholdTiePieces = 64;
+constexpr size_t kThresholdProbes = 17;
+constexpr double kThresholdRefineShare = 0.02;
+
 // A held-out half is quiet when its error is under this many resolutions: gaining the
 // resolution there takes more than half of its variance. A candidate may then remove
 // kQuietHalfShare of that half's variance in place of the resolution, when all held-out lines
@@ -101,8 +114,10 @@ class Search {
  public:
   // With `slow_on_lines`, a slow candidate is sized on the held-out lines too, cross-fitted
   // (score_slow); the base's own slow terms are fitted as fit_model fits them (fit.slow_lines).
+  // With `thresholds_on_selection`, a step's threshold is moved within the calibration rows'
+  // tie interval by the selection lines (threshold_on_selection).
   Search(const Model& model, const FlightData& data, const std::string& truth_name, Diagnosis* dx,
-         bool slow_on_lines = false);
+         bool slow_on_lines = false, bool thresholds_on_selection = false);
 
   // Scores a term's columns (N x k): fit on the fit rows with the base columns, errors on the
   // held-out rows of each fold. With `slow_ok`, a column the band-pass barely sees
@@ -142,6 +157,14 @@ class Search {
   double base_span_share(const Eigen::MatrixXd& band) const;
   // The fit's residual sum of squares with these columns added.
   double fit_rss(const Eigen::MatrixXd& cols) const;
+  // A step's threshold (in its signal's unit), scanned on the calibration rows, moved to the
+  // threshold within the calibration rows' tie interval (kThresholdTieChi2) whose columns give
+  // the selection lines the lowest error, when that is below selection_nT (the selection lines'
+  // error at `threshold`, nT); written as scan_threshold() writes it. `values`: the signal's
+  // values on the flight, sorted (signal_values_sorted). Adds the fits it makes to *fits.
+  double threshold_on_selection(const ExprTerm& expr, const std::vector<double>& values,
+                                double threshold, double selection_nT, bool slow_ok,
+                                long* fits) const;
   // Builds, scans (free parameters) and scores one job.
   Scored run(const Job& job) const;
   // The lag scan, alone or with partner columns (N x k, built without a lag: columns_of(spec,
@@ -188,6 +211,7 @@ class Search {
   Eigen::MatrixXd slow_base_cols;
   double base_std[3] = {0, 0, 0};  // selection, confirmation, all held out
   double dt = 0.1, span = 1.0;
+  bool pin_thresholds = false;  // threshold_on_selection for every step candidate
 
  private:
   Eigen::MatrixXd stacked(const Eigen::MatrixXd& cols) const {

@@ -297,34 +297,36 @@ double scan_threshold(const std::vector<double>& sorted_values,
     best = f;
     best_x = fine;
   }
+  if (const double written = written_threshold(sorted_values, best_x); written != best_x) {
+    best_x = written;
+    best = objective(best_x);
+  }
+  if (best_out) *best_out = best;
+  return best_x;
+}
+
+double written_threshold(const std::vector<double>& sorted_values, double x) {
   // Every threshold between the two samples around it splits the samples alike: written as the
   // middle of that gap with the fewest significant digits, three at least, that leave every
   // sample on the side of it it was on. A relay whose current dwells near its threshold moves a
   // share of its samples across a threshold rounded further (a 0.3074 A threshold written 0.307
   // flips 0.5 % of a flight's samples and doubles the error there).
-  const auto below = [&](double x) {  // samples at or below x
-    return std::upper_bound(sorted_values.begin(), sorted_values.end(), x) - sorted_values.begin();
+  const auto below = [&](double t) {  // samples at or below t
+    return std::upper_bound(sorted_values.begin(), sorted_values.end(), t) - sorted_values.begin();
   };
-  const auto split = below(best_x);
+  const auto split = below(x);
   const auto n_values = static_cast<std::ptrdiff_t>(sorted_values.size());
   const double middle = split > 0 && split < n_values
                             ? 0.5 * (sorted_values[static_cast<size_t>(split - 1)] +
                                      sorted_values[static_cast<size_t>(split)])
-                            : best_x;
+                            : x;
   for (int digits = 3; digits <= 17; ++digits) {
     char buf[40];
     std::snprintf(buf, sizeof(buf), "%.*g", digits, middle);
     const double written = std::strtod(buf, nullptr);
-    if (below(written) == split) {
-      if (written != best_x) {
-        best_x = written;
-        best = objective(best_x);
-      }
-      break;
-    }
+    if (below(written) == split) return written;
   }
-  if (best_out) *best_out = best;
-  return best_x;
+  return x;
 }
 
 namespace {

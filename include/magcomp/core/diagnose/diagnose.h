@@ -160,6 +160,11 @@ struct DiagnoseOptions {
   /// and diagnose_loop's model carries those lines as fit.slow_lines (false: the calibration
   /// rows alone size it).
   bool slow_terms_on_lines = true;
+  /// Every step candidate's threshold, scanned on the calibration rows, is moved within the
+  /// thresholds those rows cannot tell apart (the 95 % profile-likelihood interval) to the one
+  /// that leaves the selection lines the lowest error (false: the calibration rows alone place
+  /// it; diagnose_loop places a kept step's threshold so, place_thresholds_again).
+  bool thresholds_on_selection = false;
   /// diagnose_loop: when no term passes, each kept term of a recorded channel is taken out in
   /// turn and the model without it diagnosed; the best of that diagnosis's first candidates takes
   /// its place when it lowers the held-out error by the accepted share and the resolution and
@@ -179,6 +184,16 @@ struct DiagnoseOptions {
   /// calibration rows the slow stage sizes it on (false: a kept term keeps the parameters it was
   /// added with).
   bool refine_parameters = true;
+  /// diagnose_loop, with refine_parameters: a kept step's threshold is placed again where the
+  /// held-out lines cross it. The model without the step, diagnosed again with
+  /// thresholds_on_selection, ranks the same switch with the threshold its selection lines pin
+  /// where the calibration rows cannot tell the thresholds apart (a relay's control may cross its
+  /// threshold a few times on the calibration segments and many times on the survey lines); it
+  /// takes the kept step's place when the held-out error falls by accept_fraction of its
+  /// variance and neither half rises (the resolution is not asked: the change adds no channel,
+  /// and its gain sits in the few samples between the two thresholds). False: the calibration
+  /// rows alone place it.
+  bool place_thresholds_again = true;
   /// diagnose_loop: when no term passes and neither the parameters estimated again nor an
   /// exchange change the model, and once more when the rounds are spent, a kept
   /// product of recorded channels whose factor earns no place (the product does not beat the

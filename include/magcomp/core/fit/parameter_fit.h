@@ -109,6 +109,12 @@ std::vector<double> signal_values_sorted(const SignalExpr& signal, const FlightD
 double scan_threshold(const std::vector<double>& sorted_values,
                       const std::function<double(double)>& objective, double* best = nullptr);
 
+/// The threshold (in the signal's unit) that splits sorted_values as x does, written as
+/// scan_threshold() writes it: the middle of the gap between the two values around x, with the
+/// fewest significant digits (3 at least) that leave every value on its side; x itself when no
+/// value lies above or below it.
+double written_threshold(const std::vector<double>& sorted_values, double x);
+
 /// Estimates every free parameter ('?') of the model's terms by profile least squares on the fit
 /// rows of `flights`: each in turn, the others held (two sweeps when there are several). Replaces
 /// the specs in model.terms by their numbers and returns one line per parameter for the report.
