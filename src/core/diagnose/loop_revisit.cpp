@@ -96,8 +96,8 @@ std::string without_source(const ExprTerm& e, size_t k) {
   return projection + signal.str();
 }
 
-// Whether b is a with every parameter but its steps' thresholds the same: a switch written
-// again with another threshold.
+// Whether b is term a written again with other step thresholds: the same shape, and every
+// parameter but the steps' thresholds the same.
 bool differs_in_thresholds_only(const TermSpec& a, const TermSpec& b) {
   const ExprTerm* x = a.expr();
   const ExprTerm* y = b.expr();
