@@ -1296,7 +1296,7 @@ TEST(Discovery, AThresholdIsPlacedWhereTheHeldOutLinesCrossIt) {
   // Run 101, second aircraft (the relay of cur_outpwr above 13.885 A and the product
   // yaw_rate*vol_outpwr; the model the loop reaches, scripts/bench_discovery 1 101 half-several
   // states draws=3 thresholds-on-calibration): the relay's step written at 13.951 A beside
-  // field:ins_acc_y. The first flight's calibration segments hold 2 samples of cur_outpwr between
+  // field:ins_acc_y. The first flight's calibration lines hold 2 samples of cur_outpwr between
   // the two thresholds, its held-out lines 35, the next flight 193: the calibration rows cannot
   // tell the thresholds apart, the held-out lines can. The model without the step, diagnosed
   // again, ranks the same switch with the threshold its selection lines pin
