@@ -28,7 +28,9 @@
 // thresholds-on-selection (every step candidate's threshold moved by the selection lines within
 // the calibration rows' tie, DiagnoseOptions::thresholds_on_selection); thresholds-on-calibration
 // (a kept step's threshold never placed again by the held-out lines,
-// DiagnoseOptions::place_thresholds_again false); states (the aircraft's non-electrical states
+// DiagnoseOptions::place_thresholds_again false); second-order-on-calibration (TL's
+// second-order term sized by the band-pass alone, DiagnoseOptions::second_order_on_lines
+// false); states (the aircraft's non-electrical states
 // recorded, and effects of a switched current times one of them drawn among the others);
 // half-several (runs alternate one effect and two or three, instead of 60 % one, 30 % two, 10 %
 // three); draws=N (each run on N aircraft: the same effects, other aircraft and flights); rounds=N
@@ -94,6 +96,8 @@ int main(int argc, char** argv) {
         options.slow_terms_on_lines = false;
       } else if (opt == "thresholds-on-selection") {
         options.thresholds_on_selection = true;
+      } else if (opt == "second-order-on-calibration") {
+        options.second_order_on_lines = false;
       } else if (opt == "thresholds-on-calibration") {
         options.place_thresholds_again = false;
       } else if (opt == "validate") {
@@ -119,6 +123,7 @@ int main(int argc, char** argv) {
             "no-joint, no-calibration-check, no-exchange, no-refine, lenient-backward, "
             "backward-after-adds, "
             "slow-on-calibration, thresholds-on-selection, thresholds-on-calibration, "
+            "second-order-on-calibration, "
             "keep-factors, first-kept, line-jackknife, "
             "validate, two-flights, states, half-several, verbose, why, rounds=N or draws=N\n",
             opt.c_str());

@@ -103,7 +103,7 @@ Diagnosis diagnose(const Model& model_in, const FlightData& data, const std::str
   // Each step copies the columns it reads: between steps the file's pages need not stay
   // resident (they are mapped again when read).
   const Search search(model, data, truth_name, &dx, options.slow_terms_on_lines,
-                      options.thresholds_on_selection);
+                      options.thresholds_on_selection, options.second_order_on_lines);
   const std::vector<std::string> sources =
       source_fields(model, data, truth_name, options.full_search, &dx.notes);
   data.drop_mapped_pages();

@@ -92,8 +92,11 @@ bool step_in_time(const SignalExpr& signal, double threshold, const FlightData& 
 }
 
 Search::Search(const Model& m, const FlightData& d, const std::string& truth_name, Diagnosis* dx,
-               bool slow_on_lines, bool thresholds_on_selection)
-    : model(m), data(d), pin_thresholds(thresholds_on_selection) {
+               bool slow_on_lines, bool thresholds_on_selection, bool second_order_on_lines)
+    : model(m),
+      data(d),
+      pin_thresholds(thresholds_on_selection),
+      second_order_slow(second_order_on_lines) {
   require_model_fields_in_range(model, data, {truth_name});
   truth = data.column(truth_name);
   const auto terms = model.make_terms();
@@ -518,6 +521,13 @@ Scored Search::run(const Job& job) const {
   }
   const Eigen::MatrixXd cols = columns(*term);
   Scored s = score(cols, slow_ok);
+  // TL's second-order term: 15 columns beside TL's 18 that two minutes of maneuvers cannot size
+  // (the band-pass fit there leaves the held-out lines worse than TL); sized on the lines too,
+  // cross-fitted, it writes what TL's linearisation drops rather than a channel standing in.
+  if (!expr && second_order_slow && slow_cross_fitted() && term->spec() == "second_order") {
+    Scored ss = score_slow(cols);
+    if (ss.ok && (!s.ok || ss.sel < s.sel)) s = std::move(ss);
+  }
   s.term = term;
   s.fits = fits + 1;
   if (!(cols.array().isFinite().any())) s.ok = false;

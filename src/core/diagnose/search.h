@@ -115,9 +115,11 @@ class Search {
   // With `slow_on_lines`, a slow candidate is sized on the held-out lines too, cross-fitted
   // (score_slow); the base's own slow terms are fitted as fit_model fits them (fit.slow_lines).
   // With `thresholds_on_selection`, a step's threshold is moved within the calibration rows'
-  // tie interval by the selection lines (threshold_on_selection).
+  // tie interval by the selection lines (threshold_on_selection). With `second_order_on_lines`
+  // and `slow_on_lines`, TL's second-order term is sized on the lines too (score_slow).
   Search(const Model& model, const FlightData& data, const std::string& truth_name, Diagnosis* dx,
-         bool slow_on_lines = false, bool thresholds_on_selection = false);
+         bool slow_on_lines = false, bool thresholds_on_selection = false,
+         bool second_order_on_lines = false);
 
   // Scores a term's columns (N x k): fit on the fit rows with the base columns, errors on the
   // held-out rows of each fold. With `slow_ok`, a column the band-pass barely sees
@@ -211,7 +213,8 @@ class Search {
   Eigen::MatrixXd slow_base_cols;
   double base_std[3] = {0, 0, 0};  // selection, confirmation, all held out
   double dt = 0.1, span = 1.0;
-  bool pin_thresholds = false;  // threshold_on_selection for every step candidate
+  bool pin_thresholds = false;     // threshold_on_selection for every step candidate
+  bool second_order_slow = false;  // second_order also sized on the lines (slow_cross)
 
  private:
   Eigen::MatrixXd stacked(const Eigen::MatrixXd& cols) const {

@@ -165,6 +165,12 @@ struct DiagnoseOptions {
   /// that leaves the selection lines the lowest error (false: the calibration rows alone place
   /// it; diagnose_loop places a kept step's threshold so, place_thresholds_again).
   bool thresholds_on_selection = false;
+  /// With slow_terms_on_lines, TL's second-order term (`second_order`: 15 columns quartic in
+  /// the field's direction beside TL's 18, which the calibration segments cannot size) is also
+  /// sized as a slow term on the calibration rows and the held-out lines, cross-fitted, and the
+  /// better of that and the band-pass on the selection lines is scored (false: the band-pass
+  /// alone sizes it).
+  bool second_order_on_lines = true;
   /// diagnose_loop: when no term passes, each kept term of a recorded channel is taken out in
   /// turn and the model without it diagnosed; the best of that diagnosis's first candidates takes
   /// its place when it lowers the held-out error by the accepted share and the resolution and
