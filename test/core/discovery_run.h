@@ -28,6 +28,10 @@
 
 namespace magcomp::test {
 
+/// What an effect's own term must gain on the first flight to count as shown there: the loop's
+/// resolution (DiagnoseOptions::resolution_nT) and its accepted share of the variance (2 %).
+constexpr double kShownResolution_nT = 0.03, kShownShare = 0.02;
+
 struct DiscoveryRun {
   std::string effects;      ///< the drawn effects, described
   bool predictable = true;  ///< every effect expressible or approximable (no ripple)
@@ -56,6 +60,13 @@ struct DiscoveryRun {
   /// errors are scored), on the flight the loop learns from and on the next flight: an effect the
   /// first flight barely shows cannot be learned there.
   double effect_nT = NAN, effect_next_nT = NAN;
+  /// Each effect shows on the first flight: TL plus the other effects' own terms (fitted as the
+  /// best of true_terms_next_nT's fits) leaves that flight's error higher, by kShownResolution_nT
+  /// and kShownShare of its variance, than TL plus every effect's own term; a product's term
+  /// also does so better than each of its factors' own term in its place. False where an effect
+  /// has no own term (a ripple). A run where one does not cannot be expected to name it.
+  bool shows_every_effect = false;
+  std::vector<std::string> unshown_effects;  ///< those it does not show (sim::describe)
   /// The kind of the run's effect (sim::HiddenEffect::type), "several" for two or more.
   std::string kind;
   /// The channels the hidden effects act through (each effect's channel and a product's second
@@ -322,21 +333,66 @@ inline DiscoveryRun discovery_run(unsigned r, int count, const sim::Scenario& ba
           std::find(tl.fit.lines.begin(), tl.fit.lines.end(), line[i]) == tl.fit.lines.end())
         survey_lines.push_back(line[i]);
   }
+  // TL plus `terms` fitted with a ridge and a slow sizing (0: the band-pass; 1: the slow stage
+  // on the calibration rows; 2: and on the survey lines).
+  const auto truth_model = [&](const std::vector<std::pair<std::string, bool>>& terms,
+                               double lambda, int use_slow) {
+    Model m = tl;
+    m.fit.lambda = lambda;
+    if (use_slow == 2) m.fit.slow_lines = survey_lines;
+    for (const auto& [t, slow] : terms) {
+      if (use_slow && slow)
+        m.add_slow_term(t, "mag_1_c");
+      else
+        m.add_term(t);
+    }
+    fit_model(m, fit_on);
+    return m;
+  };
+  double best_lambda = tl.fit.lambda;
+  int best_slow = 0;
   for (const double lambda : lambdas) {
     for (int use_slow : {0, 1, 2}) {
       if (truth_terms.empty()) break;
-      Model m = tl;
-      m.fit.lambda = lambda;
-      if (use_slow == 2) m.fit.slow_lines = survey_lines;
-      for (const auto& [t, slow] : truth_terms) {
-        if (use_slow && slow)
-          m.add_slow_term(t, "mag_1_c");
-        else
-          m.add_term(t);
-      }
-      fit_model(m, fit_on);
+      const Model m = truth_model(truth_terms, lambda, use_slow);
       const double e = evaluate_model(m, fb.flight, "mag_1_c", false).std_nT;
-      if (!(e >= out.true_terms_next_nT)) out.true_terms_next_nT = e;
+      if (!(e >= out.true_terms_next_nT)) {
+        out.true_terms_next_nT = e;
+        best_lambda = lambda;
+        best_slow = use_slow;
+      }
+    }
+  }
+  // Whether the first flight shows each effect: TL plus the true terms, fitted the way that did
+  // best on the next flight, against the same without the effect's term (and, for a product,
+  // with the term of each factor alone in its place).
+  if (!truth_terms.empty()) {
+    const auto first_std = [&](const std::vector<std::pair<std::string, bool>>& terms) {
+      return evaluate_model(truth_model(terms, best_lambda, best_slow), fa.flight, "mag_1_c", false)
+          .std_nT;
+    };
+    const double with_nT = first_std(truth_terms);
+    const auto shows = [&](double without_nT) {
+      return without_nT >= with_nT + kShownResolution_nT &&
+             without_nT * without_nT >= with_nT * with_nT / (1 - kShownShare);
+    };
+    out.shows_every_effect = true;
+    for (size_t k = 0; k < truth_terms.size(); ++k) {
+      std::vector<std::pair<std::string, bool>> without = truth_terms;
+      without.erase(without.begin() + static_cast<std::ptrdiff_t>(k));
+      bool shown = shows(first_std(without));
+      const sim::HiddenEffect& e = effects[k];
+      if (shown && e.type == "product") {
+        for (const std::string& factor : {e.channel, e.channel2}) {
+          std::vector<std::pair<std::string, bool>> alone = without;
+          alone.emplace_back("field:" + factor, false);
+          shown = shown && shows(first_std(alone));
+        }
+      }
+      if (!shown) {
+        out.shows_every_effect = false;
+        out.unshown_effects.push_back(sim::describe(e));
+      }
     }
   }
   const FlightData ca = without_hidden(fa, tl.scalar), cb = without_hidden(fb, tl.scalar);
