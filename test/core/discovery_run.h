@@ -28,10 +28,6 @@
 
 namespace magcomp::test {
 
-/// What an effect's own term must gain on the first flight to count as shown there: the loop's
-/// resolution (DiagnoseOptions::resolution_nT) and its accepted share of the variance (2 %).
-constexpr double kShownResolution_nT = 0.03, kShownShare = 0.02;
-
 struct DiscoveryRun {
   std::string effects;      ///< the drawn effects, described
   bool predictable = true;  ///< every effect expressible or approximable (no ripple)
@@ -61,8 +57,9 @@ struct DiscoveryRun {
   /// first flight barely shows cannot be learned there.
   double effect_nT = NAN, effect_next_nT = NAN;
   /// Each effect shows on the first flight: TL plus the other effects' own terms (fitted as the
-  /// best of true_terms_next_nT's fits) leaves that flight's error higher, by kShownResolution_nT
-  /// and kShownShare of its variance, than TL plus every effect's own term; a product's term
+  /// best of true_terms_next_nT's fits) leaves that flight's error higher, by the loop's
+  /// resolution and accepted share of its variance (DiagnoseOptions::resolution_nT,
+  /// accept_fraction), than TL plus every effect's own term; a product's term
   /// also does so better than each of its factors' own term in its place. False where an effect
   /// has no own term (a ripple). A run where one does not cannot be expected to name it.
   bool shows_every_effect = false;
@@ -372,9 +369,10 @@ inline DiscoveryRun discovery_run(unsigned r, int count, const sim::Scenario& ba
           .std_nT;
     };
     const double with_nT = first_std(truth_terms);
+    const DiagnoseOptions defaults;
     const auto shows = [&](double without_nT) {
-      return without_nT >= with_nT + kShownResolution_nT &&
-             without_nT * without_nT >= with_nT * with_nT / (1 - kShownShare);
+      return without_nT >= with_nT + defaults.resolution_nT &&
+             without_nT * without_nT >= with_nT * with_nT / (1 - defaults.accept_fraction);
     };
     out.shows_every_effect = true;
     for (size_t k = 0; k < truth_terms.size(); ++k) {
