@@ -304,6 +304,7 @@ struct DiagnoseArgs {
   bool apply = false, quick = false, choose_lambda = false, no_exchange = false;
   bool no_refine = false;
   bool keep_factors = false;
+  bool tl_as_given = false;
 };
 
 // The loop's JSON: its rounds, its stop, the added terms' support and its last diagnosis.
@@ -331,6 +332,7 @@ nlohmann::json loop_json(const LoopResult& r, const std::vector<TermSupport>& su
     jr["slow_on_lines"] = lr.slow_on_lines;
     jr["lambda"] = json_figure(lr.lambda);
     jr["regularisation"] = lr.regularisation;
+    jr["model_change"] = lr.model_change;
     jr["in_place_of"] = lr.in_place_of;
     if (!lr.in_place_of.empty()) jr["in_place_of_span_share"] = lr.in_place_of_span_share;
     jr["alone_heldout_std_nT"] = lr.alone_std_nT;
@@ -406,6 +408,7 @@ void run_diagnose(const DiagnoseArgs& a) {
   if (a.no_exchange && !a.apply) throw Error("--no-exchange: only with --apply");
   if (a.no_refine && !a.apply) throw Error("--no-refine: only with --apply");
   if (a.keep_factors && !a.apply) throw Error("--keep-factors: only with --apply");
+  if (a.tl_as_given && !a.apply) throw Error("--tl-as-given: only with --apply");
   const std::vector<std::string> paths = flight_paths("--data", a.data);
   std::vector<OutputGuard::File> others = {
       {"--model", a.model_path}, {"--validate", a.validate}, {"--attribution", a.attribution}};
@@ -428,6 +431,7 @@ void run_diagnose(const DiagnoseArgs& a) {
   options.exchange_terms = !a.no_exchange;
   options.refine_parameters = !a.no_refine;
   options.drop_idle_factors = !a.keep_factors;
+  options.exact_norm = !a.tl_as_given;
   if (!a.attribution.empty()) options.network_channels = read_network_attribution(a.attribution);
   if (paths.size() > 1 && !a.apply) {
     diagnose_several(model, paths, a.model_path, a.truth, a.json_path, a.top, options, guard, read);
@@ -520,6 +524,11 @@ void add_diagnose(CLI::App& app) {
       "--choose-lambda", a->choose_lambda,
       "with --apply: each round first chooses fit.lambda on the held-out lines (1/10, "
       "1/100 or 1/1000 of the model's, or back to it, if the error falls on both halves)");
+  cmd->add_flag("--tl-as-given", a->tl_as_given,
+                "with --apply: keep the model's TL as given (by default the first round first "
+                "writes it as the exact norm, the `norm` term, and, where the flights record "
+                "--truth, fits it against that on the calibration segments, if the held-out "
+                "error falls on both halves)");
   cmd->add_flag("--no-exchange", a->no_exchange,
                 "with --apply: when no term passes, keep the kept terms as they are (by default "
                 "each is taken out in turn and the model without it diagnosed again: a better "

@@ -37,11 +37,12 @@ void print_rounds_table(const LoopResult& r, bool validation, size_t flights) {
   for (const auto& lr : r.rounds) {
     for (const auto& [term, why] : lr.rejected)
       std::printf("       refused %s: %s\n", term.c_str(), why.c_str());
-    const std::string added = lr.round == 0       ? "(the model as given)"
-                              : lr.black_box      ? "[black box] " + lr.added
-                              : lr.together       ? "[together] " + lr.added
-                              : lr.regularisation ? "[ridge] " + lr.added
-                                                  : lr.added;
+    const std::string added = lr.round == 0              ? "(the model as given)"
+                              : lr.black_box             ? "[black box] " + lr.added
+                              : lr.together              ? "[together] " + lr.added
+                              : lr.regularisation        ? "[ridge] " + lr.added
+                              : !lr.model_change.empty() ? "[exact norm] " + lr.added
+                                                         : lr.added;
     std::printf("%-6d %-36s %9.1f%% %11.3f nT %9.3f nT %9s nT", lr.round, added.c_str(),
                 100 * lr.explained, lr.heldout_std_nT, lr.all_std_nT,
                 figure(lr.fom_nT, "%.2f").c_str());
@@ -63,6 +64,11 @@ void print_rounds_table(const LoopResult& r, bool validation, size_t flights) {
       for (double v : lr.alone_std_nT) std::printf(" %.3f", v);
       std::printf(" nT (each is needed)\n");
     }
+    if (!lr.model_change.empty())
+      std::printf(
+          "       %s: the scalar is the norm of the Earth's field and the aircraft's; TL "
+          "writes its first-order part\n",
+          lr.model_change.c_str());
     if (lr.slow_on_lines)
       std::printf(
           "       slow terms sized on the held-out lines too (fit.slow_lines): sized on the "

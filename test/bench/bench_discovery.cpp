@@ -31,7 +31,8 @@
 // thresholds-on-selection (every step candidate's threshold moved by the selection lines within
 // the calibration rows' tie, DiagnoseOptions::thresholds_on_selection); thresholds-on-calibration
 // (a kept step's threshold never placed again by the held-out lines,
-// DiagnoseOptions::place_thresholds_again false); second-order-on-calibration (TL's
+// DiagnoseOptions::place_thresholds_again false); tl-as-given (TL not written as the exact
+// norm, DiagnoseOptions::exact_norm false); second-order-on-calibration (TL's
 // second-order term sized by the band-pass alone, DiagnoseOptions::second_order_on_lines
 // false); states (the aircraft's non-electrical states
 // recorded, and effects of a switched current times one of them drawn among the others);
@@ -101,6 +102,8 @@ int main(int argc, char** argv) {
         options.thresholds_on_selection = true;
       } else if (opt == "second-order-on-calibration") {
         options.second_order_on_lines = false;
+      } else if (opt == "tl-as-given") {
+        options.exact_norm = false;
       } else if (opt == "thresholds-on-calibration") {
         options.place_thresholds_again = false;
       } else if (opt == "validate") {
@@ -126,7 +129,7 @@ int main(int argc, char** argv) {
             "no-joint, no-calibration-check, no-exchange, no-refine, lenient-backward, "
             "backward-after-adds, "
             "slow-on-calibration, thresholds-on-selection, thresholds-on-calibration, "
-            "second-order-on-calibration, "
+            "second-order-on-calibration, tl-as-given, "
             "keep-factors, first-kept, line-jackknife, "
             "validate, two-flights, states, half-several, verbose, why, rounds=N or draws=N\n",
             opt.c_str());

@@ -149,6 +149,7 @@ TEST(Cli, DiagnoseWritesTheContractJsonAndTheLoop) {
     EXPECT_TRUE(round["together"].is_boolean());
     EXPECT_TRUE(round["removed"].is_array());
     EXPECT_TRUE(round["regularisation"].is_boolean());
+    EXPECT_TRUE(round["model_change"].is_string());
     EXPECT_TRUE(round["in_place_of"].is_string());
     EXPECT_GT(round["lambda"].get<double>(), 0.0);
   }

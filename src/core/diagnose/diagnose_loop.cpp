@@ -61,7 +61,8 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
   std::set<std::string> learned_channels;  // one learned law per channel
   std::set<std::string> taken_out;         // terms an exchange took out (never put back by one)
   int exchanges = 0;
-  bool lag_corrected = false;  // the lag estimated again once the rounds are spent
+  bool lag_corrected = false;      // the lag estimated again once the rounds are spent
+  bool norm_tried_at_end = false;  // TL as the exact norm tried once the rounds are spent
   LoopResult r;
   r.model = start;
   if (!r.model.fitted()) fit_model(r.model, flights);
@@ -169,6 +170,44 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
         within_model_span(eligible.front().base_span_share))
       span_term = eligible.front();
     if (!span_too) eligible = eligible_candidates(dxs, min_share, false);
+    // TL written as the exact norm, and fitted against the reference where the flights record
+    // it, before the round's terms until it is kept, when it explains at least what the round's
+    // first term would (or no term is eligible), and once more when the rounds are spent: an
+    // effect that dominates the residual is written first, and what TL's expansion drops shows
+    // once those are. The round is diagnosed again with it, and a term it makes redundant leaves.
+    if (options.exact_norm && (round <= max_rounds || !norm_tried_at_end)) {
+      if (round > max_rounds) norm_tried_at_end = true;
+      auto step = loop_steps::exact_norm_step(r.model, r.rounds.back(), flights, truth, held_out,
+                                              validation, options);
+      if (step && round <= max_rounds && !eligible.empty() &&
+          step->first.second.explained < eligible.front().explained)
+        step.reset();  // the round's first term explains more: it goes first
+      if (step) {
+        LoopRound lr = std::move(step->first.second);
+        lr.round = round;
+        std::string added;
+        for (const TermSpec& t : step->first.first.terms)
+          if (std::find(r.model.terms.begin(), r.model.terms.end(), t) == r.model.terms.end())
+            added += (added.empty() ? "" : " + ") + t.text();
+        lr.added = added;
+        lr.model_change =
+            step->second.empty() ? "TL as the exact norm" : "TL as the exact norm; " + step->second;
+        r.rounds.push_back(std::move(lr));
+        r.model = std::move(step->first.first);
+        if (backward_after_revisits) {
+          loop_steps::Round last(context, max_rounds, &r);
+          last.backward_pass();
+        }
+        diagnose_all();
+        if (round > max_rounds) continue;  // the kept terms revisited with it in place
+        eligible = eligible_candidates(dxs, min_share, true);
+        span_term.reset();
+        if (options.ridge_for_span_terms && !eligible.empty() &&
+            within_model_span(eligible.front().base_span_share))
+          span_term = eligible.front();
+        if (!span_too) eligible = eligible_candidates(dxs, min_share, false);
+      }
+    }
     if ((options.choose_lambda || span_term) && round <= max_rounds) {
       if (auto step = better_lambda(r.model, start.fit.lambda, r.rounds.back(), flights, truth,
                                     held_out, validation, options)) {
@@ -258,7 +297,8 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
       step.refuse(e.term.text(), why);
     }
     bool kept = attempt(step, eligible);
-    if (!kept && lines_fallback && !round_options.slow_terms_on_lines && !lines.empty()) {
+    if (!kept && lines_fallback && r.model.fit.method == FitMethod::kBandpass &&
+        !round_options.slow_terms_on_lines && !lines.empty()) {
       // Nothing kept with slow terms sized on the calibration rows: the same round with them
       // sized on the held-out lines too. The model it starts from keeps its round's scores; a
       // step is judged against them as any other.

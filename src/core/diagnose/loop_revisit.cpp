@@ -27,7 +27,7 @@ bool Round::exchange(const DiagnoseOptions& options, std::set<std::string>* take
   size_t last_adding = 0;
   for (size_t k = 1; k < r_->rounds.size(); ++k) {
     const LoopRound& lr = r_->rounds[k];
-    if (lr.regularisation || lr.added.empty()) continue;
+    if (lr.regularisation || !lr.model_change.empty() || lr.added.empty()) continue;
     last_adding = k;
     for (const std::string& t : step_terms(lr.added)) added_in[t] = k;
   }

@@ -225,6 +225,64 @@ std::optional<std::pair<Model, LoopRound>> better_lambda(
   return best;
 }
 
+std::optional<std::pair<std::pair<Model, LoopRound>, std::string>> exact_norm_step(
+    const Model& model, const LoopRound& now, const std::vector<const FlightData*>& flights,
+    const std::string& truth, const std::vector<HeldOut>& held_out, const FlightData* validation,
+    const DiagnoseOptions& options) {
+  if (std::find(model.terms.begin(), model.terms.end(), "norm") != model.terms.end())
+    return std::nullopt;
+  std::vector<std::pair<Model, std::string>> tries;
+  {
+    Model m = model;
+    m.add_term(TermSpec("norm"));
+    tries.emplace_back(std::move(m), "");
+  }
+  const bool reference_recorded =
+      !truth.empty() && std::all_of(flights.begin(), flights.end(),
+                                    [&](const FlightData* f) { return f->has(truth); });
+  // Not over kept slow terms: a reference fit sizes every column on the calibration rows, where
+  // a drift of minutes barely moves (the band-pass model sizes them on the lines too).
+  if (model.fit.method == FitMethod::kBandpass && reference_recorded && model.slow_terms.empty()) {
+    for (const double factor : {1.0, 1e-2}) {
+      Model m = model;
+      m.fit.method = FitMethod::kReference;
+      m.fit.reference = truth;
+      m.fit.lambda = model.fit.lambda * factor;
+      m.fit.slow_lines.clear();
+      m.add_term(TermSpec("bias"));
+      m.add_term(TermSpec("norm"));
+      char change[200];
+      std::snprintf(change, sizeof(change), "fit.method reference (%s), fit.lambda %.3g",
+                    truth.c_str(), m.fit.lambda);
+      tries.emplace_back(std::move(m), change);
+    }
+  }
+  std::optional<std::pair<std::pair<Model, LoopRound>, std::string>> best;
+  for (auto& [m, change] : tries) {
+    m.coefficients.resize(0);
+    try {
+      fit_model(m, flights);
+    } catch (const Error&) {
+      continue;  // not a fit these flights allow: not a choice
+    }
+    LoopRound lr = score(m, flights, truth, held_out, validation);
+    if (!std::isfinite(lr.heldout_std_nT)) continue;
+    if (!best || lr.heldout_std_nT < best->first.second.heldout_std_nT)
+      best.emplace(std::make_pair(std::move(m), std::move(lr)), change);
+  }
+  if (!best) return std::nullopt;
+  const LoopRound& lr = best->first.second;
+  const bool halves =
+      !std::isfinite(now.selection_std_nT) || (lr.selection_std_nT < now.selection_std_nT &&
+                                               lr.confirmation_std_nT < now.confirmation_std_nT);
+  if (!halves || !refusal(lr, now, options).empty() ||
+      variance_share(lr.heldout_std_nT, now.heldout_std_nT) < options.accept_fraction ||
+      now.heldout_std_nT - lr.heldout_std_nT < options.resolution_nT)
+    return std::nullopt;
+  best->first.second.explained = variance_share(lr.heldout_std_nT, now.heldout_std_nT);
+  return best;
+}
+
 // Why a scored candidate model is refused against the current one ("" when it is kept).
 std::string refusal(const LoopRound& next, const LoopRound& now, const DiagnoseOptions& options) {
   char buf[256];
@@ -389,6 +447,8 @@ Model without_term(const Model& m, const TermSpec& term) {
 // (it replaced nothing of the start model: not a lag, not a re-estimated term of its shape).
 bool removable(const Model& start, const TermSpec& term) {
   if (std::find(start.terms.begin(), start.terms.end(), term) != start.terms.end()) return false;
+  // TL written as the exact norm (exact_norm_step) is TL's own form, not an added effect.
+  if (term == "norm" || term == "bias") return false;
   Model probe = start;
   try {
     probe.add_term(term);

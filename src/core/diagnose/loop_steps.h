@@ -44,6 +44,18 @@ std::optional<std::pair<Model, LoopRound>> better_lambda(
     const std::vector<HeldOut>& held_out, const FlightData* validation,
     const DiagnoseOptions& options);
 
+/// TL written as the exact norm (DiagnoseOptions::exact_norm): `model` (scored `now`) with the
+/// `norm` term under its own fit, and, when it is a band-pass fit with no slow term and every
+/// flight records `truth`, with `norm` and `bias` fitted against `truth` on the same calibration
+/// segments at the model's ridge strength and 1/100 of it; the one with the lowest held-out error,
+/// kept as better_lambda keeps a strength (its LoopRound's `explained` set: the share of the
+/// held-out error variance it removes). Second: the fit's change in words ("" when it stays).
+/// Nullopt when the model already has `norm` or none passes.
+std::optional<std::pair<std::pair<Model, LoopRound>, std::string>> exact_norm_step(
+    const Model& model, const LoopRound& now, const std::vector<const FlightData*>& flights,
+    const std::string& truth, const std::vector<HeldOut>& held_out, const FlightData* validation,
+    const DiagnoseOptions& options);
+
 /// Why a scored candidate model is refused against the current one ("" when it is kept): its
 /// held-out error does not fall, its validation flight's error does not fall, or its error on
 /// the calibration rows (LoopRound::calibration_std_nT) rises by half again and the resolution

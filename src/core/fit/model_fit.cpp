@@ -443,8 +443,9 @@ void fit_model(Model& model, const std::vector<const FlightData*>& flights) {
   fit_model(model, flights, nullptr);
 }
 
-void fit_model(Model& model, const std::vector<const FlightData*>& flights,
-               const std::vector<std::vector<Eigen::Index>>* slow_rows) {
+namespace {
+void fit_model_once(Model& model, const std::vector<const FlightData*>& flights,
+                    const std::vector<std::vector<Eigen::Index>>* slow_rows) {
   if (flights.empty()) throw Error("fit: no flight given");
   if (slow_rows && slow_rows->size() != flights.size())
     throw Error("fit: slow rows given for " + std::to_string(slow_rows->size()) + " flights, not " +
@@ -534,6 +535,31 @@ void fit_model(Model& model, const std::vector<const FlightData*>& flights,
     fit_slow_stage(model, terms, flights, slow, band_share, &report, slow_rows);
   }
   model.report = report;
+}
+}  // namespace
+
+void fit_model(Model& model, const std::vector<const FlightData*>& flights,
+               const std::vector<std::vector<Eigen::Index>>* slow_rows) {
+  const bool norm = std::find(model.terms.begin(), model.terms.end(), "norm") != model.terms.end();
+  if (!norm) {
+    fit_model_once(model, flights, slow_rows);
+    return;
+  }
+  // The exact norm's column is built from the model's own TL coefficients: fit, build it again
+  // from what the fit gave, and fit again until the coefficients settle (the remainder is second
+  // order in the aircraft's field, so a pass or two). An unfitted model starts with the column
+  // at zero, i.e. from plain TL.
+  constexpr int kMaxPasses = 8;
+  constexpr double kSettled = 1e-4;  // largest change of a coefficient, nT per column unit
+  if (!model.fitted()) fit_model_once(model, flights, slow_rows);
+  for (int pass = 0; pass < kMaxPasses; ++pass) {
+    const Eigen::VectorXd before = model.coefficients;
+    const std::vector<std::string> names = model.column_names;
+    fit_model_once(model, flights, slow_rows);
+    if (names == model.column_names && before.size() == model.coefficients.size() &&
+        (model.coefficients - before).cwiseAbs().maxCoeff() <= kSettled)
+      break;
+  }
 }
 
 Eigen::MatrixXd coefficient_jackknife_covariance(const Model& model,

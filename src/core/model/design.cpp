@@ -10,6 +10,7 @@
 #include "magcomp/core/error.h"
 #include "magcomp/core/math/timeseries.h"
 #include "magcomp/core/model/model.h"
+#include "magcomp/core/model/norm_remainder.h"
 
 namespace magcomp {
 
@@ -36,6 +37,9 @@ Eigen::MatrixXd design_matrix(const Model& model, const std::vector<TermPtr>& te
   for (const auto& t : terms) {
     const Eigen::Index w = t->columns();
     t->build(in, a.middleCols(c, w));
+    // The exact norm's column is the remainder of the model's own fitted TL.
+    if (t->spec() == "norm" && model.fitted())
+      a.col(c) = norm_remainder_nT(in, model.column_names, model.coefficients);
     c += w;
     lag_s += t->scalar_lag_s();
   }
@@ -45,8 +49,7 @@ Eigen::MatrixXd design_matrix(const Model& model, const std::vector<TermPtr>& te
   return a;
 }
 
-Eigen::Index slice_margin(const Model& model, const std::vector<TermPtr>& terms,
-                          double dt_s) {
+Eigen::Index slice_margin(const Model& model, const std::vector<TermPtr>& terms, double dt_s) {
   int reach = 0;
   for (const auto& t : terms) {
     const int r = t->row_reach();

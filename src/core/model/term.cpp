@@ -54,6 +54,7 @@ std::unique_ptr<Term> make_term(const std::string& spec) {
     if (kind == "fdm") return std::make_unique<FdmTerm>();
     if (kind == "bias") return std::make_unique<BiasTerm>();
     if (kind == "second_order") return std::make_unique<SecondOrderTerm>();
+    if (kind == "norm") return std::make_unique<NormTerm>();
   } else {
     if (auto t = parse_expr_term(spec)) return t;
     if (kind == "lag") {
@@ -67,7 +68,7 @@ std::unique_ptr<Term> make_term(const std::string& spec) {
   }
   throw Error("term '" + spec +
               "': unknown (known: permanent, induced, induced5, induced3, eddy, " +
-              "eddy8, eddy3, fdm, bias, second_order, lag:<seconds>, current:<channel>, " +
+              "eddy8, eddy3, fdm, bias, second_order, norm, lag:<seconds>, current:<channel>, " +
               "dcurrent:<channel>, rate:<channel>, and field:|induced:|scalar:<signal>)");
 }
 

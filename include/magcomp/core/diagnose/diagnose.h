@@ -171,6 +171,14 @@ struct DiagnoseOptions {
   /// better of that and the band-pass on the selection lines is scored (false: the band-pass
   /// alone sizes it).
   bool second_order_on_lines = true;
+  /// diagnose_loop: before the first round's terms, TL written as the exact norm (the `norm`
+  /// term: the scalar is |B + v|, TL's first-order expansion drops a part second order in the
+  /// aircraft's field that no channel carries) and, where the flights record the reference field
+  /// and the model has no slow term, fitted against it on the calibration segments (with a bias, at
+  /// the model's ridge strength and 1/100 of it): a band-pass fit cannot size that part beside TL's
+  /// columns. Kept as any step is: it lowers the held-out error by the accepted share and the
+  /// resolution, and on both halves (false: the model's TL as given).
+  bool exact_norm = true;
   /// diagnose_loop: when no term passes, each kept term of a recorded channel is taken out in
   /// turn and the model without it diagnosed; the best of that diagnosis's first candidates takes
   /// its place when it lowers the held-out error by the accepted share and the resolution and

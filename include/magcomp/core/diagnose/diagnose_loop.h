@@ -77,6 +77,11 @@ struct LoopRound {
   /// The round changed only the ridge strength (fit.lambda, chosen on the held-out lines;
   /// `added` reads "fit.lambda <value>"), before the round's terms; it shares their round number.
   bool regularisation = false;
+  /// The round wrote TL as the exact norm (DiagnoseOptions::exact_norm; `added` lists the terms it
+  /// added, `norm` and, with the fit against the reference, `bias`) and how the fit changed
+  /// ("fit.method reference (mag_1_c), fit.lambda 1e-06"; "" when the fit stayed); it shares the
+  /// round number of the round's terms. Empty otherwise.
+  std::string model_change;
   /// For a ridge step taken because the round's first term lay within the model's own span
   /// (DiagnoseOptions::ridge_for_span_terms): that term, and the share of its columns' energy the
   /// model's columns span (Candidate::base_span_share). Empty otherwise.

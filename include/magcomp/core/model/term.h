@@ -84,7 +84,7 @@ class Term {
 using TermPtr = std::shared_ptr<const Term>;
 
 /// Parses a term spec. Known: permanent, induced, induced5, induced3, eddy, eddy8, eddy3, fdm,
-/// bias, second_order, lag:<seconds>, and the term language (terms_expr.h): field:, induced:,
+/// bias, second_order, norm, lag:<seconds>, and the term language (terms_expr.h): field:, induced:,
 /// scalar:<signal> with the shorthands current:, dcurrent:, rate:<channel>. Throws
 /// magcomp::Error naming the spec otherwise.
 std::unique_ptr<Term> make_term(const std::string& spec);

@@ -1,4 +1,5 @@
-// magcomp: the second-order term and the scalar lag (the term language is in terms_expr.h).
+// magcomp: the second-order and exact-norm terms and the scalar lag (the term language is in
+// terms_expr.h).
 #pragma once
 
 #include "magcomp/core/model/term.h"
@@ -17,6 +18,25 @@ class SecondOrderTerm : public Term {
   std::vector<std::string> column_names() const override;
   int row_reach() const override { return 0; }
   void build(const TermInputs& in, Eigen::Ref<Eigen::MatrixXd> out) const override;
+};
+
+/// The exact norm: the scalar sensor reads |B + v|, v the aircraft's field as a vector, where TL
+/// writes its first-order expansion |B| + B̂·v. One column, norm_remainder_nT() of the model's own
+/// TL coefficients (permanent, induced*, eddy*): design_matrix() fills it from the fitted model,
+/// and a fit iterates until the TL coefficients it is built from settle (fit_model). Its
+/// coefficient is about 1. Zeros until the model's TL is fitted. `norm`.
+class NormTerm : public Term {
+ public:
+  std::string spec() const override { return "norm"; }
+  std::string effect() const override {
+    return "the scalar as the exact norm of Earth's field plus TL's vector field (what TL's "
+           "first-order expansion drops, from TL's own coefficients)";
+  }
+  std::vector<std::string> column_names() const override { return {"norm"}; }
+  int row_reach() const override { return 1; }  // the eddy field's central difference
+  void build(const TermInputs&, Eigen::Ref<Eigen::MatrixXd> out) const override {
+    out.setZero();  // design_matrix() fills it from the model's coefficients
+  }
 };
 
 /// A time lag between the scalar and the vector sensor: the scalar reads everything it measures
