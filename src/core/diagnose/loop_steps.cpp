@@ -191,6 +191,20 @@ LoopRound score(const Model& model, const std::vector<const FlightData*>& flight
 }
 
 // The ridge strength chosen on the held-out samples (see loop_steps.h).
+namespace {
+// A change to the model as a whole (the ridge strength, TL's form), scored `lr` against `now`:
+// kept when it lowers the held-out error on both halves, by the accepted share and the
+// resolution, and `refusal` finds nothing against it.
+bool passes_as_a_step(const LoopRound& lr, const LoopRound& now, const DiagnoseOptions& options) {
+  const bool halves =
+      !std::isfinite(now.selection_std_nT) || (lr.selection_std_nT < now.selection_std_nT &&
+                                               lr.confirmation_std_nT < now.confirmation_std_nT);
+  return halves && refusal(lr, now, options).empty() &&
+         variance_share(lr.heldout_std_nT, now.heldout_std_nT) >= options.accept_fraction &&
+         now.heldout_std_nT - lr.heldout_std_nT >= options.resolution_nT;
+}
+}  // namespace
+
 std::optional<std::pair<Model, LoopRound>> better_lambda(
     const Model& model, double ceiling, const LoopRound& now,
     const std::vector<const FlightData*>& flights, const std::string& truth,
@@ -215,13 +229,7 @@ std::optional<std::pair<Model, LoopRound>> better_lambda(
   }
   if (!best) return std::nullopt;
   const LoopRound& lr = best->second;
-  const bool halves =
-      !std::isfinite(now.selection_std_nT) || (lr.selection_std_nT < now.selection_std_nT &&
-                                               lr.confirmation_std_nT < now.confirmation_std_nT);
-  if (!halves || !refusal(lr, now, options).empty() ||
-      variance_share(lr.heldout_std_nT, now.heldout_std_nT) < options.accept_fraction ||
-      now.heldout_std_nT - lr.heldout_std_nT < options.resolution_nT)
-    return std::nullopt;
+  if (!passes_as_a_step(lr, now, options)) return std::nullopt;
   return best;
 }
 
@@ -272,13 +280,7 @@ std::optional<std::pair<std::pair<Model, LoopRound>, std::string>> exact_norm_st
   }
   if (!best) return std::nullopt;
   const LoopRound& lr = best->first.second;
-  const bool halves =
-      !std::isfinite(now.selection_std_nT) || (lr.selection_std_nT < now.selection_std_nT &&
-                                               lr.confirmation_std_nT < now.confirmation_std_nT);
-  if (!halves || !refusal(lr, now, options).empty() ||
-      variance_share(lr.heldout_std_nT, now.heldout_std_nT) < options.accept_fraction ||
-      now.heldout_std_nT - lr.heldout_std_nT < options.resolution_nT)
-    return std::nullopt;
+  if (!passes_as_a_step(lr, now, options)) return std::nullopt;
   best->first.second.explained = variance_share(lr.heldout_std_nT, now.heldout_std_nT);
   return best;
 }
