@@ -1768,6 +1768,27 @@ TEST(Discovery, ATermAnExchangeMakesRedundantLeaves) {
   EXPECT_LE(next_without_nT, next_with_nT);
 }
 
+// The base flight with no hidden effect, aircraft seed 77: flight 5, its next flight 6, and TL
+// (tl_sim.yaml) fitted on the first with its error on the next, nT.
+struct NoEffectFlights {
+  static sim::Scenario flight(unsigned seed) {
+    sim::Scenario s = sim::load_scenario(test::source_dir() + "/config/scenarios/random_base.yaml");
+    s.aircraft_seed = 77;
+    s.seed = seed;
+    return s;
+  }
+  bool hidden_none = flight(5).hidden.empty();
+  sim::Simulation first = sim::simulate(flight(5), Igrf::installed());
+  sim::Simulation next = sim::simulate(flight(6), Igrf::installed());
+  Model tl = fitted_tl();
+  double tl_next_nT = evaluate_model(tl, next.flight, "mag_1_c", false).std_nT;
+  Model fitted_tl() const {
+    Model m = load_model_yaml(test::source_dir() + "/config/models/tl_sim.yaml");
+    fit_model(m, {&first.flight});
+    return m;
+  }
+};
+
 TEST(Discovery, TheSecondOrderTermIsSizedOnTheLinesWhereNoEffectIsHidden) {
   // The base flight with no hidden effect (aircraft seed 77, flights 5 and 6): the scalar is the
   // norm of the Earth's field plus the aircraft's permanent, induced and eddy fields, which TL
@@ -1777,17 +1798,11 @@ TEST(Discovery, TheSecondOrderTermIsSizedOnTheLinesWhereNoEffectIsHidden) {
   // Sized on the held-out lines (cross-fitted, as a slow candidate is), it explains most of the
   // residual TL leaves, and the loop writes it rather than a channel that stands in for it: the
   // model names no channel where no effect is hidden.
-  sim::Scenario a = sim::load_scenario(test::source_dir() + "/config/scenarios/random_base.yaml");
-  ASSERT_TRUE(a.hidden.empty());
-  a.aircraft_seed = 77;
-  a.seed = 5;
-  sim::Scenario b = a;
-  b.seed = 6;
-  const Igrf& igrf = Igrf::installed();
-  const sim::Simulation fa = sim::simulate(a, igrf), fb = sim::simulate(b, igrf);
-  Model start = load_model_yaml(test::source_dir() + "/config/models/tl_sim.yaml");
-  fit_model(start, {&fa.flight});
-  const double tl_next_nT = evaluate_model(start, fb.flight, "mag_1_c", false).std_nT;
+  const NoEffectFlights w;
+  ASSERT_TRUE(w.hidden_none);
+  const sim::Simulation &fa = w.first, &fb = w.next;
+  const Model& start = w.tl;
+  const double tl_next_nT = w.tl_next_nT;
   // The second-order term sized by the band-pass on the calibration segments.
   Model on_rows = start;
   on_rows.add_term(TermSpec("second_order"));
@@ -1828,16 +1843,11 @@ TEST(Discovery, TlIsWrittenAsTheExactNormWhereNoEffectIsHidden) {
   // column from TL's own coefficients) and, the flights recording the stinger, fits it against
   // the stinger on the same calibration segments. It names no channel, and the next flight falls
   // from TL's 0.176 nT to about the sensors' noise.
-  sim::Scenario a = sim::load_scenario(test::source_dir() + "/config/scenarios/random_base.yaml");
-  a.aircraft_seed = 77;
-  a.seed = 5;
-  sim::Scenario b = a;
-  b.seed = 6;
-  const Igrf& igrf = Igrf::installed();
-  const sim::Simulation fa = sim::simulate(a, igrf), fb = sim::simulate(b, igrf);
-  Model start = load_model_yaml(test::source_dir() + "/config/models/tl_sim.yaml");
-  fit_model(start, {&fa.flight});
-  const double tl_next_nT = evaluate_model(start, fb.flight, "mag_1_c", false).std_nT;
+  const NoEffectFlights w;
+  ASSERT_TRUE(w.hidden_none);
+  const sim::Simulation &fa = w.first, &fb = w.next;
+  const Model& start = w.tl;
+  const double tl_next_nT = w.tl_next_nT;
   const LoopResult loop = diagnose_loop(start, fa.flight, "mag_1_c", 5, 0.05, DiagnoseOptions{});
   const double loop_next_nT = evaluate_model(loop.model, fb.flight, "mag_1_c", false).std_nT;
   std::string added, change;
