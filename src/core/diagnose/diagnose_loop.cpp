@@ -72,9 +72,7 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
   // (a stand-in) never displaces a term the calibration rows size.
   DiagnoseOptions round_options = options;
   round_options.slow_terms_on_lines = false;
-  const bool lines_fallback = options.slow_terms_on_lines &&
-                              r.model.fit.method == FitMethod::kBandpass &&
-                              r.model.fit.slow_lines.empty();
+  const bool lines_fallback = options.slow_terms_on_lines && r.model.fit.slow_lines.empty();
   const std::vector<double> lines =
       lines_fallback ? lines_beside_calibration(r.model.fit, flights) : std::vector<double>{};
   std::vector<HeldOut> held_out(flights.size());  // each flight's held-out samples, in two halves
@@ -297,8 +295,7 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
       step.refuse(e.term.text(), why);
     }
     bool kept = attempt(step, eligible);
-    if (!kept && lines_fallback && r.model.fit.method == FitMethod::kBandpass &&
-        !round_options.slow_terms_on_lines && !lines.empty()) {
+    if (!kept && lines_fallback && !round_options.slow_terms_on_lines && !lines.empty()) {
       // Nothing kept with slow terms sized on the calibration rows: the same round with them
       // sized on the held-out lines too. The model it starts from keeps its round's scores; a
       // step is judged against them as any other.

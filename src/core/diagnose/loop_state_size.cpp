@@ -52,7 +52,7 @@ bool Round::size_following_a_state() {
   // loop's round that sizes them there, or a model that lists fit.slow_lines). On calibration
   // rows that hold the state steady, the two terms are one column, and their sizes there are
   // the ridge's.
-  if (model.fit.slow_lines.empty() || model.fit.method != FitMethod::kBandpass) return false;
+  if (model.fit.slow_lines.empty()) return false;
   std::set<std::string> in_model;
   for (const std::string& t : model.terms)
     for (const std::string& f : fields_of(TermSpec(t))) in_model.insert(f);

@@ -117,8 +117,7 @@ LoopRound score(const Model& model, const std::vector<const FlightData*>& flight
   double ss[3] = {0, 0, 0}, n[3] = {0, 0, 0};  // both halves, selection, confirmation
   double all_ss = 0, all_n = 0, fom_sum = 0, foms = 0, cal_ss = 0, cal_n = 0;
   std::optional<Model> for_half[2];  // sized on the other half's lines
-  if (!model.slow_terms.empty() && !model.fit.slow_lines.empty() &&
-      model.fit.method == FitMethod::kBandpass)
+  if (!model.slow_terms.empty() && !model.fit.slow_lines.empty())
     for (int h = 0; h < 2; ++h) for_half[h] = sized_on_half(model, flights, held_out, 1 - h);
   for (size_t f = 0; f < flights.size(); ++f) {
     const Evaluation ev = evaluate_model(model, *flights[f], truth, false);
@@ -248,15 +247,18 @@ std::optional<std::pair<std::pair<Model, LoopRound>, std::string>> exact_norm_st
   const bool reference_recorded =
       !truth.empty() && std::all_of(flights.begin(), flights.end(),
                                     [&](const FlightData* f) { return f->has(truth); });
-  // Not over kept slow terms: a reference fit sizes every column on the calibration rows, where
-  // a drift of minutes barely moves (the band-pass model sizes them on the lines too).
-  if (model.fit.method == FitMethod::kBandpass && reference_recorded && model.slow_terms.empty()) {
+  // Kept slow terms stay slow: the reference fit sizes the other columns on the calibration
+  // rows and the slow ones after them, there and on fit.slow_lines, as the band-pass model did
+  // (a drift of minutes barely moves on the calibration rows: sized there alone, it would lie
+  // within the bias's span).
+  if (model.fit.method == FitMethod::kBandpass && reference_recorded &&
+      (model.slow_terms.empty() || model.fit.reference == truth)) {
     for (const double factor : {1.0, 1e-2}) {
       Model m = model;
       m.fit.method = FitMethod::kReference;
       m.fit.reference = truth;
       m.fit.lambda = model.fit.lambda * factor;
-      m.fit.slow_lines.clear();
+      if (m.slow_terms.empty()) m.fit.slow_lines.clear();
       m.add_term(TermSpec("bias"));
       m.add_term(TermSpec("norm"));
       char change[200];
@@ -426,7 +428,7 @@ std::vector<TermSpec> learned_law(const std::string& channel, const Candidate* s
 // Adds a candidate's term to `m`; a slow one (Candidate::slow) joins Model::slow_terms, fitted
 // against `truth` unless the model names its own reference.
 void add_candidate_term(const TermSpec& term, bool slow, const std::string& truth, Model* m) {
-  if (slow && m->fit.method == FitMethod::kBandpass) {
+  if (slow) {
     m->add_slow_term(term, truth);
     return;
   }

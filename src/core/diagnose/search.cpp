@@ -192,11 +192,11 @@ Search::Search(const Model& m, const FlightData& d, const std::string& truth_nam
       unit[static_cast<size_t>(held[k])] = k < held.size() / 2 ? 0 : 1;
     }
   }
-  // --- The base's slow terms, fitted after the band-pass stage as fit_model does (on the
+  // --- The base's slow terms, fitted after the first stage as fit_model does (on the
   // calibration rows and fit.slow_lines).
   slow0 = Eigen::VectorXd::Zero(n);
   Eigen::MatrixXd nuisance = a0;  // what a candidate's slow fit is fitted beside
-  if (fs.method == FitMethod::kBandpass) {
+  {
     const std::vector<Eigen::Index> slow = slow_columns(fs.method, terms, model.slow_terms);
     Eigen::MatrixXd sc(n, static_cast<Eigen::Index>(slow.size()));
     for (size_t k = 0; k < slow.size(); ++k)
@@ -258,10 +258,12 @@ Search::Search(const Model& m, const FlightData& d, const std::string& truth_nam
     }
   // --- Slow candidates: sized on the calibration rows, or, with the held-out lines too, on the
   // calibration rows and each half's rows (a run per unit), each half scored with the other's.
+  // A reference fit sizes every column on the calibration rows unfiltered already: its slow
+  // candidates are those sized on the lines too.
   if (fs.method == FitMethod::kBandpass && !slow_on_lines) {
     slow_stage = std::make_shared<SlowStage>(nuisance, e0, runs, fs.lambda);
     slow_runs = runs;
-  } else if (fs.method == FitMethod::kBandpass) {
+  } else if (slow_on_lines) {
     std::vector<std::pair<Eigen::Index, Eigen::Index>> half_runs[2] = {runs, runs};
     for (size_t k = 0; k < held.size();) {
       size_t end = k + 1;

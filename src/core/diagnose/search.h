@@ -203,7 +203,7 @@ class Search {
   Eigen::VectorXd e0;                     // base error, N
   Eigen::VectorXd slow0;                  // the base's slow-stage correction (Model::slow_terms), N
   Eigen::MatrixXd band_inv;               // (af0' af0 + lambda)^-1, p x p
-  std::shared_ptr<SlowStage> slow_stage;  // a candidate's slow fit (band-pass models only)
+  std::shared_ptr<SlowStage> slow_stage;  // a candidate's slow fit (a reference fit: on the lines)
   // With slow_on_lines: the slow fit on the calibration rows and the lines of half h (0:
   // selection, 1: confirmation), which sizes the other half's error; slow_stage is the first.
   std::shared_ptr<SlowStage> slow_cross[2];

@@ -348,10 +348,13 @@ void add_column_warnings(const Model& model, const Eigen::MatrixXd& g,
   }
 }
 
-// The slow stage (Model::slow_terms): after the band-pass stage has set the other coefficients,
-// the slow columns are fitted to the scalar minus fit.reference minus that stage's correction on
-// the calibration segments of every flight and its fit.slow_lines, unfiltered, each segment's
-// and line's mean removed.
+// The slow stage (Model::slow_terms): after the first stage (the band-pass stage, or the
+// reference fit of the other columns) has set the other coefficients, the slow columns are fitted
+// to the scalar minus fit.reference minus that stage's correction on the calibration segments of
+// every flight and its fit.slow_lines, unfiltered, each segment's and line's mean removed. A
+// reference fit's first stage reads the calibration rows unfiltered: `band_share` is then the
+// other coefficients' share of the slow columns there, and the two stages together are the
+// reference fit with the slow terms' size read where they move.
 // `band_share` (fast x slow columns): the band-pass coefficients' share of each slow column, what
 // they took of its band-passed content (the field of a bus at its steady level is that level
 // times the direction cosines, which the permanent terms read): given back once the slow

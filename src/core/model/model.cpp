@@ -120,7 +120,7 @@ std::vector<bool> slow_mask(const std::vector<TermPtr>& terms,
 std::vector<Eigen::Index> fittable_columns(FitMethod method, const std::vector<TermPtr>& terms,
                                            const std::vector<std::string>& slow_terms) {
   std::vector<Eigen::Index> out = fittable_columns(method, terms);
-  if (method != FitMethod::kBandpass || slow_terms.empty()) return out;
+  if (slow_terms.empty()) return out;
   const std::vector<bool> slow = slow_mask(terms, slow_terms);
   out.erase(std::remove_if(out.begin(), out.end(),
                            [&](Eigen::Index c) { return slow[static_cast<size_t>(c)]; }),
@@ -131,7 +131,8 @@ std::vector<Eigen::Index> fittable_columns(FitMethod method, const std::vector<T
 std::vector<Eigen::Index> slow_columns(FitMethod method, const std::vector<TermPtr>& terms,
                                        const std::vector<std::string>& slow_terms) {
   std::vector<Eigen::Index> out;
-  if (method != FitMethod::kBandpass || slow_terms.empty()) return out;
+  (void)method;  // either fit: the slow terms are its second stage
+  if (slow_terms.empty()) return out;
   const std::vector<bool> slow = slow_mask(terms, slow_terms);
   for (size_t c = 0; c < slow.size(); ++c) {
     if (slow[c]) out.push_back(static_cast<Eigen::Index>(c));

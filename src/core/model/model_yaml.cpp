@@ -245,7 +245,7 @@ void parse_terms(const YAML::Node& node, const std::string& path, Model* m) {
 }
 
 // A list of terms of the model (as `terms` writes them) under `key`: `black_box_terms` (those
-// that form a learned law) or `slow_terms` (those fitted after the band-pass stage).
+// that form a learned law) or `slow_terms` (those fitted after the fit's first stage).
 std::vector<std::string> parse_term_subset(const YAML::Node& node, const std::string& path,
                                            const std::string& key, const Model& m) {
   if (!node.IsSequence()) throw Error(path + ": key '" + key + "' must be a list");

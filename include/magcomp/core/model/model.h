@@ -80,10 +80,11 @@ struct Model {
   /// fitted shape, not a physical law (diagnose adds them when no term of the language passes).
   /// Written as `black_box_terms` in the model file.
   std::vector<std::string> black_box_terms;
-  /// The terms (among `terms`) too slow for a band-pass fit to see (a heater's hundreds of
-  /// seconds, a drift): with fit.method bandpass they are left out of the band-pass stage and
-  /// fitted after it against fit.reference on the same calibration segments, unfiltered, each
-  /// segment's mean removed (fit_slow_columns). Written as `slow_terms` in the model file.
+  /// The terms (among `terms`) too slow for the calibration segments to size (a heater's
+  /// hundreds of seconds, a drift): left out of the fit's first stage (the band-pass stage, or
+  /// the reference fit of the other columns) and fitted after it against fit.reference on the
+  /// same calibration segments and fit.slow_lines, unfiltered, each segment's and line's mean
+  /// removed (fit_slow_stage). Written as `slow_terms` in the model file.
   std::vector<std::string> slow_terms;
   double bt_scale_nT = 50000.0;
   FitSettings fit;
@@ -138,12 +139,12 @@ Eigen::MatrixXd design_matrix(const Model& model, const std::vector<TermPtr>& te
 /// for a reference fit; for a band-pass fit only those of bandpass_observable() terms (a bias,
 /// say, is filtered away).
 std::vector<Eigen::Index> fittable_columns(FitMethod method, const std::vector<TermPtr>& terms);
-/// The same, without the columns of `slow_terms` when `method` is bandpass (the slow stage
-/// fits those).
+/// The same, without the columns of `slow_terms` (the slow stage fits those, after the others).
 std::vector<Eigen::Index> fittable_columns(FitMethod method, const std::vector<TermPtr>& terms,
                                            const std::vector<std::string>& slow_terms);
-/// Indices of the design-matrix columns of the model's slow terms (Model::slow_terms) that a fit
-/// by `method` fits after its band-pass stage: empty for a reference fit (it fits every column).
+/// Indices of the design-matrix columns of the model's slow terms (Model::slow_terms), which a fit
+/// by either method fits after its first stage (the band-pass stage, or the reference fit of the
+/// other columns on the calibration rows), on the calibration rows and fit.slow_lines.
 std::vector<Eigen::Index> slow_columns(FitMethod method, const std::vector<TermPtr>& terms,
                                        const std::vector<std::string>& slow_terms);
 
