@@ -111,9 +111,10 @@ void add_calibrate(CLI::App& app) {
   cmd->add_option("--model", a->model_path, "model YAML (plain or fitted: refit)")->required();
   cmd->add_option("--term", a->terms, "add a term, e.g. current:cur_strb (repeatable)");
   cmd->add_option("--slow-term", a->slow_terms,
-                  "add a term too slow for the band-pass (a heater, a drift), fitted after it "
-                  "against fit.reference (default mag_1_c) on the calibration segments, "
-                  "unfiltered (repeatable; diagnose prints it for such a candidate)");
+                  "add a term too slow for the calibration segments to size (a heater, a "
+                  "drift), fitted after the other columns against fit.reference (default "
+                  "mag_1_c) on the calibration segments and fit.slow_lines, unfiltered "
+                  "(repeatable; diagnose prints it for such a candidate)");
   cmd->add_option("--out", a->out, "fitted model YAML to write")->required();
   cmd->add_option("--holdout-truth", a->holdout_truth,
                   "reference field for the model's error on the lines it is not fitted on (its "
