@@ -43,6 +43,14 @@ std::vector<double> survey_lines(const FlightData& d, const FitSettings& fit) {
   return std::vector<double>(survey.begin(), survey.end());
 }
 
+// The random-effects base flight with gain_nT per unit of the flap motor's current through a
+// tau_s first-order lag added to its scalar (a drift, nT).
+FlightData flight_with_flap_drift(double gain_nT, double tau_s) {
+  FlightData d = test::scenario("random_base").flight;
+  d.mutable_column("mag_5_uc") += gain_nT * first_order_lag(d.column("cur_flap"), d.dt_s(), tau_s);
+  return d;
+}
+
 TEST(Model, BandpassFitRecoversKnownCoefficients) {
   Model m = tl16();
   const Eigen::VectorXd c_true = true_coefficients(16);
@@ -194,9 +202,8 @@ TEST(Model, ASlowTermIsSizedOnTheSlowLinesWhereItsChannelMoves) {
   // 400 s the drift barely moves within a calibration segment, so that the slow stage sizes it
   // from little; on the survey lines (fit.slow_lines, each line's mean removed) it moves by its
   // whole span. Sized there, the gain is found within 5 %.
-  FlightData d = test::scenario("random_base").flight;
-  const double gain_nT = 1.5, tau_s = 400.0;
-  d.mutable_column("mag_5_uc") += gain_nT * first_order_lag(d.column("cur_flap"), d.dt_s(), tau_s);
+  const double gain_nT = 1.5;
+  const FlightData d = flight_with_flap_drift(gain_nT, 400.0);
   Model cal = load_model_yaml(test::source_dir() + "/config/models/tl_sim.yaml");
   cal.add_slow_term(TermSpec("scalar:cur_flap|lp(400)"), "mag_1_c");
   Model lines = cal;
@@ -243,9 +250,8 @@ TEST(Model, AReferenceFitSizesASlowTermOnTheSlowLinesToo) {
   // moves (each segment's and line's mean removed), with the other columns' share given back:
   // its gain is found within 5 %. Without fit.slow_lines (the calibration rows alone, in two
   // stages) it is as loosely sized as jointly.
-  FlightData d = test::scenario("random_base").flight;
-  const double gain_nT = 1.5, tau_s = 400.0;
-  d.mutable_column("mag_5_uc") += gain_nT * first_order_lag(d.column("cur_flap"), d.dt_s(), tau_s);
+  const double gain_nT = 1.5;
+  const FlightData d = flight_with_flap_drift(gain_nT, 400.0);
   Model joint = load_model_yaml(test::source_dir() + "/config/models/tl_sim.yaml");
   joint.fit.method = FitMethod::kReference;
   joint.fit.reference = "mag_1_c";
