@@ -197,7 +197,7 @@ Search::Search(const Model& m, const FlightData& d, const std::string& truth_nam
   slow0 = Eigen::VectorXd::Zero(n);
   Eigen::MatrixXd nuisance = a0;  // what a candidate's slow fit is fitted beside
   {
-    const std::vector<Eigen::Index> slow = slow_columns(fs.method, terms, model.slow_terms);
+    const std::vector<Eigen::Index> slow = slow_columns(terms, model.slow_terms);
     Eigen::MatrixXd sc(n, static_cast<Eigen::Index>(slow.size()));
     for (size_t k = 0; k < slow.size(); ++k)
       sc.col(static_cast<Eigen::Index>(k)) = a_all.col(slow[k]);

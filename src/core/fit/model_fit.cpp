@@ -480,7 +480,7 @@ void fit_model_once(Model& model, const std::vector<const FlightData*>& flights,
     throw Error("fit: only " + std::to_string(rows) + " usable samples for " +
                 std::to_string(fitted_cols) + " coefficients in " + sources);
   }
-  const std::vector<Eigen::Index> slow = slow_columns(s.method, terms, model.slow_terms);
+  const std::vector<Eigen::Index> slow = slow_columns(terms, model.slow_terms);
   Eigen::MatrixXd a_slow;  // the slow columns as the band-pass stage sees them
   if (!slow.empty()) {
     std::vector<bool> keep_slow(keep.size(), false);

@@ -128,10 +128,9 @@ std::vector<Eigen::Index> fittable_columns(FitMethod method, const std::vector<T
   return out;
 }
 
-std::vector<Eigen::Index> slow_columns(FitMethod method, const std::vector<TermPtr>& terms,
+std::vector<Eigen::Index> slow_columns(const std::vector<TermPtr>& terms,
                                        const std::vector<std::string>& slow_terms) {
   std::vector<Eigen::Index> out;
-  (void)method;  // either fit: the slow terms are its second stage
   if (slow_terms.empty()) return out;
   const std::vector<bool> slow = slow_mask(terms, slow_terms);
   for (size_t c = 0; c < slow.size(); ++c) {

@@ -145,7 +145,7 @@ std::vector<Eigen::Index> fittable_columns(FitMethod method, const std::vector<T
 /// Indices of the design-matrix columns of the model's slow terms (Model::slow_terms), which a fit
 /// by either method fits after its first stage (the band-pass stage, or the reference fit of the
 /// other columns on the calibration rows), on the calibration rows and fit.slow_lines.
-std::vector<Eigen::Index> slow_columns(FitMethod method, const std::vector<TermPtr>& terms,
+std::vector<Eigen::Index> slow_columns(const std::vector<TermPtr>& terms,
                                        const std::vector<std::string>& slow_terms);
 
 /// Samples of margin that make rows of the design matrix and of the aligned scalar built on a
