@@ -68,6 +68,31 @@ TEST(Model, BandpassFitRecoversKnownCoefficients) {
   EXPECT_EQ(ev.per_line.size(), 4u);
 }
 
+TEST(Model, ALineTheFlightsDoNotFlyIsWarnedAboutByItsKey) {
+  // A mistyped line number in fit.lines or fit.slow_lines leaves the fit on fewer rows than the
+  // model file lists: each such line is a warning naming its key, the line and the flight; the
+  // lines flown give none, and the fit is that of the lines flown.
+  Model m = tl16();
+  const Eigen::VectorXd c_true = true_coefficients(16);
+  const FlightData d = test::synthetic_tl_flight(m, c_true);
+  Model typo = m;
+  typo.fit.lines.push_back(1001.2);  // for 1001.02, say
+  typo.fit.slow_lines = {1001.01, 5555.0};
+  fit_model(m, {&d});
+  fit_model(typo, {&d});
+  const auto count = [](const Model& x, const std::string& text) {
+    return std::count_if(x.report.warnings.begin(), x.report.warnings.end(),
+                         [&](const std::string& w) { return w.find(text) != w.npos; });
+  };
+  for (const std::string& w : typo.report.warnings) std::printf("  warning: %s\n", w.c_str());
+  EXPECT_EQ(count(m, "is flown on none of"), 0);
+  EXPECT_EQ(count(typo, "is flown on none of"), 2);
+  EXPECT_EQ(count(typo, "fit.lines: line 1001.2 is flown on none of " + d.source()), 1);
+  EXPECT_EQ(count(typo, "fit.slow_lines: line 5555 is flown on none of " + d.source()), 1);
+  ASSERT_EQ(typo.coefficients.size(), m.coefficients.size());
+  EXPECT_LT((typo.coefficients - m.coefficients).norm(), 1e-9 * m.coefficients.norm());
+}
+
 TEST(Model, ReferenceFitRecoversBias) {
   Model m = tl16();
   m.terms.push_back("bias");

@@ -429,7 +429,7 @@ void fit_slow_stage(Model& model, const std::vector<TermPtr>& terms,
   char buf[256];
   std::snprintf(buf, sizeof(buf),
                 "%lld slow column(s) fitted against %s on %lld samples of the calibration "
-                "segments%s (segment means and the band-pass columns' span removed): residual "
+                "segments%s (segment means and the other columns' span removed): residual "
                 "std %.3g nT",
                 static_cast<long long>(k), s.reference.c_str(),
                 static_cast<long long>(stage.rows()),
@@ -447,6 +447,31 @@ void fit_model(Model& model, const std::vector<const FlightData*>& flights) {
 }
 
 namespace {
+
+// Each line of fit.lines and fit.slow_lines that none of `flights` flies, as a warning naming the
+// key and the flights (`sources`): a mistyped line number fits on fewer rows than the model file
+// lists, and the fit would say nothing of it.
+void warn_lines_flown_nowhere(const FitSettings& s, const std::vector<const FlightData*>& flights,
+                              const std::string& sources, std::vector<std::string>* warnings) {
+  for (const auto& [key, lines] :
+       {std::make_pair("fit.lines", &s.lines), std::make_pair("fit.slow_lines", &s.slow_lines)}) {
+    for (const double l : *lines) {
+      bool flown = false;
+      for (const FlightData* f : flights) {
+        if (!f->has("line")) continue;
+        const auto line = f->column("line");
+        for (Eigen::Index i = 0; i < line.size() && !flown; ++i)
+          flown = std::abs(line[i] - l) < 1e-6;
+        if (flown) break;
+      }
+      if (flown) continue;
+      char buf[96];
+      std::snprintf(buf, sizeof(buf), "%s: line %.10g is flown on none of ", key, l);
+      warnings->push_back(buf + sources + ": no row of it is fitted");
+    }
+  }
+}
+
 void fit_model_once(Model& model, const std::vector<const FlightData*>& flights,
                     const std::vector<std::vector<Eigen::Index>>* slow_rows) {
   if (flights.empty()) throw Error("fit: no flight given");
@@ -467,6 +492,7 @@ void fit_model_once(Model& model, const std::vector<const FlightData*>& flights,
     sources += (sources.empty() ? "" : ",") + flight->source();
   }
   FitReport report;
+  warn_lines_flown_nowhere(s, flights, sources, &report.warnings);
   CalibrationBlocks blocks = calibration_blocks(model, terms, flights, &report);
   const Eigen::Index rows = blocks.rows;
   const Eigen::Index p = static_cast<Eigen::Index>(keep.size());
