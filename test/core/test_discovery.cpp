@@ -1649,7 +1649,7 @@ WholeLoop whole_loop(unsigned r, int count, unsigned d, std::vector<sim::HiddenE
   return w;
 }
 
-TEST(Discovery, TheKeptTermsParametersAreEstimatedAgainOnceTheRoundsAreSpent) {
+TEST(DiscoveryLong, TheKeptTermsParametersAreEstimatedAgainOnceTheRoundsAreSpent) {
   // Run 107, second aircraft: drifts of vol_fan (120 s) and vol_acpwr (141 s) and an inductive
   // pick-up of cur_tank. The loop's five rounds add a stand-in of vol_block, the pick-up, the fan's
   // drift through 74.1 s (sized while the bus drift was still in the residual) and a stand-in of
@@ -1695,7 +1695,7 @@ TEST(Discovery, TheKeptTermsParametersAreEstimatedAgainOnceTheRoundsAreSpent) {
   EXPECT_LT(next_after_nT, 0.9 * next_before_nT);
 }
 
-TEST(Discovery, TheModelsLagIsEstimatedAgainOnceTheRoundsAreSpent) {
+TEST(DiscoveryLong, TheModelsLagIsEstimatedAgainOnceTheRoundsAreSpent) {
   // Run 117, second aircraft: a 0.271 s lag of the scalar and a flex of the roll rate through
   // 0.825 s. The lag is written in round 3 (0.284 s) beside a stand-in of the flex; the flex's
   // own term and Bt's fill rounds 4 and 5, and with them in place the diagnosis ranks the lag
@@ -1740,7 +1740,7 @@ TEST(Discovery, TheModelsLagIsEstimatedAgainOnceTheRoundsAreSpent) {
   EXPECT_LT(next_after_nT, 0.95 * next_before_nT);
 }
 
-TEST(Discovery, ATermAnExchangeMakesRedundantLeaves) {
+TEST(DiscoveryLong, ATermAnExchangeMakesRedundantLeaves) {
   // Run 117, first aircraft: a 0.271 s lag and a flex of the roll rate through 0.825 s. Once the
   // rounds are spent, the flex's term is estimated again together with the roll rate's
   // derivative, and two exchanges put the lag in place of a product of the roll rate and the
