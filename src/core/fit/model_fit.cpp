@@ -1,5 +1,5 @@
-// magcomp: fitting a model on flights: calibration runs, band-pass and stacking, the ridge fit (see
-// fit/model_fit.h).
+// magcomp: fitting a model on flights: the ridge fit of the calibration rows (calibration_rows.cpp
+// selects and stacks them) and the slow stage (see fit/model_fit.h).
 #include <Eigen/Dense>
 #include <algorithm>
 #include <atomic>
@@ -69,110 +69,6 @@ double std_dev(const Eigen::VectorXd& v) {
 }
 
 }  // namespace
-
-std::vector<std::pair<Eigen::Index, Eigen::Index>> calibration_runs(
-    const FitSettings& s, const FlightData& data, const Eigen::MatrixXd& a,
-    const Eigen::VectorXd& y, std::vector<std::string>* warnings) {
-  std::vector<Eigen::Index> selected;
-  if (s.lines.empty() && s.windows.empty()) {
-    if (s.method == FitMethod::kBandpass)
-      throw Error("fit: bandpass needs calibration segments (fit.lines or fit.windows)");
-    selected.resize(static_cast<size_t>(data.size()));
-    for (Eigen::Index i = 0; i < data.size(); ++i) selected[static_cast<size_t>(i)] = i;
-  } else {
-    selected = data.select(s.lines, s.windows);
-  }
-  return calibration_runs(s, data, std::move(selected), a, y, warnings);
-}
-
-std::vector<std::pair<Eigen::Index, Eigen::Index>> calibration_runs(
-    const FitSettings& s, const FlightData& data, std::vector<Eigen::Index> selected,
-    const Eigen::MatrixXd& a, const Eigen::VectorXd& y, std::vector<std::string>* warnings) {
-  const bool bandpass = s.method == FitMethod::kBandpass;
-  // Rows with NaN anywhere in the regression are dropped: a segment is split there.
-  selected.erase(
-      std::remove_if(selected.begin(), selected.end(),
-                     [&](Eigen::Index i) { return !std::isfinite(y[i]) || !a.row(i).allFinite(); }),
-      selected.end());
-  const auto runs = data.contiguous_runs(selected, 1.5 * data.dt_s());
-  const Eigen::Index min_len = bandpass ? 2 * s.trim + 10 : 1;
-  std::vector<std::pair<Eigen::Index, Eigen::Index>> kept;
-  for (const auto& run : runs) {
-    const Eigen::Index len = run.second - run.first + 1;
-    if (len >= min_len) {
-      kept.push_back(run);
-    } else if (warnings) {
-      std::ostringstream w;
-      w << data.source() << ": segment at tt " << data.tt()[run.first] << " s has " << len
-        << " samples, too short for the band-pass and trim; skipped";
-      warnings->push_back(w.str());
-    }
-  }
-  return kept;
-}
-
-std::vector<std::pair<Eigen::Index, Eigen::Index>> slow_stage_runs(
-    const FitSettings& s, const FlightData& data, const Eigen::MatrixXd& a,
-    const Eigen::VectorXd& y, const std::vector<Eigen::Index>* rows) {
-  auto runs = calibration_runs(s, data, a, y, nullptr);
-  if (!rows && s.slow_lines.empty()) return runs;
-  const std::vector<Eigen::Index> calibration = data.select(s.lines, s.windows);
-  // The extra rows by line (a run never spans two lines), calibration rows left out.
-  std::map<double, std::vector<Eigen::Index>> by_line;
-  const Eigen::VectorXd line =
-      data.has("line") ? Eigen::VectorXd(data.column("line")) : Eigen::VectorXd::Zero(data.size());
-  const auto take = [&](Eigen::Index i) {
-    if (i >= 0 && i < data.size() && std::isfinite(line[i]) &&
-        !std::binary_search(calibration.begin(), calibration.end(), i))
-      by_line[line[i]].push_back(i);
-  };
-  if (rows) {
-    for (Eigen::Index i : *rows) take(i);
-  } else {
-    for (const double l : s.slow_lines)
-      for (Eigen::Index i : data.select({l}, {})) take(i);
-  }
-  for (auto& [l, r] : by_line) {
-    std::sort(r.begin(), r.end());
-    r.erase(std::unique(r.begin(), r.end()), r.end());
-    const auto more = calibration_runs(s, data, std::move(r), a, y, nullptr);
-    runs.insert(runs.end(), more.begin(), more.end());
-  }
-  return runs;
-}
-
-Eigen::MatrixXd stack_runs(const FitSettings& s, double dt_s, const Eigen::MatrixXd& x,
-                           const std::vector<std::pair<Eigen::Index, Eigen::Index>>& runs) {
-  const bool bandpass = s.method == FitMethod::kBandpass;
-  Eigen::Index rows = 0;
-  for (const auto& [first, last] : runs) rows += (last - first + 1) - (bandpass ? 2 * s.trim : 0);
-  Eigen::MatrixXd out(rows, x.cols());
-  Eigen::Index r = 0;
-  if (!(dt_s > 0) || !std::isfinite(dt_s)) {
-    throw Error("fit: the flight's sample period (" + std::to_string(dt_s) + " s) is not positive");
-  }
-  const Butterworth bp = [&] {
-    try {
-      return Butterworth::band_pass(s.order, s.band_low_hz, s.band_high_hz, 1.0 / dt_s);
-    } catch (const Error& e) {
-      throw Error(std::string("fit.band_hz: ") + e.what());
-    }
-  }();
-  for (const auto& [first, last] : runs) {
-    const Eigen::Index len = last - first + 1;
-    if (bandpass) {
-      const Eigen::Index n = len - 2 * s.trim;
-      static const int threads = std::max(1u, std::thread::hardware_concurrency());
-      out.middleRows(r, n) =
-          bp.filtfilt_parallel(x.middleRows(first, len), threads).middleRows(s.trim, n);
-      r += n;
-    } else {
-      out.middleRows(r, len) = x.middleRows(first, len);
-      r += len;
-    }
-  }
-  return out;
-}
 
 Eigen::VectorXd fit_target(const Model& model, const FlightData& data) {
   Eigen::VectorXd y = aligned_scalar(model, data);
@@ -448,30 +344,6 @@ void fit_model(Model& model, const std::vector<const FlightData*>& flights) {
 
 namespace {
 
-// Each line of fit.lines and fit.slow_lines that none of `flights` flies, as a warning naming the
-// key and the flights (`sources`): a mistyped line number fits on fewer rows than the model file
-// lists, and the fit would say nothing of it.
-void warn_lines_flown_nowhere(const FitSettings& s, const std::vector<const FlightData*>& flights,
-                              const std::string& sources, std::vector<std::string>* warnings) {
-  for (const auto& [key, lines] :
-       {std::make_pair("fit.lines", &s.lines), std::make_pair("fit.slow_lines", &s.slow_lines)}) {
-    for (const double l : *lines) {
-      bool flown = false;
-      for (const FlightData* f : flights) {
-        if (!f->has("line")) continue;
-        const auto line = f->column("line");
-        for (Eigen::Index i = 0; i < line.size() && !flown; ++i)
-          flown = std::abs(line[i] - l) < 1e-6;
-        if (flown) break;
-      }
-      if (flown) continue;
-      char buf[96];
-      std::snprintf(buf, sizeof(buf), "%s: line %.10g is flown on none of ", key, l);
-      warnings->push_back(buf + sources + ": no row of it is fitted");
-    }
-  }
-}
-
 void fit_model_once(Model& model, const std::vector<const FlightData*>& flights,
                     const std::vector<std::vector<Eigen::Index>>* slow_rows) {
   if (flights.empty()) throw Error("fit: no flight given");
@@ -492,7 +364,7 @@ void fit_model_once(Model& model, const std::vector<const FlightData*>& flights,
     sources += (sources.empty() ? "" : ",") + flight->source();
   }
   FitReport report;
-  warn_lines_flown_nowhere(s, flights, sources, &report.warnings);
+  report.warnings = lines_flown_nowhere(s, flights, sources);
   CalibrationBlocks blocks = calibration_blocks(model, terms, flights, &report);
   const Eigen::Index rows = blocks.rows;
   const Eigen::Index p = static_cast<Eigen::Index>(keep.size());

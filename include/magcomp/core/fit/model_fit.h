@@ -44,6 +44,13 @@ std::vector<std::pair<Eigen::Index, Eigen::Index>> slow_stage_runs(
     const FitSettings& fit, const FlightData& data, const Eigen::MatrixXd& a,
     const Eigen::VectorXd& y, const std::vector<Eigen::Index>* rows = nullptr);
 
+/// The lines of fit.lines and fit.slow_lines that none of `flights` flies, each as a warning
+/// naming the key, the line and the flights (`sources`, their names comma-separated): a mistyped
+/// line number leaves the fit on fewer rows than the model file lists.
+std::vector<std::string> lines_flown_nowhere(const FitSettings& fit,
+                                             const std::vector<const FlightData*>& flights,
+                                             const std::string& sources);
+
 /// The rows of `x` in each run, band-passed and trimmed (bandpass method) or as they are
 /// (reference method), stacked. dt_s is the sample period.
 Eigen::MatrixXd stack_runs(const FitSettings& fit, double dt_s, const Eigen::MatrixXd& x,
