@@ -124,15 +124,10 @@ std::vector<std::string> lines_flown_nowhere(const FitSettings& s,
   for (const auto& [key, lines] :
        {std::make_pair("fit.lines", &s.lines), std::make_pair("fit.slow_lines", &s.slow_lines)}) {
     for (const double l : *lines) {
-      bool flown = false;
-      for (const FlightData* f : flights) {
-        if (!f->has("line")) continue;
-        const auto line = f->column("line");
-        for (Eigen::Index i = 0; i < line.size() && !flown; ++i)
-          flown = std::abs(line[i] - l) < 1e-6;
-        if (flown) break;
-      }
-      if (flown) continue;
+      if (std::any_of(flights.begin(), flights.end(), [&](const FlightData* f) {
+            return f->has("line") && !f->select({l}, {}).empty();
+          }))
+        continue;
       char buf[96];
       std::snprintf(buf, sizeof(buf), "%s: line %.10g is flown on none of ", key, l);
       warnings.push_back(buf + sources + ": no row of it is fitted");
