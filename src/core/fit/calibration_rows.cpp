@@ -118,9 +118,10 @@ Eigen::MatrixXd stack_runs(const FitSettings& s, double dt_s, const Eigen::Matri
 }
 
 std::vector<std::string> lines_flown_nowhere(const FitSettings& s,
-                                             const std::vector<const FlightData*>& flights,
-                                             const std::string& sources) {
+                                             const std::vector<const FlightData*>& flights) {
   std::vector<std::string> warnings;
+  std::string sources;
+  for (const FlightData* f : flights) sources += (sources.empty() ? "" : ",") + f->source();
   for (const auto& [key, lines] :
        {std::make_pair("fit.lines", &s.lines), std::make_pair("fit.slow_lines", &s.slow_lines)}) {
     for (const double l : *lines) {

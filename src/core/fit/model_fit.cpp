@@ -2,22 +2,16 @@
 // selects and stacks them) and the slow stage (see fit/model_fit.h).
 #include <Eigen/Dense>
 #include <algorithm>
-#include <atomic>
 #include <cmath>
 #include <cstdio>
-#include <exception>
 #include <limits>
-#include <map>
-#include <mutex>
 #include <sstream>
-#include <thread>
 
 #include "magcomp/core/error.h"
 #include "magcomp/core/fit/block_jackknife.h"
 #include "magcomp/core/fit/model_fit.h"
 #include "magcomp/core/fit/parameter_fit.h"
 #include "magcomp/core/fit/slow_stage.h"
-#include "magcomp/core/math/butterworth.h"
 #include "magcomp/core/math/timeseries.h"
 #include "magcomp/core/model/field_range.h"
 #include "magcomp/core/model/model.h"
@@ -364,7 +358,6 @@ void fit_model_once(Model& model, const std::vector<const FlightData*>& flights,
     sources += (sources.empty() ? "" : ",") + flight->source();
   }
   FitReport report;
-  report.warnings = lines_flown_nowhere(s, flights, sources);
   CalibrationBlocks blocks = calibration_blocks(model, terms, flights, &report);
   const Eigen::Index rows = blocks.rows;
   const Eigen::Index p = static_cast<Eigen::Index>(keep.size());
@@ -441,9 +434,15 @@ void fit_model_once(Model& model, const std::vector<const FlightData*>& flights,
 
 void fit_model(Model& model, const std::vector<const FlightData*>& flights,
                const std::vector<std::vector<Eigen::Index>>* slow_rows) {
+  // The lines no flight flies, read once whatever the passes below (said first in the report).
+  const std::vector<std::string> unflown = lines_flown_nowhere(model.fit, flights);
+  const auto say_unflown = [&] {
+    model.report.warnings.insert(model.report.warnings.begin(), unflown.begin(), unflown.end());
+  };
   const bool norm = std::find(model.terms.begin(), model.terms.end(), "norm") != model.terms.end();
   if (!norm) {
     fit_model_once(model, flights, slow_rows);
+    say_unflown();
     return;
   }
   // The exact norm's column is built from the model's own TL coefficients: fit, build it again
@@ -461,6 +460,7 @@ void fit_model(Model& model, const std::vector<const FlightData*>& flights,
         (model.coefficients - before).cwiseAbs().maxCoeff() <= kSettled)
       break;
   }
+  say_unflown();
 }
 
 Eigen::MatrixXd coefficient_jackknife_covariance(const Model& model,

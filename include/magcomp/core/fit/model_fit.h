@@ -45,11 +45,10 @@ std::vector<std::pair<Eigen::Index, Eigen::Index>> slow_stage_runs(
     const Eigen::VectorXd& y, const std::vector<Eigen::Index>* rows = nullptr);
 
 /// The lines of fit.lines and fit.slow_lines that none of `flights` flies, each as a warning
-/// naming the key, the line and the flights (`sources`, their names comma-separated): a mistyped
-/// line number leaves the fit on fewer rows than the model file lists.
+/// naming the key, the line and the flights: a mistyped line number leaves the fit on fewer rows
+/// than the model file lists (fit_model puts them first in FitReport::warnings).
 std::vector<std::string> lines_flown_nowhere(const FitSettings& fit,
-                                             const std::vector<const FlightData*>& flights,
-                                             const std::string& sources);
+                                             const std::vector<const FlightData*>& flights);
 
 /// The rows of `x` in each run, band-passed and trimmed (bandpass method) or as they are
 /// (reference method), stacked. dt_s is the sample period.
