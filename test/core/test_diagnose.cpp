@@ -191,7 +191,7 @@ TEST(DiagnoseLong, TheFuelPumpsWireIsRankedFirstAndAddingItRemovesTheExcess) {
   expect_ranked_first({{"fuel_pump_wire", "current:cur_tank"}});
 }
 
-TEST(Diagnose, TwoHiddenEffectsAreFoundInTwoRoundsAndReachTheFloor) {
+TEST(DiagnoseLong, TwoHiddenEffectsAreFoundInTwoRoundsAndReachTheFloor) {
   const FlightData& f = test::scenario("two_effects").flight;
   const LoopResult r = diagnose_loop(test::calibrated_tl(f), f, "mag_1_c", 5, 0.05, {});
   std::set<std::string> added;
@@ -985,7 +985,7 @@ TEST(DiagnoseLong, OneTermAtATimeTakesTheBusFirst) {
 // of the same lamp records its current again with 0.03 A of noise. Either term lowers the error
 // alike, so the loop keeps one and names the other as its look-alike (rounds table and JSON); a
 // pump switched on its own pattern, which carries no effect, is not named. (A channel told apart
-// has no look-alike: Diagnose.TwoHiddenEffectsAreFoundInTwoRoundsAndReachTheFloor.)
+// has no look-alike: DiagnoseLong.TwoHiddenEffectsAreFoundInTwoRoundsAndReachTheFloor.)
 TEST(Diagnose, AChannelTheFlightCannotTellApartIsNamedAsALookAlike) {
   FlightData f = test::scenario("tl_only").flight;
   const Eigen::VectorXd t = f.tt();

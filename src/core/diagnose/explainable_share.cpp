@@ -8,6 +8,7 @@
 #include <future>
 #include <map>
 
+#include "magcomp/core/math/tall_products.h"
 #include "magcomp/core/model/signal.h"
 
 namespace magcomp {
@@ -119,7 +120,7 @@ double cross_fit(const Problem& p, const std::vector<const Functions*>& function
   for (int f = 0; f < kFolds; ++f) {
     a[f] = design(p, functions, p.rows[f], shift);
     y[f] = values_at(*p.residual, p.rows[f]);
-    g[f] = a[f].transpose() * a[f];
+    g[f] = gram(a[f]);
     b[f] = a[f].transpose() * y[f];
     g_all += g[f];
     b_all += b[f];

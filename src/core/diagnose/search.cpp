@@ -14,6 +14,7 @@
 #include "magcomp/core/error.h"
 #include "magcomp/core/evaluate/evaluation.h"
 #include "magcomp/core/fit/model_fit.h"
+#include "magcomp/core/math/tall_products.h"
 #include "magcomp/core/model/field_range.h"
 #include "magcomp/core/model/terms_expr.h"
 #include "search.h"
@@ -314,7 +315,7 @@ Eigen::RowVectorXd Search::held_mean(const Eigen::MatrixXd& cols) const {
 double Search::base_span_share(const Eigen::MatrixXd& band) const {
   const double all = band.squaredNorm();
   if (!(all > 0) || !std::isfinite(all)) return NAN;
-  return (af0_basis.transpose() * band).squaredNorm() / all;
+  return transpose_product(af0_basis, band).squaredNorm() / all;
 }
 
 double Search::fit_rss(const Eigen::MatrixXd& cols) const {
@@ -336,7 +337,7 @@ Scored Search::score_slow(const Eigen::MatrixXd& cols, const Eigen::MatrixXd* ba
   // base's share of the columns' band content, as fit_model gives it back.
   const SlowStage* stage_for[2] = {slow_cross[0] ? slow_cross[1].get() : slow_stage.get(),
                                    slow_cross[0] ? slow_cross[0].get() : slow_stage.get()};
-  const Eigen::MatrixXd share = band ? band_inv * (af0.transpose() * *band) : band_share(cols);
+  const Eigen::MatrixXd share = band ? band_inv * transpose_product(af0, *band) : band_share(cols);
   Eigen::VectorXd size_for[2], back[2];
   for (int h = 0; h < 2; ++h) {
     size_for[h] = stage_for[h]->fit(cols);
@@ -371,7 +372,7 @@ Scored Search::score_slow(const Eigen::MatrixXd& cols, const Eigen::MatrixXd* ba
 }
 
 Eigen::MatrixXd Search::band_share(const Eigen::MatrixXd& cols) const {
-  return band_inv * (af0.transpose() * stacked(cols));
+  return band_inv * transpose_product(af0, stacked(cols));
 }
 
 Scored Search::score(const Eigen::MatrixXd& cols, bool slow_ok) const {

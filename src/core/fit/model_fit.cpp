@@ -12,6 +12,7 @@
 #include "magcomp/core/fit/model_fit.h"
 #include "magcomp/core/fit/parameter_fit.h"
 #include "magcomp/core/fit/slow_stage.h"
+#include "magcomp/core/math/tall_products.h"
 #include "magcomp/core/math/timeseries.h"
 #include "magcomp/core/model/field_range.h"
 #include "magcomp/core/model/model.h"
@@ -21,13 +22,6 @@
 namespace magcomp {
 
 namespace {
-// A'A as a symmetric rank update (half the work of a general product).
-Eigen::MatrixXd gram(const Eigen::MatrixXd& a) {
-  Eigen::MatrixXd g = Eigen::MatrixXd::Zero(a.cols(), a.cols());
-  g.selfadjointView<Eigen::Lower>().rankUpdate(a.transpose());
-  return g.selfadjointView<Eigen::Lower>();
-}
-
 Eigen::VectorXd ridge_from_normal(Eigen::MatrixXd g, const Eigen::VectorXd& aty, double lambda) {
   g.diagonal().array() += lambda;
   return g.ldlt().solve(aty);

@@ -6,6 +6,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "magcomp/core/math/tall_products.h"
+
 namespace magcomp {
 
 SlowStage::SlowStage(const Eigen::MatrixXd& fast, const Eigen::VectorXd& target,
@@ -61,10 +63,10 @@ Eigen::VectorXd SlowStage::fit(const Eigen::MatrixXd& s, double* rss) const {
   // with the centred columns (no residualised copy): S~'S~ = S'S - (D'S)' G^-1 (D'S), and
   // S~'e = S'e - (D'S)' G^-1 D'e with e already residualised.
   const Eigen::MatrixXd sc = centred(s);
-  Eigen::MatrixXd g = sc.transpose() * sc;
+  Eigen::MatrixXd g = gram(sc);
   Eigen::VectorXd aty = sc.transpose() * e_;
   if (d_.cols() > 0) {
-    const Eigen::MatrixXd dts = d_.transpose() * sc;
+    const Eigen::MatrixXd dts = transpose_product(d_, sc);
     g -= dts.transpose() * (ginv_ * dts);
     aty -= dts.transpose() * w_;
   }
