@@ -83,7 +83,7 @@ TEST(Discovery, RandomEffectsCarryToTheNextFlight) { expect_random_effects_carry
 // The long tests (suites *Long) run in scripts/bench_long_tests, not in the test command.
 TEST(DiscoveryLong, RandomEffectsCarryToTheNextFlight) { expect_random_effects_carry({3, 5}); }
 
-TEST(Discovery, ATermLeavesOnlyWhenLaterTermsMakeItRedundant) {
+TEST(DiscoveryLong, ATermLeavesOnlyWhenLaterTermsMakeItRedundant) {
   // Run 11, first aircraft: an inductive pickup of cur_bat_2, a heater of cur_heat (I² through
   // 366 s) and a 63 s drift of cur_srvo_i. The pickup is kept first; the heater's term then joins
   // it, and the pickup is still needed: without it the held-out error doubles. The backward pass
@@ -291,7 +291,7 @@ TEST(Discovery, ATermWhoseSizeDoesNotHoldOnTheCalibrationRowsIsRefused) {
   EXPECT_LT(d.rounds.front().calibration_std_nT, d.rounds.front().heldout_std_nT);
 }
 
-TEST(Discovery, ADriftTheCalibrationBarelyShowsIsSizedOnTheLines) {
+TEST(DiscoveryLong, ADriftTheCalibrationBarelyShowsIsSizedOnTheLines) {
   // Run 6, first aircraft: a 408 s drift of the flap motor's current. Within a calibration
   // segment it barely moves: sized there (the slow stage on the calibration rows alone), no
   // term passes and the loop keeps TL, 3.69 nT on the next flight
