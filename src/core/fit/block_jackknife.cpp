@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "magcomp/core/error.h"
+#include "magcomp/core/math/tall_products.h"
 
 namespace magcomp {
 
@@ -37,9 +38,7 @@ Jackknife block_jackknife(const Eigen::MatrixXd& x, const Eigen::VectorXd& y, in
   for (int q = 0; q < blocks; ++q) {
     const auto [from, to] = jackknife_block(m, blocks, q);
     const auto part = x.middleRows(from, to - from);
-    Eigen::MatrixXd gq = Eigen::MatrixXd::Zero(k, k);
-    gq.selfadjointView<Eigen::Lower>().rankUpdate(part.transpose());
-    g[static_cast<size_t>(q)] = gq.selfadjointView<Eigen::Lower>();
+    g[static_cast<size_t>(q)] = gram(part);
     b[static_cast<size_t>(q)] = part.transpose() * y.segment(from, to - from);
     g_all += g[static_cast<size_t>(q)];
     b_all += b[static_cast<size_t>(q)];
