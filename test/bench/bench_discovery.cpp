@@ -24,7 +24,9 @@
 // added once the ridge step is refused, DiagnoseOptions::refuse_within_span_terms false); no-joint
 // (no set of terms chosen together, Diagnosis::joint); no-calibration-check (no step refused for
 // raising the error on the calibration rows); no-exchange (a kept term is never replaced by what
-// the model without it ranks first, DiagnoseOptions::exchange_terms); lenient-backward (the
+// the model without it ranks first, DiagnoseOptions::exchange_terms); keep-redundant (a kept
+// term stays where another kept term, its parameters estimated again, makes it redundant,
+// DiagnoseOptions::redundant_once_refined false); lenient-backward (the
 // backward pass drops a term only when it explains under a quarter of the accepted share,
 // DiagnoseOptions::backward_at_acceptance false); slow-on-calibration (a slow
 // term sized on the calibration rows alone, not on the held-out lines too);
@@ -90,6 +92,8 @@ int main(int argc, char** argv) {
         options.line_jackknife = true;
       } else if (opt == "first-kept") {
         options.better_look_alike = false;
+      } else if (opt == "keep-redundant") {
+        options.redundant_once_refined = false;
       } else if (opt == "keep-factors") {
         options.drop_idle_factors = false;
       } else if (opt == "lenient-backward") {
@@ -130,7 +134,7 @@ int main(int argc, char** argv) {
             "backward-after-adds, "
             "slow-on-calibration, thresholds-on-selection, thresholds-on-calibration, "
             "second-order-on-calibration, tl-as-given, "
-            "keep-factors, first-kept, line-jackknife, "
+            "keep-factors, keep-redundant, first-kept, line-jackknife, "
             "validate, two-flights, states, half-several, verbose, why, rounds=N or draws=N\n",
             opt.c_str());
         return 2;

@@ -1266,6 +1266,67 @@ TEST(Discovery, AKeptTermGivesWayToALookAlikeThatDoesBetterWithTheOtherTermsInPl
   EXPECT_FALSE(again.better_look_alike_in_place()) << end.r.rounds.back().added;
 }
 
+TEST(Discovery, ATermAnotherMakesRedundantOnceItsParametersAreEstimatedAgainLeaves) {
+  // Run 113, second aircraft, its states recorded: a flex of the yaw rate (3.5 s) and an
+  // inductive pick-up of cur_bat_2. The loop's first round keeps the pick-up with the yaw rate
+  // through a 3.28 s low-pass (estimated while the residual still held TL's expansion), and a
+  // later round adds the lateral acceleration (the yaw rate times the airspeed) through 3.84 s:
+  // the two low-passes together write the 3.5 s one. No refit of the kept terms with the
+  // acceleration in place gains what a change must, and the loop ended "complete" with a channel
+  // more (scripts/bench_discovery 1 113 half-several states draws=3 why keep-redundant). With the
+  // yaw rate's time constant estimated again without it, the acceleration is redundant (and
+  // the other way round: either, its time constant estimated again, writes the flex).
+  const sim::Scenario base = base_with_states();
+  std::vector<sim::HiddenEffect> effects;
+  const sim::Scenario a = test::discovery_scenario(113, 2, base, 1, &effects);
+  const sim::HiddenEffect* flex = drawn(effects, "flex", "yaw_rate");
+  ASSERT_TRUE(flex) << "run 113 draws no flex of the yaw rate";
+  const std::string yaw = "field:yaw_rate|lp(3.28)", acc = "field:ins_acc_y|lp(3.84)";
+  RoundAtTheEnd end(a, base_lambda(), {"dcurrent:cur_bat_2", yaw, acc});
+  const double before_nT = end.r.rounds.back().heldout_std_nT;
+  const double next_before_nT = end.next_nT(end.r.model);
+  std::set<std::string> dropped;
+  loop_steps::Round round(end.context, 3, &end.r);
+  ASSERT_TRUE(round.redundant_once_refined(&dropped));
+  const LoopRound& last = end.r.rounds.back();
+  // One of the two leaves; the other, its time constant estimated again, is the flex's own.
+  ASSERT_EQ(last.removed.size(), 1u);
+  ASSERT_EQ(last.replaced.size(), 1u);
+  const std::set<std::string> pair = {last.removed[0].first, last.replaced[0].first};
+  EXPECT_EQ(pair, (std::set<std::string>{yaw, acc}));
+  EXPECT_TRUE(dropped.count(last.removed[0].first));
+  const TermSpec kept(last.added);
+  ASSERT_TRUE(kept.expr()) << last.added;
+  const SignalExpr& signal = kept.expr()->signal();
+  ASSERT_EQ(signal.sources.size(), 1u);
+  ASSERT_EQ(signal.transforms.size(), 1u);
+  EXPECT_NEAR(signal.transforms[0].param, flex->time_constant_s, 0.05 * flex->time_constant_s);
+  const double dropped_nT = last.heldout_std_nT;
+  // Which of the two stays is the held-out lines' choice (here, the model built directly with
+  // TL's band-pass fit, the acceleration; in the loop, with TL as the exact norm, the yaw rate,
+  // and the look-alike pass names the other when it does better): one term writes the flex.
+  int flex_terms = 0;
+  for (const TermSpec& t : end.r.model.terms) {
+    const std::set<std::string> f = loop_steps::fields_of(t);
+    flex_terms += static_cast<int>(f.count("yaw_rate") + f.count("ins_acc_y"));
+  }
+  EXPECT_EQ(flex_terms, 1);
+  // Without the acceleration the lines lose less than a term must gain, and the next flight no
+  // more than that.
+  const DiagnoseOptions defaults;
+  EXPECT_LT(dropped_nT, before_nT + defaults.resolution_nT);
+  EXPECT_LT(end.r.rounds.back().heldout_std_nT, before_nT + defaults.resolution_nT);
+  const double next_after_nT = end.next_nT(end.r.model);
+  EXPECT_LT(next_after_nT, next_before_nT + defaults.resolution_nT);
+  std::printf("  %s + %s -> %s: held out %.4f -> %.4f nT, next flight %.4f -> %.4f nT\n",
+              yaw.c_str(), acc.c_str(), end.r.rounds.back().added.c_str(), before_nT,
+              end.r.rounds.back().heldout_std_nT, next_before_nT, next_after_nT);
+  // From the true terms, nothing leaves: the pick-up is needed with the flex's time constant
+  // estimated again, and the flex with nothing to estimate but its own.
+  loop_steps::Round again(end.context, 5, &end.r);
+  EXPECT_FALSE(again.redundant_once_refined(&dropped)) << end.r.rounds.back().added;
+}
+
 TEST(Discovery, AThresholdEstimatedBeforeTheOtherTermsIsEstimatedAgainWithThem) {
   // Run 101, second aircraft, its states recorded: a relay of cur_outpwr above 13.9 A and a
   // product yaw_rate*vol_outpwr. The loop's first round takes the relay's step together with

@@ -60,6 +60,7 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
   if (flights.empty()) throw Error("diagnose: no flight given");
   std::set<std::string> learned_channels;  // one learned law per channel
   std::set<std::string> taken_out;         // terms an exchange took out (never put back by one)
+  std::set<std::string> dropped_refined;   // terms Round::redundant_once_refined dropped
   int exchanges = 0;
   bool lag_corrected = false;      // the lag estimated again once the rounds are spent
   bool norm_tried_at_end = false;  // TL as the exact norm tried once the rounds are spent
@@ -115,6 +116,12 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
          ++swaps) {
       loop_steps::Round rename(context, max_rounds, &r);
       if (!rename.better_look_alike_in_place()) break;
+    }
+    // And a kept term another kept term makes redundant, its parameters estimated again, leaves
+    // (at most one per kept term over the loop).
+    while (round > max_rounds && round > 1 && options.redundant_once_refined) {
+      loop_steps::Round drop(context, max_rounds, &r);
+      if (!drop.redundant_once_refined(&dropped_refined)) break;
     }
     // Then a term the model so changed makes redundant leaves (Round::backward_pass).
     if (backward_after_revisits && r.rounds.size() > rounds_before_end) {
@@ -370,6 +377,11 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
     // gives way to it (Round::better_look_alike_in_place).
     if (revisited(options.better_look_alike,
                   [](loop_steps::Round& x) { return x.better_look_alike_in_place(); }))
+      continue;
+    // Nothing kept changes: a kept term that another kept term makes redundant once that term's
+    // parameters are estimated again without it leaves (Round::redundant_once_refined).
+    if (revisited(options.redundant_once_refined,
+                  [&](loop_steps::Round& x) { return x.redundant_once_refined(&dropped_refined); }))
       continue;
     const auto& rejected = step.rejected();
     if (!kept) {

@@ -299,6 +299,95 @@ bool Round::better_look_alike_in_place() {
   return true;
 }
 
+bool Round::redundant_once_refined(std::set<std::string>* dropped) {
+  const LoopRound now = r_->rounds.back();
+  const Model& model = r_->model;
+  const double accept = c_.options.accept_fraction;
+  struct Best {
+    std::pair<Model, LoopRound> fitted;
+    std::string dropped_text, old_text, new_text;
+  };
+  std::optional<Best> best;
+  const auto listed = [](const std::vector<std::string>& list, const std::string& t) {
+    return std::find(list.begin(), list.end(), t) != list.end();
+  };
+  for (const TermSpec& t : model.terms) {
+    if (!removable(c_.start, t) || fields_of(t).empty() ||
+        listed(model.black_box_terms, t.text()) || dropped->count(t.text()))
+      continue;
+    const Model without = without_term(model, t);
+    // Each other kept term with its parameters estimated again: (index in `without`, spec).
+    std::vector<std::pair<size_t, std::string>> again;
+    for (size_t k = 0; k < without.terms.size(); ++k) {
+      const TermSpec& u = without.terms[k];
+      const ExprTerm* e = u.expr();
+      if (!e || !removable(c_.start, u) || fields_of(u).empty() ||
+          listed(without.black_box_terms, u.text()))
+        continue;
+      if (listed(without.slow_terms, u.text())) {
+        const std::string spec = retimed_slow_term(without, k);
+        if (!spec.empty()) again.emplace_back(k, spec);
+        continue;
+      }
+      const auto& transforms = e->signal().transforms;
+      if (std::any_of(transforms.begin(), transforms.end(), [](const Transform& x) {
+            return x.has_param() && x.kind != TransformKind::Ramp;
+          }))
+        again.emplace_back(k, e->shape());
+    }
+    for (const auto& [k, spec] : again) {
+      try {
+        Model m = listed(without.slow_terms, without.terms[k].text())
+                      ? with_term_as(without, without.terms[k].text(), spec)
+                      : without;
+        if (!listed(without.slow_terms, without.terms[k].text())) m.terms[k] = TermSpec(spec);
+        auto fitted = fit_score(std::move(m));
+        const LoopRound& lr = fitted.second;
+        // The term leaves only when it explains neither the accepted share of the held-out
+        // variance nor the resolution against that model: a slow term's time constant estimated
+        // again may write much of another slow term over one flight, not all of it.
+        if (!std::isfinite(lr.heldout_std_nT) ||
+            variance_share(now.heldout_std_nT, lr.heldout_std_nT) >= accept ||
+            lr.heldout_std_nT - now.heldout_std_nT >= c_.options.resolution_nT)
+          continue;  // the term still earns its place
+        if (std::isfinite(now.validation_std_nT) &&
+            variance_share(now.validation_std_nT, lr.validation_std_nT) >= accept)
+          continue;
+        if (std::isfinite(now.calibration_std_nT) && std::isfinite(lr.calibration_std_nT) &&
+            lr.calibration_std_nT > 1.5 * now.calibration_std_nT &&
+            lr.calibration_std_nT > now.calibration_std_nT + c_.options.resolution_nT)
+          continue;
+        const std::string new_text = fitted.first.terms[k].text();
+        if (new_text == without.terms[k].text()) continue;  // the same parameters: backward_pass
+        if (best && !(lr.heldout_std_nT < best->fitted.second.heldout_std_nT)) continue;
+        best.emplace(Best{std::move(fitted), t.text(), without.terms[k].text(), new_text});
+      } catch (const Error&) {
+      }
+    }
+  }
+  if (!best) return false;
+  LoopRound lr = std::move(best->fitted.second);
+  lr.round = round_;
+  lr.added = best->new_text;
+  lr.explained = variance_share(lr.heldout_std_nT, now.heldout_std_nT);
+  char why[300];
+  std::snprintf(why, sizeof(why),
+                "its parameters estimated again without %s: held-out error %.4f -> %.4f nT",
+                best->dropped_text.c_str(), now.heldout_std_nT, lr.heldout_std_nT);
+  lr.replaced.emplace_back(best->old_text, why);
+  std::snprintf(why, sizeof(why),
+                "made redundant by %s, its parameters estimated again: without it the held-out "
+                "error %.4f -> %.4f nT",
+                best->new_text.c_str(), now.heldout_std_nT, lr.heldout_std_nT);
+  lr.removed.emplace_back(best->dropped_text, why);
+  lr.rejected = std::move(rejected_);
+  rejected_.clear();
+  dropped->insert(best->dropped_text);
+  r_->rounds.push_back(std::move(lr));
+  r_->model = std::move(best->fitted.first);
+  return true;
+}
+
 void Round::replaced_as_round(std::pair<Model, LoopRound> fitted, const std::string& old_text,
                               const std::string& new_text, const std::string& why) {
   LoopRound lr = std::move(fitted.second);

@@ -159,6 +159,18 @@ class Round {
   // that follows a third channel) is no longer buried under them. The best swap, one per call;
   // it is a round (LoopRound::replaced says why).
   bool better_look_alike_in_place();
+  // When nothing else passes or changes (and when the loop's rounds are spent): a kept term of
+  // recorded channels (not a learned law's hinge, not one in `dropped`) that another kept term,
+  // its parameters estimated again without it (a freed threshold, time constant, saturation or
+  // delay; a slow term's time constant by retimed_slow_term), makes redundant leaves: against
+  // that model the term explains neither the accepted share of the held-out variance nor the
+  // resolution, and that model raises neither the validation flight's error by the accepted
+  // share nor the calibration rows' by half again and the resolution. A flex's time
+  // constant estimated while another effect was still in the residual is a few percent off, and
+  // a second channel that moves with the first (a lateral acceleration beside the yaw rate)
+  // writes the difference; with the time constant estimated again, the second channel is
+  // redundant. The best such drop by held-out error, one per call; the term joins `dropped`.
+  bool redundant_once_refined(std::set<std::string>* dropped);
   // The look-alikes of kept term `t`: those the rounds listed beside a term of its channels
   // (LoopRound::look_alikes), and `t` with one of its channels replaced by each recorded state
   // of the aircraft or angular rate (source_fields without the full search; not an earth-frame

@@ -226,6 +226,10 @@ struct DiagnoseOptions {
   /// every other term in place (loop_steps::Round::better_look_alike_in_place). False: the first
   /// term that passes stays.
   bool better_look_alike = true;
+  /// When nothing else passes: a kept term that another kept term makes redundant once that
+  /// term's parameters are estimated again without it leaves
+  /// (loop_steps::Round::redundant_once_refined).
+  bool redundant_once_refined = true;
   /// diagnose_loop's backward pass: an earlier round's term leaves when the model without it
   /// loses less than a term must gain to be added (accept_fraction of the held-out variance, or
   /// resolution_nT of its std; and on the validation flight, accept_fraction), so long as the
