@@ -1,6 +1,7 @@
 // magcomp: the steps of a round of diagnose_loop that revisit the kept terms (loop_round.h): the
-// kept terms' parameters estimated again, a product's idle factor dropped, the exchange of a term
-// chosen before the others were written, and the backward pass.
+// kept terms' parameters estimated again, a product's idle factor dropped, and the exchange of a
+// term chosen before the others were written. A kept term giving way to a look-alike is in
+// loop_look_alikes.cpp; a kept term leaving, in loop_redundant.cpp.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -13,7 +14,6 @@
 #include "magcomp/core/fit/model_fit.h"
 #include "magcomp/core/fit/parameter_fit.h"
 #include "magcomp/core/io/channel_kinds.h"
-#include "magcomp/core/math/correlation.h"
 #include "magcomp/core/model/terms_expr.h"
 
 namespace magcomp::loop_steps {
@@ -122,6 +122,23 @@ Model with_term_as(const Model& model, const std::string& old_text, const std::s
   return m;
 }
 
+std::string freed_parameters(const Model& model, size_t k, const Model& start) {
+  const TermSpec& t = model.terms[k];
+  const ExprTerm* e = t.expr();
+  const auto listed = [&](const std::vector<std::string>& list) {
+    return std::find(list.begin(), list.end(), t.text()) != list.end();
+  };
+  if (!e || !removable(start, t) || fields_of(t).empty() || listed(model.black_box_terms) ||
+      listed(model.slow_terms))
+    return "";
+  const auto& transforms = e->signal().transforms;
+  if (std::none_of(transforms.begin(), transforms.end(), [](const Transform& x) {
+        return x.has_param() && x.kind != TransformKind::Ramp;
+      }))
+    return "";        // no parameter (an alias such as current:X is written without one)
+  return e->shape();  // every parameter '?' (a ramp's knot stays)
+}
+
 bool Round::drop_idle_factors() {
   const LoopRound now = r_->rounds.back();
   const Model& model = r_->model;
@@ -176,218 +193,6 @@ bool Round::drop_idle_factors() {
   return true;
 }
 
-namespace {
-
-// `e` with its source k read through `channel` in its place (a shorthand keeps its own spelling).
-std::string with_source(const ExprTerm& e, size_t k, const std::string& channel) {
-  const std::string alias = e.spec();
-  if (e.signal().sources.size() == 1 && alias.find(':') != std::string::npos &&
-      (alias.rfind("current:", 0) == 0 || alias.rfind("dcurrent:", 0) == 0 ||
-       alias.rfind("rate:", 0) == 0))
-    return alias.substr(0, alias.find(':') + 1) + channel;
-  SignalExpr signal = e.signal();
-  signal.sources[k] = channel;
-  const char* projection = e.projection() == Projection::Field     ? "field:"
-                           : e.projection() == Projection::Induced ? "induced:"
-                                                                   : "scalar:";
-  return projection + signal.str();
-}
-
-}  // namespace
-
-std::vector<std::string> Round::look_alikes_of(const TermSpec& t,
-                                               const std::set<std::string>& model_fields) const {
-  std::vector<std::string> out;
-  const auto add = [&](const std::string& spec) {
-    if (spec != t.text() && std::find(out.begin(), out.end(), spec) == out.end())
-      out.push_back(spec);
-  };
-  // The look-alikes the rounds listed beside a term of the same channels (a kept term's
-  // parameters may have been estimated again since: its channels still name it).
-  const std::set<std::string> fields = fields_of(t);
-  for (const LoopRound& lr : r_->rounds) {
-    if (lr.look_alikes.empty() || lr.together || lr.black_box) continue;
-    if (fields_of(TermSpec(lr.added)) != fields) continue;
-    for (const auto& [term, heldout_nT] : lr.look_alikes) add(term);
-  }
-  // The same term through each recorded state or angular rate that moves with one of its
-  // channels on every flight (|r| >= kLookAlikeCorrelation): what a round kept beside another
-  // term, in a set or while other effects were still in the residual was never compared with
-  // them.
-  const ExprTerm* e = t.expr();
-  if (!e) return out;
-  const std::vector<std::string>& sources = e->signal().sources;
-  for (size_t k = 0; k < sources.size(); ++k) {
-    if (!fields.count(sources[k])) continue;  // B or Bt: no channel
-    std::vector<std::string> alike;
-    bool first = true;
-    for (const FlightData* f : c_.flights) {
-      if (!f->has(sources[k])) return out;
-      const Eigen::VectorXd x = f->column(sources[k]);
-      std::vector<std::string> here;
-      for (const std::string& y : source_fields(c_.start, *f, c_.truth, false, nullptr)) {
-        if (y == sources[k] || model_fields.count(y) || is_position_channel(y) ||
-            is_earth_frame_velocity(y) ||
-            (!first && std::find(alike.begin(), alike.end(), y) == alike.end()))
-          continue;
-        const Eigen::VectorXd z = f->column(y);
-        const Eigen::ArrayXd both = (x.array().isFinite() && z.array().isFinite()).cast<double>();
-        const Eigen::Index n = static_cast<Eigen::Index>(both.sum());
-        if (n < static_cast<Eigen::Index>(kLookAlikeRatioMinSamples)) continue;
-        Eigen::VectorXd a(n), b(n);
-        for (Eigen::Index i = 0, j = 0; i < x.size(); ++i)
-          if (both[i] > 0) {
-            a[j] = x[i];
-            b[j++] = z[i];
-          }
-        if (std::abs(pearson(a, b)) >= kLookAlikeCorrelation) here.push_back(y);
-      }
-      alike = std::move(here);
-      first = false;
-    }
-    for (const std::string& y : alike) add(with_source(*e, k, y));
-  }
-  return out;
-}
-
-bool Round::better_look_alike_in_place() {
-  const LoopRound now = r_->rounds.back();
-  const Model& model = r_->model;
-  std::set<std::string> model_fields;  // the channels the model's terms read
-  for (const TermSpec& t : model.terms)
-    for (const std::string& x : fields_of(t)) model_fields.insert(x);
-  struct Best {
-    std::pair<Model, LoopRound> fitted;
-    std::string old_text, new_text;
-  };
-  std::optional<Best> best;
-  for (const TermSpec& t : model.terms) {
-    const auto listed = [&](const std::vector<std::string>& list) {
-      return std::find(list.begin(), list.end(), t.text()) != list.end();
-    };
-    if (!removable(c_.start, t) || fields_of(t).empty() || listed(model.black_box_terms) ||
-        listed(model.slow_terms))
-      continue;
-    for (const std::string& a : look_alikes_of(t, model_fields)) {
-      try {
-        const std::set<std::string> fields = fields_of(TermSpec(a));
-        // A channel another kept term reads already is not a name of its own.
-        if (fields.empty() || std::any_of(fields.begin(), fields.end(), [&](const std::string& x) {
-              return model_fields.count(x) > 0 && !fields_of(t).count(x);
-            }))
-          continue;
-        auto fitted = fit_score(with_term_as(model, t.text(), a));
-        const LoopRound& lr = fitted.second;
-        if (!refusal(lr, now, c_.options).empty() || !(lr.heldout_std_nT < now.heldout_std_nT) ||
-            !holds_where_sized(lr, now))
-          continue;
-        if (best && !(lr.heldout_std_nT < best->fitted.second.heldout_std_nT)) continue;
-        best.emplace(Best{std::move(fitted), t.text(), a});
-      } catch (const Error&) {
-      }
-    }
-  }
-  if (!best) return false;
-  const LoopRound& lr = best->fitted.second;
-  char why[300];
-  std::snprintf(why, sizeof(why),
-                "a look-alike of it does better with every other term in place: held-out error "
-                "%.4f -> %.4f nT (halves %.4f -> %.4f, %.4f -> %.4f)",
-                now.heldout_std_nT, lr.heldout_std_nT, now.selection_std_nT, lr.selection_std_nT,
-                now.confirmation_std_nT, lr.confirmation_std_nT);
-  replaced_as_round(std::move(best->fitted), best->old_text, best->new_text, why);
-  return true;
-}
-
-bool Round::redundant_once_refined(std::set<std::string>* dropped) {
-  const LoopRound now = r_->rounds.back();
-  const Model& model = r_->model;
-  const double accept = c_.options.accept_fraction;
-  struct Best {
-    std::pair<Model, LoopRound> fitted;
-    std::string dropped_text, old_text, new_text;
-  };
-  std::optional<Best> best;
-  const auto listed = [](const std::vector<std::string>& list, const std::string& t) {
-    return std::find(list.begin(), list.end(), t) != list.end();
-  };
-  for (const TermSpec& t : model.terms) {
-    if (!removable(c_.start, t) || fields_of(t).empty() ||
-        listed(model.black_box_terms, t.text()) || dropped->count(t.text()))
-      continue;
-    const Model without = without_term(model, t);
-    // Each other kept term with its parameters estimated again: (index in `without`, spec).
-    std::vector<std::pair<size_t, std::string>> again;
-    for (size_t k = 0; k < without.terms.size(); ++k) {
-      const TermSpec& u = without.terms[k];
-      const ExprTerm* e = u.expr();
-      if (!e || !removable(c_.start, u) || fields_of(u).empty() ||
-          listed(without.black_box_terms, u.text()))
-        continue;
-      if (listed(without.slow_terms, u.text())) {
-        const std::string spec = retimed_slow_term(without, k);
-        if (!spec.empty()) again.emplace_back(k, spec);
-        continue;
-      }
-      const auto& transforms = e->signal().transforms;
-      if (std::any_of(transforms.begin(), transforms.end(), [](const Transform& x) {
-            return x.has_param() && x.kind != TransformKind::Ramp;
-          }))
-        again.emplace_back(k, e->shape());
-    }
-    for (const auto& [k, spec] : again) {
-      try {
-        Model m = listed(without.slow_terms, without.terms[k].text())
-                      ? with_term_as(without, without.terms[k].text(), spec)
-                      : without;
-        if (!listed(without.slow_terms, without.terms[k].text())) m.terms[k] = TermSpec(spec);
-        auto fitted = fit_score(std::move(m));
-        const LoopRound& lr = fitted.second;
-        // The term leaves only when it explains neither the accepted share of the held-out
-        // variance nor the resolution against that model: a slow term's time constant estimated
-        // again may write much of another slow term over one flight, not all of it.
-        if (!std::isfinite(lr.heldout_std_nT) ||
-            variance_share(now.heldout_std_nT, lr.heldout_std_nT) >= accept ||
-            lr.heldout_std_nT - now.heldout_std_nT >= c_.options.resolution_nT)
-          continue;  // the term still earns its place
-        if (std::isfinite(now.validation_std_nT) &&
-            variance_share(now.validation_std_nT, lr.validation_std_nT) >= accept)
-          continue;
-        if (std::isfinite(now.calibration_std_nT) && std::isfinite(lr.calibration_std_nT) &&
-            lr.calibration_std_nT > 1.5 * now.calibration_std_nT &&
-            lr.calibration_std_nT > now.calibration_std_nT + c_.options.resolution_nT)
-          continue;
-        const std::string new_text = fitted.first.terms[k].text();
-        if (new_text == without.terms[k].text()) continue;  // the same parameters: backward_pass
-        if (best && !(lr.heldout_std_nT < best->fitted.second.heldout_std_nT)) continue;
-        best.emplace(Best{std::move(fitted), t.text(), without.terms[k].text(), new_text});
-      } catch (const Error&) {
-      }
-    }
-  }
-  if (!best) return false;
-  LoopRound lr = std::move(best->fitted.second);
-  lr.round = round_;
-  lr.added = best->new_text;
-  lr.explained = variance_share(lr.heldout_std_nT, now.heldout_std_nT);
-  char why[300];
-  std::snprintf(why, sizeof(why),
-                "its parameters estimated again without %s: held-out error %.4f -> %.4f nT",
-                best->dropped_text.c_str(), now.heldout_std_nT, lr.heldout_std_nT);
-  lr.replaced.emplace_back(best->old_text, why);
-  std::snprintf(why, sizeof(why),
-                "made redundant by %s, its parameters estimated again: without it the held-out "
-                "error %.4f -> %.4f nT",
-                best->new_text.c_str(), now.heldout_std_nT, lr.heldout_std_nT);
-  lr.removed.emplace_back(best->dropped_text, why);
-  lr.rejected = std::move(rejected_);
-  rejected_.clear();
-  dropped->insert(best->dropped_text);
-  r_->rounds.push_back(std::move(lr));
-  r_->model = std::move(best->fitted.first);
-  return true;
-}
-
 void Round::replaced_as_round(std::pair<Model, LoopRound> fitted, const std::string& old_text,
                               const std::string& new_text, const std::string& why) {
   LoopRound lr = std::move(fitted.second);
@@ -410,20 +215,9 @@ bool Round::refine_parameters(const std::vector<Diagnosis>& dxs,
   // The kept terms whose parameters may be estimated again, and each one's freed spec.
   std::vector<std::pair<size_t, std::string>> freeable;
   for (size_t k = 0; k < model.terms.size(); ++k) {
-    const TermSpec& t = model.terms[k];
-    const ExprTerm* e = t.expr();
-    const auto listed = [&](const std::vector<std::string>& list) {
-      return std::find(list.begin(), list.end(), t.text()) != list.end();
-    };
-    if (!e || !removable(c_.start, t) || fields_of(t).empty() || listed(model.black_box_terms) ||
-        listed(model.slow_terms) || fixed.count(t.text()))
-      continue;
-    const auto& transforms = e->signal().transforms;
-    if (std::none_of(transforms.begin(), transforms.end(), [](const Transform& x) {
-          return x.has_param() && x.kind != TransformKind::Ramp;
-        }))
-      continue;  // no parameter (an alias such as current:X is written without one)
-    freeable.emplace_back(k, e->shape());  // every parameter '?' (a ramp's knot stays)
+    if (fixed.count(model.terms[k].text())) continue;
+    const std::string freed = freed_parameters(model, k, c_.start);
+    if (!freed.empty()) freeable.emplace_back(k, freed);
   }
   // The kept slow terms with one fixed low-pass, each with its time constant estimated again
   // (retimed_slow_term): (index, the spec with it).
@@ -603,58 +397,6 @@ bool Round::refine_parameters(const std::vector<Diagnosis>& dxs,
   r_->rounds.push_back(std::move(lr));
   r_->model = std::move(best->first);
   return true;
-}
-
-void Round::backward_pass() {
-  if (r_->rounds.size() < 2) return;
-  const double accept = c_.options.accept_fraction;
-  const LoopRound before = r_->rounds[r_->rounds.size() - 2];
-  const std::vector<std::string> now_terms = step_terms(r_->rounds.back().added);
-  const std::set<std::string> added_now(now_terms.begin(), now_terms.end());  // this round's
-  for (;;) {
-    const LoopRound& now = r_->rounds.back();
-    std::optional<std::pair<Model, LoopRound>> drop;
-    std::string drop_term;
-    double drop_share = INFINITY;
-    for (const TermSpec& t : r_->model.terms) {
-      if (!removable(c_.start, t) || added_now.count(t.text())) continue;
-      auto [m, lr] = fit_score(without_term(r_->model, t));
-      // The share of the variance the term still explains: what its leaving would add.
-      const double share = variance_share(now.heldout_std_nT, lr.heldout_std_nT);
-      // It leaves when it would not be added to the model without it (or, lenient, when it
-      // explains under a quarter of the accepted share).
-      const double leave = c_.options.backward_at_acceptance ? accept : 0.25 * accept;
-      const bool needed = c_.options.backward_at_acceptance
-                              ? share >= accept && lr.heldout_std_nT - now.heldout_std_nT >=
-                                                       c_.options.resolution_nT
-                              : share >= leave;
-      const bool validation_ok =
-          !std::isfinite(now.validation_std_nT) ||
-          variance_share(now.validation_std_nT, lr.validation_std_nT) < leave;
-      if (!needed && validation_ok && lr.heldout_std_nT < before.heldout_std_nT &&
-          share < drop_share) {
-        drop_share = share;
-        drop_term = t.text();
-        drop.emplace(std::move(m), std::move(lr));
-      }
-    }
-    if (!drop) break;
-    char why[200];
-    std::snprintf(why, sizeof(why),
-                  "made redundant by later terms: without it the held-out error %.4f -> %.4f nT",
-                  now.heldout_std_nT, drop->second.heldout_std_nT);
-    LoopRound& last = r_->rounds.back();
-    last.removed.emplace_back(drop_term, why);
-    last.heldout_std_nT = drop->second.heldout_std_nT;
-    last.all_std_nT = drop->second.all_std_nT;
-    last.calibration_std_nT = drop->second.calibration_std_nT;
-    last.channel_terms = drop->second.channel_terms;
-    last.selection_std_nT = drop->second.selection_std_nT;
-    last.confirmation_std_nT = drop->second.confirmation_std_nT;
-    last.fom_nT = drop->second.fom_nT;
-    last.validation_std_nT = drop->second.validation_std_nT;
-    r_->model = std::move(drop->first);
-  }
 }
 
 }  // namespace magcomp::loop_steps

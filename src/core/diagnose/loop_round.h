@@ -34,6 +34,11 @@ constexpr double kSlowRetimeTolerance = 0.01;
 /// `model` with its term `old_text` written as `spec` (a slow term stays one), unfitted
 /// (loop_revisit.cpp).
 Model with_term_as(const Model& model, const std::string& old_text, const std::string& spec);
+/// Kept term k of `model` with every parameter free ('?'; a ramp's knot stays), or "" when it
+/// has none to estimate again: not an expression term of recorded channels, one of `start`'s, a
+/// learned law's hinge, a slow term (Round::retimed_slow_term estimates its time constant), or a
+/// term without a parameter (loop_revisit.cpp).
+std::string freed_parameters(const Model& model, size_t k, const Model& start);
 /// True when a low-pass of `t` has its corner, 1 / (2 pi tau), below `band_low_hz` (Hz): the
 /// low-pass itself puts the term below the band the band-pass stage sizes terms in (a heater's
 /// minutes, not a relay's 0.2 s smoothing of a slow channel) (loop_slow_terms.cpp).
