@@ -56,10 +56,7 @@ bool Round::redundant_once_refined(std::set<std::string>* dropped) {
         if (std::isfinite(now.validation_std_nT) &&
             variance_share(now.validation_std_nT, lr.validation_std_nT) >= accept)
           continue;
-        if (std::isfinite(now.calibration_std_nT) && std::isfinite(lr.calibration_std_nT) &&
-            lr.calibration_std_nT > 1.5 * now.calibration_std_nT &&
-            lr.calibration_std_nT > now.calibration_std_nT + c_.options.resolution_nT)
-          continue;
+        if (raises_calibration_rows(lr, now, c_.options.resolution_nT)) continue;
         const std::string new_text = fitted.first.terms[k].text();
         if (new_text == without.terms[k].text()) continue;  // the same parameters: backward_pass
         if (best && !(lr.heldout_std_nT < best->fitted.second.heldout_std_nT)) continue;

@@ -288,6 +288,13 @@ std::optional<std::pair<std::pair<Model, LoopRound>, std::string>> exact_norm_st
 }
 
 // Why a scored candidate model is refused against the current one ("" when it is kept).
+bool raises_calibration_rows(const LoopRound& next, const LoopRound& now, double resolution_nT) {
+  constexpr double kCalibrationRiseFactor = 1.5;
+  return std::isfinite(now.calibration_std_nT) && std::isfinite(next.calibration_std_nT) &&
+         next.calibration_std_nT > kCalibrationRiseFactor * now.calibration_std_nT &&
+         next.calibration_std_nT > now.calibration_std_nT + resolution_nT;
+}
+
 std::string refusal(const LoopRound& next, const LoopRound& now, const DiagnoseOptions& options) {
   char buf[256];
   if (!(next.heldout_std_nT < now.heldout_std_nT)) {
@@ -301,16 +308,13 @@ std::string refusal(const LoopRound& next, const LoopRound& now, const DiagnoseO
   // maneuvers) fits the band and adds its own low frequencies there; a true effect is on those
   // rows too. A term of the field itself (an eddy decay of B) is not held to it: its low
   // frequencies on the maneuvers are TL's own columns', which the band-pass leaves free too.
-  constexpr double kCalibrationRiseFactor = 1.5;
   const bool adds_channel_term =
       std::any_of(next.channel_terms.begin(), next.channel_terms.end(), [&](const std::string& t) {
         return std::find(now.channel_terms.begin(), now.channel_terms.end(), t) ==
                now.channel_terms.end();
       });
   if (options.check_calibration_rows && adds_channel_term &&
-      std::isfinite(now.calibration_std_nT) && std::isfinite(next.calibration_std_nT) &&
-      next.calibration_std_nT > kCalibrationRiseFactor * now.calibration_std_nT &&
-      next.calibration_std_nT > now.calibration_std_nT + options.resolution_nT) {
+      raises_calibration_rows(next, now, options.resolution_nT)) {
     std::snprintf(buf, sizeof(buf),
                   "the error on the calibration rows it is fitted on would rise (%.3f -> %.3f nT, "
                   "unfiltered): its size does not hold where it is fitted",

@@ -61,6 +61,10 @@ std::optional<std::pair<std::pair<Model, LoopRound>, std::string>> exact_norm_st
 /// the calibration rows (LoopRound::calibration_std_nT) rises by half again and the resolution
 /// (DiagnoseOptions::check_calibration_rows).
 std::string refusal(const LoopRound& next, const LoopRound& now, const DiagnoseOptions& options);
+/// Whether the change scored `next` raises the error on the calibration rows (unfiltered) of the
+/// model scored `now` by half again and `resolution_nT` (nT): its sizes do not hold where they are
+/// fitted. False when either error is unknown.
+bool raises_calibration_rows(const LoopRound& next, const LoopRound& now, double resolution_nT);
 
 /// A learned law of `channel` on `data` (hinges at its quantiles through the linear transforms
 /// of `shape`); empty when the channel cannot carry one (loop_steps.cpp says when).
