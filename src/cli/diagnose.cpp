@@ -308,6 +308,14 @@ struct DiagnoseArgs {
 };
 
 // The loop's JSON: its rounds, its stop, the added terms' support and its last diagnosis.
+// Each channel of a term with one it cannot be told from: [{channel, twin, correlation}].
+nlohmann::json twins_json(const std::vector<ChannelTwin>& twins) {
+  nlohmann::json out = nlohmann::json::array();
+  for (const ChannelTwin& t : twins)
+    out.push_back({{"channel", t.channel}, {"twin", t.twin}, {"correlation", t.correlation}});
+  return out;
+}
+
 nlohmann::json loop_json(const LoopResult& r, const std::vector<TermSupport>& support) {
   nlohmann::json j;
   j["rounds"] = nlohmann::json::array();
@@ -368,7 +376,8 @@ nlohmann::json loop_json(const LoopResult& r, const std::vector<TermSupport>& su
                             {"switches", s.switches},
                             {"size_nT", json_figure(s.size_nT)},
                             {"size_sigma_nT", json_figure(s.size_sigma_nT)},
-                            {"note", support_note(s)}});
+                            {"note", support_note(s)},
+                            {"twins", twins_json(s.twins)}});
   }
   j["last_diagnosis"] = to_json(r.last);
   if (!r.last.network.empty()) j["network"] = network_json(r.last.network, &r.model);
@@ -474,6 +483,8 @@ void run_diagnose(const DiagnoseArgs& a) {
   for (const TermSupport& s : support) {
     const std::string note = support_note(s);
     if (!note.empty()) std::printf("note: %s: %s\n", s.term.c_str(), note.c_str());
+    const std::string twins = twins_note(s);
+    if (!twins.empty()) std::printf("note: %s: %s\n", s.term.c_str(), twins.c_str());
   }
   print_network_checks(r.last.network, " (checked against the final model)", &r.model);
   write_final_model(r, flights, a.truth, a.out, inputs);

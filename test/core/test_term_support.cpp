@@ -105,6 +105,35 @@ TEST(TermSupport, ATermWhoseChannelSwitchesOftenNeedsNoNote) {
   EXPECT_TRUE(term_support(c.start, c.start, c.flight).empty());
 }
 
+TEST(TermSupport, ATermWhoseChannelHasATwinSaysTheEffectMayBeEithers) {
+  Case c = make_case([](int i) { return (i / 150) % 2 ? 2.0 : 0.0; }, 0.1);
+  // A second tap of the same switched load (0.9 times it, its own noise of 0.05 A) and a load
+  // switched out of step with it, both recorded, neither acting on the scalar.
+  Eigen::VectorXd twin(c.flight.size()), other(c.flight.size());
+  for (Eigen::Index i = 0; i < twin.size(); ++i) {
+    twin[i] = 0.9 * c.flight.column("cur_x")[i] +
+              0.05 * std::sqrt(3.0) * std::fmod(std::sin(78.233 * i) * 12345.678, 1.0);
+    other[i] = ((i + 75) / 150) % 2 ? 2.0 : 0.0;
+  }
+  c.flight.set("cur_x_tap", twin);
+  c.flight.set("cur_y", other);
+  const std::vector<TermSupport> s = term_support(c.with_term, c.start, c.flight);
+  ASSERT_EQ(s.size(), 1u);
+  ASSERT_EQ(s[0].twins.size(), 1u);
+  EXPECT_EQ(s[0].twins[0].channel, "cur_x");
+  EXPECT_EQ(s[0].twins[0].twin, "cur_x_tap");
+  EXPECT_GE(s[0].twins[0].correlation, kTwinCorrelation);
+  const std::string note = twins_note(s[0]);
+  EXPECT_NE(note.find("cannot tell cur_x from cur_x_tap"), std::string::npos) << note;
+  EXPECT_NE(note.find("may be either's"), std::string::npos) << note;
+  // Without the tap: no twin, nothing to say.
+  c.flight.remove("cur_x_tap");
+  const std::vector<TermSupport> alone = term_support(c.with_term, c.start, c.flight);
+  ASSERT_EQ(alone.size(), 1u);
+  EXPECT_TRUE(alone[0].twins.empty());
+  EXPECT_EQ(twins_note(alone[0]), "");
+}
+
 TEST(TermSupport, TheJackknifeSigmaMatchesTheSpreadOverNoiseDrawsWhereTheFitsOwnUnderstatesIt) {
   // The current of 3 nT/A as a square wave of 300 samples, under a noise correlated in time (a
   // first-order process of 0.1 nT with a correlation of 0.98 per sample, about 5 s at 10 Hz): the

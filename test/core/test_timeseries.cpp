@@ -130,6 +130,21 @@ TEST(Timeseries, CentralRateIsExactOnALineAndWrapsAnAngleAcrossPi) {
 }  // namespace
 }  // namespace magcomp
 
+TEST(Timeseries, MovingAverageIsTheCentredMeanOfTheFiniteValuesAndShortensAtTheEnds) {
+  Eigen::VectorXd x(7);
+  x << 1, 2, NAN, 4, 5, 6, 7;
+  const Eigen::VectorXd m = magcomp::moving_average(x, 1);
+  EXPECT_DOUBLE_EQ(m[0], 1.5);  // (1 + 2) / 2: the window is cut at the start
+  EXPECT_DOUBLE_EQ(m[1], 1.5);  // the NaN is left out, not counted as 0
+  EXPECT_DOUBLE_EQ(m[2], 3.0);  // (2 + 4) / 2
+  EXPECT_DOUBLE_EQ(m[4], 5.0);
+  EXPECT_DOUBLE_EQ(m[6], 6.5);
+  EXPECT_EQ(magcomp::moving_average(x, 0)[3], 4.0);  // a window of one sample is the sample
+  Eigen::VectorXd gap(3);
+  gap << NAN, NAN, NAN;
+  EXPECT_TRUE(std::isnan(magcomp::moving_average(gap, 1)[1]));
+}
+
 TEST(Correlation, PearsonAndRanksInClosedForm) {
   // Pearson's r of a line with itself rescaled is +-1, of anything with a constant 0; ranks are
   // 0-based with ties given their average (Spearman's rho is pearson() of ranks).

@@ -127,6 +127,18 @@ std::vector<TermSupport> term_support(const Model& model, const Model& start,
       }
     }
   }
+  // The twins of each recorded channel of each added term, as the flights show them.
+  for (TermSupport& s : out) {
+    const TermSpec spec(s.term);  // holds the parsed term e points into
+    const ExprTerm* e = spec.expr();
+    if (!e) continue;
+    std::vector<std::string> seen;
+    for (const std::string& x : e->signal().sources) {
+      if (std::find(seen.begin(), seen.end(), x) != seen.end()) continue;
+      seen.push_back(x);
+      for (ChannelTwin& t : channel_twins(x, flights)) s.twins.push_back(std::move(t));
+    }
+  }
   for (size_t k = 0; k < out.size(); ++k) {
     const Sums& m = sums[k];
     if (!m.sized || m.count <= 1) continue;
@@ -135,6 +147,22 @@ std::vector<TermSupport> term_support(const Model& model, const Model& start,
     if (has_cov && !m.slow) out[k].size_sigma_nT = std::sqrt(m.var / m.count);
   }
   return out;
+}
+
+std::string twins_note(const TermSupport& s) {
+  if (s.twins.empty()) return "";
+  std::string out = "these flights cannot tell ";
+  for (size_t k = 0; k < s.twins.size(); ++k) {
+    const ChannelTwin& t = s.twins[k];
+    char buf[200];
+    std::snprintf(buf, sizeof(buf), "%s%s from %s (r %.5f)", k ? ", nor " : "", t.channel.c_str(),
+                  t.twin.c_str(), t.correlation);
+    out += buf;
+  }
+  char tail[120];
+  std::snprintf(tail, sizeof(tail), ", smoothed over %.0f s: the effect may be either's",
+                kTwinWindow_s);
+  return out + tail;
 }
 
 std::string support_note(const TermSupport& s, int few_switches, const std::string& rows) {

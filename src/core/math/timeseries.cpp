@@ -79,4 +79,23 @@ Eigen::VectorXd central_rate(const Eigen::Ref<const Eigen::VectorXd>& x, double 
   return d;
 }
 
+Eigen::VectorXd moving_average(const Eigen::Ref<const Eigen::VectorXd>& x, Eigen::Index half) {
+  const Eigen::Index n = x.size();
+  half = std::max<Eigen::Index>(0, half);
+  Eigen::VectorXd sum = Eigen::VectorXd::Zero(n + 1), count = Eigen::VectorXd::Zero(n + 1);
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const bool finite = std::isfinite(x[i]);
+    sum[i + 1] = sum[i] + (finite ? x[i] : 0.0);
+    count[i + 1] = count[i] + (finite ? 1.0 : 0.0);
+  }
+  Eigen::VectorXd out(n);
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const Eigen::Index lo = std::max<Eigen::Index>(0, i - half),
+                       hi = std::min<Eigen::Index>(n, i + half + 1);
+    const double c = count[hi] - count[lo];
+    out[i] = c > 0 ? (sum[hi] - sum[lo]) / c : std::numeric_limits<double>::quiet_NaN();
+  }
+  return out;
+}
+
 }  // namespace magcomp

@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "magcomp/core/diagnose/channel_twins.h"
 #include "magcomp/core/io/flight_data.h"
 #include "magcomp/core/model/model.h"
 
@@ -31,6 +32,9 @@ struct TermSupport {
   /// over the flight's rows. A field term of a channel that holds a level (a bus voltage) is
   /// mostly that level times the permanent columns; its size is what it adds to them.
   double size_nT = NAN;
+  /// Each recorded channel of the term with the channels the flights cannot tell it from
+  /// (channel_twins), in the order of the term's sources: the term names one of each set.
+  std::vector<ChannelTwin> twins;
 };
 
 /// The support of each term of the fitted `model` that `start` does not have, on `data` (the
@@ -51,6 +55,11 @@ std::vector<TermSupport> term_support(const Model& model, const Model& start,
 /// that size it.
 std::string support_note(const TermSupport& s, int few_switches = 10,
                          const std::string& rows = "the calibration rows");
+
+/// The words a user reads of a term whose channel has twins (TermSupport::twins): "these flights
+/// cannot tell vol_acpwr from vol_outpwr (r 0.99956), smoothed over 5 s: the effect may be
+/// either's"; "" without twins.
+std::string twins_note(const TermSupport& s);
 
 /// Times a channel's samples x (its unit) crossed, on `rows` (in time order), between the lower
 /// and upper quarter of its 1-99 % range over all of x (one switch on and off counts two; a

@@ -36,4 +36,8 @@ int lag_round_trip_slice_margin(double lag_samples);
 Eigen::VectorXd central_rate(const Eigen::Ref<const Eigen::VectorXd>& x, double dt_s,
                              bool wrap_angle = false);
 
+/// x (uniformly sampled, its unit) as a centred moving average over 2 half + 1 samples of its
+/// finite values (fewer at the ends); NaN where the window holds none.
+Eigen::VectorXd moving_average(const Eigen::Ref<const Eigen::VectorXd>& x, Eigen::Index half);
+
 }  // namespace magcomp
