@@ -7,7 +7,9 @@
 // an exact term from TL), the runs worse
 // than TL (must be 0), the "complete" verdicts above 1.5x the noise floor (must be 0). Each line
 // also gives the hidden effects' std within lines on the first flight (eff) and the next (next).
-// The runs naming exactly the effects' channels: overall, among the look-alikes the loop reports,
+// The runs naming exactly the effects' channels: overall, exactly up to twins (a channel the first
+// flight cannot tell from an effect's, channel_twins; the names column says "twin"), among the
+// look-alikes the loop reports,
 // and over the runs whose effects' channels move with no other recorded channel on the first
 // flight (|r| >= 0.95, look_alike_channels; a line ends "[the effects' channels move with ...]"
 // otherwise: that flight cannot tell them apart), and those naming every effect's channel and a
@@ -150,6 +152,7 @@ int main(int argc, char** argv) {
     std::map<std::string, std::array<int, 4>> by_kind;
     int runs_all_draws_near = 0, runs_predictable = 0;  // runs near the true terms on every draw
     int named_among_look_alikes = 0;  // predictable runs naming the truth among the look-alikes
+    int named_up_to_twins = 0;  // predictable runs naming the truth, a twin counted as its channel
     // Predictable runs naming every effect's channel and a channel more, and those of them whose
     // next flight is below the oracle's (what the term more writes carries over).
     int named_and_more = 0, named_and_more_below_oracle = 0;
@@ -200,6 +203,7 @@ int main(int argc, char** argv) {
           named[d.kind].first += d.names_truth();
           named[d.kind].second += 1;
           named_among_look_alikes += d.names_truth_among_look_alikes();
+          named_up_to_twins += d.names_truth_up_to_twins();
           named_and_more += d.names_truth_and_more();
           named_and_more_below_oracle +=
               d.names_truth_and_more() && d.loop_next_nT < d.oracle_next_nT;
@@ -221,8 +225,10 @@ int main(int argc, char** argv) {
           truth_alikes += (truth_alikes.empty() ? "" : ", ") + c;
         // "alike": the truth among the look-alikes the loop reports, not its kept terms alone;
         // "more": every effect's channel and a channel more.
+        // "twin": exactly, with a channel the flight cannot tell from an effect's in its place.
         const char* names = !d.predictable                      ? "-"
                             : d.names_truth()                   ? "yes"
+                            : d.names_truth_up_to_twins()       ? "twin"
                             : d.names_truth_among_look_alikes() ? "alike"
                             : d.names_truth_and_more()          ? "more"
                                                                 : "NO";
@@ -296,6 +302,10 @@ int main(int argc, char** argv) {
     }
     std::printf(" all %d/%d (%.0f %%)\n", named_all, named_runs,
                 named_runs ? 100.0 * named_all / named_runs : 0.0);
+    std::printf(
+        "names them exactly or by a twin (a channel the flight cannot tell from an effect's: "
+        "channel_twins): %d/%d (%.0f %%)\n",
+        named_up_to_twins, named_runs, named_runs ? 100.0 * named_up_to_twins / named_runs : 0.0);
     std::printf("names the effects' channels among the look-alikes it reports: %d/%d (%.0f %%)\n",
                 named_among_look_alikes, named_runs,
                 named_runs ? 100.0 * named_among_look_alikes / named_runs : 0.0);

@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "magcomp/core/diagnose/channel_twins.h"
 #include "magcomp/core/diagnose/diagnose_loop.h"
 #include "magcomp/core/evaluate/evaluation.h"
 #include "magcomp/core/fit/model_fit.h"
@@ -103,6 +104,24 @@ struct DiscoveryRun {
       covered.insert(hit->begin(), hit->end());
     }
     return covered == true_channels;
+  }
+  /// Each effect's and each named channel's twins on the flight the loop learns from
+  /// (channel_twins: 5 s averages at |r| >= 0.999): no flight the loop saw tells them apart.
+  std::map<std::string, std::set<std::string>> twins;
+  /// The final model names the truth up to twins: with each channel taken as itself or any of
+  /// its twins, its added terms read exactly the effects' channels.
+  bool names_truth_up_to_twins() const {
+    const auto classes = [&](const std::set<std::string>& channels) {
+      std::set<std::string> out;  // each channel's class: the least name among it and its twins
+      for (const std::string& c : channels) {
+        std::string least = c;
+        if (const auto it = twins.find(c); it != twins.end())
+          for (const std::string& t : it->second) least = std::min(least, t);
+        out.insert(least);
+      }
+      return out;
+    };
+    return classes(named_channels) == classes(true_channels);
   }
   /// Within 1.5x the oracle (+0.05 nT) on the next flight.
   bool near_oracle() const { return loop_next_nT <= 1.5 * oracle_next_nT + 0.05; }
@@ -298,6 +317,9 @@ inline DiscoveryRun discovery_run(unsigned r, int count, const sim::Scenario& ba
       for (const auto& [other, r] : alikes[k])
         if (!out.true_channels.count(other)) out.truth_look_alikes.insert(other);
   }
+  for (const std::set<std::string>* set : {&out.true_channels, &out.named_channels})
+    for (const std::string& c : *set)
+      for (const ChannelTwin& t : channel_twins(c, {&fa.flight})) out.twins[c].insert(t.twin);
   out.verdict = loop.last.verdict;
   out.residual_nT = loop.last.floor.residual_std_nT;
   out.floor_nT = loop.last.floor.floor_nT;

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <random>
 
+#include "discovery_run.h"
 #include "magcomp/core/diagnose/channel_twins.h"
 #include "magcomp/core/math/correlation.h"
 #include "scenario_cache.h"
@@ -88,6 +89,24 @@ TEST(ChannelTwins, TheSimulatorsBusTapsAndBatteryCurrentsAreTwinsTheBlockVoltage
   const std::vector<std::string> bat = names(channel_twins("cur_bat_1", {&f}));
   EXPECT_NE(std::find(bat.begin(), bat.end(), "cur_bat_2"), bat.end());
   EXPECT_TRUE(channel_twins("cur_strb", {&f}).empty());
+}
+
+// The benchmark's "named up to twins": a twin in an effect's channel's place names it; a channel
+// that is no twin, or a channel more, does not.
+TEST(ChannelTwins, TheBenchmarkCountsATwinInTheEffectsPlaceAsNamingItAndNothingElse) {
+  test::DiscoveryRun d;
+  d.true_channels = {"cur_bat_2", "cur_strb"};
+  d.named_channels = {"cur_bat_1", "cur_strb"};
+  EXPECT_FALSE(d.names_truth());
+  EXPECT_FALSE(d.names_truth_up_to_twins());
+  d.twins = {{"cur_bat_1", {"cur_bat_2"}}, {"cur_bat_2", {"cur_bat_1"}}};
+  EXPECT_TRUE(d.names_truth_up_to_twins());
+  d.named_channels = {"cur_bat_1", "cur_bat_2", "cur_strb"};  // both taps: one class, named once
+  EXPECT_TRUE(d.names_truth_up_to_twins());
+  d.named_channels = {"cur_bat_1", "cur_strb", "vol_block"};  // a channel more
+  EXPECT_FALSE(d.names_truth_up_to_twins());
+  d.named_channels = {"cur_bat_1"};  // an effect unnamed
+  EXPECT_FALSE(d.names_truth_up_to_twins());
 }
 
 }  // namespace
