@@ -2,7 +2,9 @@
 // in search.h).
 #include "magcomp/core/diagnose/diagnose.h"
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <set>
 #include <string>
 #include <vector>
@@ -30,7 +32,8 @@ int term_complexity(const TermSpec& term) {
 
 std::vector<std::string> source_fields(const Model& model, const FlightData& data,
                                        const std::string& truth, bool full_search,
-                                       std::vector<std::string>* notes) {
+                                       std::vector<std::string>* notes,
+                                       std::vector<std::string>* rails) {
   std::vector<std::string> out;
   std::string noise_only;
   for (const std::string& name : data.names()) {
@@ -61,15 +64,22 @@ std::vector<std::string> source_fields(const Model& model, const FlightData& dat
     // A rail that reads a constant plus its noise: whatever a term of it fits is that noise.
     if (records_noise_only(x, data.dt_s())) {
       noise_only += (noise_only.empty() ? "" : ", ") + name;
+      if (rails) rails->push_back(name);
       continue;
     }
     out.push_back(name);
   }
-  if (notes && !noise_only.empty())
+  if (notes && !noise_only.empty()) {
+    char share[120];
+    std::snprintf(share, sizeof(share),
+                  "searched only for a term explaining %.0f %% of the held-out variance on both "
+                  "splits",
+                  100 * kRailShare);
     notes->push_back(
         "channels that record a constant and their white noise only (their 10 s "
-        "means vary no more than that noise gives), skipped: " +
-        noise_only);
+        "means vary no more than that noise gives), " +
+        std::string(rails ? share : "skipped") + ": " + noise_only);
+  }
   return out;
 }
 
@@ -93,6 +103,52 @@ Model prepared_model(const Model& model_in, const FlightData& data, const std::s
   return model;
 }
 
+// A candidate reading a rail stays only where it explains kRailShare of the held-out variance on
+// both splits: nothing later (the loop's own rounds) can then take a chance fit of a rail's noise.
+void drop_weak_rail_terms(const std::vector<std::string>& rails,
+                          std::vector<Candidate>* candidates) {
+  if (rails.empty()) return;
+  const std::set<std::string> rail_set(rails.begin(), rails.end());
+  candidates->erase(std::remove_if(candidates->begin(), candidates->end(),
+                                   [&](const Candidate& c) {
+                                     bool reads_rail = false;
+                                     for (const std::string& x : term_channels(c.term))
+                                       reads_rail = reads_rail || rail_set.count(x) > 0;
+                                     return reads_rail && !(c.explained_selection >= kRailShare &&
+                                                            c.explained_confirmation >= kRailShare);
+                                   }),
+                    candidates->end());
+}
+
+// Each rail's drift of the reading (its recorded wander, low-passed, added to the scalar; a
+// field term of a rail is mostly its level times TL's own columns), scored, and kept among the
+// jobs only where it explains kRailShare of the held-out variance on both splits: a weaker one
+// never leads the products or the grammar (its fits are counted all the same).
+void add_strong_rail_jobs(const Model& model, const diagnose_search::Search& search,
+                          const std::vector<std::string>& rails, int threads,
+                          std::vector<diagnose_search::Job>* jobs,
+                          std::vector<diagnose_search::Scored>* scored, Diagnosis* dx) {
+  using namespace diagnose_search;
+  std::vector<Job> rail_jobs;
+  for (Job& j : make_jobs(model, rails)) {
+    const std::string& spec = j.term.text();
+    if (spec.rfind("scalar:", 0) == 0 && spec.find("|lp(?)") != std::string::npos)
+      rail_jobs.push_back(std::move(j));
+  }
+  if (rail_jobs.empty()) return;
+  const std::vector<Scored> rail_scored = run_jobs(search, rail_jobs, threads);
+  for (size_t k = 0; k < rail_jobs.size(); ++k) {
+    const Scored& x = rail_scored[k];
+    if (x.ok && share(x.sel, search.base_std[0]) >= kRailShare &&
+        share(x.conf, search.base_std[1]) >= kRailShare) {
+      jobs->push_back(rail_jobs[k]);
+      scored->push_back(x);
+    } else {
+      dx->candidates_tried += std::max(x.fits, 1L);
+    }
+  }
+}
+
 }  // namespace
 
 Diagnosis diagnose(const Model& model_in, const FlightData& data, const std::string& truth_name,
@@ -104,11 +160,15 @@ Diagnosis diagnose(const Model& model_in, const FlightData& data, const std::str
   // resident (they are mapped again when read).
   const Search search(model, data, truth_name, &dx, options.slow_terms_on_lines,
                       options.thresholds_on_selection, options.second_order_on_lines);
+  std::vector<std::string> rails;
   const std::vector<std::string> sources =
-      source_fields(model, data, truth_name, options.full_search, &dx.notes);
+      source_fields(model, data, truth_name, options.full_search, &dx.notes,
+                    options.search_rails ? &rails : nullptr);
   data.drop_mapped_pages();
   // Position and trajectory channels are no source of aircraft field: never a term (the
-  // explainable share still reads them, to report leakage).
+  // explainable share still reads them, to report leakage). The rails are searched by their own
+  // terms (kept only above kRailShare, below), not screened in products, not read by the
+  // explainable share or the floor.
   std::vector<std::string> aircraft_sources;
   for (const auto& s : sources)
     if (!is_position_channel(s)) aircraft_sources.push_back(s);
@@ -122,6 +182,7 @@ Diagnosis diagnose(const Model& model_in, const FlightData& data, const std::str
   add_network_sources(all_sources, leads, &aircraft_sources);
   std::vector<Job> jobs = make_jobs(model, aircraft_sources);
   std::vector<Scored> scored = run_jobs(search, jobs, options.threads);
+  add_strong_rail_jobs(model, search, rails, options.threads, &jobs, &scored, &dx);
   std::vector<Job> products = product_jobs(model, search, jobs, scored, options.accept_fraction);
   if (options.full_search) {
     const std::vector<Job> screened =
@@ -156,6 +217,7 @@ Diagnosis diagnose(const Model& model_in, const FlightData& data, const std::str
   data.drop_mapped_pages();
   add_candidates(jobs, scored, search, &dx);
   add_lag_candidate(model, data, search, &dx);
+  drop_weak_rail_terms(rails, &dx.candidates);
   judge_and_rank(search, options, &dx.candidates);
   for (size_t k = 0, sized = 0; k < dx.candidates.size() && sized < kSizedCandidates; ++k) {
     if (!dx.candidates[k].accepted) break;

@@ -126,6 +126,10 @@ struct DiagnoseOptions {
   /// (is_aircraft_state) and the attitude rates only.
   bool full_search = true;
   double accept_fraction = 0.02;  ///< the share a term must explain on both nested splits
+  /// Search the channels that record a constant and their white noise only (records_noise_only:
+  /// a regulated rail) too, keeping a term that reads one only where it explains at least
+  /// kRailShare of the held-out variance on both splits (false: leave them out).
+  bool search_rails = true;
   /// The smallest error that counts, nT: a term must lower the held-out error std by this much on
   /// both splits, and a predictable remainder smaller than this (rms) is called noise.
   double resolution_nT = 0.03;
@@ -321,9 +325,18 @@ struct Diagnosis {
 /// bookkeeping ones (tt, line, flight, year, doy), the magnetometers, the fluxgates, `truth`, and
 /// the channels that record a constant and their white noise only (records_noise_only: a
 /// regulated rail), which `notes` lists.
+/// With `rails`, those channels are returned there (and the note says how they are searched).
 std::vector<std::string> source_fields(const Model& model, const FlightData& data,
                                        const std::string& truth, bool full_search,
-                                       std::vector<std::string>* notes);
+                                       std::vector<std::string>* notes,
+                                       std::vector<std::string>* rails = nullptr);
+
+/// The share of the held-out variance, on each split, a term reading a rail (a channel that
+/// records a constant and its white noise only) must explain to stay a candidate: its low-passed
+/// values are a random walk that follows a slow residual's wander by chance for a few percent,
+/// never for most of it; an effect that the rail's recorded wander drives is most of what TL
+/// leaves where it is large enough to matter.
+constexpr double kRailShare = 0.25;
 
 /// The leading channels of a network's attribution (DiagnoseOptions::network_channels): sorted
 /// by share, the first kNetworkChannels with at least kNetworkMinShare.
