@@ -38,7 +38,8 @@
 // DiagnoseOptions::place_thresholds_again false); tl-as-given (TL not written as the exact
 // norm, DiagnoseOptions::exact_norm false); second-order-on-calibration (TL's
 // second-order term sized by the band-pass alone, DiagnoseOptions::second_order_on_lines
-// false); states (the aircraft's non-electrical states
+// false); no-rails (the channels that record a constant and their white noise only left out of
+// the search, DiagnoseOptions::search_rails false); states (the aircraft's non-electrical states
 // recorded, and effects of a switched current times one of them drawn among the others);
 // half-several (runs alternate one effect and two or three, instead of 60 % one, 30 % two, 10 %
 // three); draws=N (each run on N aircraft: the same effects, other aircraft and flights); rounds=N
@@ -110,6 +111,8 @@ int main(int argc, char** argv) {
         options.second_order_on_lines = false;
       } else if (opt == "tl-as-given") {
         options.exact_norm = false;
+      } else if (opt == "no-rails") {
+        options.search_rails = false;
       } else if (opt == "thresholds-on-calibration") {
         options.place_thresholds_again = false;
       } else if (opt == "validate") {
