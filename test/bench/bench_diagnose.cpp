@@ -1,13 +1,15 @@
 // magcomp benchmark: diagnose with the full search on a 1 h simulated flight widened to ~100
 // fields (the MIT files' width): extra channels are random walks and on/off loads that explain
 // nothing. Prints the flight's size, the number of terms fitted, the wall time and peak memory.
-// Usage: magcomp_bench_diagnose SCENARIO.yaml MODEL.yaml [extra_fields]   (scripts/bench_diagnose)
+// Usage: magcomp_bench_diagnose SCENARIO.yaml MODEL.yaml [extra_fields] [no-rails]
+// (scripts/bench_diagnose; no-rails: DiagnoseOptions::search_rails false)
 #include <sys/resource.h>
 
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <random>
+#include <string>
 
 #include "magcomp/core/diagnose/diagnose.h"
 #include "magcomp/core/fit/model_fit.h"
@@ -37,7 +39,9 @@ int main(int argc, char** argv) {
     magcomp::Model m = magcomp::load_model_yaml(argv[2]);
     magcomp::fit_model(m, {&f});
     const auto t0 = std::chrono::steady_clock::now();
-    const magcomp::Diagnosis dx = magcomp::diagnose(m, f, "mag_1_c");
+    magcomp::DiagnoseOptions options;
+    options.search_rails = !(argc > 4 && std::string(argv[4]) == "no-rails");
+    const magcomp::Diagnosis dx = magcomp::diagnose(m, f, "mag_1_c", options);
     const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     struct rusage ru {};
     getrusage(RUSAGE_SELF, &ru);
