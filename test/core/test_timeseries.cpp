@@ -171,3 +171,15 @@ TEST(Correlation, PearsonAndRanksInClosedForm) {
   EXPECT_EQ(r[2], 2.5);
   EXPECT_EQ(r[3], 1.0);
 }
+
+TEST(Correlation, PearsonWhereFiniteLeavesOutTheRowsWhereEitherIsNaN) {
+  // A line and the line rescaled, with a NaN in each at different rows and a wild value that
+  // only a NaN row of the other hides: r over the three rows both hold is exactly 1.
+  Eigen::VectorXd a(5), b(5);
+  a << 1.0, NAN, 3.0, 1000.0, 5.0;
+  b << 2.0, 4.0, 6.0, NAN, 10.0;
+  EXPECT_NEAR(magcomp::pearson_where_finite(a, b, 3), 1.0, 1e-15);
+  EXPECT_TRUE(std::isnan(magcomp::pearson_where_finite(a, b, 4)));  // three rows, four asked
+  b[3] = 8.0;                                                       // now the wild row counts
+  EXPECT_LT(magcomp::pearson_where_finite(a, b, 3), 0.9);
+}

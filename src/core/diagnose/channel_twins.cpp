@@ -20,20 +20,6 @@ bool may_carry_an_effect(const std::string& name) {
   return is_aircraft_state(name) || is_motion_channel(name);
 }
 
-// |r| of a and b over the rows where both are finite; NaN with fewer than 50 such rows.
-double abs_correlation(const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
-  std::vector<Eigen::Index> rows;
-  for (Eigen::Index i = 0; i < a.size() && i < b.size(); ++i)
-    if (std::isfinite(a[i]) && std::isfinite(b[i])) rows.push_back(i);
-  if (rows.size() < 50) return NAN;
-  Eigen::VectorXd x(static_cast<Eigen::Index>(rows.size())), y(x.size());
-  for (Eigen::Index r = 0; r < x.size(); ++r) {
-    x[r] = a[rows[static_cast<size_t>(r)]];
-    y[r] = b[rows[static_cast<size_t>(r)]];
-  }
-  return std::abs(pearson(x, y));
-}
-
 }  // namespace
 
 std::vector<ChannelTwin> channel_twins(const std::string& channel,
@@ -49,7 +35,7 @@ std::vector<ChannelTwin> channel_twins(const std::string& channel,
     for (const std::string& y : f->names()) {
       if (y == channel || skip.count(y) || !may_carry_an_effect(y)) continue;
       if (!first && !least.count(y)) continue;  // another flight tells them apart
-      const double r = abs_correlation(x, moving_average(f->column(y), half));
+      const double r = std::abs(pearson_where_finite(x, moving_average(f->column(y), half), 50));
       if (!(r >= kTwinCorrelation)) continue;
       here[y] = first ? r : std::min(r, least[y]);
     }

@@ -69,17 +69,9 @@ std::vector<std::string> Round::look_alikes_of(const TermSpec& t,
             is_earth_frame_velocity(y) ||
             (!first && std::find(alike.begin(), alike.end(), y) == alike.end()))
           continue;
-        const Eigen::VectorXd z = f->column(y);
-        const Eigen::ArrayXd both = (x.array().isFinite() && z.array().isFinite()).cast<double>();
-        const Eigen::Index n = static_cast<Eigen::Index>(both.sum());
-        if (n < static_cast<Eigen::Index>(kLookAlikeRatioMinSamples)) continue;
-        Eigen::VectorXd a(n), b(n);
-        for (Eigen::Index i = 0, j = 0; i < x.size(); ++i)
-          if (both[i] > 0) {
-            a[j] = x[i];
-            b[j++] = z[i];
-          }
-        if (std::abs(pearson(a, b)) >= kLookAlikeCorrelation) here.push_back(y);
+        const double r = pearson_where_finite(x, f->column(y),
+                                              static_cast<Eigen::Index>(kLookAlikeRatioMinSamples));
+        if (std::abs(r) >= kLookAlikeCorrelation) here.push_back(y);
       }
       alike = std::move(here);
       first = false;

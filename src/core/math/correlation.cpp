@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <utility>
 #include <vector>
 
@@ -13,6 +14,21 @@ double pearson(const Eigen::Ref<const Eigen::VectorXd>& a,
   const Eigen::ArrayXd da = a.array() - a.mean(), db = b.array() - b.mean();
   const double den = std::sqrt((da * da).sum() * (db * db).sum());
   return den > 0 ? (da * db).sum() / den : 0.0;
+}
+
+double pearson_where_finite(const Eigen::Ref<const Eigen::VectorXd>& a,
+                            const Eigen::Ref<const Eigen::VectorXd>& b, Eigen::Index min_rows) {
+  const Eigen::Index size = std::min(a.size(), b.size());
+  Eigen::Index n = 0;
+  for (Eigen::Index i = 0; i < size; ++i) n += std::isfinite(a[i]) && std::isfinite(b[i]);
+  if (n < min_rows) return std::numeric_limits<double>::quiet_NaN();
+  Eigen::VectorXd x(n), y(n);
+  for (Eigen::Index i = 0, j = 0; i < size; ++i)
+    if (std::isfinite(a[i]) && std::isfinite(b[i])) {
+      x[j] = a[i];
+      y[j++] = b[i];
+    }
+  return pearson(x, y);
 }
 
 Eigen::VectorXd ranks(const Eigen::Ref<const Eigen::VectorXd>& x) {

@@ -16,6 +16,11 @@ constexpr double kLookAlikeCorrelation = 0.95;
 double pearson(const Eigen::Ref<const Eigen::VectorXd>& a,
                const Eigen::Ref<const Eigen::VectorXd>& b);
 
+/// pearson() of `a` and `b` (same length) over the rows where both are finite; NaN with fewer
+/// than `min_rows` such rows.
+double pearson_where_finite(const Eigen::Ref<const Eigen::VectorXd>& a,
+                            const Eigen::Ref<const Eigen::VectorXd>& b, Eigen::Index min_rows);
+
 /// The ranks of `x` (0 for the smallest), ties given their average rank: Spearman's rho of two
 /// series is pearson() of their ranks.
 Eigen::VectorXd ranks(const Eigen::Ref<const Eigen::VectorXd>& x);
