@@ -111,9 +111,10 @@ void drop_weak_rail_terms(const std::vector<std::string>& rails,
   const std::set<std::string> rail_set(rails.begin(), rails.end());
   candidates->erase(std::remove_if(candidates->begin(), candidates->end(),
                                    [&](const Candidate& c) {
-                                     bool reads_rail = false;
-                                     for (const std::string& x : term_channels(c.term))
-                                       reads_rail = reads_rail || rail_set.count(x) > 0;
+                                     const std::vector<std::string> xs = term_channels(c.term);
+                                     const bool reads_rail = std::any_of(
+                                         xs.begin(), xs.end(),
+                                         [&](const auto& x) { return rail_set.count(x) > 0; });
                                      return reads_rail && !(c.explained_selection >= kRailShare &&
                                                             c.explained_confirmation >= kRailShare);
                                    }),

@@ -88,6 +88,10 @@ std::vector<TermSupport> term_support(const Model& model, const Model& start,
     s.term = spec;
     const ExprTerm* e = spec.expr();
     if (e && !e->signal().sources.empty()) s.channel = e->signal().sources.front();
+    // The twins of each recorded channel of the term, as the flights show them.
+    if (e)
+      for (const std::string& x : e->required_fields())
+        for (ChannelTwin& t : channel_twins(x, flights)) s.twins.push_back(std::move(t));
     out.push_back(s);
     Sums m;
     m.from = from;
@@ -125,18 +129,6 @@ std::vector<TermSupport> term_support(const Model& model, const Model& start,
         if (has_cov && !m.slow) m.var += block.row(i) * sigma * block.row(i).transpose();
         ++m.count;
       }
-    }
-  }
-  // The twins of each recorded channel of each added term, as the flights show them.
-  for (TermSupport& s : out) {
-    const TermSpec spec(s.term);  // holds the parsed term e points into
-    const ExprTerm* e = spec.expr();
-    if (!e) continue;
-    std::vector<std::string> seen;
-    for (const std::string& x : e->signal().sources) {
-      if (std::find(seen.begin(), seen.end(), x) != seen.end()) continue;
-      seen.push_back(x);
-      for (ChannelTwin& t : channel_twins(x, flights)) s.twins.push_back(std::move(t));
     }
   }
   for (size_t k = 0; k < out.size(); ++k) {
