@@ -203,6 +203,14 @@ nlohmann::json to_json(const Diagnosis& dx) {
       j["joint_set"]["best_single_heldout_std_nT"] = js.best_single_std_nT;
     }
   }
+  if (!dx.one_half.term.empty()) {
+    const OneHalfTerm& h = dx.one_half;
+    j["one_half_term"] = {{"term", h.term},
+                          {"channel", h.channel},
+                          {"half", h.half == 0 ? "selection" : "confirmation"},
+                          {"explained", h.explained},
+                          {"lines", h.lines}};
+  }
   j["associations"] = nlohmann::json::array();
   for (const auto& a : dx.associations) {
     j["associations"].push_back({{"channel", a.channel},

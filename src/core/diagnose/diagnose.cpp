@@ -237,6 +237,7 @@ Diagnosis diagnose(const Model& model_in, const FlightData& data, const std::str
   if (options.joint_selection)
     dx.joint = joint_selection(search, dx.candidates, dx.explainable, options);
   dx.floor = floor_of(data, search, sources);
+  dx.one_half = one_half_term(data, search, dx.candidates, options.resolution_nT);
   data.drop_mapped_pages();
   dx.verdict = verdict_of(dx, options.resolution_nT);
   return dx;

@@ -23,14 +23,15 @@ namespace magcomp::diagnose_search {
 
 // Every pair of channels screened cheaply for a product term field:x*y: on the held-out rows,
 // the share of the base residual (each line's mean removed) that the product's three columns
-// B̂i·x·y explain by least squares beside the base's own columns (a partial regression: the
-// part of the product the base already spans -- a rate times a steady current is mostly an eddy
-// column -- explains nothing the refit would keep). The screen only chooses which pairs are
-// fitted: the best `keep` pairs not already in `taken` become jobs, scored like every other
-// (fitted with the base, then accepted only if they lower the error on each fold by itself). It
-// reads both folds because a product of a current that one kind of flying switches on can lie
-// mostly in one of them. The earth-frame velocities are passed over (is_earth_frame_velocity).
-// Each first channel's pairs are matrix products; two threads split the first channel.
+// B̂i·x·y (each line's mean removed too) explain by least squares beside the base's own columns (a
+// partial regression: the part of the product the base already spans -- a rate times a steady
+// current is mostly an eddy column -- explains nothing the refit would keep). The screen only
+// chooses which pairs are fitted: the best `keep` pairs not already in `taken` become jobs, scored
+// like every other (fitted with the base, then accepted only if they lower the error on each fold
+// by itself). It reads both folds because a product of a current that one kind of flying switches
+// on can lie mostly in one of them. The earth-frame velocities are passed over
+// (is_earth_frame_velocity). Each first channel's pairs are matrix products; two threads split the
+// first channel.
 std::vector<Job> screened_products(const Search& search, const std::vector<std::string>& sources,
                                    const std::vector<Job>& taken, size_t keep, int threads) {
   const std::vector<Eigen::Index>& rows = search.held;
@@ -59,13 +60,15 @@ std::vector<Job> screened_products(const Search& search, const std::vector<std::
   const double ee = e.col(0).squaredNorm() - qe.squaredNorm();
   if (!(ee > 0)) return {};
   // Per row: the direction products B̂iB̂j (xx xy xz yy yz zz), e·B̂i, and the basis times each
-  // B̂i (p columns per direction).
-  Eigen::MatrixXd dd(m, 6), ed(m, 3), qd(m, 3 * p);
+  // B̂i (p columns per direction); and B̂ itself, whose sums over a line against a product give
+  // the line means of its three columns.
+  Eigen::MatrixXd dd(m, 6), ed(m, 3), qd(m, 3 * p), d3(m, 3);
   for (Eigen::Index r = 0; r < m; ++r) {
     const Eigen::Vector3d d = search.inputs.direction.row(rows[static_cast<size_t>(r)]);
     dd.row(r) << d.x() * d.x(), d.x() * d.y(), d.x() * d.z(), d.y() * d.y(), d.y() * d.z(),
         d.z() * d.z();
     ed.row(r) = e(r, 0) * d.transpose();
+    d3.row(r) = d.transpose();
     for (int k = 0; k < 3; ++k) qd.row(r).segment(k * p, p) = d[k] * q.row(r);
   }
   // The channels on those rows, standardised (a product's share does not depend on scale).
@@ -95,12 +98,26 @@ std::vector<Job> screened_products(const Search& search, const std::vector<std::
         z = x.middleCols(b0, nb).array().colwise() * x.col(a).array();
         const Eigen::MatrixXd s3 = z.transpose() * ed;
         const Eigen::MatrixXd sq = z.transpose() * qd;
+        // Each line's sums of the three columns z·B̂i (nb x 3 per line): the scores remove each
+        // line's mean from the error, so the columns' line means (a factor that steps from line
+        // to line, such as a battery's current, times another's mean) are no part of their Gram.
+        std::vector<Eigen::MatrixXd> line_sums(starts.size());
+        std::vector<double> line_rows(starts.size());
+        for (size_t l = 0; l < starts.size(); ++l) {
+          const Eigen::Index to = l + 1 < starts.size() ? starts[l + 1] : m;
+          line_rows[l] = static_cast<double>(to - starts[l]);
+          line_sums[l] = z.middleRows(starts[l], to - starts[l]).transpose() *
+                         d3.middleRows(starts[l], to - starts[l]);
+        }
         z = z.array().square().matrix();
         const Eigen::MatrixXd s6 = z.transpose() * dd;
         for (Eigen::Index j = 0; j < nb; ++j) {
           Eigen::Matrix3d g;
           g << s6(j, 0), s6(j, 1), s6(j, 2), s6(j, 1), s6(j, 3), s6(j, 4), s6(j, 2), s6(j, 4),
               s6(j, 5);
+          for (size_t l = 0; l < starts.size(); ++l)
+            if (line_rows[l] > 0)
+              g -= line_sums[l].row(j).transpose() * line_sums[l].row(j) / line_rows[l];
           Eigen::Vector3d h = s3.row(j).transpose();
           if (p > 0) {
             Eigen::MatrixXd c(p, 3);  // the base basis against the three columns
@@ -123,13 +140,22 @@ std::vector<Job> screened_products(const Search& search, const std::vector<std::
     all.insert(all.end(), v.begin(), v.end());
   }
   std::sort(all.begin(), all.end(), [](const auto& p, const auto& q) { return p.first > q.first; });
+  // A channel that gates every other (a switch on for part of the flight: any channel times it
+  // is that channel's field on a segment of its own) would fill every slot; each channel takes
+  // kScreenedPerChannel of them at most, so the pairs fitted name several channels.
   std::vector<Job> jobs;
+  std::map<Eigen::Index, size_t> per_channel;
   for (const auto& [explained, pair] : all) {
     if (jobs.size() >= keep) break;
+    if (per_channel[pair.first] >= kScreenedPerChannel ||
+        per_channel[pair.second] >= kScreenedPerChannel)
+      continue;
     const std::string& xa = sources[static_cast<size_t>(pair.first)];
     const std::string& xb = sources[static_cast<size_t>(pair.second)];
     const std::string spec = "field:" + xa + "*" + xb;
     if (already.count(spec)) continue;
+    ++per_channel[pair.first];
+    ++per_channel[pair.second];
     jobs.push_back({TermSpec(spec), "product of two channels", xa + "*" + xb});
   }
   return jobs;

@@ -249,9 +249,10 @@ std::vector<std::pair<double, std::string>> strongest_sources(const Model& model
 std::vector<Job> product_jobs(const Model& model, const Search& search,
                               const std::vector<Job>& jobs, const std::vector<Scored>& scored,
                               double accept_fraction);
-// Pairs of channels screened cheaply for a product term; the best `keep` become jobs
-// (products.cpp).
-constexpr size_t kScreenedProducts = 12;  // pairs fitted in full after the screen
+// Pairs of channels screened cheaply for a product term; the best `keep` become jobs, at most
+// kScreenedPerChannel of them reading one channel (products.cpp).
+constexpr size_t kScreenedProducts = 12;   // pairs fitted in full after the screen
+constexpr size_t kScreenedPerChannel = 3;  // of them, pairs that read one channel
 std::vector<Job> screened_products(const Search& search, const std::vector<std::string>& sources,
                                    const std::vector<Job>& taken, size_t keep, int threads);
 // A network's leading channels (network_channels.cpp), with `all` the full search's sources
@@ -307,6 +308,13 @@ void size_uncertainty(const Search& search, Candidate* candidate);
 ExplainableShare remaining_share(const FlightData& data, const Search& search,
                                  const std::vector<std::string>& sources, double baseline_std_nT,
                                  double resolution_nT);
+// The first ranked candidate, of the kOneHalfCandidates first not accepted, that explains
+// kOneHalfShare of one half's held-out variance (and the resolution) while a channel it reads
+// moves on that half's units alone (one_half_term.cpp); OneHalfTerm::term empty when none, or
+// when the first candidate is accepted.
+constexpr size_t kOneHalfCandidates = 20;
+OneHalfTerm one_half_term(const FlightData& data, const Search& search,
+                          const std::vector<Candidate>& candidates, double resolution_nT);
 ResidualFloor floor_of(const FlightData& data, const Search& search,
                        const std::vector<std::string>& sources);
 std::string verdict_of(const Diagnosis& dx, double resolution_nT);

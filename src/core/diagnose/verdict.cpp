@@ -169,6 +169,8 @@ std::string verdict_of(const Diagnosis& dx, double resolution_nT) {
     }
     return out + size_caveat(c);
   }
+  // A candidate one half of the held-out lines cannot confirm, said after any other verdict.
+  const std::string unconfirmed = one_half_clause(dx.one_half);
   const ResidualFloor& f = dx.floor;
   if (f.computed && !f.floor_channel.empty() &&
       f.residual_std_nT <=
@@ -181,7 +183,7 @@ std::string verdict_of(const Diagnosis& dx, double resolution_nT) {
                   "chattering on its channel's noise, a vibration), not the sensor's noise",
                   f.residual_std_nT, f.band_lo_hz, f.floor_nT, f.floor_channel.c_str(),
                   f.floor_correlation, f.segments);
-    return buf;
+    return buf + unconfirmed;
   }
   if (f.computed) {
     if (f.residual_std_nT <= kCompleteWithinFloor * f.floor_nT) {
@@ -189,7 +191,7 @@ std::string verdict_of(const Diagnosis& dx, double resolution_nT) {
                     "complete: the held-out residual (%.3f nT) is within %.1fx its noise floor "
                     "(%.3f nT, its spectrum's white level above %.1f Hz)",
                     f.residual_std_nT, kCompleteWithinFloor, f.floor_nT, f.band_lo_hz);
-      return buf;
+      return buf + unconfirmed;
     }
     // Above the floor by less than a term must gain: structure, but none the search resolves.
     if (f.residual_std_nT <= f.floor_nT + resolution_nT) {
@@ -200,9 +202,9 @@ std::string verdict_of(const Diagnosis& dx, double resolution_nT) {
                     "to resolve, not noise",
                     f.residual_std_nT, kCompleteWithinFloor, f.floor_nT, f.band_lo_hz,
                     resolution_nT);
-      return buf;
+      return buf + unconfirmed;
     }
-    return "structure remains: " + remainder_description(dx);
+    return "structure remains: " + remainder_description(dx) + unconfirmed;
   }
   if (x.computed && !x.within_noise) {
     std::string chans;
@@ -215,7 +217,7 @@ std::string verdict_of(const Diagnosis& dx, double resolution_nT) {
                   "(noise floor %.1f%%), mostly from %s, and no term of the search explains it",
                   100 * x.share, 100 * x.uncertainty, 100 * x.noise_floor,
                   chans.empty() ? "no single channel" : chans.c_str());
-    return buf;
+    return buf + unconfirmed;
   }
   if (x.computed) {
     std::snprintf(buf, sizeof(buf),
@@ -224,9 +226,10 @@ std::string verdict_of(const Diagnosis& dx, double resolution_nT) {
                   "held-out lines are too short for a spectral floor)",
                   100 * x.share, 100 * x.uncertainty, 100 * x.noise_floor,
                   std::sqrt(x.share) * dx.baseline_std_nT, resolution_nT);
-    return buf;
+    return buf + unconfirmed;
   }
-  return "no candidate explains 5 % on both halves (the explainable share was not computed)";
+  return "no candidate explains 5 % on both halves (the explainable share was not computed)" +
+         unconfirmed;
 }
 
 }  // namespace magcomp::diagnose_search

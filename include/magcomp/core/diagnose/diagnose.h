@@ -12,6 +12,7 @@
 
 #include "magcomp/core/diagnose/associations.h"
 #include "magcomp/core/diagnose/explainable_share.h"
+#include "magcomp/core/diagnose/one_half_term.h"
 #include "magcomp/core/diagnose/residual_floor.h"
 #include "magcomp/core/io/channel_kinds.h"
 #include "magcomp/core/io/flight_data.h"
@@ -317,6 +318,9 @@ struct Diagnosis {
   JointSet joint;
   /// Each leading channel of DiagnoseOptions::network_channels, in the network's order.
   std::vector<NetworkCheck> network;
+  /// A candidate this flight's held-out lines cannot confirm: its channel moves on one half's
+  /// lines alone (one_half_term.h); the verdict says so. No term when none.
+  OneHalfTerm one_half;
   std::string verdict;             ///< "add <term>", "structure remains", "complete"
   std::vector<std::string> notes;  ///< skipped channels and why
 };
