@@ -241,6 +241,18 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
       r.stop_reason = std::move(reason);
       r.last = dxs.front();
       r.last_flights = std::move(dxs);
+      // The round's diagnoses size slow candidates on the calibration rows (or cross-fitted on
+      // the lines): a heater whose channel moves on one survey line only never ranks there. The
+      // model as it ends, diagnosed as `diagnose` would, names such a term (one_half_term.h):
+      // what a second flight would confirm.
+      if (flights.size() == 1 && options.slow_terms_on_lines && r.last.one_half.term.empty() &&
+          r.stop_reason.rfind("structure remains", 0) == 0) {
+        const Diagnosis as_given = diagnose(r.model, *flights.front(), truth, options);
+        if (!as_given.one_half.term.empty()) {
+          r.last.one_half = as_given.one_half;
+          r.stop_reason += one_half_clause(as_given.one_half);
+        }
+      }
     };
     // The rounds spent, the model's own lag is still estimated again with every other term in
     // place when the diagnosis ranks its new value as a candidate that passes (once): a lag
