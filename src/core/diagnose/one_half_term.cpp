@@ -70,8 +70,16 @@ OneHalfTerm one_half_term(const FlightData& data, const Search& search,
   OneHalfTerm out;
   // A term the held-out lines accept is the verdict; nothing to say of one they cannot confirm.
   if (!candidates.empty() && candidates.front().accepted) return out;
+  // Each held-out unit's half and line (a unit lies within one line and one half).
   int units = 0;
   for (int u : search.unit) units = std::max(units, u + 1);
+  std::vector<int> unit_fold(static_cast<size_t>(units), -1);
+  std::vector<double> unit_line(static_cast<size_t>(units), NAN);
+  for (size_t i = 0; i < search.unit.size(); ++i)
+    if (const int u = search.unit[i]; u >= 0) {
+      unit_fold[static_cast<size_t>(u)] = search.fold[i];
+      unit_line[static_cast<size_t>(u)] = search.line[static_cast<Eigen::Index>(i)];
+    }
   std::map<std::string, std::vector<int>> moving;  // each channel's moving units, read once
   for (size_t k = 0, read = 0; k < candidates.size() && read < kOneHalfCandidates; ++k) {
     const Candidate& c = candidates[k];
@@ -91,13 +99,11 @@ OneHalfTerm one_half_term(const FlightData& data, const Search& search,
                  .first;
       bool here = false, there = false;
       std::set<double> lines;
-      for (size_t i = 0; i < search.unit.size(); ++i) {
-        const int u = search.unit[i];
-        if (u < 0 || !std::binary_search(it->second.begin(), it->second.end(), u)) continue;
-        const int f = search.fold[i];
+      for (const int u : it->second) {
+        const int f = unit_fold[static_cast<size_t>(u)];
         here = here || f == h;
         there = there || f == 1 - h;
-        if (f == h) lines.insert(search.line[static_cast<Eigen::Index>(i)]);
+        if (f == h) lines.insert(unit_line[static_cast<size_t>(u)]);
       }
       if (!here || there) continue;
       out.term = c.term.text();

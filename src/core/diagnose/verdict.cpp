@@ -137,7 +137,7 @@ std::string size_caveat(const Candidate& c) {
 }
 
 // The verdict: add the top term, or complete (within the floor), or what remains and where.
-std::string verdict_of(const Diagnosis& dx, double resolution_nT) {
+std::string verdict_before_one_half(const Diagnosis& dx, double resolution_nT) {
   char buf[512];
   const ExplainableShare& x = dx.explainable;
   if (!dx.candidates.empty() && dx.candidates.front().accepted &&
@@ -169,8 +169,6 @@ std::string verdict_of(const Diagnosis& dx, double resolution_nT) {
     }
     return out + size_caveat(c);
   }
-  // A candidate one half of the held-out lines cannot confirm, said after any other verdict.
-  const std::string unconfirmed = one_half_clause(dx.one_half);
   const ResidualFloor& f = dx.floor;
   if (f.computed && !f.floor_channel.empty() &&
       f.residual_std_nT <=
@@ -183,7 +181,7 @@ std::string verdict_of(const Diagnosis& dx, double resolution_nT) {
                   "chattering on its channel's noise, a vibration), not the sensor's noise",
                   f.residual_std_nT, f.band_lo_hz, f.floor_nT, f.floor_channel.c_str(),
                   f.floor_correlation, f.segments);
-    return buf + unconfirmed;
+    return buf;
   }
   if (f.computed) {
     if (f.residual_std_nT <= kCompleteWithinFloor * f.floor_nT) {
@@ -191,7 +189,7 @@ std::string verdict_of(const Diagnosis& dx, double resolution_nT) {
                     "complete: the held-out residual (%.3f nT) is within %.1fx its noise floor "
                     "(%.3f nT, its spectrum's white level above %.1f Hz)",
                     f.residual_std_nT, kCompleteWithinFloor, f.floor_nT, f.band_lo_hz);
-      return buf + unconfirmed;
+      return buf;
     }
     // Above the floor by less than a term must gain: structure, but none the search resolves.
     if (f.residual_std_nT <= f.floor_nT + resolution_nT) {
@@ -202,9 +200,9 @@ std::string verdict_of(const Diagnosis& dx, double resolution_nT) {
                     "to resolve, not noise",
                     f.residual_std_nT, kCompleteWithinFloor, f.floor_nT, f.band_lo_hz,
                     resolution_nT);
-      return buf + unconfirmed;
+      return buf;
     }
-    return "structure remains: " + remainder_description(dx) + unconfirmed;
+    return "structure remains: " + remainder_description(dx);
   }
   if (x.computed && !x.within_noise) {
     std::string chans;
@@ -217,7 +215,7 @@ std::string verdict_of(const Diagnosis& dx, double resolution_nT) {
                   "(noise floor %.1f%%), mostly from %s, and no term of the search explains it",
                   100 * x.share, 100 * x.uncertainty, 100 * x.noise_floor,
                   chans.empty() ? "no single channel" : chans.c_str());
-    return buf + unconfirmed;
+    return buf;
   }
   if (x.computed) {
     std::snprintf(buf, sizeof(buf),
@@ -226,10 +224,15 @@ std::string verdict_of(const Diagnosis& dx, double resolution_nT) {
                   "held-out lines are too short for a spectral floor)",
                   100 * x.share, 100 * x.uncertainty, 100 * x.noise_floor,
                   std::sqrt(x.share) * dx.baseline_std_nT, resolution_nT);
-    return buf + unconfirmed;
+    return buf;
   }
-  return "no candidate explains 5 % on both halves (the explainable share was not computed)" +
-         unconfirmed;
+  return "no candidate explains 5 % on both halves (the explainable share was not computed)";
+}
+
+// Any verdict but "add" ends with the candidate one half of the held-out lines cannot confirm
+// (one_half_term.h); "" when there is none.
+std::string verdict_of(const Diagnosis& dx, double resolution_nT) {
+  return verdict_before_one_half(dx, resolution_nT) + one_half_clause(dx.one_half);
 }
 
 }  // namespace magcomp::diagnose_search
