@@ -109,9 +109,10 @@ bool Round::better_look_alike_in_place() {
           continue;
         auto fitted = fit_score(with_term_as(model, t.text(), a));
         const LoopRound& lr = fitted.second;
-        if (!refusal(lr, now, c_.options).empty() || !(lr.heldout_std_nT < now.heldout_std_nT) ||
-            !holds_where_sized(lr, now))
-          continue;
+        // A swap renames the effect: the look-alike earns it as a parameter estimated again
+        // does (improves_in_place: the accepted share of the held-out variance, neither half
+        // worse); a tie keeps the name the round chose.
+        if (!improves_in_place(lr, now) || !holds_where_sized(lr, now)) continue;
         if (best && !(lr.heldout_std_nT < best->fitted.second.heldout_std_nT)) continue;
         best.emplace(Best{std::move(fitted), t.text(), a});
       } catch (const Error&) {

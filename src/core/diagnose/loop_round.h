@@ -158,11 +158,12 @@ class Round {
   bool drop_idle_factors();
   // When nothing else passes or changes (and when the loop's rounds are spent): a kept term of
   // recorded channels (not a learned law's hinge nor a slow term) gives way to one of its
-  // look-alikes (look_alikes_of) when, with every other term in place, the look-alike leaves a
-  // lower held-out error and passes refusal(). The two have the same place in the model, so no
-  // share is asked: once the other effects are written, what the two channels differ by (a ratio
-  // that follows a third channel) is no longer buried under them. The best swap, one per call;
-  // it is a round (LoopRound::replaced says why).
+  // look-alikes (look_alikes_of) when, with every other term in place, the look-alike lowers the
+  // held-out error as a parameter estimated again must (improves_in_place: the accepted share of
+  // its variance, neither half worse): once the other effects are written, what the two channels
+  // differ by (a ratio that follows a third channel) is no longer buried under them, and a tie
+  // keeps the name the round chose. The best swap, one per call; it is a round
+  // (LoopRound::replaced says why).
   bool better_look_alike_in_place();
   // When nothing else passes or changes (and when the loop's rounds are spent): a kept term of
   // recorded channels (not a learned law's hinge, not one in `dropped`) that another kept term,
