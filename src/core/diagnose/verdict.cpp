@@ -136,7 +136,10 @@ std::string size_caveat(const Candidate& c) {
   return out;
 }
 
-// The verdict: add the top term, or complete (within the floor), or what remains and where.
+namespace {
+
+// The verdict without its one-half clause: add the top term, or complete (within the floor), or
+// what remains and where.
 std::string verdict_before_one_half(const Diagnosis& dx, double resolution_nT) {
   char buf[512];
   const ExplainableShare& x = dx.explainable;
@@ -228,6 +231,8 @@ std::string verdict_before_one_half(const Diagnosis& dx, double resolution_nT) {
   }
   return "no candidate explains 5 % on both halves (the explainable share was not computed)";
 }
+
+}  // namespace
 
 // Any verdict but "add" ends with the candidate one half of the held-out lines cannot confirm
 // (one_half_term.h); "" when there is none.
