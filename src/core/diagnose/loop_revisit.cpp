@@ -122,6 +122,15 @@ Model with_term_as(const Model& model, const std::string& old_text, const std::s
   return m;
 }
 
+std::string other_projection(const TermSpec& t) {
+  if (!t.expr()) return "";
+  const std::string& text = t.text();
+  for (const auto& [from, to] : {std::pair<std::string, std::string>{"scalar:", "field:"},
+                                 std::pair<std::string, std::string>{"field:", "scalar:"}})
+    if (text.rfind(from, 0) == 0) return to + text.substr(from.size());
+  return "";
+}
+
 std::string freed_parameters(const Model& model, size_t k, const Model& start) {
   const TermSpec& t = model.terms[k];
   const ExprTerm* e = t.expr();
@@ -231,29 +240,48 @@ bool Round::refine_parameters(const std::vector<Diagnosis>& dxs,
     const std::string spec = retimed_slow_term(model, k);
     if (!spec.empty()) retimed.emplace_back(k, spec);
   }
+  // The kept terms of a channel's signal written the other way (other_projection): a
+  // body-fixed field projected on the Earth's field in place of a reading added to the scalar,
+  // or the other way round. Minutes of calibration rows barely tell a slow term's two forms
+  // apart, and a form a round kept may lose its lead once the fit changes (fit.lambda, a term
+  // added).
+  std::vector<std::pair<size_t, std::string>> reprojected;
+  for (size_t k = 0; k < model.terms.size(); ++k) {
+    const TermSpec& t = model.terms[k];
+    if (fixed.count(t.text()) || !removable(c_.start, t) || fields_of(t).empty() ||
+        std::find(model.black_box_terms.begin(), model.black_box_terms.end(), t.text()) !=
+            model.black_box_terms.end())
+      continue;
+    const std::string other = other_projection(t);
+    if (!other.empty() &&
+        std::find(model.terms.begin(), model.terms.end(), TermSpec(other)) == model.terms.end())
+      reprojected.emplace_back(k, other);
+  }
   // The kept band-pass terms of aircraft states whose low-pass lies below the band, each to be
   // sized by the slow stage in its place (slow_form_of).
   std::vector<size_t> to_slow;
   for (size_t k = 0; k < model.terms.size(); ++k)
     if (!fixed.count(model.terms[k].text()) && slow_form_of(model, k, c_.start))
       to_slow.push_back(k);
-  if (freeable.empty() && retimed.empty() && to_slow.empty()) return false;
+  if (freeable.empty() && retimed.empty() && reprojected.empty() && to_slow.empty()) return false;
   // The best that passes, without a new term ([0]) and with one ([1]).
   struct Choice {
     std::optional<std::pair<Model, LoopRound>> fitted;
     std::vector<std::pair<std::string, std::string>> changed;  // (old, new) texts
     std::string added;                                         // the term added, or ""
-    bool to_slow = false;    // the change moves a kept term to the slow stage
-    bool threshold = false;  // the change places a kept step's threshold again
+    bool to_slow = false;     // the change moves a kept term to the slow stage
+    bool threshold = false;   // the change places a kept step's threshold again
+    bool projection = false;  // the change writes a kept term's other projection
   };
   Choice choice[2];
   // `in_place`: a slow term's time constant below the band estimated again on the calibration
-  // rows, or a step's threshold placed again by the held-out lines, judged by improves_in_place
-  // (neither adds a channel); otherwise by improves_on.
+  // rows, a step's threshold placed again by the held-out lines, or a kept term's other
+  // projection, judged by improves_in_place (none adds a channel); otherwise by improves_on.
   // `slow_text`: kept term moved to the slow stage (its text unchanged), judged by
   // moves_to_slow_stage.
   const auto consider = [&](Model m, const std::string& added, bool in_place = false,
-                            const std::string& slow_text = "", bool threshold = false) {
+                            const std::string& slow_text = "", bool threshold = false,
+                            bool projection = false) {
     try {
       auto fitted = fit_score(std::move(m));
       std::vector<std::pair<std::string, std::string>> changed;
@@ -278,6 +306,7 @@ bool Round::refine_parameters(const std::vector<Diagnosis>& dxs,
       c.added = added;
       c.to_slow = !slow_text.empty();
       c.threshold = threshold;
+      c.projection = projection;
     } catch (const Error&) {
     }
   };
@@ -290,6 +319,8 @@ bool Round::refine_parameters(const std::vector<Diagnosis>& dxs,
   for (const auto& [k, spec] : retimed)
     consider(with_term_as(model, model.terms[k].text(), spec), "",
              low_pass_below_band(model.terms[k], model.fit.band_low_hz));
+  for (const auto& [k, spec] : reprojected)
+    consider(with_term_as(model, model.terms[k].text(), spec), "", true, "", false, true);
   // Each kept step's threshold placed again where the held-out lines cross it: the model
   // without the step, diagnosed again with DiagnoseOptions::thresholds_on_selection, ranks the
   // same switch with the threshold its selection lines pin within what the calibration rows
@@ -379,6 +410,13 @@ bool Round::refine_parameters(const std::vector<Diagnosis>& dxs,
                     "%.4f nT, held-out error %.4f -> %.4f nT",
                     now.calibration_std_nT, lr.calibration_std_nT, now.heldout_std_nT,
                     lr.heldout_std_nT);
+    else if (pick->projection)
+      std::snprintf(why, sizeof(why),
+                    "written as %s, with every other term in place: held-out error %.4f -> "
+                    "%.4f nT",
+                    to.rfind("field:", 0) == 0 ? "a body-fixed field projected on the Earth's field"
+                                               : "a reading added to the scalar",
+                    now.heldout_std_nT, lr.heldout_std_nT);
     else if (pick->threshold)
       std::snprintf(why, sizeof(why),
                     "its threshold placed again where the held-out lines cross it (the model "

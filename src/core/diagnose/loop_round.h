@@ -34,6 +34,10 @@ constexpr double kSlowRetimeTolerance = 0.01;
 /// `model` with its term `old_text` written as `spec` (a slow term stays one), unfitted
 /// (loop_revisit.cpp).
 Model with_term_as(const Model& model, const std::string& old_text, const std::string& spec);
+/// An expression term written with its other projection: "field:S" (a body-fixed field projected
+/// on the Earth's field) for "scalar:S" (a reading added to the scalar, nT) and the other way
+/// round, the signal S and its parameters unchanged; "" for any other term (loop_revisit.cpp).
+std::string other_projection(const TermSpec& t);
 /// Kept term k of `model` with every parameter free ('?'; a ramp's knot stays), or "" when it
 /// has none to estimate again: not an expression term of recorded channels, one of `start`'s, a
 /// learned law's hinge, a slow term (Round::retimed_slow_term estimates its time constant), or a
