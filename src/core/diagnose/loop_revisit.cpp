@@ -244,7 +244,8 @@ bool Round::refine_parameters(const std::vector<Diagnosis>& dxs,
   // body-fixed field projected on the Earth's field in place of a reading added to the scalar,
   // or the other way round. Minutes of calibration rows barely tell a slow term's two forms
   // apart, and a form a round kept may lose its lead once the fit changes (fit.lambda, a term
-  // added).
+  // added). Judged as freed parameters are, with the resolution: a small gain there would take
+  // the round in which an exchange of the term gains more.
   std::vector<std::pair<size_t, std::string>> reprojected;
   for (size_t k = 0; k < model.terms.size(); ++k) {
     const TermSpec& t = model.terms[k];
@@ -275,8 +276,8 @@ bool Round::refine_parameters(const std::vector<Diagnosis>& dxs,
   };
   Choice choice[2];
   // `in_place`: a slow term's time constant below the band estimated again on the calibration
-  // rows, a step's threshold placed again by the held-out lines, or a kept term's other
-  // projection, judged by improves_in_place (none adds a channel); otherwise by improves_on.
+  // rows, or a step's threshold placed again by the held-out lines, judged by improves_in_place
+  // (neither adds a channel); otherwise by improves_on.
   // `slow_text`: kept term moved to the slow stage (its text unchanged), judged by
   // moves_to_slow_stage.
   const auto consider = [&](Model m, const std::string& added, bool in_place = false,
@@ -320,7 +321,7 @@ bool Round::refine_parameters(const std::vector<Diagnosis>& dxs,
     consider(with_term_as(model, model.terms[k].text(), spec), "",
              low_pass_below_band(model.terms[k], model.fit.band_low_hz));
   for (const auto& [k, spec] : reprojected)
-    consider(with_term_as(model, model.terms[k].text(), spec), "", true, "", false, true);
+    consider(with_term_as(model, model.terms[k].text(), spec), "", false, "", false, true);
   // Each kept step's threshold placed again where the held-out lines cross it: the model
   // without the step, diagnosed again with DiagnoseOptions::thresholds_on_selection, ranks the
   // same switch with the threshold its selection lines pin within what the calibration rows
