@@ -1110,8 +1110,9 @@ TEST(Discovery, AKeptSlowTermIsWrittenAsTheBodyFixedFieldWhereThatDoesBetter) {
   // Run 169, second aircraft, its states recorded: an inductive pick-up of cur_srvo_o and a
   // 464 s heater of cur_ac_hi (a body-fixed field). With fit.lambda 1e-4 the loop's second round
   // keeps the heater as a reading added to the scalar, scalar:cur_ac_hi|lp(588); a later round
-  // lowers fit.lambda to 1e-5 and no term passes: the loop ended at 0.540 nT on the next flight
-  // against the oracle's 0.132 (scripts/bench_discovery 1 169 half-several states draws=3 why).
+  // lowers fit.lambda to 1e-5 and no new term passes: kept so, the model leaves 0.540 nT on the
+  // next flight against the oracle's 0.132 (scripts/bench_discovery 1 169 half-several states
+  // draws=3 why).
   // With every other term in place, the same signal projected on the Earth's field does better on
   // both halves of the held-out lines, and the next flight follows.
   const sim::Scenario base = base_with_states();
