@@ -105,6 +105,35 @@ TEST(TermSupport, ATermWhoseChannelSwitchesOftenNeedsNoNote) {
   EXPECT_TRUE(term_support(c.start, c.start, c.flight).empty());
 }
 
+TEST(TermSupport, ASlowTermSizedOnTheLinesCountsItsSwitchesThere) {
+  // A current idle on the first 2000 samples (the calibration line) that switches every 150
+  // samples after them (the survey line): a slow term sized on the calibration rows alone saw no
+  // switch; sized on the lines beside them too (fit.slow_lines), it saw 27 (on at sample 2000, then
+  // every 150 samples from 2100 to 5950).
+  Case c = make_case([](int i) { return i >= 2000 && (i / 150) % 2 ? 2.0 : 0.0; }, 0.1);
+  Eigen::VectorXd line(c.flight.size());
+  for (Eigen::Index i = 0; i < line.size(); ++i) line[i] = i < 2000 ? 1001.02 : 1001.1;
+  c.flight.set("line", line);
+  c.with_term.fit.lines = {1001.02};
+  c.with_term.slow_terms = {"scalar:cur_x"};
+  const std::vector<TermSupport> on_calibration = term_support(c.with_term, c.start, c.flight);
+  ASSERT_EQ(on_calibration.size(), 1u);
+  EXPECT_FALSE(on_calibration[0].on_lines);
+  EXPECT_EQ(on_calibration[0].switches, 0);
+  EXPECT_NE(support_note(on_calibration[0]).find("switched 0 times on the calibration rows:"),
+            std::string::npos)
+      << support_note(on_calibration[0]);
+  c.with_term.fit.slow_lines = {1001.1};
+  const std::vector<TermSupport> on_lines = term_support(c.with_term, c.start, c.flight);
+  ASSERT_EQ(on_lines.size(), 1u);
+  EXPECT_TRUE(on_lines[0].on_lines);
+  EXPECT_EQ(on_lines[0].switches, 27);
+  EXPECT_NE(support_note(on_lines[0], 30).find("on the calibration rows and the lines beside them"),
+            std::string::npos)
+      << support_note(on_lines[0], 30);
+  EXPECT_EQ(support_note(on_lines[0]), "");
+}
+
 TEST(TermSupport, ATermWhoseChannelHasATwinSaysTheEffectMayBeEithers) {
   Case c = make_case([](int i) { return (i / 150) % 2 ? 2.0 : 0.0; }, 0.1);
   // A second tap of the same switched load (0.9 times it, its own noise of 0.05 A) and a load

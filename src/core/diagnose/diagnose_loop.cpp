@@ -14,30 +14,11 @@
 #include "magcomp/core/fit/model_fit.h"
 
 namespace magcomp {
-namespace {
-
-// The line numbers of the flights' samples outside the calibration segments (`fit`), sorted.
-std::vector<double> lines_beside_calibration(const FitSettings& fit,
-                                             const std::vector<const FlightData*>& flights) {
-  std::set<double> lines;
-  for (const FlightData* f : flights) {
-    if (!f->has("line")) continue;
-    const std::vector<Eigen::Index> cal = f->select(fit.lines, fit.windows);
-    std::vector<bool> in_cal(static_cast<size_t>(f->size()), false);
-    for (Eigen::Index i : cal) in_cal[static_cast<size_t>(i)] = true;
-    const auto line = f->column("line");
-    for (Eigen::Index i = 0; i < line.size(); ++i)
-      if (!in_cal[static_cast<size_t>(i)] && std::isfinite(line[i])) lines.insert(line[i]);
-  }
-  return {lines.begin(), lines.end()};
-}
-
-}  // namespace
-
 using loop_steps::better_lambda;
 using loop_steps::Eligible;
 using loop_steps::eligible_candidates;
 using loop_steps::HeldOut;
+using loop_steps::lines_beside_calibration;
 using loop_steps::refusal;
 using loop_steps::score;
 using loop_steps::variance_share;

@@ -262,7 +262,8 @@ bool Round::refine_parameters(const std::vector<Diagnosis>& dxs,
   // sized by the slow stage in its place (slow_form_of).
   std::vector<size_t> to_slow;
   for (size_t k = 0; k < model.terms.size(); ++k)
-    if (!fixed.count(model.terms[k].text()) && slow_form_of(model, k, c_.start))
+    if (!fixed.count(model.terms[k].text()) &&
+        slow_form_of(model, k, c_.start, c_.options.slow_terms_on_lines))
       to_slow.push_back(k);
   if (freeable.empty() && retimed.empty() && reprojected.empty() && to_slow.empty()) return false;
   // The best that passes, without a new term ([0]) and with one ([1]).
@@ -292,9 +293,13 @@ bool Round::refine_parameters(const std::vector<Diagnosis>& dxs,
       if (!slow_text.empty()) changed.emplace_back(slow_text, slow_text);
       if (changed.empty()) return;  // the same parameters: nothing new to judge
       const LoopRound& lr = fitted.second;
-      if (!slow_text.empty() ? !moves_to_slow_stage(lr, now)
-          : in_place         ? !improves_in_place(lr, now)
-                             : !improves_on(lr, now))
+      // A reference fit's term moved to the lines: judged as a freed parameter is (the
+      // calibration rows, which sized it unfiltered already, cannot fall).
+      if (!slow_text.empty()
+              ? (model.fit.method == FitMethod::kReference ? !improves_on(lr, now)
+                                                           : !moves_to_slow_stage(lr, now))
+          : in_place ? !improves_in_place(lr, now)
+                     : !improves_on(lr, now))
         return;
       // A new term with them: the gain a candidate needs on each half.
       if (!added.empty() && !(passes(lr.selection_std_nT, now.selection_std_nT) &&
@@ -358,6 +363,9 @@ bool Round::refine_parameters(const std::vector<Diagnosis>& dxs,
     Model m = model;
     m.slow_terms.push_back(model.terms[k].text());
     if (m.fit.reference.empty()) m.fit.reference = c_.truth;
+    if (m.fit.method == FitMethod::kReference && m.fit.slow_lines.empty())
+      m.fit.slow_lines = lines_beside_calibration(m.fit, c_.flights);
+    if (m.fit.method == FitMethod::kReference && m.fit.slow_lines.empty()) continue;
     consider(std::move(m), "", false, model.terms[k].text());
   }
   // The diagnosis's first candidates (of distinct channels, whatever their share alone), each
@@ -404,7 +412,13 @@ bool Round::refine_parameters(const std::vector<Diagnosis>& dxs,
   lr.explained = variance_share(lr.heldout_std_nT, now.heldout_std_nT);
   for (const auto& [from, to] : best_changed) {
     char why[400];
-    if (pick->to_slow)
+    if (pick->to_slow && model.fit.method == FitMethod::kReference)
+      std::snprintf(why, sizeof(why),
+                    "sized by the slow stage on the calibration rows and the lines beside them "
+                    "(fit.slow_lines, cross-fitted where scored) in place of the calibration rows "
+                    "alone, whose minutes barely move it: held-out error %.4f -> %.4f nT",
+                    now.heldout_std_nT, lr.heldout_std_nT);
+    else if (pick->to_slow)
       std::snprintf(why, sizeof(why),
                     "sized by the slow stage (the calibration rows, unfiltered) in place of the "
                     "band-pass, which passes little of its low-pass: calibration rows %.4f -> "

@@ -54,7 +54,20 @@ bool low_pass_below_band(const TermSpec& t, double band_low_hz);
 /// through what little of it its band passes (a heater's field switched on and off), and sizes
 /// it there no better than the ridge; the calibration rows, unfiltered, show all of it
 /// (loop_slow_terms.cpp).
-bool slow_form_of(const Model& model, size_t k, const Model& start);
+/// With `lines_size` (DiagnoseOptions::slow_terms_on_lines), a reference fit's term too whose
+/// low-pass is kSlowOnLinesMin_s or slower: the calibration rows size it unfiltered, but their
+/// few minutes barely move a heater's state; the slow stage sizes it on the lines beside them
+/// too (fit.slow_lines), cross-fitted where the loop scores it.
+bool slow_form_of(const Model& model, size_t k, const Model& start, bool lines_size = false);
+/// Whether term `t` low-passes any signal with a time constant of tau_s or longer.
+bool low_pass_beyond(const TermSpec& t, double tau_s);
+/// The shortest time constant of a reference fit's term the loop tries sizing on the lines (s):
+/// half a minute, slower than any maneuver of the calibration segments (a few seconds each), where
+/// a term is a heater's or a drift's state rather than a motion's.
+constexpr double kSlowOnLinesMin_s = 30.0;
+/// The line numbers of the flights' samples outside the calibration segments (`fit`), sorted.
+std::vector<double> lines_beside_calibration(const FitSettings& fit,
+                                             const std::vector<const FlightData*>& flights);
 
 /// The indices of the eligible candidates a round tries alone, in rank order: at most
 /// kTriesPerRound, the best ranked of each set of recorded channels (a lag, reading none, is
@@ -139,7 +152,10 @@ class Round {
   // aircraft states whose low-pass lies below the band (slow_form_of) is
   // also tried sized by the slow stage in its place, judged by moves_to_slow_stage: a heater's
   // field chosen in its band-pass form by a hair on the held-out lines, whose size the band
-  // only guesses, leaves the calibration rows (and another flight's) unexplained.
+  // only guesses, leaves the calibration rows (and another flight's) unexplained. A reference
+  // fit's term of kSlowOnLinesMin_s or slower is tried sized on the calibration rows and the
+  // lines beside them (fit.slow_lines, set to them when empty), judged by improves_on: the
+  // calibration rows sized it already, on minutes in which a heater's channel may not switch.
   // Terms whose text is in `fixed` keep their parameters.
   bool refine_parameters(const std::vector<Diagnosis>& dxs,
                          const std::set<std::string>& fixed = {});

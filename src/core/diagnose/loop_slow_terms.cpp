@@ -14,6 +14,21 @@
 
 namespace magcomp::loop_steps {
 
+std::vector<double> lines_beside_calibration(const FitSettings& fit,
+                                             const std::vector<const FlightData*>& flights) {
+  std::set<double> lines;
+  for (const FlightData* f : flights) {
+    if (!f->has("line")) continue;
+    const std::vector<Eigen::Index> cal = f->select(fit.lines, fit.windows);
+    std::vector<bool> in_cal(static_cast<size_t>(f->size()), false);
+    for (Eigen::Index i : cal) in_cal[static_cast<size_t>(i)] = true;
+    const auto line = f->column("line");
+    for (Eigen::Index i = 0; i < line.size(); ++i)
+      if (!in_cal[static_cast<size_t>(i)] && std::isfinite(line[i])) lines.insert(line[i]);
+  }
+  return {lines.begin(), lines.end()};
+}
+
 bool low_pass_below_band(const TermSpec& t, double band_low_hz) {
   const ExprTerm* e = t.expr();
   if (!e) return false;
@@ -23,19 +38,32 @@ bool low_pass_below_band(const TermSpec& t, double band_low_hz) {
   return false;
 }
 
-bool slow_form_of(const Model& model, size_t k, const Model& start) {
+bool low_pass_beyond(const TermSpec& t, double tau_s) {
+  const ExprTerm* e = t.expr();
+  if (!e) return false;
+  for (const Transform& x : e->signal().transforms)
+    if (x.kind == TransformKind::LowPass && x.param >= tau_s) return true;
+  return false;
+}
+
+bool slow_form_of(const Model& model, size_t k, const Model& start, bool lines_size) {
   const TermSpec& t = model.terms[k];
   const auto listed = [&](const std::vector<std::string>& list) {
     return std::find(list.begin(), list.end(), t.text()) != list.end();
   };
-  if (model.fit.method != FitMethod::kBandpass || !removable(start, t) ||
-      listed(model.slow_terms) || listed(model.black_box_terms))
+  const bool sized_by_fit = model.fit.method == FitMethod::kBandpass ||
+                            (lines_size && model.fit.method == FitMethod::kReference);
+  if (!sized_by_fit || !removable(start, t) || listed(model.slow_terms) ||
+      listed(model.black_box_terms))
     return false;
   const std::set<std::string> fields = fields_of(t);
   if (fields.empty() || !std::all_of(fields.begin(), fields.end(), is_aircraft_state)) return false;
   const ExprTerm* e = t.expr();
   if (!e || e->signal().has_free()) return false;
-  return low_pass_below_band(t, model.fit.band_low_hz);
+  // A reference fit sees the column unfiltered already: only the lines beside the calibration
+  // rows add what the slow stage sizes it on, a heater's time constant or more.
+  return model.fit.method == FitMethod::kReference ? low_pass_beyond(t, kSlowOnLinesMin_s)
+                                                   : low_pass_below_band(t, model.fit.band_low_hz);
 }
 
 bool Round::moves_to_slow_stage(const LoopRound& lr, const LoopRound& now) const {

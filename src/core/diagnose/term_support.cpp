@@ -99,6 +99,7 @@ std::vector<TermSupport> term_support(const Model& model, const Model& start,
     m.sized = from + n <= model.coefficients.size();
     m.slow =
         std::find(model.slow_terms.begin(), model.slow_terms.end(), spec) != model.slow_terms.end();
+    out.back().on_lines = m.slow && !model.fit.slow_lines.empty();
     sums.push_back(m);
   }
   for (const FlightData* flight : flights) {
@@ -108,11 +109,19 @@ std::vector<TermSupport> term_support(const Model& model, const Model& start,
       rows = data.select(model.fit.lines, model.fit.windows);
     if (rows.empty())
       for (Eigen::Index i = 0; i < data.size(); ++i) rows.push_back(i);
+    // A slow term sized on the lines too: its rows are those and the calibration rows.
+    std::vector<Eigen::Index> slow_rows;
+    if (!model.fit.slow_lines.empty()) {
+      std::vector<double> lines = model.fit.lines;
+      lines.insert(lines.end(), model.fit.slow_lines.begin(), model.fit.slow_lines.end());
+      slow_rows = data.select(lines, model.fit.windows);
+    }
     const Eigen::MatrixXd a = design_matrix(model, data);
     for (size_t k = 0; k < out.size(); ++k) {
       TermSupport& s = out[k];
       if (!s.channel.empty() && data.has(s.channel))
-        s.switches = std::max(s.switches, 0) + channel_switches(data.column(s.channel), rows);
+        s.switches = std::max(s.switches, 0) +
+                     channel_switches(data.column(s.channel), s.on_lines ? slow_rows : rows);
       Sums& m = sums[k];
       if (!m.sized || m.from + m.n > a.cols()) {
         m.sized = false;
@@ -157,8 +166,10 @@ std::string twins_note(const TermSupport& s) {
   return out + tail;
 }
 
-std::string support_note(const TermSupport& s, int few_switches, const std::string& rows) {
+std::string support_note(const TermSupport& s, int few_switches, const std::string& rows_in) {
   if (s.channel.empty() || s.switches < 0) return "";
+  const std::string rows =
+      s.on_lines ? "the calibration rows and the lines beside them (fit.slow_lines)" : rows_in;
   char buf[400];
   if (s.switches < few_switches) {
     if (std::isfinite(s.size_sigma_nT))

@@ -20,6 +20,9 @@ struct TermSupport {
   /// 1-99 % range over the whole flight (one switch on and off counts two; a channel idle on the
   /// fit rows does not switch there, whatever its noise); -1 without a channel.
   int switches = -1;
+  /// Sized by the slow stage on the calibration rows and the lines beside them
+  /// (Model::slow_terms with fit.slow_lines): its switches are counted on those rows too.
+  bool on_lines = false;
   /// 1-sigma uncertainty of the term's contribution to the compensated field, nT: the rms over
   /// the flight's rows of sqrt(a_i' Σ a_i), with a_i the term's columns beyond the model's other
   /// columns (as for size_nT) and Σ their block of the
@@ -52,7 +55,7 @@ std::vector<TermSupport> term_support(const Model& model, const Model& start,
 /// uncertain to ±0.8 nT" when it switched fewer than `few_switches` times; "its size, 17.4 nT,
 /// is not determined by the calibration rows (±10 nT over blocks of them): X may stand in for
 /// another effect" when the size lies within two sigma of none; else "". `rows` names the rows
-/// that size it.
+/// that size it (for a term sized on the lines too, TermSupport::on_lines, those rows are named).
 std::string support_note(const TermSupport& s, int few_switches = 10,
                          const std::string& rows = "the calibration rows");
 
