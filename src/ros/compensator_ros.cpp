@@ -25,8 +25,7 @@ constexpr double kCompensatorTimerPeriod_s = 0.25;  // model-file watch, held in
 constexpr double kCompensatorDiagnosticsPeriod_s = 1.0;
 constexpr int kCompensatorOutputQueue = 10000;  // deep: a fast replay's bursts are never dropped
 constexpr long kTrackTfEvery = 5;               // outputs between two poses of the aircraft
-constexpr int kSwapWaitTicks = 4;    // timer ticks a swap waits for its newest samples' channels
-constexpr size_t kMinHistory = 256;  // samples re-fed to a swapped-in model (at least)
+constexpr size_t kMinHistory = 256;             // samples re-fed to a swapped-in model (at least)
 
 double file_mtime(const std::string& path) {
   struct stat st {};
@@ -115,7 +114,7 @@ CompensatorRos::CompensatorRos(ros::NodeHandle nh, ros::NodeHandle pnh)
            model_path_.c_str());
 }
 
-bool CompensatorRos::load_model(const std::string& why, bool may_wait) {
+bool CompensatorRos::load_model(const std::string& why) {
   try {
     auto next = std::make_unique<StreamingCompensator>(load_model_yaml(model_path_));
     const double mtime = file_mtime(model_path_);
@@ -126,15 +125,6 @@ bool CompensatorRos::load_model(const std::string& why, bool may_wait) {
             model_path_ + ": the new model's sensors differ from the subscribed ones; not swapped";
         return false;
       }
-      // A model that read no channel let its newest samples out before their aux message
-      // came: the new one would read them with the channels held from the sample before. The
-      // swap waits a timer tick for them, a few times at most (a stream that stopped sends none).
-      if (may_wait && swap_waits_ < kSwapWaitTicks && !next->required_channels().empty() &&
-          !history_.empty() && !input_->aligner().aux_covers(history_.back().t_s)) {
-        ++swap_waits_;
-        return true;
-      }
-      swap_waits_ = 0;
       // Swap without losing a sample: the new model re-reads the recent samples (with its own
       // channels) and takes over at the first stamp not yet published.
       for (StreamSample s : history_) {
@@ -175,7 +165,7 @@ bool CompensatorRos::on_reload(std_srvs::Trigger::Request&, std_srvs::Trigger::R
 void CompensatorRos::on_timer() {
   if (watch_model_) {
     const double m = file_mtime(model_path_);
-    if (m != 0.0 && m != model_mtime_ && !load_model("file changed", true)) {
+    if (m != 0.0 && m != model_mtime_ && !load_model("file changed")) {
       ROS_ERROR("magcomp: %s", model_error_.c_str());
     }
   }

@@ -29,11 +29,7 @@ class CompensatorRos {
   CompensatorRos(ros::NodeHandle nh, ros::NodeHandle pnh);
 
  private:
-  /// Loads model_path_ and swaps it in. With `may_wait` (the file watcher), a swap whose newest
-  /// samples' aux channels have not come yet waits a timer tick for them, at most
-  /// kSwapWaitTicks times (returns true, nothing swapped; model_mtime_ unchanged so the next tick
-  /// tries again).
-  bool load_model(const std::string& why, bool may_wait = false);
+  bool load_model(const std::string& why);
   bool on_reload(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res);
   void on_timer();
   /// Lets out what the aligner holds ready (force: everything) and compensates it.
@@ -59,7 +55,6 @@ class CompensatorRos {
   std::deque<StreamSample> history_;  // recent samples, re-fed to a swapped-in model
   std::string model_error_;
   double model_mtime_ = 0.0;
-  int swap_waits_ = 0;  // ticks a swap has waited for its newest samples' channels
   double last_published_t_ = -1e300;
   bool ending_ = false;        // end-of-stream received, pending samples still going out
   double flushed_at_t_ = NAN;  // data time of the last wall-time flush (NaN: none)

@@ -81,9 +81,6 @@ class StreamAligner {
   /// Inputs at t (interpolated; false outside what is buffered).
   bool reference_at(double t_s, double* value_nT) const;
   bool fix_at(double t_s, Eigen::Vector3d* lat_lon_height) const;
-  /// Whether an aux message at or after data time t_s has come (a channel at t_s is then
-  /// interpolated, not held).
-  bool aux_covers(double t_s) const { return !aux_.empty() && aux_.back().t >= t_s; }
   /// A channel of the aux messages at t by name (NaN when absent or not covered).
   double channel_at(double t_s, const std::string& name) const;
 
