@@ -68,7 +68,16 @@ TEST(ModelSwap, TakesEffectAtOneStampWithNoSampleLost) {
     if (!std::isfinite(v) || !std::isfinite(off_old[i]) || !std::isfinite(off_new[i])) continue;
     const bool is_old = std::abs(v - off_old[i]) < 1e-6, is_new = std::abs(v - off_new[i]) < 1e-6;
     if (switch_at < 0 && is_new && !is_old) switch_at = i;
-    if (switch_at < 0 ? !is_old : !is_new) ++mismatches;
+    if (switch_at < 0 ? !is_old : !is_new) {
+      // Which sample, and what it holds: a rare mismatch says where the swap went wrong.
+      if (++mismatches <= 5)
+        std::printf(
+            "  mismatch at sample %ld (t = %.1f s, %s the swap): measured %.6f, correction "
+            "%.6f, compensated %.6f nT; offline old %.6f, new %.6f nT\n",
+            static_cast<long>(i), f.tt()[i] - f.tt()[0], switch_at < 0 ? "before" : "after",
+            g_out[static_cast<size_t>(i)].measured_nT,
+            g_out[static_cast<size_t>(i)].aircraft_correction_nT, v, off_old[i], off_new[i]);
+    }
     if (switch_at >= 0) {
       ss_err += std::pow(g_out[static_cast<size_t>(i)].error_nT - (off_new[i] - ref[i]), 2);
       ++n_after;
