@@ -312,6 +312,7 @@ struct DiagnoseArgs {
   bool apply = false, quick = false, choose_lambda = false, no_exchange = false;
   bool no_refine = false;
   bool keep_factors = false;
+  bool no_steady_factors = false;
   bool tl_as_given = false;
 };
 
@@ -425,6 +426,7 @@ void run_diagnose(const DiagnoseArgs& a) {
   if (a.no_exchange && !a.apply) throw Error("--no-exchange: only with --apply");
   if (a.no_refine && !a.apply) throw Error("--no-refine: only with --apply");
   if (a.keep_factors && !a.apply) throw Error("--keep-factors: only with --apply");
+  if (a.no_steady_factors && !a.apply) throw Error("--no-steady-factors: only with --apply");
   if (a.tl_as_given && !a.apply) throw Error("--tl-as-given: only with --apply");
   const std::vector<std::string> paths = flight_paths("--data", a.data);
   std::vector<OutputGuard::File> others = {
@@ -448,6 +450,7 @@ void run_diagnose(const DiagnoseArgs& a) {
   options.exchange_terms = !a.no_exchange;
   options.refine_parameters = !a.no_refine;
   options.drop_idle_factors = !a.keep_factors;
+  options.steady_factor_products = !a.no_steady_factors;
   options.exact_norm = !a.tl_as_given;
   if (!a.attribution.empty()) options.network_channels = read_network_attribution(a.attribution);
   if (paths.size() > 1 && !a.apply) {
@@ -560,6 +563,11 @@ void add_diagnose(CLI::App& app) {
                 "with --apply: when no term passes, keep every kept product as it is (by default "
                 "a product whose factor does not earn its place on the held-out lines is written "
                 "without it)");
+  cmd->add_flag("--no-steady-factors", a->no_steady_factors,
+                "with --apply: when no term passes, keep each kept term as it is (by default a "
+                "term whose field scales with a channel the flight holds nearly steady, an engine "
+                "speed or a bus, is written as that product when it explains most of what "
+                "remains)");
   cmd->add_option("--attribution", a->attribution,
                   "a trained network's attribution (magcomp evaluate --explain --json on a "
                   "flight it never saw): the channels it leans on (10 % or more, at most 3) are "

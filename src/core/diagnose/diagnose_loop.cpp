@@ -90,6 +90,14 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
       loop_steps::Round simplify(context, max_rounds, &r);
       if (!simplify.drop_idle_factors()) break;
     }
+    // And each kept term whose field scales with a channel the flights hold nearly steady is
+    // written as that product (at most one per kept term).
+    for (size_t products = 0; round > max_rounds && round > 1 && options.steady_factor_products &&
+                              products < r.model.terms.size();
+         ++products) {
+      loop_steps::Round scale(context, max_rounds, &r);
+      if (!scale.steady_factor_in_place()) break;
+    }
     // And each kept term that a look-alike beats with every other term in place gives way to it
     // (at most one swap per kept term).
     for (size_t swaps = 0; round > max_rounds && round > 1 && options.better_look_alike &&
@@ -365,6 +373,11 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
     // (Round::drop_idle_factors).
     if (revisited(options.drop_idle_factors,
                   [](loop_steps::Round& x) { return x.drop_idle_factors(); }))
+      continue;
+    // Nothing kept changes: a kept term whose field scales with a channel the flights hold nearly
+    // steady is written as that product (Round::steady_factor_in_place).
+    if (revisited(options.steady_factor_products,
+                  [](loop_steps::Round& x) { return x.steady_factor_in_place(); }))
       continue;
     // Nothing kept changes: a kept term that a look-alike beats with every other term in place
     // gives way to it (Round::better_look_alike_in_place).

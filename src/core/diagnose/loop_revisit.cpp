@@ -179,7 +179,7 @@ bool Round::drop_idle_factors() {
         auto fitted = fit_score(with_term_as(model, t.text(), simpler));
         const LoopRound& lr = fitted.second;
         // The factor earns its place: the product beats the term without it.
-        if (passes(now.heldout_std_nT, lr.heldout_std_nT)) continue;
+        if (factor_resolved(now, lr)) continue;
         // The term without it is still a term: it passes a new term's checks against the model
         // without either.
         const LoopRound& none = without->second;

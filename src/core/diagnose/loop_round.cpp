@@ -112,6 +112,15 @@ bool Round::improves_in_place(const LoopRound& lr, const LoopRound& now) const {
          variance_share(lr.heldout_std_nT, now.heldout_std_nT) >= c_.options.accept_fraction;
 }
 
+bool Round::factor_resolved(const LoopRound& with, const LoopRound& without) const {
+  if (passes(with.heldout_std_nT, without.heldout_std_nT)) return true;
+  return variance_share(with.heldout_std_nT, without.heldout_std_nT) >= kFactorShare &&
+         variance_share(with.selection_std_nT, without.selection_std_nT) >=
+             c_.options.accept_fraction &&
+         variance_share(with.confirmation_std_nT, without.confirmation_std_nT) >=
+             c_.options.accept_fraction;
+}
+
 bool Round::holds_where_sized(const LoopRound& lr, const LoopRound& now) const {
   return !(lr.calibration_std_nT * lr.calibration_std_nT * (1.0 - c_.options.accept_fraction) >
            now.calibration_std_nT * now.calibration_std_nT);

@@ -65,6 +65,13 @@ bool low_pass_beyond(const TermSpec& t, double tau_s);
 /// half a minute, slower than any maneuver of the calibration segments (a few seconds each), where
 /// a term is a heater's or a drift's state rather than a motion's.
 constexpr double kSlowOnLinesMin_s = 30.0;
+/// The share of the held-out variance by which a factor of a kept term earns its place below the
+/// resolution (Round::factor_resolved): most of what is left, which a chance channel does not
+/// explain.
+constexpr double kFactorShare = 0.5;
+/// The largest relative std (over the flights' samples) of a recorded state that
+/// Round::steady_factor_in_place tries as a factor of a kept term beside those the rounds list.
+constexpr double kSteadyFactorRelative = 0.1;
 /// The line numbers of the flights' samples outside the calibration segments (`fit`), sorted.
 std::vector<double> lines_beside_calibration(const FitSettings& fit,
                                              const std::vector<const FlightData*>& flights);
@@ -170,12 +177,23 @@ class Round {
   // When nothing else passes or changes (and when the loop's rounds are spent): a kept product
   // of recorded channels (field:a*b, with its
   // transforms) whose factor earns no place -- the product does not beat the same term without
-  // that factor by the accepted share and the resolution on the held-out lines (a factor the
-  // flights hold steady, or one that only rescales the other) -- is written without it, if that
+  // that factor by factor_resolved on the held-out lines (a factor the flights hold steady, or
+  // one that only rescales the other) -- is written without it, if that
   // term alone still lowers the error of the model without either by the same and passes
   // refusal() against it. The least needed factor first, one per call; the change is a round
   // (LoopRound::replaced says why).
   bool drop_idle_factors();
+  // When nothing else passes or changes (and when the loop's rounds are spent): a kept field term
+  // of one recorded channel (its transforms linear, not a learned law's hinge nor a slow term)
+  // gives way to its product with a factor the rounds listed beside it as a channel these
+  // flights hold nearly steady (LoopRound::steady_factors), or with a recorded state held within
+  // kSteadyFactorRelative of its mean, when, with every other term in place,
+  // the product passes refusal(), raises neither half, earns its factor (factor_resolved) and
+  // holds where the term is sized (holds_where_sized). A modulation of a few percent is below
+  // what a term alone must gain while other effects are in the residual; once they are
+  // written, it is what remains. The best product, one per call; it is a round
+  // (LoopRound::replaced says why), and drop_idle_factors keeps it by the same test.
+  bool steady_factor_in_place();
   // When nothing else passes or changes (and when the loop's rounds are spent): a kept term of
   // recorded channels (not a learned law's hinge nor a slow term) gives way to one of its
   // look-alikes (look_alikes_of) when, with every other term in place, the look-alike lowers the
@@ -233,6 +251,14 @@ class Round {
   // smoothing), keep the resolution: a small gain there takes the round in which an exchange of
   // the term would have gained more.
   bool improves_in_place(const LoopRound& lr, const LoopRound& now) const;
+  // Whether a kept term's factor earns its place: the model with the product (`with`) beats the
+  // same model with the term without the factor (`without`) by passes(); or, the gain below the
+  // resolution, by kFactorShare of the held-out variance, each half lowered by the accepted
+  // share of its own (a half already near its noise floor has little left to lose). A factor the
+  // flights hold nearly steady (an engine speed within a few percent) modulates a term by less
+  // than a term must gain, yet once every other effect is written that modulation is most of
+  // what remains.
+  bool factor_resolved(const LoopRound& with, const LoopRound& without) const;
   // A kept term moved from the band-pass to the slow stage (slow_form_of),
   // scored `lr` against the model scored `now`: it passes refusal(), lowers the calibration
   // rows' error (unfiltered: what the slow stage sizes it on) and the held-out error each by the
