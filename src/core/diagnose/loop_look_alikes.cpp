@@ -84,9 +84,7 @@ std::vector<std::string> Round::look_alikes_of(const TermSpec& t,
 bool Round::better_look_alike_in_place() {
   const LoopRound now = r_->rounds.back();
   const Model& model = r_->model;
-  std::set<std::string> model_fields;  // the channels the model's terms read
-  for (const TermSpec& t : model.terms)
-    for (const std::string& x : fields_of(t)) model_fields.insert(x);
+  const std::set<std::string> model_fields = fields_of(model);  // what the terms read
   struct Best {
     std::pair<Model, LoopRound> fitted;
     std::string old_text, new_text;

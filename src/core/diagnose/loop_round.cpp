@@ -105,10 +105,13 @@ bool Round::improves_on(const LoopRound& lr, const LoopRound& now) const {
          now.heldout_std_nT - lr.heldout_std_nT >= c_.options.resolution_nT;
 }
 
+bool halves_hold(const LoopRound& lr, const LoopRound& now) {
+  return !(lr.selection_std_nT > now.selection_std_nT) &&
+         !(lr.confirmation_std_nT > now.confirmation_std_nT);
+}
+
 bool Round::improves_in_place(const LoopRound& lr, const LoopRound& now) const {
-  const bool halves_hold = !(lr.selection_std_nT > now.selection_std_nT) &&
-                           !(lr.confirmation_std_nT > now.confirmation_std_nT);
-  return refusal(lr, now, c_.options).empty() && halves_hold &&
+  return refusal(lr, now, c_.options).empty() && halves_hold(lr, now) &&
          variance_share(lr.heldout_std_nT, now.heldout_std_nT) >= c_.options.accept_fraction;
 }
 

@@ -72,6 +72,8 @@ constexpr double kFactorShare = 0.5;
 /// The largest relative std (over the flights' samples) of a recorded state that
 /// Round::steady_factor_in_place tries as a factor of a kept term beside those the rounds list.
 constexpr double kSteadyFactorRelative = 0.1;
+/// Whether `lr` raises neither half of the held-out lines above the model scored `now`.
+bool halves_hold(const LoopRound& lr, const LoopRound& now);
 /// The line numbers of the flights' samples outside the calibration segments (`fit`), sorted.
 std::vector<double> lines_beside_calibration(const FitSettings& fit,
                                              const std::vector<const FlightData*>& flights);

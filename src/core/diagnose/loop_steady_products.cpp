@@ -48,9 +48,7 @@ std::string times_factor(const ExprTerm& e, const std::string& factor) {
 bool Round::steady_factor_in_place() {
   const LoopRound now = r_->rounds.back();
   const Model& model = r_->model;
-  std::set<std::string> model_fields;  // the channels the model's terms read
-  for (const TermSpec& t : model.terms)
-    for (const std::string& x : fields_of(t)) model_fields.insert(x);
+  const std::set<std::string> model_fields = fields_of(model);  // what the terms read
   struct Best {
     std::pair<Model, LoopRound> fitted;
     std::string old_text, new_text, factor;
@@ -92,10 +90,8 @@ bool Round::steady_factor_in_place() {
         // The product passes refusal() and raises neither half; its factor earns its place
         // (factor_resolved, the test drop_idle_factors keeps it by), and it holds where the
         // term is sized.
-        const bool halves_hold = !(lr.selection_std_nT > now.selection_std_nT) &&
-                                 !(lr.confirmation_std_nT > now.confirmation_std_nT);
-        if (!refusal(lr, now, c_.options).empty() || !halves_hold || !factor_resolved(lr, now) ||
-            !holds_where_sized(lr, now))
+        if (!refusal(lr, now, c_.options).empty() || !halves_hold(lr, now) ||
+            !factor_resolved(lr, now) || !holds_where_sized(lr, now))
           continue;
         if (best && !(lr.heldout_std_nT < best->fitted.second.heldout_std_nT)) continue;
         best.emplace(Best{std::move(fitted), t.text(), product, f});

@@ -510,6 +510,13 @@ std::set<std::string> fields_of(const TermSpec& t) {
   return std::set<std::string>(f.begin(), f.end());
 }
 
+std::set<std::string> fields_of(const Model& model) {
+  std::set<std::string> out;
+  for (const TermSpec& t : model.terms)
+    for (const std::string& x : fields_of(t)) out.insert(x);
+  return out;
+}
+
 // The terms of a round's step as LoopRound::added writes them (" + " joins a pair or a law).
 std::vector<std::string> step_terms(const std::string& added) {
   std::vector<std::string> out;

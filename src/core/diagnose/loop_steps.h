@@ -77,6 +77,8 @@ void add_candidate_term(const TermSpec& term, bool slow, const std::string& trut
 
 /// The recorded channels a term reads (none for a lag).
 std::set<std::string> fields_of(const TermSpec& t);
+/// The recorded channels the model's terms read.
+std::set<std::string> fields_of(const Model& model);
 
 /// The terms of a round's step as LoopRound::added writes them (" + " joins a pair or a law).
 std::vector<std::string> step_terms(const std::string& added);
