@@ -217,8 +217,8 @@ struct DiagnoseOptions {
   /// exchange change the model, and once more when the rounds are spent, a kept
   /// product of recorded channels whose factor earns no place (the product does not beat the
   /// same term without it by accepted_fraction of the held-out variance and resolution_nT, nor
-  /// by half that variance overall and on each half: a current times a bus the flights hold
-  /// steady, or times a channel that only rescales it) is
+  /// by half that variance with each half lowered by accepted_fraction of its own: a current
+  /// times a bus the flights hold steady, or times a channel that only rescales it) is
   /// written without that factor, if the simpler term still passes a new term's checks against
   /// the model without either (LoopRound::replaced). The model then names the channels the
   /// flights show (false: a product stays as it was added).
@@ -226,9 +226,10 @@ struct DiagnoseOptions {
   /// diagnose_loop: when no term passes and nothing else changes the model (and once more when
   /// the rounds are spent), a kept field term of one recorded channel is written as its product
   /// with a channel the rounds listed as one it may scale with unseen (LoopRound::steady_factors:
-  /// a bus voltage, the engine speed) when the product lowers the held-out error as a new term
-  /// must, neither half higher (loop_steps::Round::steady_factor_in_place). False: such a factor
-  /// is only reported.
+  /// a bus voltage, the engine speed) or a recorded state held within 10 % of its mean, when the
+  /// product raises neither half and its factor earns its place as drop_idle_factors keeps one
+  /// (loop_steps::Round::steady_factor_in_place, factor_resolved). False: such a factor is only
+  /// reported.
   bool steady_factor_products = true;
   /// diagnose_loop: after a single term is kept, the eligible terms of other channels that it
   /// does not beat are listed as its look-alikes; the best of them that beats it by
