@@ -613,6 +613,18 @@ struct RoundAtTheEnd {
     out.rounds.push_back(loop_steps::score(out.model, flights, truth, held, nullptr));
     return out;
   }
+  // The start model with TL written as the exact norm (fit.method reference against the truth,
+  // fit.lambda 1e-6, as exact_norm_step writes it) and `terms` added, fitted on the first flight.
+  Model exact_norm_with(const std::vector<std::string>& terms) const {
+    Model m = start;
+    m.fit.method = FitMethod::kReference;
+    m.fit.reference = truth;
+    m.fit.lambda = 1e-6;
+    for (const std::string& t : terms) m.add_term(TermSpec(t));
+    m.coefficients.resize(0);
+    fit_model(m, flights);
+    return m;
+  }
   // The std of `m`'s error on the aircraft's next flight, nT.
   double next_nT(const Model& m) const {
     return evaluate_model(m, fb.flight, "mag_1_c", false).std_nT;
@@ -754,14 +766,8 @@ TEST(Discovery, ASteadyFactorThatExplainsWhatRemainsJoinsItsTerm) {
   ASSERT_TRUE(product) << "run 141 draws no product of cur_strb";
   ASSERT_EQ(product->channel2, "eng_rpm");
   RoundAtTheEnd end(a, 1e-4, {});
-  Model m = end.start;
-  m.fit.method = FitMethod::kReference;
-  m.fit.reference = end.truth;
-  m.fit.lambda = 1e-6;
-  for (const char* t : {"field:cur_com_1*flap_deg", "bias", "norm", "current:cur_strb"})
-    m.add_term(TermSpec(t));
-  m.coefficients.resize(0);
-  fit_model(m, end.flights);
+  const Model m =
+      end.exact_norm_with({"field:cur_com_1*flap_deg", "bias", "norm", "current:cur_strb"});
   LoopResult& r = end.r;
   r.model = m;
   LoopRound kept = loop_steps::score(m, end.flights, end.truth, end.held, nullptr);
@@ -1251,16 +1257,9 @@ TEST(Discovery, AReferenceFitsHeaterIsSizedOnTheLinesAndThenRetimed) {
   const sim::HiddenEffect* heater = drawn(effects, "thermal", "cur_ac_hi");
   ASSERT_TRUE(heater) << "run 169 draws no heater of cur_ac_hi";
   RoundAtTheEnd end(a, 1e-4, {});
-  Model m = end.start;
-  m.fit.method = FitMethod::kReference;
-  m.fit.reference = end.truth;
-  m.fit.lambda = 1e-6;
   const std::string kept = "field:cur_ac_hi|abs|lp(303)";
-  for (const char* t :
-       {"dcurrent:cur_srvo_o", "bias", "norm", kept.c_str(), "field:cur_ac_lo|play(0.641)"})
-    m.add_term(TermSpec(t));
-  m.coefficients.resize(0);
-  fit_model(m, end.flights);
+  const Model m = end.exact_norm_with(
+      {"dcurrent:cur_srvo_o", "bias", "norm", kept, "field:cur_ac_lo|play(0.641)"});
   LoopResult& r = end.r;
   r.model = m;
   r.rounds.push_back(loop_steps::score(m, end.flights, end.truth, end.held, nullptr));

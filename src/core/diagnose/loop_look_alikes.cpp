@@ -91,12 +91,7 @@ bool Round::better_look_alike_in_place() {
   };
   std::optional<Best> best;
   for (const TermSpec& t : model.terms) {
-    const auto listed = [&](const std::vector<std::string>& list) {
-      return std::find(list.begin(), list.end(), t.text()) != list.end();
-    };
-    if (!removable(c_.start, t) || fields_of(t).empty() || listed(model.black_box_terms) ||
-        listed(model.slow_terms))
-      continue;
+    if (!revisable(c_.start, model, t) || fields_of(t).empty()) continue;
     for (const std::string& a : look_alikes_of(t, model_fields)) {
       try {
         const std::set<std::string> fields = fields_of(TermSpec(a));

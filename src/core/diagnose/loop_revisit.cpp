@@ -134,12 +134,7 @@ std::string other_projection(const TermSpec& t) {
 std::string freed_parameters(const Model& model, size_t k, const Model& start) {
   const TermSpec& t = model.terms[k];
   const ExprTerm* e = t.expr();
-  const auto listed = [&](const std::vector<std::string>& list) {
-    return std::find(list.begin(), list.end(), t.text()) != list.end();
-  };
-  if (!e || !removable(start, t) || fields_of(t).empty() || listed(model.black_box_terms) ||
-      listed(model.slow_terms))
-    return "";
+  if (!e || !revisable(start, model, t) || fields_of(t).empty()) return "";
   const auto& transforms = e->signal().transforms;
   if (std::none_of(transforms.begin(), transforms.end(), [](const Transform& x) {
         return x.has_param() && x.kind != TransformKind::Ramp;
@@ -159,13 +154,9 @@ bool Round::drop_idle_factors() {
   std::optional<Best> best;
   for (const TermSpec& t : model.terms) {
     const ExprTerm* e = t.expr();
-    const auto listed = [&](const std::vector<std::string>& list) {
-      return std::find(list.begin(), list.end(), t.text()) != list.end();
-    };
     // A product of recorded channels only (not B or Bt), added by the loop, not a law's hinge
     // nor a slow term (its stage and lines are sized for the term as it is).
-    if (!e || !removable(c_.start, t) || listed(model.black_box_terms) ||
-        listed(model.slow_terms) || e->signal().sources.size() < 2 ||
+    if (!e || !revisable(c_.start, model, t) || e->signal().sources.size() < 2 ||
         fields_of(t).size() != e->signal().sources.size())
       continue;
     std::optional<std::pair<Model, LoopRound>> without;

@@ -52,14 +52,9 @@ bool low_pass_beyond(const TermSpec& t, double tau_s) {
 
 bool slow_form_of(const Model& model, size_t k, const Model& start, bool lines_size) {
   const TermSpec& t = model.terms[k];
-  const auto listed = [&](const std::vector<std::string>& list) {
-    return std::find(list.begin(), list.end(), t.text()) != list.end();
-  };
   const bool sized_by_fit = model.fit.method == FitMethod::kBandpass ||
                             (lines_size && model.fit.method == FitMethod::kReference);
-  if (!sized_by_fit || !removable(start, t) || listed(model.slow_terms) ||
-      listed(model.black_box_terms))
-    return false;
+  if (!sized_by_fit || !revisable(start, model, t)) return false;
   const std::set<std::string> fields = fields_of(t);
   if (fields.empty() || !std::all_of(fields.begin(), fields.end(), is_aircraft_state)) return false;
   const ExprTerm* e = t.expr();

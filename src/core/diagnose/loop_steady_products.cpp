@@ -56,14 +56,9 @@ bool Round::steady_factor_in_place() {
   std::optional<Best> best;
   for (const TermSpec& t : model.terms) {
     const ExprTerm* e = t.expr();
-    const auto listed = [&](const std::vector<std::string>& list) {
-      return std::find(list.begin(), list.end(), t.text()) != list.end();
-    };
     // A term of one recorded channel added by the loop, not a learned law's hinge nor a slow
     // term (its stage and lines are sized for the term as it is).
-    if (!e || !removable(c_.start, t) || listed(model.black_box_terms) ||
-        listed(model.slow_terms) || fields_of(t).size() != 1)
-      continue;
+    if (!e || !revisable(c_.start, model, t) || fields_of(t).size() != 1) continue;
     // The factors the rounds listed beside a term of this channel (a kept term's parameters may
     // have been estimated again since: its channel still names it), and every recorded state
     // the flights hold within kSteadyFactorRelative of its mean (a larger term's modulation by

@@ -466,6 +466,13 @@ bool removable(const Model& start, const TermSpec& term) {
   return probe.terms.size() == start.terms.size() + 1;
 }
 
+bool revisable(const Model& start, const Model& model, const TermSpec& term) {
+  const auto listed = [&](const std::vector<std::string>& list) {
+    return std::find(list.begin(), list.end(), term.text()) != list.end();
+  };
+  return removable(start, term) && !listed(model.black_box_terms) && !listed(model.slow_terms);
+}
+
 // The share of `with`'s error variance that a change to `without` would add (negative when the
 // change lowers the error).
 double variance_share(double with_nT, double without_nT) {

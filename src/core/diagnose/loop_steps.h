@@ -89,6 +89,12 @@ Model without_term(const Model& m, const TermSpec& term);
 /// True when `term` was added to `start` purely (it replaced nothing of the start model).
 bool removable(const Model& start, const TermSpec& term);
 
+/// True when kept term `term` of `model` may be written again by a step that revisits the kept
+/// terms: added to `start` purely (removable), and neither a learned law's hinge
+/// (Model::black_box_terms) nor a slow term (Model::slow_terms: its stage and lines are sized for
+/// the term as it is).
+bool revisable(const Model& start, const Model& model, const TermSpec& term);
+
 /// The share of `with`'s error variance that a change to `without` would add (negative when the
 /// change lowers the error).
 double variance_share(double with_nT, double without_nT);
