@@ -313,6 +313,7 @@ struct DiagnoseArgs {
   bool no_refine = false;
   bool keep_factors = false;
   bool no_steady_factors = false;
+  bool norm_alone = false;
   bool tl_as_given = false;
 };
 
@@ -427,6 +428,7 @@ void run_diagnose(const DiagnoseArgs& a) {
   if (a.no_refine && !a.apply) throw Error("--no-refine: only with --apply");
   if (a.keep_factors && !a.apply) throw Error("--keep-factors: only with --apply");
   if (a.no_steady_factors && !a.apply) throw Error("--no-steady-factors: only with --apply");
+  if (a.norm_alone && !a.apply) throw Error("--norm-alone: only with --apply");
   if (a.tl_as_given && !a.apply) throw Error("--tl-as-given: only with --apply");
   const std::vector<std::string> paths = flight_paths("--data", a.data);
   std::vector<OutputGuard::File> others = {
@@ -451,6 +453,7 @@ void run_diagnose(const DiagnoseArgs& a) {
   options.refine_parameters = !a.no_refine;
   options.drop_idle_factors = !a.keep_factors;
   options.steady_factor_products = !a.no_steady_factors;
+  options.norm_with_a_term = !a.norm_alone;
   options.exact_norm = !a.tl_as_given;
   if (!a.attribution.empty()) options.network_channels = read_network_attribution(a.attribution);
   if (paths.size() > 1 && !a.apply) {
@@ -568,6 +571,10 @@ void add_diagnose(CLI::App& app) {
                 "term whose field scales with a channel the flight holds nearly steady, an engine "
                 "speed or a bus, is written as that product when it explains most of what "
                 "remains)");
+  cmd->add_flag("--norm-alone", a->norm_alone,
+                "with --apply: try TL as the exact norm alone only (by default, when no term "
+                "passes and the exact norm is refused alone, it is diagnosed and kept together "
+                "with the term its diagnosis ranks first if each is needed)");
   cmd->add_option("--attribution", a->attribution,
                   "a trained network's attribution (magcomp evaluate --explain --json on a "
                   "flight it never saw): the channels it leans on (10 % or more, at most 3) are "

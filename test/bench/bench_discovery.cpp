@@ -101,6 +101,8 @@ int main(int argc, char** argv) {
         options.drop_idle_factors = false;
       } else if (opt == "no-steady-factors") {
         options.steady_factor_products = false;
+      } else if (opt == "norm-alone") {
+        options.norm_with_a_term = false;
       } else if (opt == "lenient-backward") {
         options.backward_at_acceptance = false;
       } else if (opt == "backward-after-adds") {
@@ -141,7 +143,8 @@ int main(int argc, char** argv) {
             "backward-after-adds, "
             "slow-on-calibration, thresholds-on-selection, thresholds-on-calibration, "
             "second-order-on-calibration, tl-as-given, "
-            "keep-factors, no-steady-factors, keep-redundant, first-kept, line-jackknife, "
+            "keep-factors, no-steady-factors, norm-alone, keep-redundant, first-kept, "
+            "line-jackknife, "
             "validate, two-flights, states, half-several, verbose, why, rounds=N or draws=N\n",
             opt.c_str());
         return 2;

@@ -214,8 +214,8 @@ TEST(HostileOutputs, AnUnknownTransformListsEveryKnownOne) {
 }
 
 TEST(HostileOutputs, LoopOnlyFlagsWithoutTheLoopAreRefused) {
-  // --choose-lambda, --validate, --no-exchange, --no-refine, --keep-factors and
-  // --no-steady-factors change the loop
+  // --choose-lambda, --validate, --no-exchange, --no-refine, --keep-factors,
+  // --no-steady-factors and --norm-alone change the loop
   // (--apply); without it they would be ignored.
   expect_refusal(
       "diagnose --data " + files().flight + " --model " + files().model + " --choose-lambda",
@@ -226,7 +226,8 @@ TEST(HostileOutputs, LoopOnlyFlagsWithoutTheLoopAreRefused) {
   expect_refusal(
       "diagnose --data " + files().flight + " --model " + files().model + " --no-exchange",
       {"--no-exchange: only with --apply"});
-  for (const std::string flag : {"--no-refine", "--keep-factors", "--no-steady-factors"})
+  for (const std::string flag :
+       {"--no-refine", "--keep-factors", "--no-steady-factors", "--norm-alone"})
     expect_refusal("diagnose --data " + files().flight + " --model " + files().model + " " + flag,
                    {flag + ": only with --apply"});
 }

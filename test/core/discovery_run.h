@@ -215,8 +215,9 @@ inline DiscoveryRun discovery_run(unsigned r, int count, const sim::Scenario& ba
   sim::Scenario b = a;
   b.seed = a.seed + 1;
   const sim::Simulation fa = sim::simulate(a, igrf), fb = sim::simulate(b, igrf);
-  // MAGCOMP_DISCOVERY_DUMP=DIR writes both flights (DIR/run_R_D_first.h5, _next.h5), so that a
-  // run is studied with the CLI (magcomp diagnose --data DIR/run_3_1_first.h5 ...).
+  // MAGCOMP_DISCOVERY_DUMP=DIR writes the flights (DIR/run_R_D_first.h5, _next.h5, and
+  // _second.h5 where the loop learns from a second flight too), so that a run is studied with
+  // the CLI (magcomp diagnose --data DIR/run_3_1_first.h5 ...).
   if (const char* dir = std::getenv("MAGCOMP_DISCOVERY_DUMP")) {
     const std::string stem =
         std::string(dir) + "/run_" + std::to_string(r) + "_" + std::to_string(draw);
@@ -228,6 +229,9 @@ inline DiscoveryRun discovery_run(unsigned r, int count, const sim::Scenario& ba
     sim::Scenario c = a;
     c.seed = a.seed + 2;
     second = sim::simulate(c, igrf);
+    if (const char* dir = std::getenv("MAGCOMP_DISCOVERY_DUMP"))
+      write_flight_h5(second->flight, std::string(dir) + "/run_" + std::to_string(r) + "_" +
+                                          std::to_string(draw) + "_second.h5");
   }
   // The flights TL and the references are fitted on: the first, or both with kTwoFlights.
   std::vector<const FlightData*> fit_on = {&fa.flight};

@@ -43,8 +43,9 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
   std::set<std::string> taken_out;         // terms an exchange took out (never put back by one)
   std::set<std::string> dropped_refined;   // terms Round::redundant_once_refined dropped
   int exchanges = 0;
-  bool lag_corrected = false;      // the lag estimated again once the rounds are spent
-  bool norm_tried_at_end = false;  // TL as the exact norm tried once the rounds are spent
+  bool lag_corrected = false;           // the lag estimated again once the rounds are spent
+  bool norm_tried_at_end = false;       // TL as the exact norm tried once the rounds are spent
+  bool norm_with_a_term_tried = false;  // Round::exact_norm_with_a_term tried (once per loop)
   LoopResult r;
   r.model = start;
   if (!r.model.fitted()) fit_model(r.model, flights);
@@ -344,6 +345,20 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
         r.model = before;
         dxs = dxs_before;
         learned_channels = learned_before;
+      }
+    }
+    // Nothing passes and TL as the exact norm was refused alone: the exact norm together with
+    // what its diagnosis ranks first (Round::exact_norm_with_a_term), once per loop.
+    if (!kept && options.exact_norm && options.norm_with_a_term && options.joint_steps &&
+        !norm_with_a_term_tried && round <= max_rounds &&
+        std::find(r.model.terms.begin(), r.model.terms.end(), "norm") == r.model.terms.end()) {
+      norm_with_a_term_tried = true;
+      loop_steps::Round together(context, round, &r);
+      if (together.exact_norm_with_a_term(round_options)) {
+        if (backward_after_revisits) together.backward_pass();
+        auto& refused = r.rounds.back().rejected;
+        refused.insert(refused.begin(), step.rejected().begin(), step.rejected().end());
+        continue;
       }
     }
     // Nothing passes: the kept terms are revisited, each way below in turn; a change is a round

@@ -122,6 +122,16 @@ class Round {
   // pairs of terms of distinct channels, fitted together; the best pair by held-out error that
   // passes a pair's checks, of which at least one term fails alone.
   bool pair_acting_together(const std::vector<Diagnosis>& dxs);
+  // When no term passes and TL as the exact norm is refused alone (once per loop): the exact
+  // norm (exact_norm_forms; fitted against the reference where the flights record it, else the
+  // lowest held-out error) diagnosed with `options`, and its first eligible candidates (at most
+  // kTriesPerRound, the best ranked of each set of channels) each fitted beside it; the best by
+  // held-out error that passes a pair's checks against the norm alone and the term alone
+  // (pair_passes) is kept with the norm as the round's terms together. An effect on the
+  // calibration rows (a servo's wire drawing current in the maneuvers) pulls a reference fit of
+  // TL off unless its term is there too, while under the band-pass TL the effect's term alone
+  // does not hold on both halves: each needs the other.
+  bool exact_norm_with_a_term(const DiagnoseOptions& options);
   // When nothing else passes: a load's field whose size follows another recorded state of the
   // aircraft (a heater's wire whose pull changes with the outside air temperature), written as
   // the pair current:x + field:x*s, both slow terms sized unfiltered against the reference on

@@ -232,13 +232,10 @@ std::optional<std::pair<Model, LoopRound>> better_lambda(
   return best;
 }
 
-std::optional<std::pair<std::pair<Model, LoopRound>, std::string>> exact_norm_step(
-    const Model& model, const LoopRound& now, const std::vector<const FlightData*>& flights,
-    const std::string& truth, const std::vector<HeldOut>& held_out, const FlightData* validation,
-    const DiagnoseOptions& options) {
-  if (std::find(model.terms.begin(), model.terms.end(), "norm") != model.terms.end())
-    return std::nullopt;
+std::vector<std::pair<Model, std::string>> exact_norm_forms(
+    const Model& model, const std::vector<const FlightData*>& flights, const std::string& truth) {
   std::vector<std::pair<Model, std::string>> tries;
+  if (std::find(model.terms.begin(), model.terms.end(), "norm") != model.terms.end()) return tries;
   {
     Model m = model;
     m.add_term(TermSpec("norm"));
@@ -267,8 +264,15 @@ std::optional<std::pair<std::pair<Model, LoopRound>, std::string>> exact_norm_st
       tries.emplace_back(std::move(m), change);
     }
   }
+  return tries;
+}
+
+std::optional<std::pair<std::pair<Model, LoopRound>, std::string>> exact_norm_step(
+    const Model& model, const LoopRound& now, const std::vector<const FlightData*>& flights,
+    const std::string& truth, const std::vector<HeldOut>& held_out, const FlightData* validation,
+    const DiagnoseOptions& options) {
   std::optional<std::pair<std::pair<Model, LoopRound>, std::string>> best;
-  for (auto& [m, change] : tries) {
+  for (auto& [m, change] : exact_norm_forms(model, flights, truth)) {
     m.coefficients.resize(0);
     try {
       fit_model(m, flights);

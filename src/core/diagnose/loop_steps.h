@@ -44,6 +44,14 @@ std::optional<std::pair<Model, LoopRound>> better_lambda(
     const std::vector<HeldOut>& held_out, const FlightData* validation,
     const DiagnoseOptions& options);
 
+/// The forms of TL as the exact norm that exact_norm_step tries for `model`, unfitted, each with
+/// its fit's change in words ("" when the fit stays): `model` with `norm`, and, when it is a
+/// band-pass fit with no slow term and every flight records `truth`, with `norm` and `bias`
+/// fitted against `truth` on the same calibration segments at the model's ridge strength and
+/// 1/100 of it. None when the model already has `norm`.
+std::vector<std::pair<Model, std::string>> exact_norm_forms(
+    const Model& model, const std::vector<const FlightData*>& flights, const std::string& truth);
+
 /// TL written as the exact norm (DiagnoseOptions::exact_norm): `model` (scored `now`) with the
 /// `norm` term under its own fit, and, when it is a band-pass fit with no slow term and every
 /// flight records `truth`, with `norm` and `bias` fitted against `truth` on the same calibration

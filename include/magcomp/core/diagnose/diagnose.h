@@ -184,6 +184,14 @@ struct DiagnoseOptions {
   /// columns. Kept as any step is: it lowers the held-out error by the accepted share and the
   /// resolution, and on both halves (false: the model's TL as given).
   bool exact_norm = true;
+  /// diagnose_loop, with exact_norm and joint_steps: when no term passes and TL as the exact norm
+  /// is refused alone, once per loop, the exact norm is diagnosed and each of its first
+  /// candidates fitted beside it; the best pair that passes a pair's checks (each is needed: the
+  /// two lower the held-out error of the norm alone and of the term alone by accept_fraction of
+  /// the variance, each half by the resolution) is kept together (loop_steps::Round::
+  /// exact_norm_with_a_term). An effect on the calibration rows pulls a reference fit of TL off
+  /// unless its term is there too (false: the exact norm is only tried alone).
+  bool norm_with_a_term = true;
   /// diagnose_loop: when no term passes, each kept term of a recorded channel is taken out in
   /// turn and the model without it diagnosed; the best of that diagnosis's first candidates takes
   /// its place when it lowers the held-out error by the accepted share and the resolution and
