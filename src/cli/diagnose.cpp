@@ -351,6 +351,11 @@ nlohmann::json loop_json(const LoopResult& r, const std::vector<TermSupport>& su
     jr["lambda"] = json_figure(lr.lambda);
     jr["regularisation"] = lr.regularisation;
     jr["model_change"] = lr.model_change;
+    jr["flight_halves"] = lr.flight_halves;
+    if (lr.flight_halves)
+      jr["flight_halves_before_heldout_std_nT"] = {json_figure(lr.flight_halves_before_nT[0]),
+                                                   json_figure(lr.flight_halves_before_nT[1]),
+                                                   json_figure(lr.flight_halves_before_nT[2])};
     jr["in_place_of"] = lr.in_place_of;
     if (!lr.in_place_of.empty()) jr["in_place_of_span_share"] = lr.in_place_of_span_share;
     jr["alone_heldout_std_nT"] = lr.alone_std_nT;

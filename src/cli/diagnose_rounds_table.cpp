@@ -69,6 +69,13 @@ void print_rounds_table(const LoopResult& r, bool validation, size_t flights) {
           "       %s: the scalar is the norm of the Earth's field and the aircraft's; TL "
           "writes its first-order part\n",
           lr.model_change.c_str());
+    if (lr.flight_halves)
+      std::printf(
+          "       judged with the flights as the halves (each flight's held-out lines, slow "
+          "terms sized on the other flights' lines), as every round after it: no flight's own "
+          "halves could confirm it; the model before it so scored %.3f nT (halves %.3f, %.3f)\n",
+          lr.flight_halves_before_nT[0], lr.flight_halves_before_nT[1],
+          lr.flight_halves_before_nT[2]);
     if (lr.slow_on_lines)
       std::printf(
           "       slow terms sized on the held-out lines too (fit.slow_lines): sized on the "

@@ -47,7 +47,9 @@
 // with their held-out errors and look-alikes); why (verbose, and the changes each round refused,
 // with why); validate (the loop learns from the first flight with a second flight of the aircraft
 // as its validation flight); two-flights (the loop, TL and the references learn from both flights
-// together). Every mode is scored on the same next flight.
+// together); halves-within-flights (with two-flights: each flight's own halves only, never the
+// flights as the halves, DiagnoseOptions::across_flights false). Every mode is scored on the same
+// next flight.
 #include <array>
 #include <chrono>
 #include <cstdio>
@@ -103,6 +105,8 @@ int main(int argc, char** argv) {
         options.steady_factor_products = false;
       } else if (opt == "norm-alone") {
         options.norm_with_a_term = false;
+      } else if (opt == "halves-within-flights") {
+        options.across_flights = false;
       } else if (opt == "lenient-backward") {
         options.backward_at_acceptance = false;
       } else if (opt == "backward-after-adds") {
@@ -143,7 +147,8 @@ int main(int argc, char** argv) {
             "backward-after-adds, "
             "slow-on-calibration, thresholds-on-selection, thresholds-on-calibration, "
             "second-order-on-calibration, tl-as-given, "
-            "keep-factors, no-steady-factors, norm-alone, keep-redundant, first-kept, "
+            "keep-factors, no-steady-factors, norm-alone, halves-within-flights, keep-redundant, "
+            "first-kept, "
             "line-jackknife, "
             "validate, two-flights, states, half-several, verbose, why, rounds=N or draws=N\n",
             opt.c_str());
@@ -261,9 +266,10 @@ int main(int argc, char** argv) {
           const magcomp::LoopRound& lr = d.rounds[i];
           std::printf(
               "       round %d: held out %.4f nT (halves %.4f, %.4f), calibration rows %.4f nT  "
-              "%s\n",
+              "%s%s\n",
               lr.round, lr.heldout_std_nT, lr.selection_std_nT, lr.confirmation_std_nT,
-              lr.calibration_std_nT, i == 0 ? "(start)" : lr.added.c_str());
+              lr.calibration_std_nT, i == 0 ? "(start)" : lr.added.c_str(),
+              lr.flight_halves ? "  [the flights as the halves from here]" : "");
           for (const auto& [term, why] : lr.removed)
             std::printf("         removed %s: %s\n", term.c_str(), why.c_str());
           for (const auto& [term, why] : lr.replaced)

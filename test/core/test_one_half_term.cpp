@@ -46,17 +46,22 @@ DiagnoseOptions quick_options() {
   return o;
 }
 
-// random_base.yaml's flight with a winch current (0.05 A of noise) run at 1.5 A for 40 s in the
-// middle of line 1001.13 and, with `also_confirmation`, in the middle of the longest run of
-// confirmation samples; its field through a 10 s lag, 6 nT/A on the scalar reading (the lag's
-// tail dies within the line).
-FlightData winch_flight(bool also_confirmation) {
-  FlightData f = test::scenario("random_base").flight;
+// Where winch_flight runs the winch: in the middle of line 1001.13 (a selection line of
+// random_base.yaml's flight), and once more in the middle of the longest run of confirmation
+// samples; or in the middle of the flight's longest run of selection samples alone.
+enum class Winch { kLine, kLineAndConfirmation, kSelection };
+
+// random_base.yaml's flight (or `f`, another flight of the scenario) with a winch current (0.05 A
+// of noise; 0.005 A on kSelection) run at 1.5 A for 40 s where `where` says; its field through a 10
+// s lag, 6 nT/A on the scalar reading (the lag's tail dies within the run).
+FlightData winch_flight(Winch where, FlightData f = test::scenario("random_base").flight) {
   const Eigen::VectorXd line = f.column("line");
   const Eigen::VectorXd t = f.tt();
   const double rate_hz = (t.size() - 1) / (t[t.size() - 1] - t[0]);
   std::mt19937 rng(11);
-  std::normal_distribution<double> noise(0.0, 0.05);
+  // Idle, a winch's current (or, on kSelection, one tenth of it: its field through the lag
+  // then lies below the resolution on the other lines, where nothing else confirms the term).
+  std::normal_distribution<double> noise(0.0, where == Winch::kSelection ? 0.005 : 0.05);
   Eigen::VectorXd winch(t.size());
   for (Eigen::Index i = 0; i < t.size(); ++i) winch[i] = noise(rng);
   const auto pulse_at = [&](Eigen::Index middle) {
@@ -65,23 +70,29 @@ FlightData winch_flight(bool also_confirmation) {
          i < std::min<Eigen::Index>(middle + half, t.size()); ++i)
       winch[i] += 1.5;
   };
-  std::vector<Eigen::Index> on_line;
-  for (Eigen::Index i = 0; i < line.size(); ++i)
-    if (line[i] == 1001.13) on_line.push_back(i);
-  EXPECT_FALSE(on_line.empty());
-  if (!on_line.empty()) pulse_at(on_line[on_line.size() / 2]);
-  if (also_confirmation) {
+  // The middle of the longest run of samples the clean flight's diagnosis puts in `fold`.
+  const auto middle_of_fold = [&](int fold) {
     Model tl = test::calibrated_tl(f);
     const Diagnosis clean = diagnose(tl, f, "mag_1_c", quick_options());
     Eigen::Index best_from = 0, best_length = 0;
     for (Eigen::Index i = 0, from = 0; i <= t.size(); ++i) {
-      const bool conf = i < t.size() && clean.heldout_fold[static_cast<size_t>(i)] == 1;
-      if (!conf) {
+      const bool in = i < t.size() && clean.heldout_fold[static_cast<size_t>(i)] == fold;
+      if (!in) {
         if (i - from > best_length) best_from = from, best_length = i - from;
         from = i + 1;
       }
     }
-    pulse_at(best_from + best_length / 2);
+    return best_from + best_length / 2;
+  };
+  if (where == Winch::kSelection) {
+    pulse_at(middle_of_fold(0));
+  } else {
+    std::vector<Eigen::Index> on_line;
+    for (Eigen::Index i = 0; i < line.size(); ++i)
+      if (line[i] == 1001.13) on_line.push_back(i);
+    EXPECT_FALSE(on_line.empty());
+    if (!on_line.empty()) pulse_at(on_line[on_line.size() / 2]);
+    if (where == Winch::kLineAndConfirmation) pulse_at(middle_of_fold(1));
   }
   f.set("cur_winch", winch);
   Model effect = test::calibrated_tl(f);
@@ -92,7 +103,7 @@ FlightData winch_flight(bool also_confirmation) {
 }
 
 TEST(OneHalfTerm, AChannelThatMovesOnOneHalfsLinesAloneIsNamedAndTheVerdictSaysSo) {
-  const FlightData f = winch_flight(false);
+  const FlightData f = winch_flight(Winch::kLine);
   const Diagnosis dx = diagnose(test::calibrated_tl(f), f, "mag_1_c", quick_options());
   std::printf("  verdict: %s\n", dx.verdict.c_str());
   ASSERT_FALSE(dx.one_half.term.empty()) << dx.verdict;
@@ -128,9 +139,65 @@ TEST(OneHalfTerm, TheLoopEndsSayingWhatASecondFlightWouldConfirm) {
   EXPECT_NE(d.stop_reason.find("--data A.h5,B.h5"), std::string::npos);
 }
 
+TEST(OneHalfTerm, TwoFlightsConfirmWhatEachFlightsOwnHalvesCannot) {
+  // The winch on two flights of the aircraft, run on a selection line of each: neither flight's
+  // halves can confirm its term. With the
+  // flights as the halves (DiagnoseOptions::across_flights), each flight's held-out lines judge
+  // the term fitted on both, and the loop keeps it; the winch's 6 nT/A is then read back.
+  sim::Scenario first =
+      sim::load_scenario(test::source_dir() + "/config/scenarios/random_base.yaml");
+  first.aircraft_seed = 5000;  // one aircraft, three flights
+  sim::Scenario second = first;
+  second.seed += 1;
+  const FlightData a =
+      winch_flight(Winch::kSelection, sim::simulate(first, Igrf::installed()).flight);
+  const FlightData b =
+      winch_flight(Winch::kSelection, sim::simulate(second, Igrf::installed()).flight);
+  const std::vector<const FlightData*> both = {&a, &b};
+  Model tl = load_model_yaml(test::source_dir() + "/config/models/tl_sim.yaml");
+  fit_model(tl, both);
+  DiagnoseOptions options = quick_options();
+  const LoopResult with = diagnose_loop(tl, both, "mag_1_c", 3, 0.05, options);
+  options.across_flights = false;
+  const LoopResult without = diagnose_loop(tl, both, "mag_1_c", 3, 0.05, options);
+  const auto winch_round = [](const LoopResult& r) -> const LoopRound* {
+    for (const LoopRound& lr : r.rounds)
+      if (lr.added.find("cur_winch") != std::string::npos) return &lr;
+    return nullptr;
+  };
+  for (const LoopResult* r : {&with, &without})
+    for (const LoopRound& lr : r->rounds)
+      std::printf("  %s round %d: %s held out %.4f nT (halves %.4f, %.4f; flights %.4f, %.4f)%s\n",
+                  r == &with ? "flights as halves" : "each flight's halves", lr.round,
+                  lr.added.c_str(), lr.heldout_std_nT, lr.selection_std_nT, lr.confirmation_std_nT,
+                  lr.flight_heldout_std_nT.at(0), lr.flight_heldout_std_nT.at(1),
+                  lr.flight_halves ? " [flights as halves]" : "");
+  EXPECT_EQ(winch_round(without), nullptr) << without.stop_reason;
+  const LoopRound* kept = winch_round(with);
+  ASSERT_NE(kept, nullptr) << with.stop_reason;
+  EXPECT_TRUE(kept->flight_halves);
+  // Before it, each flight's error holds the winch's 40 s of 9 nT; after it, little of it.
+  EXPECT_LT(kept->heldout_std_nT, 0.5 * kept->flight_halves_before_nT[0]);
+  for (int h = 1; h < 3; ++h)
+    EXPECT_LT(kept->heldout_std_nT, kept->flight_halves_before_nT[h] + 1e-12);
+  // Carried to a third flight of the aircraft with the winch run on the same line.
+  sim::Scenario third = second;
+  third.seed += 1;
+  const FlightData c =
+      winch_flight(Winch::kSelection, sim::simulate(third, Igrf::installed()).flight);
+  const double with_nT = evaluate_model(with.model, c, "mag_1_c", false).std_nT;
+  const double without_nT = evaluate_model(without.model, c, "mag_1_c", false).std_nT;
+  std::printf("  kept %s; the third flight: %.4f nT, %.4f nT with each flight's halves only\n",
+              kept->added.c_str(), with_nT, without_nT);
+  // The winch's 9 nT pulses are gone from the third flight (the sensor's noise is 0.01 nT);
+  // without the term they stay.
+  EXPECT_LT(with_nT, 0.03);
+  EXPECT_GT(without_nT, 0.3);
+}
+
 TEST(OneHalfTerm, AChannelThatMovesOnBothHalvesIsNotNamedSo) {
   // The same winch run once more on the confirmation lines: they confirm the term.
-  const FlightData f = winch_flight(true);
+  const FlightData f = winch_flight(Winch::kLineAndConfirmation);
   const Diagnosis dx = diagnose(test::calibrated_tl(f), f, "mag_1_c", quick_options());
   std::printf("  verdict: %s\n", dx.verdict.c_str());
   EXPECT_TRUE(dx.one_half.term.empty()) << dx.one_half.term;

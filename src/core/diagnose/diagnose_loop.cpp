@@ -46,6 +46,7 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
   bool lag_corrected = false;           // the lag estimated again once the rounds are spent
   bool norm_tried_at_end = false;       // TL as the exact norm tried once the rounds are spent
   bool norm_with_a_term_tried = false;  // Round::exact_norm_with_a_term tried (once per loop)
+  bool flights_are_halves = false;      // the flights are the held-out halves (across_flights)
   LoopResult r;
   r.model = start;
   if (!r.model.fitted()) fit_model(r.model, flights);
@@ -360,6 +361,18 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
         refused.insert(refused.begin(), step.rejected().begin(), step.rejected().end());
         continue;
       }
+    }
+    // Nothing passes over several flights: a term a flight names but its own halves cannot
+    // confirm (its channel moves on one half's lines alone) is judged with the flights as the
+    // halves (loop_steps::across_flights); kept, they stay the halves.
+    if (!kept && options.across_flights && flights.size() > 1 && !flights_are_halves &&
+        round <= max_rounds &&
+        loop_steps::across_flights(context, round, lines, options, &r, &held_out)) {
+      flights_are_halves = true;
+      if (!r.model.fit.slow_lines.empty()) round_options.slow_terms_on_lines = true;
+      auto& refused = r.rounds.back().rejected;
+      refused.insert(refused.begin(), step.rejected().begin(), step.rejected().end());
+      continue;
     }
     // Nothing passes: the kept terms are revisited, each way below in turn; a change is a round
     // of its own (the round's refusals go with it), and the loop goes on.

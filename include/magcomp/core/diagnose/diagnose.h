@@ -192,6 +192,14 @@ struct DiagnoseOptions {
   /// exact_norm_with_a_term). An effect on the calibration rows pulls a reference fit of TL off
   /// unless its term is there too (false: the exact norm is only tried alone).
   bool norm_with_a_term = true;
+  /// diagnose_loop over several flights: when no term passes, a term that a flight's diagnosis
+  /// names but its held-out lines cannot confirm, its channel moving on one half's lines alone
+  /// (Diagnosis::one_half), is judged with the flights as the two halves: each flight's held-out
+  /// lines scored with the model fitted with its slow terms sized on the other flights' lines
+  /// (loop_steps::across_flights). Kept, the flights stay the halves for the rest of the loop. A
+  /// channel that moves on the same survey line of every flight, which each flight's halves put
+  /// on one side, is then confirmed by the flights together (false: each flight's halves only).
+  bool across_flights = true;
   /// diagnose_loop: when no term passes, each kept term of a recorded channel is taken out in
   /// turn and the model without it diagnosed; the best of that diagnosis's first candidates takes
   /// its place when it lowers the held-out error by the accepted share and the resolution and

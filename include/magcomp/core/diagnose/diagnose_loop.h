@@ -82,6 +82,12 @@ struct LoopRound {
   /// ("fit.method reference (mag_1_c), fit.lambda 1e-06"; "" when the fit stayed); it shares the
   /// round number of the round's terms. Empty otherwise.
   std::string model_change;
+  /// The round's term was judged with the flights as the halves (DiagnoseOptions::across_flights:
+  /// each flight's held-out lines scored with slow terms sized on the other flights' lines), and
+  /// the rounds after it are judged so too; the previous round's model so scored, nT (held out,
+  /// then each half). False and NaN otherwise.
+  bool flight_halves = false;
+  double flight_halves_before_nT[3] = {NAN, NAN, NAN};
   /// For a ridge step taken because the round's first term lay within the model's own span
   /// (DiagnoseOptions::ridge_for_span_terms): that term, and the share of its columns' energy the
   /// model's columns span (Candidate::base_span_share). Empty otherwise.
