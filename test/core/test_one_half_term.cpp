@@ -172,6 +172,14 @@ TEST(OneHalfTerm, TwoFlightsConfirmWhatEachFlightsOwnHalvesCannot) {
                   lr.added.c_str(), lr.heldout_std_nT, lr.selection_std_nT, lr.confirmation_std_nT,
                   lr.flight_heldout_std_nT.at(0), lr.flight_heldout_std_nT.at(1),
                   lr.flight_halves ? " [flights as halves]" : "");
+  // Each round's error pooled over the flights lies between the flights' own.
+  for (const LoopResult* r : {&with, &without})
+    for (const LoopRound& lr : r->rounds) {
+      ASSERT_EQ(lr.flight_heldout_std_nT.size(), 2u);
+      const auto [lo, hi] = std::minmax(lr.flight_heldout_std_nT[0], lr.flight_heldout_std_nT[1]);
+      EXPECT_GE(lr.heldout_std_nT, lo * (1 - 1e-9)) << lr.added;
+      EXPECT_LE(lr.heldout_std_nT, hi * (1 + 1e-9)) << lr.added;
+    }
   EXPECT_EQ(winch_round(without), nullptr) << without.stop_reason;
   const LoopRound* kept = winch_round(with);
   ASSERT_NE(kept, nullptr) << with.stop_reason;

@@ -136,6 +136,8 @@ void Round::backward_pass() {
     last.confirmation_std_nT = drop->second.confirmation_std_nT;
     last.fom_nT = drop->second.fom_nT;
     last.validation_std_nT = drop->second.validation_std_nT;
+    last.flight_heldout_std_nT = drop->second.flight_heldout_std_nT;
+    last.line_ss_nT2 = drop->second.line_ss_nT2;
     r_->model = std::move(drop->first);
   }
 }
