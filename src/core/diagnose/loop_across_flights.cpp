@@ -9,21 +9,6 @@
 
 namespace magcomp::loop_steps {
 
-namespace {
-// `lr`'s scores taken from `scored` (its round, terms and reasons stay).
-void take_scores(const LoopRound& scored, LoopRound* lr) {
-  lr->heldout_std_nT = scored.heldout_std_nT;
-  lr->selection_std_nT = scored.selection_std_nT;
-  lr->confirmation_std_nT = scored.confirmation_std_nT;
-  lr->all_std_nT = scored.all_std_nT;
-  lr->calibration_std_nT = scored.calibration_std_nT;
-  lr->flight_heldout_std_nT = scored.flight_heldout_std_nT;
-  lr->line_ss_nT2 = scored.line_ss_nT2;
-  lr->fom_nT = scored.fom_nT;
-  lr->validation_std_nT = scored.validation_std_nT;
-}
-}  // namespace
-
 bool across_flights(const LoopContext& c, int round, const std::vector<double>& lines,
                     const DiagnoseOptions& options, LoopResult* r, std::vector<HeldOut>* held_out) {
   if (c.flights.size() < 2 || held_out->size() != c.flights.size()) return false;

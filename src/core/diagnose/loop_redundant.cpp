@@ -128,16 +128,7 @@ void Round::backward_pass() {
                   now.heldout_std_nT, drop->second.heldout_std_nT);
     LoopRound& last = r_->rounds.back();
     last.removed.emplace_back(drop_term, why);
-    last.heldout_std_nT = drop->second.heldout_std_nT;
-    last.all_std_nT = drop->second.all_std_nT;
-    last.calibration_std_nT = drop->second.calibration_std_nT;
-    last.channel_terms = drop->second.channel_terms;
-    last.selection_std_nT = drop->second.selection_std_nT;
-    last.confirmation_std_nT = drop->second.confirmation_std_nT;
-    last.fom_nT = drop->second.fom_nT;
-    last.validation_std_nT = drop->second.validation_std_nT;
-    last.flight_heldout_std_nT = drop->second.flight_heldout_std_nT;
-    last.line_ss_nT2 = drop->second.line_ss_nT2;
+    take_scores(drop->second, &last);
     r_->model = std::move(drop->first);
   }
 }

@@ -189,6 +189,19 @@ LoopRound score(const Model& model, const std::vector<const FlightData*>& flight
   return r;
 }
 
+void take_scores(const LoopRound& scored, LoopRound* lr) {
+  lr->heldout_std_nT = scored.heldout_std_nT;
+  lr->selection_std_nT = scored.selection_std_nT;
+  lr->confirmation_std_nT = scored.confirmation_std_nT;
+  lr->all_std_nT = scored.all_std_nT;
+  lr->calibration_std_nT = scored.calibration_std_nT;
+  lr->flight_heldout_std_nT = scored.flight_heldout_std_nT;
+  lr->line_ss_nT2 = scored.line_ss_nT2;
+  lr->channel_terms = scored.channel_terms;
+  lr->fom_nT = scored.fom_nT;
+  lr->validation_std_nT = scored.validation_std_nT;
+}
+
 // The ridge strength chosen on the held-out samples (see loop_steps.h).
 namespace {
 // A change to the model as a whole (the ridge strength, TL's form), scored `lr` against `now`:

@@ -31,6 +31,11 @@ LoopRound score(const Model& model, const std::vector<const FlightData*>& flight
                 const std::string& truth, const std::vector<HeldOut>& held_out,
                 const FlightData* validation);
 
+/// `lr`'s scores (held out, halves, all lines, calibration rows, per flight and per line, FOM,
+/// validation, the channel terms) taken from `scored`, the same model scored again or the model
+/// that replaces it; its round, terms and reasons stay.
+void take_scores(const LoopRound& scored, LoopRound* lr);
+
 /// The ridge strength (fit.lambda) chosen on the held-out samples: `model` (scored `now`)
 /// refitted with `ceiling` (the loop's start model's fit.lambda) and 1/10, 1/100 and 1/1000 of it
 /// (but its own), and the one with the lowest held-out error, if it lowers that error by the
