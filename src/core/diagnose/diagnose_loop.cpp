@@ -366,8 +366,7 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
     // confirm (its channel moves on one half's lines alone) is judged with the flights as the
     // halves (loop_steps::across_flights); kept, they stay the halves.
     if (!kept && options.across_flights && flights.size() > 1 && !flights_are_halves &&
-        round <= max_rounds &&
-        loop_steps::across_flights(context, round, lines, options, &r, &held_out)) {
+        round <= max_rounds && loop_steps::across_flights(context, round, lines, &r, &held_out)) {
       flights_are_halves = true;
       if (!r.model.fit.slow_lines.empty()) round_options.slow_terms_on_lines = true;
       auto& refused = r.rounds.back().rejected;

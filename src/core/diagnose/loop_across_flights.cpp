@@ -10,12 +10,12 @@
 namespace magcomp::loop_steps {
 
 bool across_flights(const LoopContext& c, int round, const std::vector<double>& lines,
-                    const DiagnoseOptions& options, LoopResult* r, std::vector<HeldOut>* held_out) {
+                    LoopResult* r, std::vector<HeldOut>* held_out) {
   if (c.flights.size() < 2 || held_out->size() != c.flights.size()) return false;
   // Each flight's term it names but cannot confirm, once.
   std::vector<Eligible> tries;
   for (const FlightData* f : c.flights) {
-    const Diagnosis dx = diagnose(r->model, *f, c.truth, options);
+    const Diagnosis dx = diagnose(r->model, *f, c.truth, c.options);
     const std::string& t = dx.one_half.term;
     if (t.empty() || std::any_of(tries.begin(), tries.end(),
                                  [&](const Eligible& e) { return e.term.text() == t; }))

@@ -95,9 +95,9 @@ struct LoopContext {
   double min_share;
 };
 
-/// Over several flights, when no term passes: the terms the flights' diagnoses (with `options`,
-/// slow candidates sized on the lines as `diagnose` does) name but cannot confirm, each one's
-/// channel moving on one half's held-out lines alone (Diagnosis::one_half), judged with the
+/// Over several flights, when no term passes: the terms the flights' diagnoses (with the loop's
+/// options, slow candidates sized on the lines as `diagnose` does) name but cannot confirm, each
+/// one's channel moving on one half's held-out lines alone (Diagnosis::one_half), judged with the
 /// flights as the halves (flight f's held-out samples in half f % 2): Round::first_single on
 /// `*result` with the last round rescored so, slow terms sized on `lines` (fit.slow_lines; each
 /// half scored with them sized on the other half's flights). When one is kept, `*result` takes
@@ -106,8 +106,7 @@ struct LoopContext {
 /// flight lies in one half of each, and only the flights confirm one another
 /// (loop_across_flights.cpp).
 bool across_flights(const LoopContext& context, int round, const std::vector<double>& lines,
-                    const DiagnoseOptions& options, LoopResult* result,
-                    std::vector<HeldOut>* held_out);
+                    LoopResult* result, std::vector<HeldOut>* held_out);
 
 // One round: each step returns true when it kept a change (appended to the result's rounds and
 // made its model).
