@@ -10,6 +10,7 @@
 
 #include "magcomp/core/error.h"
 #include "magcomp/core/fit/model_fit.h"
+#include "magcomp/core/io/channel_kinds.h"
 #include "magcomp/core/model/terms_expr.h"
 
 namespace magcomp::loop_steps {
@@ -274,10 +275,30 @@ bool Round::first_single(const std::vector<Eligible>& eligible) {
       if (explained2 > 0)
         now.steady_factors = steady_factors(c_.flights, fields_of(eligible[kept].term), c_.truth,
                                             std::sqrt(explained2), c_.options.resolution_nT);
+      now.paired_factors = paired_factors(eligible, kept);
       return true;
     }
   }
   return false;
+}
+
+std::vector<std::string> paired_factors(const std::vector<Eligible>& eligible, size_t kept) {
+  std::vector<std::string> out;
+  const std::set<std::string> kept_fields = fields_of(eligible[kept].term);
+  if (kept_fields.size() != 1) return out;
+  for (size_t j = 0; j < eligible.size(); ++j) {
+    const ExprTerm* e = eligible[j].term.expr();
+    if (j == kept || !e || e->signal().sources.size() != 2 ||
+        !(eligible[j].explained >= eligible[kept].explained))
+      continue;
+    const std::set<std::string> fields = fields_of(eligible[j].term);
+    if (fields.size() != 2 || !fields.count(*kept_fields.begin())) continue;
+    for (const std::string& y : fields)
+      if (!kept_fields.count(y) && is_aircraft_state(y) &&
+          std::find(out.begin(), out.end(), y) == out.end())
+        out.push_back(y);
+  }
+  return out;
 }
 
 size_t Round::fewer_columns(const Model& before, const std::vector<Eligible>& eligible,

@@ -31,6 +31,11 @@ constexpr double kSlowRetimeRange = 1.5;
 constexpr int kSlowRetimeSteps = 3;
 constexpr double kSlowRetimeTolerance = 0.01;
 
+/// The recorded aircraft states (is_aircraft_state) paired with the one channel of
+/// eligible[kept] in a product among `eligible` that explains at least as much as it on both
+/// halves (Eligible::explained), in rank order; empty when the kept term reads other than one
+/// channel (LoopRound::paired_factors; loop_round.cpp).
+std::vector<std::string> paired_factors(const std::vector<Eligible>& eligible, size_t kept);
 /// `model` with its term `old_text` written as `spec` (a slow term stays one), unfitted
 /// (loop_revisit.cpp).
 Model with_term_as(const Model& model, const std::string& old_text, const std::string& spec);

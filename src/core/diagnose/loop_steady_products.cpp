@@ -52,6 +52,7 @@ bool Round::steady_factor_in_place() {
   struct Best {
     std::pair<Model, LoopRound> fitted;
     std::string old_text, new_text, factor;
+    bool paired = false;  // a factor the search paired with the term, not one held steady
   };
   std::optional<Best> best;
   for (const TermSpec& t : model.terms) {
@@ -76,6 +77,16 @@ bool Round::steady_factor_in_place() {
     }
     for (const auto& f : steady_factors(c_.flights, fields, c_.truth, 1.0, kSteadyFactorRelative))
       add(f.first);
+    // And the states a product the round's search ranked with the term paired it with: on the
+    // lines the term was chosen on, it was the simpler of the two.
+    std::set<std::string> paired;
+    for (const LoopRound& lr : r_->rounds) {
+      if (lr.paired_factors.empty() || fields_of(TermSpec(lr.added)) != fields) continue;
+      for (const std::string& f : lr.paired_factors) {
+        if (std::find(factors.begin(), factors.end(), f) == factors.end()) paired.insert(f);
+        add(f);
+      }
+    }
     for (const std::string& f : factors) {
       const std::string product = times_factor(*e, f);
       if (product.empty()) break;
@@ -89,19 +100,23 @@ bool Round::steady_factor_in_place() {
             !factor_resolved(lr, now) || !holds_where_sized(lr, now))
           continue;
         if (best && !(lr.heldout_std_nT < best->fitted.second.heldout_std_nT)) continue;
-        best.emplace(Best{std::move(fitted), t.text(), product, f});
+        best.emplace(Best{std::move(fitted), t.text(), product, f, paired.count(f) > 0});
       } catch (const Error&) {
       }
     }
   }
   if (!best) return false;
   const LoopRound& lr = best->fitted.second;
-  char why[400];
+  char why[520];
   std::snprintf(why, sizeof(why),
-                "its field scales with %s, a channel these flights hold nearly steady: held-out "
-                "error %.4f -> %.4f nT (halves %.4f -> %.4f, %.4f -> %.4f)",
-                best->factor.c_str(), now.heldout_std_nT, lr.heldout_std_nT, now.selection_std_nT,
-                lr.selection_std_nT, now.confirmation_std_nT, lr.confirmation_std_nT);
+                "its field scales with %s, %s: held-out error %.4f -> %.4f nT (halves %.4f -> "
+                "%.4f, %.4f -> %.4f)",
+                best->factor.c_str(),
+                best->paired ? "which its round's search paired with it where the lines it was "
+                               "chosen on could not tell them apart"
+                             : "a channel these flights hold nearly steady",
+                now.heldout_std_nT, lr.heldout_std_nT, now.selection_std_nT, lr.selection_std_nT,
+                now.confirmation_std_nT, lr.confirmation_std_nT);
   replaced_as_round(std::move(best->fitted), best->old_text, best->new_text, why);
   return true;
 }

@@ -69,6 +69,18 @@ bool step_in_time(const SignalExpr& signal, double threshold, const FlightData& 
   if (n < 4 * w) return false;
   std::vector<double> sum(n + 1, 0.0);  // prefix sums
   for (size_t i = 0; i < n; ++i) sum[i + 1] = sum[i] + on[i];
+  // A relay chattering on its control's noise (the threshold within the noise of the level the
+  // channel idles at) is on and off all through the flight: however its majority wanders, no
+  // single switch in time agrees with most of its samples, where a step in time disagrees only
+  // with the chatter of its crossing.
+  double agree = 0;
+  for (size_t k = 0; k <= n; ++k) {
+    const double on_before = sum[k], on_after = sum[n] - sum[k];
+    const double off_before = static_cast<double>(k) - on_before;
+    const double off_after = static_cast<double>(n - k) - on_after;
+    agree = std::max({agree, off_before + on_after, on_before + off_after});
+  }
+  if (agree < kClockAgreement * static_cast<double>(n)) return false;
   // The majority within w samples either side; a tie keeps the state before.
   std::vector<size_t> changes;
   int state = -1;

@@ -111,6 +111,12 @@ struct LoopRound {
   /// flights (std / |mean|, dimensionless), steadiest first; empty for a lag or a step that is
   /// not a single term (loop_steps::steady_factors).
   std::vector<std::pair<std::string, double>> steady_factors;
+  /// For this round's single term of one recorded channel: the other channels of the products
+  /// with that channel the round's diagnosis ranked as eligible and explaining at least as much
+  /// as the term on both halves, where the search could not tell them apart from the term on the
+  /// selection lines (Round::first_single; tried in place once every effect is written,
+  /// Round::steady_factor_in_place). Not a key of the JSON.
+  std::vector<std::string> paired_factors;
 };
 
 struct LoopResult {
