@@ -216,8 +216,9 @@ class Round {
   // When nothing else passes or changes (and when the loop's rounds are spent): a kept field term
   // of one recorded channel (its transforms linear, not a learned law's hinge nor a slow term)
   // gives way to its product with a factor the rounds listed beside it as a channel these
-  // flights hold nearly steady (LoopRound::steady_factors), or with a recorded state held within
-  // kSteadyFactorRelative of its mean, when, with every other term in place,
+  // flights hold nearly steady (LoopRound::steady_factors), with a recorded state held within
+  // kSteadyFactorRelative of its mean, or with a state a product of its round paired it with
+  // (LoopRound::paired_factors), when, with every other term in place,
   // the product passes refusal(), raises neither half, earns its factor (factor_resolved) and
   // holds where the term is sized (holds_where_sized). A modulation of a few percent is below
   // what a term alone must gain while other effects are in the residual; once they are
