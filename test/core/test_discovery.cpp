@@ -423,6 +423,21 @@ TEST(Discovery, ARoundTriesOneTermOfEachChannel) {
   EXPECT_TRUE(loop_steps::single_tries({}).empty());
 }
 
+TEST(Discovery, ARefusalNamesTheFlightsOnceTheFlightsAreTheHalves) {
+  // Until a term is judged with the flights as the halves, a refusal names the selection and
+  // confirmation halves of the held-out lines; after it, flight f (from 1) is in half (f - 1) % 2.
+  LoopResult r;
+  r.rounds.resize(2);
+  EXPECT_EQ(loop_steps::half_name(r, 3, 0), "the selection half");
+  EXPECT_EQ(loop_steps::half_name(r, 3, 1), "the confirmation half");
+  r.rounds[1].flight_halves = true;
+  EXPECT_EQ(loop_steps::half_name(r, 2, 0), "the held-out lines of flight 1");
+  EXPECT_EQ(loop_steps::half_name(r, 2, 1), "the held-out lines of flight 2");
+  EXPECT_EQ(loop_steps::half_name(r, 3, 0), "the held-out lines of flights 1, 3");
+  EXPECT_EQ(loop_steps::half_name(r, 3, 1), "the held-out lines of flight 2");
+  EXPECT_EQ(loop_steps::half_name(r, 1, 1), "the confirmation half");  // one flight: its own lines
+}
+
 TEST(DiscoveryLong, ATermWithinTheModelsOwnSpanIsNeverAdded) {
   // Run 1, first aircraft: a heater of cur_outpwr (50.7 s) and a 751 s drift of cur_srvo_m.
   // The field of vol_block (a supply held near 24.0 V, 0.06 V std over the flight) through a

@@ -166,14 +166,14 @@ bool Round::size_following_a_state() {
         std::string why = refusal(lr, now, c_.options);
         char buf[300];
         if (why.empty() && !passes(lr.selection_std_nT, now.selection_std_nT)) {
-          std::snprintf(buf, sizeof(buf),
-                        "the selection half would not fall enough (%.3f -> %.3f nT)",
-                        now.selection_std_nT, lr.selection_std_nT);
+          std::snprintf(buf, sizeof(buf), "%s would not fall enough (%.3f -> %.3f nT)",
+                        half_name(*r_, c_.flights.size(), 0).c_str(), now.selection_std_nT,
+                        lr.selection_std_nT);
           why = buf;
         } else if (why.empty() && !passes(lr.confirmation_std_nT, now.confirmation_std_nT)) {
-          std::snprintf(buf, sizeof(buf),
-                        "the confirmation half would not fall enough (%.3f -> %.3f nT)",
-                        now.confirmation_std_nT, lr.confirmation_std_nT);
+          std::snprintf(buf, sizeof(buf), "%s would not fall enough (%.3f -> %.3f nT)",
+                        half_name(*r_, c_.flights.size(), 1).c_str(), now.confirmation_std_nT,
+                        lr.confirmation_std_nT);
           why = buf;
         } else if (why.empty()) {
           std::snprintf(buf, sizeof(buf),

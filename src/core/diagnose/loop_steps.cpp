@@ -304,6 +304,17 @@ std::optional<std::pair<std::pair<Model, LoopRound>, std::string>> exact_norm_st
   return best;
 }
 
+std::string half_name(const LoopResult& r, size_t flights, int half) {
+  const bool by_flight = std::any_of(r.rounds.begin(), r.rounds.end(),
+                                     [](const LoopRound& lr) { return lr.flight_halves; });
+  if (!by_flight || flights < 2) return half == 0 ? "the selection half" : "the confirmation half";
+  std::string list;
+  size_t count = 0;
+  for (size_t f = half == 0 ? 0 : 1; f < flights; f += 2, ++count)
+    list += (list.empty() ? "" : ", ") + std::to_string(f + 1);
+  return (count == 1 ? "the held-out lines of flight " : "the held-out lines of flights ") + list;
+}
+
 // Why a scored candidate model is refused against the current one ("" when it is kept).
 bool raises_calibration_rows(const LoopRound& next, const LoopRound& now, double resolution_nT) {
   constexpr double kCalibrationRiseFactor = 1.5;

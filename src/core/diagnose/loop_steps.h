@@ -74,6 +74,11 @@ std::optional<std::pair<std::pair<Model, LoopRound>, std::string>> exact_norm_st
 /// the calibration rows (LoopRound::calibration_std_nT) rises by half again and the resolution
 /// (DiagnoseOptions::check_calibration_rows).
 std::string refusal(const LoopRound& next, const LoopRound& now, const DiagnoseOptions& options);
+/// The name of one half (0 or 1) of the held-out samples in a refusal's words: "the selection
+/// half" or "the confirmation half", or, once the loop `r` judges with the flights as the halves
+/// (a round with LoopRound::flight_halves, loop_steps::across_flights), the flights of `flights`
+/// it holds (flight f, counted from 1, in half (f - 1) % 2).
+std::string half_name(const LoopResult& r, size_t flights, int half);
 /// Whether the change scored `next` raises the error on the calibration rows (unfiltered) of the
 /// model scored `now` by half again and `resolution_nT` (nT): its sizes do not hold where they are
 /// fitted. False when either error is unknown.
