@@ -1929,6 +1929,34 @@ TEST(Discovery, RandomEffectsAreSizedAndListed) {
   }
 }
 
+TEST(Discovery, AnEffectThePilotFlightCannotSizeIsDrawnAgain) {
+  // Run 200 (its states recorded): drawn first, a product of cur_com_1 with the flap angle, on a
+  // pilot flight that never extends the flaps (flap_deg its 0.05 deg noise). Sized to 0.47 nT
+  // there, it was 201 nT rms on the aircraft's next flight, where the flaps are out 98 % of the
+  // time. Another flight of the aircraft now checks each size: the effects drawn show on the next
+  // flight within the ratio the check allows.
+  sim::Scenario base = base_with_states();
+  base.aircraft_seed = 5000 + 200;
+  base.seed = 1000 + 2 * 200;
+  const auto effects = sim::random_effects(base, 200, 1, Igrf::installed());
+  ASSERT_EQ(effects.size(), 1u);
+  EXPECT_NE(sim::describe(effects[0]), "product cur_com_1*flap_deg");
+  double rms_nT[2];
+  for (unsigned next = 0; next < 2; ++next) {
+    sim::Scenario s = base;
+    s.seed += next;
+    s.hidden = effects;
+    const sim::Simulation f = sim::simulate(s, Igrf::installed());
+    const Eigen::VectorXd c = f.truth.column("mag_5_uc.hidden.0." + effects[0].type);
+    rms_nT[next] = std::sqrt((c.array() - c.mean()).square().mean());
+    std::printf("  %s: %.3f nT on the %s flight\n", sim::describe(effects[0]).c_str(), rms_nT[next],
+                next ? "next" : "pilot");
+  }
+  EXPECT_GT(rms_nT[0], 0.25);
+  EXPECT_LT(rms_nT[0], 3.5);
+  EXPECT_LT(rms_nT[1], 50 * rms_nT[0]);
+}
+
 TEST(Discovery, ASlowCandidateTheCalibrationRowsCannotSizeIsTriedSizedOnTheLines) {
   // Run 111, second aircraft, its states recorded: heaters of cur_strb (I², 60.5 s) and of
   // cur_srvo_o (I², 48.6 s), and a pick-up of cur_heat. With the strobes' heater and the pick-up

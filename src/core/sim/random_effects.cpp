@@ -22,6 +22,13 @@ const std::vector<std::string> kInsChannels = {"nrml_acc", "pitch_rate", "roll_r
 const std::vector<std::string> kKinds = {"wire",   "inductive", "drift",      "thermal", "relay",
                                          "ripple", "product",   "hysteresis", "flex",    "lag"};
 constexpr const char* kSensor = "mag_5_uc";
+// The flight of the aircraft that checks the drawn sizes (random_effects): the pilot flight's
+// scenario seed plus this offset, a flight no benchmark flies (they use the seed and the next two).
+constexpr unsigned kOtherFlightSeedOffset = 7919;
+// An effect another flight shows this many times larger than its drawn rms is drawn again; on
+// the benchmark's runs 101-199 the next flight shows an effect at most 15 times the first's.
+constexpr double kMaxOtherFlightRatio = 50.0;
+constexpr int kRedraws = 20;
 
 template <class T>
 const T& pick(const std::vector<T>& v, std::mt19937_64& rng) {
@@ -151,52 +158,88 @@ std::vector<HiddenEffect> random_effects(const Scenario& base, unsigned seed, in
                 " distinct effects that can be drawn (one per kind and channel, one lag)");
   if (!(rms_min > 0 && rms_max >= rms_min)) throw Error("random effects: bad rms range");
   std::mt19937_64 rng(seed * 2654435761ULL + 17);
-  std::vector<HiddenEffect> drawn;
+  std::vector<HiddenEffect> shapes;  // unit gains, no thresholds
+  // One lag at most (two would act as one), and no kind twice on one channel.
+  const auto taken = [&](const HiddenEffect& x, size_t skip) {
+    for (size_t k = 0; k < shapes.size(); ++k)
+      if (k != skip && shapes[k].type == x.type &&
+          (x.type == "lag" || shapes[k].channel == x.channel))
+        return true;
+    return false;
+  };
   for (int k = 0; k < count; ++k) {
     HiddenEffect e = draw(rng, base.aircraft_states);
-    // One lag at most (two would act as one), and no kind twice on one channel.
-    const auto taken = [&](const HiddenEffect& x) {
-      for (const auto& d : drawn)
-        if (d.type == x.type && (x.type == "lag" || d.channel == x.channel)) return true;
-      return false;
-    };
-    while (taken(e)) e = draw(rng, base.aircraft_states);
-    drawn.push_back(e);
+    while (taken(e, shapes.size())) e = draw(rng, base.aircraft_states);
+    shapes.push_back(e);
   }
   std::vector<double> target;
   for (int k = 0; k < count; ++k)
     target.push_back(std::exp(uniform(std::log(rms_min), std::log(rms_max), rng)));
+  const size_t first = base.hidden.size();
   // Pilot: the channels of this flight (the hidden effects do not change them) give the
   // thresholds, then each unit effect's size.
-  Scenario pilot = base;
-  const size_t first = pilot.hidden.size();
-  bool thresholds = false;
-  for (const HiddenEffect& e : drawn) thresholds |= e.type == "relay" || e.type == "hysteresis";
-  if (thresholds) {
-    const Simulation channels = simulate(base, igrf);
-    for (HiddenEffect& e : drawn) {
-      if (e.type != "relay" && e.type != "hysteresis") continue;
-      const Eigen::VectorXd c = channels.flight.column(e.channel);
-      e.threshold = e.type == "relay"
-                        ? quantile(c, uniform(0.3, 0.7, rng))
-                        : uniform(0.1, 0.3, rng) * (quantile(c, 0.95) - quantile(c, 0.05));
-      if (e.type == "hysteresis" && !(e.threshold > 0)) e.threshold = 0.1;
+  const auto sized = [&]() {
+    std::vector<HiddenEffect> drawn = shapes;
+    bool thresholds = false;
+    for (const HiddenEffect& e : drawn) thresholds |= e.type == "relay" || e.type == "hysteresis";
+    if (thresholds) {
+      const Simulation channels = simulate(base, igrf);
+      for (HiddenEffect& e : drawn) {
+        if (e.type != "relay" && e.type != "hysteresis") continue;
+        const Eigen::VectorXd c = channels.flight.column(e.channel);
+        e.threshold = e.type == "relay"
+                          ? quantile(c, uniform(0.3, 0.7, rng))
+                          : uniform(0.1, 0.3, rng) * (quantile(c, 0.95) - quantile(c, 0.05));
+        if (e.type == "hysteresis" && !(e.threshold > 0)) e.threshold = 0.1;
+      }
     }
-  }
-  for (const HiddenEffect& e : drawn) pilot.hidden.push_back(e);
-  const Simulation unit = simulate(pilot, igrf);
-  for (size_t k = 0; k < drawn.size(); ++k) {
-    HiddenEffect& e = drawn[k];
-    if (e.type == "lag") continue;
-    const double r = rms_of(unit, first + k, e.type);
-    const double scale = r > 1e-12 ? target[k] / r : 0.0;
-    if (e.type == "wire") {
-      e.length_m = std::clamp(e.length_m * scale, 1e-3, 100.0);
-    } else {
-      e.gain *= scale;
+    Scenario pilot = base;
+    for (const HiddenEffect& e : drawn) pilot.hidden.push_back(e);
+    const Simulation unit = simulate(pilot, igrf);
+    for (size_t k = 0; k < drawn.size(); ++k) {
+      HiddenEffect& e = drawn[k];
+      if (e.type == "lag") continue;
+      const double r = rms_of(unit, first + k, e.type);
+      const double scale = r > 1e-12 ? target[k] / r : 0.0;
+      if (e.type == "wire") {
+        e.length_m = std::clamp(e.length_m * scale, 1e-3, 100.0);
+      } else {
+        e.gain *= scale;
+      }
     }
+    return drawn;
+  };
+  // A flight that barely shows an effect cannot size it: sized to its drawn rms there, it may be
+  // hundreds of times larger on the aircraft's other flights (a product with the flap angle on a
+  // pilot flight that never extends the flaps: 0.47 nT rms there, 201 nT on the next flight).
+  // Another flight of the aircraft checks each effect; one it shows kMaxOtherFlightRatio times
+  // larger than its drawn rms is drawn again (kind and channels), at most kRedraws times in all.
+  std::vector<HiddenEffect> drawn = sized();
+  for (int redraws = 0;; ++redraws) {
+    Scenario other = base;
+    other.seed = base.seed + kOtherFlightSeedOffset;
+    for (const HiddenEffect& e : drawn) other.hidden.push_back(e);
+    const Simulation check = simulate(other, igrf);
+    std::vector<size_t> unbounded;
+    for (size_t k = 0; k < drawn.size(); ++k)
+      if (drawn[k].type != "lag" &&
+          !(rms_of(check, first + k, drawn[k].type) <= kMaxOtherFlightRatio * target[k]))
+        unbounded.push_back(k);
+    if (unbounded.empty()) return drawn;
+    if (redraws == kRedraws)
+      throw Error("random effects: seed " + std::to_string(seed) + ": " +
+                  describe(drawn[unbounded.front()]) + " is still more than " +
+                  std::to_string(static_cast<int>(kMaxOtherFlightRatio)) +
+                  " times larger on another flight of the aircraft than on the flight that sizes "
+                  "it after " +
+                  std::to_string(kRedraws) + " draws");
+    for (size_t k : unbounded) {
+      HiddenEffect e = draw(rng, base.aircraft_states);
+      while (taken(e, k)) e = draw(rng, base.aircraft_states);
+      shapes[k] = e;
+    }
+    drawn = sized();
   }
-  return drawn;
 }
 
 bool predictable(const HiddenEffect& e) { return e.type != "ripple"; }
