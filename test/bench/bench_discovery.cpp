@@ -188,7 +188,7 @@ int main(int argc, char** argv) {
                                      : 1 + static_cast<int>(r % 10 < 6 ? 0 : (r % 10 < 9 ? 1 : 2));
       bool every_draw = true, run_predictable = true;
       for (unsigned draw = 0; draw < draws; ++draw) {
-        // A run the pipeline refuses (a flight whose error no magnetometer gives, say) is
+        // A run the pipeline refuses (a model whose correction leaves any field's range, say) is
         // listed with its error and counted; the others go on, and the exit status says so.
         magcomp::test::DiscoveryRun d;
         try {

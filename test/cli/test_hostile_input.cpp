@@ -81,6 +81,15 @@ TEST(HostileInput, NothingToScoreIsAnErrorNotAScoreOfZero) {
   write_flight_h5(zero, files().dir + "/zero_flux.h5");
   expect_refusal("evaluate --data " + files().dir + "/zero_flux.h5 --model " + files().fitted,
                  {"zero_flux.h5", "nothing to score"});
+  // Readings within any field and a model whose correction is not: the model is named, not the
+  // data (a term sized where its channel barely moved reads it far beyond that elsewhere).
+  std::string text = slurp(files().fitted);
+  const auto at = text.find("permanent.x: ");
+  ASSERT_NE(at, std::string::npos);
+  text.replace(at, text.find('\n', at) - at, "permanent.x: 1e12");
+  expect_refusal("evaluate --data " + files().flight + " --model " + write("huge_coef.yaml", text),
+                 {"after the model has an rms of", "before the model's correction",
+                  "the model's correction leaves the range of any field", "nothing to score"});
 }
 
 TEST(HostileInput, DeclaredSizesAreCheckedBeforeAnyAllocation) {

@@ -8,9 +8,9 @@
 #include <map>
 #include <mutex>
 
+#include "magcomp/core/apply/apply.h"
 #include "magcomp/core/error.h"
 #include "magcomp/core/evaluate/flight_conditions.h"
-#include "magcomp/core/apply/apply.h"
 #include "magcomp/core/model/field_range.h"
 #include "magcomp/core/neural/network.h"
 
@@ -329,6 +329,19 @@ Evaluation evaluate_model(const Model& model, const FlightData& data, const std:
     throw Error(data.source() + ": no sample has a finite compensated value and reference (" +
                 model.scalar + ", " + model.vector + "_x/_y/_z, the model's channels, " + truth +
                 "): nothing to score");
+  }
+  // Readings within any magnetic field and an error beyond it: the model's correction is what
+  // leaves the range (a term sized where its channel barely moved, read where it moves).
+  if (before.n > 0 && before.rmse_nT <= kMaxField_nT &&
+      !(ev.rmse_nT <= kMaxField_nT && ev.std_nT <= kMaxField_nT)) {
+    char buf[160];
+    std::snprintf(buf, sizeof buf, "has an rms of %.3g nT (%.3g nT before the model's correction)",
+                  ev.rmse_nT, before.rmse_nT);
+    throw Error(data.source() + ": the error of " + model.scalar + " against " + truth +
+                " after the model " + buf +
+                ", beyond any magnetic field (1e6 nT): the model's correction leaves the range of "
+                "any field on this flight (a term sized where its channel barely moved reads it "
+                "here far beyond that); nothing to score");
   }
   require_scorable(ev, data.source(), "the error of " + model.scalar + " against " + truth);
   ev.compensated_nT = std::move(applied.compensated_nT);
