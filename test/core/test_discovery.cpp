@@ -1421,6 +1421,33 @@ TEST(Discovery, ARetimedSlowTermNeedsNoResolutionOnTheLines) {
   EXPECT_LT(next_now_nT, 0.9 * next_before_nT);
 }
 
+TEST(Discovery, AnIntegralOfACurrentThatNeverReversesIsAClock) {
+  // Run 198's third aircraft (a hysteresis of cur_outpwr) ended with field:cur_flap|int|lp(1.47):
+  // the flap motor's current is on for bursts and never reverses, so its integral rises through
+  // the flight, a clock that fitted what drifted on the first flight and read 7.45 nT on the next
+  // (TL 0.24). Every load of the simulated aircraft is such a current; a current driven both
+  // ways integrates to a position within its range.
+  const sim::Simulation s = sim::simulate(base_with_states(), Igrf::installed());
+  FlightData f = s.flight;
+  using diagnose_search::integral_in_time;
+  for (const char* load : {"cur_flap", "cur_tank", "cur_strb", "cur_heat", "cur_com_1"}) {
+    EXPECT_TRUE(integral_in_time(parse_signal(std::string(load) + "|int", "t"), f)) << load;
+    EXPECT_TRUE(integral_in_time(parse_signal(std::string(load) + "|int|lp(1.47)", "t"), f))
+        << load;
+  }
+  // A motor driven out and back: +2 A for 20 s, then -2 A for 20 s, every 100 s.
+  const Eigen::VectorXd t = f.tt();
+  Eigen::VectorXd both(t.size());
+  for (Eigen::Index i = 0; i < t.size(); ++i) {
+    const double phase = std::fmod(t[i] - t[0], 100.0);
+    both[i] = phase < 20 ? 2.0 : phase < 40 ? -2.0 : 0.0;
+  }
+  f.set("cur_motor", both);
+  EXPECT_FALSE(integral_in_time(parse_signal("cur_motor|int", "t"), f));
+  // No integral: not judged.
+  EXPECT_FALSE(integral_in_time(parse_signal("cur_flap|lp(1.47)", "t"), f));
+}
+
 TEST(Discovery, AStepOfAChannelThatCrossesItsThresholdOnceIsAStepInTime) {
   // The simulated aircraft's battery charge currents decay through every level once
   // (2 A e^(-t/1800 s) and 0.9 of it, 0.02 A of noise); its loads cycle. A step of a battery

@@ -104,6 +104,30 @@ bool step_in_time(const SignalExpr& signal, double threshold, const FlightData& 
   return switches == 1 && changes.front() >= w && n - changes.back() >= w;
 }
 
+bool integral_in_time(const SignalExpr& signal, const FlightData& data) {
+  const auto integral =
+      std::find_if(signal.transforms.begin(), signal.transforms.end(),
+                   [](const Transform& t) { return t.kind == TransformKind::Integral; });
+  if (integral == signal.transforms.end() || signal.sources.empty() || !data.has("tt"))
+    return false;
+  size_t missing = 0;
+  const Eigen::VectorXd v = signal_sources_product(signal, data, &missing);
+  if (missing > 0) return false;
+  const Eigen::VectorXd t_s = data.column("tt");
+  const Eigen::VectorXd y =
+      apply_transforms(std::vector<Transform>(signal.transforms.begin(), integral + 1), t_s, v)
+          .col(0);
+  double first = NAN, last = NAN, lo = INFINITY, hi = -INFINITY;
+  for (Eigen::Index i = 0; i < y.size(); ++i) {
+    if (!std::isfinite(y[i])) continue;
+    if (std::isnan(first)) first = y[i];
+    last = y[i];
+    lo = std::min(lo, y[i]);
+    hi = std::max(hi, y[i]);
+  }
+  return hi > lo && std::abs(last - first) >= kClockIntegralShare * (hi - lo);
+}
+
 Search::Search(const Model& m, const FlightData& d, const std::string& truth_name, Diagnosis* dx,
                bool slow_on_lines, bool thresholds_on_selection, bool second_order_on_lines)
     : model(m),
@@ -533,6 +557,12 @@ Scored Search::run(const Job& job) const {
       return none;
     }
     term = make_term(expr->with_parameters({v}));
+  }
+  if (const auto* chosen = dynamic_cast<const ExprTerm*>(term.get());
+      chosen && integral_in_time(chosen->signal(), data)) {
+    Scored none;
+    none.fits = fits;
+    return none;
   }
   const Eigen::MatrixXd cols = columns(*term);
   Scored s = score(cols, slow_ok);

@@ -86,6 +86,18 @@ constexpr double kClockAgreement = 0.8;
 // rows 0.1 s apart where `data` has no time column "tt").
 bool step_in_time(const SignalExpr& signal, double threshold, const FlightData& data);
 
+// The integral of a current that never reverses (a load's current, the charge it has drawn)
+// rises through the flight: its net change is at least this share of its range. Such an
+// integral measures how long the load has run, a clock that fits whatever drifted, and reaches
+// other levels on another flight; it is not a candidate (integral_in_time). A current that
+// reverses (a motor driven both ways) integrates to a position, back and forth within its range.
+constexpr double kClockIntegralShare = 0.9;
+
+// Whether `signal` holds an integral (TransformKind::Integral) whose value on `data`, the
+// transforms up to it applied to the sources' product, changes over the flight by
+// kClockIntegralShare of its range or more. False without an integral or without `tt`.
+bool integral_in_time(const SignalExpr& signal, const FlightData& data);
+
 // A step's threshold, scanned on the calibration rows, can fall anywhere within the thresholds
 // those rows cannot tell apart, while the held-out lines cross it many times more (a relay whose
 // control dwells near its threshold on the survey lines and sweeps through it on the maneuvers):
