@@ -718,6 +718,70 @@ TEST(Discovery, AnExchangeGivesAFirstTermsPlaceToWhatTheModelWithoutItRanksFirst
     EXPECT_EQ(std::count(terms.begin(), terms.end(), kept[k]), 1) << kept[k];
 }
 
+TEST(Discovery, ATermChosenBeforeTheNormWasWrittenIsExchangedWithTheNormInPlace) {
+  // Run 212, second aircraft, its states recorded: a 317 s drift of cur_bat_2. Under band-pass
+  // TL the loop's first round takes scalar:vol_block|lp(665), a slow stand-in at the grid's
+  // longest time constant (held out 0.345 nT), over the drift's own channel (0.368 nT, a
+  // look-alike); the next round writes TL as the exact norm (0.133 nT), and no term passes after
+  // it. The round that wrote the norm changed the model the stand-in was chosen beside, so the
+  // exchange revisits it: with the norm in place, the drift's own channel takes its place
+  // (0.017 nT held out). On the next flight the stand-in does worse than TL, 0.951 against
+  // 0.688 nT, and the drift's channel leaves 0.016 nT (scripts/bench_discovery 1 212
+  // half-several states draws=3).
+  std::vector<sim::HiddenEffect> effects;
+  const sim::Scenario a = test::discovery_scenario(212, 1, base_with_states(), 1, &effects);
+  ASSERT_EQ(effects.size(), 1u);
+  ASSERT_EQ(effects.front().type, "drift");
+  ASSERT_EQ(effects.front().channel, "cur_bat_2");
+  RoundAtTheEnd end(a, base_lambda(), {});
+  const std::string stand_in = "scalar:vol_block|lp(665)";
+  // Round 1: the stand-in, a slow term beside band-pass TL.
+  LoopResult& r = end.r;
+  r = end.with_slow_term(stand_in);
+  r.rounds.back().round = 1;
+  r.rounds.back().added = stand_in;
+  // Round 2: TL as the exact norm, fitted against the reference (as exact_norm_step writes it).
+  Model norm = r.model;
+  norm.fit.method = FitMethod::kReference;
+  norm.fit.reference = end.truth;
+  norm.fit.lambda = 1e-6;
+  norm.add_term(TermSpec("bias"));
+  norm.add_term(TermSpec("norm"));
+  norm.coefficients.resize(0);
+  fit_model(norm, end.flights);
+  LoopRound lr = loop_steps::score(norm, end.flights, end.truth, end.held, nullptr);
+  lr.round = 2;
+  lr.added = "bias + norm";
+  lr.model_change = "TL as the exact norm; fit.method reference (mag_1_c), fit.lambda 1e-06";
+  r.rounds.push_back(lr);
+  r.model = norm;
+  const LoopRound now = r.rounds.back();
+  DiagnoseOptions round_options = end.options;  // as the loop diagnoses a round
+  round_options.slow_terms_on_lines = false;
+  loop_steps::Round round(end.context, 2, &r);
+  std::set<std::string> taken_out;
+  ASSERT_TRUE(round.exchange(round_options, &taken_out));
+  const LoopRound& after = r.rounds.back();
+  ASSERT_EQ(after.replaced.size(), 1u);
+  const double tl_next_nT = end.next_nT(end.start), stand_in_next_nT = end.next_nT(norm);
+  const double next_nT = end.next_nT(r.model);
+  std::printf(
+      "  run 212/1: held out %.4f nT (halves %.4f, %.4f); %s in place of %s: %.4f nT (halves "
+      "%.4f, %.4f); next flight TL %.3f nT, with the stand-in %.3f nT, after the exchange %.3f "
+      "nT\n",
+      now.heldout_std_nT, now.selection_std_nT, now.confirmation_std_nT, after.added.c_str(),
+      after.replaced[0].first.c_str(), after.heldout_std_nT, after.selection_std_nT,
+      after.confirmation_std_nT, tl_next_nT, stand_in_next_nT, next_nT);
+  EXPECT_EQ(after.replaced[0].first, stand_in);
+  EXPECT_NE(after.added.find("cur_bat_2"), std::string::npos) << after.added;
+  EXPECT_LT(after.heldout_std_nT, 0.5 * now.heldout_std_nT);
+  EXPECT_LE(after.selection_std_nT, now.selection_std_nT);
+  EXPECT_LE(after.confirmation_std_nT, now.confirmation_std_nT);
+  // The stand-in does worse than TL on the next flight; the drift's own channel carries over.
+  EXPECT_GT(stand_in_next_nT, tl_next_nT);
+  EXPECT_LT(next_nT, 0.25 * tl_next_nT);
+}
+
 TEST(Discovery, AProductsFactorThatEarnsNoPlaceIsDropped) {
   // Run 128, third aircraft: the wire of cur_com_1. The first round takes its field times
   // cur_outpwr, low-passed, which ranks first; no term passes after it and the loop ended there,

@@ -21,14 +21,18 @@ namespace magcomp::loop_steps {
 bool Round::exchange(const DiagnoseOptions& options, std::set<std::string>* taken_out) {
   const LoopRound now = r_->rounds.back();
   const std::vector<std::string>& laws = r_->model.black_box_terms;
-  // The round that added each term last, and the last round that added any: a term added in
-  // that round was chosen with every other term in the model, and its diagnosis would be the same.
+  // The round that added each term last, and the last round that changed the model (added
+  // terms, wrote TL as the exact norm or chose the ridge strength): a term added in that round
+  // was chosen with the model as it is, and its diagnosis would be the same. A term chosen
+  // before the norm was written was chosen beside TL's other form: a look-alike it beat there
+  // can beat it now.
   std::map<std::string, size_t> added_in;
   size_t last_adding = 0;
   for (size_t k = 1; k < r_->rounds.size(); ++k) {
     const LoopRound& lr = r_->rounds[k];
-    if (lr.regularisation || !lr.model_change.empty() || lr.added.empty()) continue;
+    if (lr.added.empty()) continue;
     last_adding = k;
+    if (lr.regularisation || !lr.model_change.empty()) continue;
     for (const std::string& t : step_terms(lr.added)) added_in[t] = k;
   }
   for (const TermSpec& t : r_->model.terms) {

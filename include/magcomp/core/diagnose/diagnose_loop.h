@@ -164,8 +164,9 @@ struct LoopResult {
 /// resolution and raises neither half takes the terms' place as a round of its own
 /// (LoopRound::replaced), and the loop goes on.
 /// When no step passes (DiagnoseOptions::exchange_terms), the kept terms of recorded channels
-/// chosen before a later round's terms are revisited one at a time: the model without the term
-/// (with the later terms) is diagnosed again, and the best of its
+/// chosen before a later round changed the model (its terms, TL written as the exact norm, the
+/// ridge strength) are revisited one at a time: the model without the term (with the later
+/// changes) is diagnosed again, and the best of its
 /// first eligible candidates that lowers the held-out error of the model with the term by the
 /// accepted share and the resolution, raises neither half and passes every other check takes the
 /// term's place as a round of its own (LoopRound::replaced); the loop then goes on. A term taken
