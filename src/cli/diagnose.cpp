@@ -392,6 +392,8 @@ nlohmann::json loop_json(const LoopResult& r, const std::vector<TermSupport>& su
                             {"size_nT", json_figure(s.size_nT)},
                             {"size_sigma_nT", json_figure(s.size_sigma_nT)},
                             {"note", support_note(s)},
+                            {"slowest_time_constant_s", json_figure(s.slowest_time_constant_s)},
+                            {"slow_edge_note", slow_edge_note(s)},
                             {"twins", twins_json(s.twins)}});
   }
   j["last_diagnosis"] = to_json(r.last);
@@ -504,6 +506,8 @@ void run_diagnose(const DiagnoseArgs& a) {
     if (!note.empty()) std::printf("note: %s: %s\n", s.term.c_str(), note.c_str());
     const std::string twins = twins_note(s);
     if (!twins.empty()) std::printf("note: %s: %s\n", s.term.c_str(), twins.c_str());
+    const std::string slow = slow_edge_note(s);
+    if (!slow.empty()) std::printf("note: %s: %s\n", s.term.c_str(), slow.c_str());
   }
   print_network_checks(r.last.network, " (checked against the final model)", &r.model);
   write_final_model(r, flights, a.truth, a.out, inputs);

@@ -161,6 +161,9 @@ TEST(Cli, DiagnoseWritesTheContractJsonAndTheLoop) {
     EXPECT_EQ(s["channel"], "cur_heat");
     EXPECT_GT(s["switches"].get<int>(), 0);
     EXPECT_GT(s["size_nT"].get<double>(), 0.0);
+    // No low-pass: not a drift at the longest time constant the flight tells apart.
+    EXPECT_TRUE(s["slowest_time_constant_s"].is_null()) << s.dump();
+    EXPECT_EQ(s["slow_edge_note"], "");
   }
   EXPECT_TRUE(heater) << loop["support"].dump();
   // The network's channels: the heater's named by the final model, the load's searched, the

@@ -8,6 +8,7 @@
 
 #include "magcomp/core/diagnose/term_support.h"
 #include "magcomp/core/fit/model_fit.h"
+#include "magcomp/core/fit/parameter_fit.h"
 #include "synthetic_flight.h"
 
 namespace magcomp {
@@ -298,6 +299,39 @@ TEST(TermSupport, AFieldTermsSizeIsWhatItAddsBeyondThePermanentFieldNotItsChanne
   EXPECT_GT(size[0], 0.1);
   EXPECT_NEAR(size[1], size[0], 0.02 * size[0]);
   EXPECT_NEAR(sigma[1], sigma[0], 0.5 * sigma[0]);
+}
+
+TEST(TermSupport, ATermAtTheLongestTimeConstantTheFlightTellsApartIsSaidToStandForADrift) {
+  // The closed-form flight: 6000 samples at its own rate. The low-pass scan a flight allows ends
+  // at a third of its span (parameter_grid); a term whose low-pass sits there cannot be told from
+  // a slower one, so it stands for a drift; one a step below it on the scan is a response.
+  Case c = make_case([](int i) { return (i / 150) % 2 ? 2.0 : 0.0; }, 0.1);
+  const auto tt = c.flight.tt();
+  const double span_s = tt[tt.size() - 1] - tt[0];
+  const std::vector<double> grid = parameter_grid(TransformKind::LowPass, c.flight.dt_s(), span_s);
+  ASSERT_GE(grid.size(), 3u);
+  const double top_s = grid.back(), below_s = grid[grid.size() - 2];
+  EXPECT_LE(top_s, span_s / 3 + 1e-6);
+  const auto support_of = [&](double tau_s) {
+    Model m = c.start;
+    char spec[64];
+    std::snprintf(spec, sizeof(spec), "scalar:cur_x|lp(%.6g)", tau_s);
+    m.add_term(spec);
+    m.coefficients.resize(0);
+    fit_model(m, {&c.flight});
+    const std::vector<TermSupport> s = term_support(m, c.start, c.flight);
+    EXPECT_EQ(s.size(), 1u);
+    return s.empty() ? TermSupport{} : s[0];
+  };
+  const TermSupport at_top = support_of(top_s), below = support_of(below_s);
+  std::printf("  scan %.3g to %.4g s over a %.0f s flight: lp(%.4g) %s, lp(%.4g) %s\n",
+              grid.front(), top_s, span_s, top_s, slow_edge_note(at_top).c_str(), below_s,
+              slow_edge_note(below).empty() ? "no note" : "a note");
+  EXPECT_NEAR(at_top.slowest_time_constant_s, top_s, 1e-3 * top_s);
+  EXPECT_NE(slow_edge_note(at_top).find("cur_x"), std::string::npos);
+  EXPECT_NE(slow_edge_note(at_top).find("--validate"), std::string::npos);
+  EXPECT_TRUE(std::isnan(below.slowest_time_constant_s));
+  EXPECT_EQ(slow_edge_note(below), "");
 }
 
 }  // namespace

@@ -7,6 +7,7 @@
 #include <cstdio>
 
 #include "magcomp/core/fit/model_fit.h"
+#include "magcomp/core/fit/parameter_fit.h"
 #include "magcomp/core/model/terms_expr.h"
 
 namespace magcomp {
@@ -92,6 +93,19 @@ std::vector<TermSupport> term_support(const Model& model, const Model& start,
     if (e)
       for (const std::string& x : e->required_fields())
         for (ChannelTwin& t : channel_twins(x, flights)) s.twins.push_back(std::move(t));
+    // A low-pass at the top of the scan the longest flight allows: a drift, not a response.
+    if (e) {
+      double tau_s = 0, top_s = 0;
+      for (const Transform& x : e->signal().transforms)
+        if (x.kind == TransformKind::LowPass) tau_s = std::max(tau_s, x.param);
+      for (const FlightData* f : flights) {
+        if (f->size() < 2) continue;
+        const double span_s = f->tt()[f->size() - 1] - f->tt()[0];
+        const std::vector<double> g = parameter_grid(TransformKind::LowPass, f->dt_s(), span_s);
+        if (!g.empty()) top_s = std::max(top_s, g.back());
+      }
+      if (tau_s > 0 && top_s > 0 && tau_s >= 0.99 * top_s) s.slowest_time_constant_s = top_s;
+    }
     out.push_back(s);
     Sums m;
     m.from = from;
@@ -148,6 +162,19 @@ std::vector<TermSupport> term_support(const Model& model, const Model& start,
     if (has_cov && !m.slow) out[k].size_sigma_nT = std::sqrt(m.var / m.count);
   }
   return out;
+}
+
+std::string slow_edge_note(const TermSupport& s) {
+  if (!std::isfinite(s.slowest_time_constant_s)) return "";
+  char buf[500];
+  std::snprintf(buf, sizeof(buf),
+                "its time constant is the longest these flights tell apart (%.0f s): it stands for "
+                "a drift at least that slow, which a slow trend of any "
+                "channel may match as well as %s's; a second flight (--validate NEXT.h5) tells "
+                "whether %s carries it",
+                s.slowest_time_constant_s, s.channel.empty() ? "its channel" : s.channel.c_str(),
+                s.channel.empty() ? "its channel" : s.channel.c_str());
+  return buf;
 }
 
 std::string twins_note(const TermSupport& s) {

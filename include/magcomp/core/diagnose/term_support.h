@@ -38,6 +38,11 @@ struct TermSupport {
   /// Each recorded channel of the term with the channels the flights cannot tell it from
   /// (channel_twins), in the order of the term's sources: the term names one of each set.
   std::vector<ChannelTwin> twins;
+  /// When the term's longest low-pass sits at the longest time constant the flights tell apart
+  /// (within 1 % of the top of parameter_grid's low-pass scan for the longest flight: a third of
+  /// it, at most 3000 s): that time constant, s. The flights cannot tell the term's response from a
+  /// slower one, so the term stands for a drift that any slow channel may match. NaN otherwise.
+  double slowest_time_constant_s = NAN;
 };
 
 /// The support of each term of the fitted `model` that `start` does not have, on `data` (the
@@ -63,6 +68,12 @@ std::string support_note(const TermSupport& s, int few_switches = 10,
 /// cannot tell vol_acpwr from vol_outpwr (r 0.99956), smoothed over 5 s: the effect may be
 /// either's"; "" without twins.
 std::string twins_note(const TermSupport& s);
+
+/// The words a user reads of a term at the longest time constant the flights tell apart
+/// (TermSupport::slowest_time_constant_s): "its time constant, 665 s, is the longest these
+/// flights tell apart: it stands for a drift at least that slow, which any slow channel may
+/// match; ..."; "" otherwise.
+std::string slow_edge_note(const TermSupport& s);
 
 /// Times a channel's samples x (its unit) crossed, on `rows` (in time order), between the lower
 /// and upper quarter of its 1-99 % range over all of x (one switch on and off counts two; a
