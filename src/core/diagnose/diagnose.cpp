@@ -30,6 +30,14 @@ int term_complexity(const TermSpec& term) {
   return n;
 }
 
+double slowest_low_pass_s(const TermSpec& term) {
+  double tau_s = 0.0;
+  if (const ExprTerm* e = term.expr())
+    for (const Transform& x : e->signal().transforms)
+      if (x.kind == TransformKind::LowPass && x.param > tau_s) tau_s = x.param;
+  return tau_s;
+}
+
 std::vector<std::string> source_fields(const Model& model, const FlightData& data,
                                        const std::string& truth, bool full_search,
                                        std::vector<std::string>* notes,

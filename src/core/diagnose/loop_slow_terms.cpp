@@ -29,17 +29,6 @@ std::vector<double> lines_beside_calibration(const FitSettings& fit,
   return {lines.begin(), lines.end()};
 }
 
-namespace {
-// The longest time constant of the low-passes in term t's chain, s (0 without one).
-double slowest_low_pass_s(const TermSpec& t) {
-  double tau_s = 0.0;
-  if (const ExprTerm* e = t.expr())
-    for (const Transform& x : e->signal().transforms)
-      if (x.kind == TransformKind::LowPass && x.param > tau_s) tau_s = x.param;
-  return tau_s;
-}
-}  // namespace
-
 bool low_pass_below_band(const TermSpec& t, double band_low_hz) {
   const double tau_s = slowest_low_pass_s(t);
   return tau_s > 0 && 1.0 / (2 * M_PI * tau_s) < band_low_hz;

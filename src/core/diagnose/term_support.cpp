@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 
+#include "magcomp/core/diagnose/diagnose.h"
 #include "magcomp/core/fit/model_fit.h"
 #include "magcomp/core/fit/parameter_fit.h"
 #include "magcomp/core/model/terms_expr.h"
@@ -94,17 +95,15 @@ std::vector<TermSupport> term_support(const Model& model, const Model& start,
       for (const std::string& x : e->required_fields())
         for (ChannelTwin& t : channel_twins(x, flights)) s.twins.push_back(std::move(t));
     // A low-pass at the top of the scan the longest flight allows: a drift, not a response.
-    if (e) {
-      double tau_s = 0, top_s = 0;
-      for (const Transform& x : e->signal().transforms)
-        if (x.kind == TransformKind::LowPass) tau_s = std::max(tau_s, x.param);
+    if (const double tau_s = slowest_low_pass_s(spec); tau_s > 0) {
+      double top_s = 0;
       for (const FlightData* f : flights) {
         if (f->size() < 2) continue;
         const double span_s = f->tt()[f->size() - 1] - f->tt()[0];
         const std::vector<double> g = parameter_grid(TransformKind::LowPass, f->dt_s(), span_s);
         if (!g.empty()) top_s = std::max(top_s, g.back());
       }
-      if (tau_s > 0 && top_s > 0 && tau_s >= 0.99 * top_s) s.slowest_time_constant_s = top_s;
+      if (top_s > 0 && tau_s >= 0.99 * top_s) s.slowest_time_constant_s = top_s;
     }
     out.push_back(s);
     Sums m;

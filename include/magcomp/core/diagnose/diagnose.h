@@ -378,6 +378,9 @@ std::vector<std::string> term_channels(const TermSpec& term);
 /// family counts 1). Between terms that explain as much, the simpler is preferred.
 int term_complexity(const TermSpec& term);
 
+/// The longest time constant of the low-passes in a term's chain, s (0 without one).
+double slowest_low_pass_s(const TermSpec& term);
+
 /// Moves to the front the simplest of the ranked items (each with a `term`) that tie with the
 /// first: the leading run of items for which tied(first, item) holds.
 template <typename T, typename Tied>

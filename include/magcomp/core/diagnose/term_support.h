@@ -70,9 +70,10 @@ std::string support_note(const TermSupport& s, int few_switches = 10,
 std::string twins_note(const TermSupport& s);
 
 /// The words a user reads of a term at the longest time constant the flights tell apart
-/// (TermSupport::slowest_time_constant_s): "its time constant, 665 s, is the longest these
-/// flights tell apart: it stands for a drift at least that slow, which any slow channel may
-/// match; ..."; "" otherwise.
+/// (TermSupport::slowest_time_constant_s): "its time constant is the longest these flights tell
+/// apart (665 s): it stands for a drift at least that slow, which a slow trend of any channel may
+/// match as well as X's; a second flight (--validate NEXT.h5) tells whether X carries it"; ""
+/// otherwise.
 std::string slow_edge_note(const TermSupport& s);
 
 /// Times a channel's samples x (its unit) crossed, on `rows` (in time order), between the lower
