@@ -33,10 +33,10 @@ constexpr size_t kMaxChain = 3;
 bool at_slow_edge(const Term& term, const Search& search) {
   const auto* e = dynamic_cast<const ExprTerm*>(&term);
   if (!e) return false;
+  const double top_s = longest_scanned_time_constant_s(search.dt, search.span);
   for (const auto& t : e->signal().transforms) {
     if (t.kind != TransformKind::LowPass && t.kind != TransformKind::HighPass) continue;
-    const std::vector<double> g = parameter_grid(t.kind, search.dt, search.span);
-    if (!g.empty() && t.param >= 0.99 * g.back()) return true;
+    if (at_longest_scanned_time_constant(t.param, top_s)) return true;
   }
   return false;
 }

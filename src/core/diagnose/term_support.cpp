@@ -97,13 +97,11 @@ std::vector<TermSupport> term_support(const Model& model, const Model& start,
     // A low-pass at the top of the scan the longest flight allows: a drift, not a response.
     if (const double tau_s = slowest_low_pass_s(spec); tau_s > 0) {
       double top_s = 0;
-      for (const FlightData* f : flights) {
-        if (f->size() < 2) continue;
-        const double span_s = f->tt()[f->size() - 1] - f->tt()[0];
-        const std::vector<double> g = parameter_grid(TransformKind::LowPass, f->dt_s(), span_s);
-        if (!g.empty()) top_s = std::max(top_s, g.back());
-      }
-      if (top_s > 0 && tau_s >= 0.99 * top_s) s.slowest_time_constant_s = top_s;
+      for (const FlightData* f : flights)
+        if (f->size() >= 2)
+          top_s = std::max(top_s, longest_scanned_time_constant_s(
+                                      f->dt_s(), f->tt()[f->size() - 1] - f->tt()[0]));
+      if (at_longest_scanned_time_constant(tau_s, top_s)) s.slowest_time_constant_s = top_s;
     }
     out.push_back(s);
     Sums m;

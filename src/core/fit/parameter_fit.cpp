@@ -194,6 +194,15 @@ std::vector<double> parameter_grid(TransformKind kind, double dt_s, double span_
   return g;
 }
 
+double longest_scanned_time_constant_s(double dt_s, double span_s) {
+  const std::vector<double> g = parameter_grid(TransformKind::LowPass, dt_s, span_s);
+  return g.empty() ? 0.0 : g.back();
+}
+
+bool at_longest_scanned_time_constant(double tau_s, double top_s) {
+  return top_s > 0 && tau_s >= 0.99 * top_s;
+}
+
 namespace {
 double round3(double v) {
   char buf[32];

@@ -69,6 +69,15 @@ class RidgeProfile {
 std::vector<double> parameter_grid(TransformKind kind, double dt_s, double span_s,
                                    double signal_scale = 0.0, double signal_lo = 0.0);
 
+/// The longest time constant a low-pass or high-pass is scanned up to on a flight sampled every
+/// dt_s and lasting span_s (the top of parameter_grid's scan: a third of the flight, at most
+/// 3000 s), s. 0 when the scan is empty.
+double longest_scanned_time_constant_s(double dt_s, double span_s);
+
+/// Whether the time constant tau_s (s) sits at the top of such a scan, top_s (within 1 %): the
+/// flight cannot tell it from a slower one, so it stands for a drift, not an estimated response.
+bool at_longest_scanned_time_constant(double tau_s, double top_s);
+
 /// Whether a free parameter of this kind is in the signal's unit (needs signal_range()).
 bool in_signal_units(TransformKind kind);
 
