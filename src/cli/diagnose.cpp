@@ -310,6 +310,7 @@ struct DiagnoseArgs {
   int top = 10, rounds = 5;
   double min_share = 0.05;
   bool apply = false, quick = false, choose_lambda = false, no_exchange = false;
+  bool no_chance_control = false;
   bool no_refine = false;
   bool keep_factors = false;
   bool no_steady_factors = false;
@@ -432,6 +433,7 @@ void run_diagnose(const DiagnoseArgs& a) {
   if (!a.out.empty() && !a.apply) throw Error("--out: only with --apply (the final model)");
   if (a.choose_lambda && !a.apply) throw Error("--choose-lambda: only with --apply");
   if (a.no_exchange && !a.apply) throw Error("--no-exchange: only with --apply");
+  if (a.no_chance_control && !a.apply) throw Error("--no-chance-control: only with --apply");
   if (a.no_refine && !a.apply) throw Error("--no-refine: only with --apply");
   if (a.keep_factors && !a.apply) throw Error("--keep-factors: only with --apply");
   if (a.no_steady_factors && !a.apply) throw Error("--no-steady-factors: only with --apply");
@@ -457,6 +459,7 @@ void run_diagnose(const DiagnoseArgs& a) {
   options.full_search = !a.quick;
   options.choose_lambda = a.choose_lambda;
   options.exchange_terms = !a.no_exchange;
+  options.chance_control = !a.no_chance_control;
   options.refine_parameters = !a.no_refine;
   options.drop_idle_factors = !a.keep_factors;
   options.steady_factor_products = !a.no_steady_factors;
@@ -567,6 +570,12 @@ void add_diagnose(CLI::App& app) {
                 "with --apply: when no term passes, keep the kept terms as they are (by default "
                 "each is taken out in turn and the model without it diagnosed again: a better "
                 "term takes its place and the loop goes on)");
+  cmd->add_flag("--no-chance-control", a->no_chance_control,
+                "with --apply over one flight: keep every kept drift (by default, where the loop "
+                "would end, a kept low-pass of 30 s or slower of channels no other term reads "
+                "leaves when, with every other term in place, it leaves more than two draws of "
+                "the best term of the recorded states read shifted in time leave in turn: a "
+                "trend that follows the residual by chance; the loop goes on without it)");
   cmd->add_flag("--no-refine", a->no_refine,
                 "with --apply: when no term passes, keep the kept terms' parameters (by default "
                 "they are estimated again with every other term in place, alone and beside each "

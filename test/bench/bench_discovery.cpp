@@ -26,7 +26,9 @@
 // added once the ridge step is refused, DiagnoseOptions::refuse_within_span_terms false); no-joint
 // (no set of terms chosen together, Diagnosis::joint); no-calibration-check (no step refused for
 // raising the error on the calibration rows); no-exchange (a kept term is never replaced by what
-// the model without it ranks first, DiagnoseOptions::exchange_terms); keep-redundant (a kept
+// the model without it ranks first, DiagnoseOptions::exchange_terms); no-chance-control (a kept
+// drift one flight cannot tell from chance stays, DiagnoseOptions::chance_control false);
+// keep-redundant (a kept
 // term stays where another kept term, its parameters estimated again, makes it redundant,
 // DiagnoseOptions::redundant_once_refined false); lenient-backward (the
 // backward pass drops a term only when it explains under a quarter of the accepted share,
@@ -92,6 +94,8 @@ int main(int argc, char** argv) {
         options.check_calibration_rows = false;
       } else if (opt == "no-exchange") {
         options.exchange_terms = false;
+      } else if (opt == "no-chance-control") {
+        options.chance_control = false;
       } else if (opt == "no-refine") {
         options.refine_parameters = false;
       } else if (opt == "line-jackknife") {
@@ -144,7 +148,8 @@ int main(int argc, char** argv) {
         std::fprintf(
             stderr,
             "error: option '%s': one-at-a-time, choose-lambda, no-span-ridge, span-terms, "
-            "no-joint, no-calibration-check, no-exchange, no-refine, lenient-backward, "
+            "no-joint, no-calibration-check, no-exchange, no-chance-control, no-refine, "
+            "lenient-backward, "
             "backward-after-adds, "
             "slow-on-calibration, thresholds-on-selection, thresholds-on-calibration, "
             "second-order-on-calibration, tl-as-given, "

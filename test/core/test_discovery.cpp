@@ -782,6 +782,126 @@ TEST(Discovery, ATermChosenBeforeTheNormWasWrittenIsExchangedWithTheNormInPlace)
   EXPECT_LT(next_nT, 0.25 * tl_next_nT);
 }
 
+// The loop's state with `term` added to `m` as a slow term, fitted on the first flight, and
+// scored as its last round (`added`, round `round`).
+void add_slow_round(const RoundAtTheEnd& end, const Model& m, const std::string& term, int round,
+                    LoopResult* r) {
+  r->model = m;
+  loop_steps::add_candidate_term(TermSpec(term), true, end.truth, &r->model);
+  r->model.coefficients.resize(0);
+  fit_model(r->model, end.flights);
+  LoopRound lr = loop_steps::score(r->model, end.flights, end.truth, end.held, nullptr);
+  lr.round = round;
+  lr.added = term;
+  r->rounds.push_back(lr);
+}
+
+TEST(Discovery, TheChanceLevelReadsOnlyTheStatesTheModelDoesNotReadShiftedInTime) {
+  // Ten samples: two states, one of them read by the model, and channels that are no state.
+  FlightData data;
+  Eigen::VectorXd ramp(10);
+  for (Eigen::Index i = 0; i < ramp.size(); ++i) ramp[i] = static_cast<double>(i);
+  for (const char* name : {"tt", "line", "mag_1_c", "mag_5_uc", "ins_vn", "cur_heat", "cur_bat_1"})
+    data.set(name, ramp);
+  Model model;
+  model.add_term(TermSpec("current:cur_heat"));
+  EXPECT_TRUE(loop_steps::shiftable_channel("cur_bat_1", model, "mag_1_c"));
+  EXPECT_FALSE(loop_steps::shiftable_channel("cur_heat", model, "mag_1_c"));
+  EXPECT_FALSE(loop_steps::shiftable_channel("ins_vn", model, "mag_1_c"));
+  EXPECT_FALSE(loop_steps::shiftable_channel("mag_1_c", model, "mag_1_c"));
+  EXPECT_TRUE(loop_steps::reads_shiftable_channels_only(TermSpec("scalar:cur_bat_1|lp(300)"), model,
+                                                        "mag_1_c"));
+  EXPECT_FALSE(loop_steps::reads_shiftable_channels_only(TermSpec("field:cur_bat_1*cur_heat"),
+                                                         model, "mag_1_c"));
+  // A quarter of ten samples rounds to three: sample i reads sample i - 3, circularly.
+  const FlightData shifted = loop_steps::with_states_shifted(data, model, "mag_1_c", 0.25);
+  for (Eigen::Index i = 0; i < 10; ++i) {
+    EXPECT_EQ(shifted.column("cur_bat_1")[i], static_cast<double>((i + 7) % 10)) << i;
+    for (const char* name : {"tt", "line", "mag_1_c", "mag_5_uc", "ins_vn", "cur_heat"})
+      EXPECT_EQ(shifted.column(name)[i], static_cast<double>(i)) << name << " " << i;
+  }
+  // Beyond chance: what it leaves is at most what two chance terms leave in turn.
+  loop_steps::ChanceLevel chance;
+  chance.share = 0.8;
+  EXPECT_TRUE(loop_steps::beyond_chance(0.97, chance));
+  EXPECT_FALSE(loop_steps::beyond_chance(0.95, chance));
+  chance.share = 0.0;
+  EXPECT_TRUE(loop_steps::beyond_chance(0.02, chance));
+}
+
+TEST(Discovery, ADriftOneFlightCannotTellFromChanceIsTakenOut) {
+  // Run 218, second aircraft, its states recorded: a 310 s drift of the rail vol_back's white
+  // noise, a slow random wander. Over the first flight the loop keeps scalar:vol_cabt|lp(35.1),
+  // a cabin channel's trend that follows it (held out 1.099 -> 0.351 nT), and stops; on the
+  // next flight that term leaves 0.964 nT against TL's 0.382. With every other term in place it
+  // explains less than the search finds with the recorded states read shifted in time (a
+  // quarter, a half, three quarters of the flight), by the margin: it is taken out, and the
+  // model is TL again (scripts/bench_discovery 1 218 half-several states draws=3).
+  std::vector<sim::HiddenEffect> effects;
+  const sim::Scenario a = test::discovery_scenario(218, 1, base_with_states(), 1, &effects);
+  ASSERT_EQ(effects.size(), 1u);
+  ASSERT_EQ(effects.front().type, "drift");
+  RoundAtTheEnd end(a, base_lambda(), {});
+  const std::string stand_in = "scalar:vol_cabt|lp(35.1)";
+  LoopResult& r = end.r;
+  add_slow_round(end, end.start, stand_in, 1, &r);
+  const Model with_stand_in = r.model;
+  const LoopRound now = r.rounds.back();
+  DiagnoseOptions round_options = end.options;  // as the loop diagnoses a round
+  round_options.slow_terms_on_lines = false;
+  loop_steps::Round audit(end.context, 1, &r);
+  std::set<std::string> audited;
+  ASSERT_TRUE(audit.drop_chance_slow_term(round_options, &audited));
+  const LoopRound& after = r.rounds.back();
+  ASSERT_EQ(after.removed.size(), 1u);
+  const double tl_next_nT = end.next_nT(end.start), stand_in_next_nT = end.next_nT(with_stand_in);
+  std::printf(
+      "  run 218/1: held out %.4f nT (halves %.4f, %.4f) with %s, %.4f without; next "
+      "flight TL %.3f nT, with it %.3f nT\n  %s\n",
+      now.heldout_std_nT, now.selection_std_nT, now.confirmation_std_nT, stand_in.c_str(),
+      after.heldout_std_nT, tl_next_nT, stand_in_next_nT, after.removed[0].second.c_str());
+  EXPECT_EQ(after.removed[0].first, stand_in);
+  EXPECT_NE(after.removed[0].second.find("shifted in time"), std::string::npos);
+  EXPECT_TRUE(std::find(r.model.terms.begin(), r.model.terms.end(), TermSpec(stand_in)) ==
+              r.model.terms.end());
+  // It gains on this flight's held-out lines, and does worse than TL on the next flight.
+  EXPECT_LT(now.heldout_std_nT, 0.5 * after.heldout_std_nT);
+  EXPECT_GT(stand_in_next_nT, 1.5 * tl_next_nT);
+  EXPECT_NEAR(end.next_nT(r.model), tl_next_nT, 1e-3);
+  // Tried once: a second call finds nothing more to take out.
+  loop_steps::Round again(end.context, 1, &r);
+  EXPECT_FALSE(again.drop_chance_slow_term(round_options, &audited));
+}
+
+TEST(Discovery, ADriftThatExplainsWhatRemainsBeyondChanceStays) {
+  // Run 212, second aircraft, its states recorded: a 317 s drift of cur_bat_2. With TL written
+  // as the exact norm, scalar:cur_bat_2|lp(332) leaves 0.017 nT held out, where the recorded
+  // states read shifted in time explain a fraction of what it does: it stays, and carries to the
+  // next flight (0.016 nT against TL's 0.688).
+  std::vector<sim::HiddenEffect> effects;
+  const sim::Scenario a = test::discovery_scenario(212, 1, base_with_states(), 1, &effects);
+  ASSERT_EQ(effects.size(), 1u);
+  ASSERT_EQ(effects.front().channel, "cur_bat_2");
+  RoundAtTheEnd end(a, base_lambda(), {});
+  const std::string drift = "scalar:cur_bat_2|lp(332)";
+  LoopResult& r = end.r;
+  Model norm = end.exact_norm_with({"bias", "norm"});
+  add_slow_round(end, norm, drift, 1, &r);
+  DiagnoseOptions round_options = end.options;
+  round_options.slow_terms_on_lines = false;
+  const LoopRound now = r.rounds.back();
+  const size_t terms = r.model.terms.size();
+  loop_steps::Round audit(end.context, 1, &r);
+  std::set<std::string> audited;
+  EXPECT_FALSE(audit.drop_chance_slow_term(round_options, &audited));
+  EXPECT_EQ(audited.count(drift), 1u);
+  EXPECT_EQ(r.model.terms.size(), terms);
+  const double next_nT = end.next_nT(r.model), tl_next_nT = end.next_nT(end.start);
+  std::printf("  run 212/1: held out %.4f nT with %s; next flight %.3f nT, TL %.3f nT\n",
+              now.heldout_std_nT, drift.c_str(), next_nT, tl_next_nT);
+  EXPECT_LT(next_nT, 0.25 * tl_next_nT);
+}
+
 TEST(Discovery, AProductsFactorThatEarnsNoPlaceIsDropped) {
   // Run 128, third aircraft: the wire of cur_com_1. The first round takes its field times
   // cur_outpwr, low-passed, which ranks first; no term passes after it and the loop ended there,

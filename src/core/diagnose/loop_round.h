@@ -254,6 +254,16 @@ class Round {
   // (|r| >= kLookAlikeCorrelation).
   std::vector<std::string> look_alikes_of(const TermSpec& t,
                                           const std::set<std::string>& model_fields) const;
+  // Where the loop would end, over one flight without a validation flight: a kept term of a drift
+  // (a low-pass of kSlowOnLinesMin_s or slower) of recorded states no other kept term reads,
+  // not in `audited`, leaves when, with every other term in place, its share of the held-out
+  // variance (the smaller half's) is not beyond_chance of what the search finds with those
+  // states read shifted in time (chance_level of the model without it, with `options`). Over
+  // one flight, a trend of minutes has few independent values, and the search tries thousands
+  // of them: one may follow the residual by chance, and another flight then reads it where it
+  // does not. The first such term in the model's order, one per call (its removal is said in the
+  // last round's LoopRound::removed); each term tried joins `audited`.
+  bool drop_chance_slow_term(const DiagnoseOptions& options, std::set<std::string>* audited);
   // An earlier round's term that the model no longer needs leaves (the least needed first, one
   // at a time), so long as the round still lowers the error of the round before it.
   void backward_pass();

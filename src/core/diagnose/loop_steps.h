@@ -101,6 +101,43 @@ std::set<std::string> fields_of(const Model& model);
 /// The terms of a round's step as LoopRound::added writes them (" + " joins a pair or a law).
 std::vector<std::string> step_terms(const std::string& added);
 
+/// The shifts of the chance level (chance_level): a quarter, a half and three quarters of each
+/// flight's length.
+constexpr double kChanceShifts[] = {0.25, 0.5, 0.75};
+/// Whether recorded channel `name` is read shifted in time by chance_level: a recorded state of
+/// the aircraft (is_aircraft_state) that neither `model` reads nor is its scalar or `truth`.
+bool shiftable_channel(const std::string& name, const Model& model, const std::string& truth);
+/// Whether term `t` reads recorded channels, each of them shiftable_channel.
+bool reads_shiftable_channels_only(const TermSpec& t, const Model& model, const std::string& truth);
+/// `data` with each shiftable_channel rotated by `fraction` of its length (sample i reads sample
+/// i - fraction n, circularly); every other channel (the magnetometers, the INS, the model's
+/// channels, the lines) as recorded.
+FlightData with_states_shifted(const FlightData& data, const Model& model, const std::string& truth,
+                               double fraction);
+/// What the search finds by chance among terms of recorded states: the largest share of the
+/// held-out variance (Candidate::explained_fraction, the smaller of the two halves') that an
+/// accepted candidate reading only shiftable channels explains when `model` is diagnosed with
+/// `options` on `flights` whose shiftable channels are rotated by each of kChanceShifts.
+/// Rotated, a state has nothing to do with the residual, yet keeps its own spectrum: a slow
+/// trend of minutes matches another over a flight of an hour by chance, and the search tries
+/// thousands of them. 0 when no such candidate is accepted.
+struct ChanceLevel {
+  double share = 0.0;     ///< the largest share explained (dimensionless, 0..1)
+  std::string term;       ///< the term that explains it, as read shifted
+  double fraction = 0.0;  ///< its shift, a fraction of the flight's length
+};
+ChanceLevel chance_level(const Model& model, const std::vector<const FlightData*>& flights,
+                         const std::string& truth, const DiagnoseOptions& options);
+/// Whether a share `explained` of the held-out variance (0..1) is beyond `chance`: what it
+/// leaves, 1 - explained, is at most what two draws of chance in turn leave, (1 - chance)^2 (the
+/// chance level's term on the residual, and another on what that term leaves). Three shifts
+/// give the best of three draws of the search, which a fourth draw beats one time in four;
+/// hence the second draw. Any accepted share is beyond a chance level of 0 (no term of the
+/// shifted states accepted).
+inline bool beyond_chance(double explained, const ChanceLevel& chance) {
+  return 1.0 - explained <= (1.0 - chance.share) * (1.0 - chance.share);
+}
+
 /// `m` without `term` (and out of its slow and black-box lists), unfitted.
 Model without_term(const Model& m, const TermSpec& term);
 

@@ -60,8 +60,10 @@ struct LoopRound {
   bool slow_on_lines = false;
   /// The held-out error std of each `together` term alone, nT (same order as `added`).
   std::vector<double> alone_std_nT;
-  /// Terms of earlier rounds that this round's terms made redundant (the backward pass), each
-  /// with why; the round's scores are those of the model without them.
+  /// Terms of earlier rounds that this round's terms made redundant (the backward pass), and, in
+  /// the last round, a kept drift one flight cannot tell from chance
+  /// (DiagnoseOptions::chance_control), each with why; the round's scores are those of the
+  /// model without them.
   std::vector<std::pair<std::string, std::string>> removed;
   /// The kept term this round's single term took the place of (DiagnoseOptions::exchange_terms),
   /// with why: the model without it, diagnosed again, ranks this term first and it lowers the
