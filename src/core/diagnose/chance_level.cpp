@@ -93,6 +93,10 @@ bool Round::drop_chance_slow_term(const DiagnoseOptions& options, std::set<std::
       continue;  // the model without it does not fit: the term stays
     }
     const LoopRound& lw = w.second;
+    // Not where the model without it does worse than the model the loop started from: the
+    // rest of the model was fitted around it (TL written as the exact norm, sized against the
+    // reference with the drift in the residual), and taking it out alone would leave that.
+    if (!(lw.heldout_std_nT <= (1 + 1e-9) * r_->rounds.front().heldout_std_nT)) continue;
     // Its share with every other term in place: the smaller of the two halves'.
     const double share = std::min(variance_share(now.selection_std_nT, lw.selection_std_nT),
                                   variance_share(now.confirmation_std_nT, lw.confirmation_std_nT));

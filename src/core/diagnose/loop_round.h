@@ -258,7 +258,9 @@ class Round {
   // (a low-pass of kSlowOnLinesMin_s or slower) of recorded states no other kept term reads,
   // not in `audited`, leaves when, with every other term in place, its share of the held-out
   // variance (the smaller half's) is not beyond_chance of what the search finds with those
-  // states read shifted in time (chance_level of the model without it, with `options`). Over
+  // states read shifted in time (chance_level of the model without it, with `options`), and the
+  // model without it leaves no more on the held-out lines than the loop's start model (the
+  // first round's score): a drift the rest of the model was fitted around stays. Over
   // one flight, a trend of minutes has few independent values, and the search tries thousands
   // of them: one may follow the residual by chance, and another flight then reads it where it
   // does not. The first such term in the model's order, one per call (its removal is said in the

@@ -211,7 +211,8 @@ struct DiagnoseOptions {
   /// kept drift (a low-pass of 30 s or slower) of recorded states no other kept term reads leaves
   /// when, with every other term in place, it explains no more of the held-out variance than the
   /// search finds with those states read shifted in time by a quarter, a half and three quarters
-  /// of the flight, by a margin (loop_steps::Round::drop_chance_slow_term); the loop goes on
+  /// of the flight, by a margin, and the model without it leaves no more on the held-out lines
+  /// than the loop's start model (loop_steps::Round::drop_chance_slow_term); the loop goes on
   /// without it, and no drift of its channels is added again. Over one flight, a trend of
   /// minutes matches another by chance, and the search tries thousands (false: the held-out
   /// halves alone decide).
