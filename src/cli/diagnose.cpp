@@ -571,11 +571,11 @@ void add_diagnose(CLI::App& app) {
                 "each is taken out in turn and the model without it diagnosed again: a better "
                 "term takes its place and the loop goes on)");
   cmd->add_flag("--no-chance-control", a->no_chance_control,
-                "with --apply over one flight: keep every kept drift (by default, where the loop "
-                "would end, a kept low-pass of 30 s or slower of channels no other term reads "
+                "with --apply over one flight: keep every kept drift (by default, as the loop "
+                "ends, a kept low-pass of 30 s or slower of channels no other term reads "
                 "leaves when, with every other term in place, it leaves more than two draws of "
                 "the best term of the recorded states read shifted in time leave in turn: a "
-                "trend that follows the residual by chance; the loop goes on without it)");
+                "trend that follows the residual by chance)");
   cmd->add_flag("--no-refine", a->no_refine,
                 "with --apply: when no term passes, keep the kept terms' parameters (by default "
                 "they are estimated again with every other term in place, alone and beside each "

@@ -63,21 +63,19 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
   const loop_steps::LoopContext context{start,      flights, truth,    held_out,
                                         validation, options, min_share};
   const bool backward_after_revisits = options.joint_steps && options.backward_after_revisits;
-  // Over one flight without a validation flight, as the loop would end: a kept drift that a
-  // channel shifted in time matches as well leaves (Round::drop_chance_slow_term), the loop goes
-  // on without it, and no drift of its channels is added again (`chance_barred`).
-  std::set<std::string> chance_audited;
-  std::set<std::set<std::string>> chance_barred;
-  const auto chance_drift_dropped = [&] {
-    if (!options.chance_control || flights.size() != 1 || validation) return false;
-    bool dropped = false;
+  // Over one flight without a validation flight, as the loop ends: each kept drift that a
+  // channel shifted in time matches as well leaves (Round::drop_chance_slow_term). The terms
+  // taken out, joined by ", " ("" when none).
+  const auto chance_drifts_dropped = [&] {
+    std::string out;
+    if (!options.chance_control || flights.size() != 1 || validation) return out;
+    std::set<std::string> audited;
     for (;;) {
       loop_steps::Round audit(context, max_rounds, &r);
-      if (!audit.drop_chance_slow_term(round_options, &chance_audited)) break;
-      chance_barred.insert(loop_steps::fields_of(TermSpec(r.rounds.back().removed.back().first)));
-      dropped = true;
+      if (!audit.drop_chance_slow_term(round_options, &audited)) break;
+      out += (out.empty() ? "" : ", ") + r.rounds.back().removed.back().first;
     }
-    return dropped;
+    return out;
   };
   for (int round = 1;; ++round) {
     const size_t rounds_before_end = r.rounds.size();
@@ -287,19 +285,25 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
         continue;
       }
     }
+    // The model as it ends without the drifts taken out, diagnosed again (its diagnosis ranks
+    // them first once more: the flight cannot say more of them), and what the loop says.
+    const auto without_chance_drifts = [&](const std::string& dropped) {
+      diagnose_all();
+      return "structure remains: " + dropped +
+             " taken out: a drift this flight cannot tell from chance (its round's removed says "
+             "by how much); a second flight (--data A.h5,B.h5 or --validate NEXT.h5) tells "
+             "whether its channel carries it";
+    };
     if (round > max_rounds) {
-      if (chance_drift_dropped()) continue;
-      finish("stopped after " + std::to_string(max_rounds) + " rounds; " + verdict);
+      const std::string dropped = chance_drifts_dropped();
+      finish(dropped.empty() ? "stopped after " + std::to_string(max_rounds) + " rounds; " + verdict
+                             : "stopped after " + std::to_string(max_rounds) + " rounds; " +
+                                   without_chance_drifts(dropped));
       break;
     }
     // The round's ways to change the model, in order (loop_round.h); the first kept ends the
     // round, then the backward pass.
-    const auto attempt = [&](loop_steps::Round& step, const std::vector<Eligible>& all) {
-      std::vector<Eligible> el;
-      for (const Eligible& e : all)
-        if (!chance_barred.count(loop_steps::fields_of(e.term)) ||
-            !loop_steps::low_pass_beyond(e.term, loop_steps::kSlowOnLinesMin_s))
-          el.push_back(e);
+    const auto attempt = [&](loop_steps::Round& step, const std::vector<Eligible>& el) {
       bool kept = options.joint_steps && step.lag_with_partner(dxs, el);
       kept = kept || (options.joint_steps && step.joint_set(dxs, el));
       kept = kept || step.first_single(el);
@@ -439,8 +443,11 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
                   [&](loop_steps::Round& x) { return x.redundant_once_refined(&dropped_refined); }))
       continue;
     const auto& rejected = step.rejected();
-    if (!kept && chance_drift_dropped()) continue;
     if (!kept) {
+      if (const std::string dropped = chance_drifts_dropped(); !dropped.empty()) {
+        finish(without_chance_drifts(dropped));
+        break;
+      }
       if (rejected.empty()) {
         finish(verdict);
       } else {

@@ -254,7 +254,7 @@ class Round {
   // (|r| >= kLookAlikeCorrelation).
   std::vector<std::string> look_alikes_of(const TermSpec& t,
                                           const std::set<std::string>& model_fields) const;
-  // Where the loop would end, over one flight without a validation flight: a kept term of a drift
+  // As the loop ends, over one flight without a validation flight: a kept term of a drift
   // (a low-pass of kSlowOnLinesMin_s or slower) of recorded states no other kept term reads,
   // not in `audited`, leaves when, with every other term in place, its share of the held-out
   // variance (the smaller half's) is not beyond_chance of what the search finds with those

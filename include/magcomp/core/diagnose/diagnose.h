@@ -207,15 +207,15 @@ struct DiagnoseOptions {
   /// effects were still in the residual is chosen again once they are written (false: a kept
   /// term stays unless later terms make it redundant).
   bool exchange_terms = true;
-  /// diagnose_loop over one flight without a validation flight: where the loop would end, a
+  /// diagnose_loop over one flight without a validation flight: as the loop ends, a
   /// kept drift (a low-pass of 30 s or slower) of recorded states no other kept term reads leaves
   /// when, with every other term in place, it explains no more of the held-out variance than the
   /// search finds with those states read shifted in time by a quarter, a half and three quarters
   /// of the flight, by a margin, and the model without it leaves no more on the held-out lines
-  /// than the loop's start model (loop_steps::Round::drop_chance_slow_term); the loop goes on
-  /// without it, and no drift of its channels is added again. Over one flight, a trend of
-  /// minutes matches another by chance, and the search tries thousands (false: the held-out
-  /// halves alone decide).
+  /// than the loop's start model (loop_steps::Round::drop_chance_slow_term); the loop stops
+  /// there ("structure remains: X taken out: a drift this flight cannot tell from chance …"). Over
+  /// one flight, a trend of minutes matches another by chance, and the search tries thousands
+  /// (false: the held-out halves alone decide).
   bool chance_control = true;
   /// diagnose_loop: when no term passes, before any exchange, the kept terms' parameters (a
   /// step's threshold, a time constant, a saturation level, a delay) are estimated again with
