@@ -103,16 +103,24 @@ bool Round::drop_chance_slow_term(const DiagnoseOptions& options, std::set<std::
     if (!std::isfinite(share)) continue;
     const ChanceLevel chance = chance_level(w.first, c_.flights, c_.truth, options);
     if (beyond_chance(share, chance)) continue;
-    char why[500];
+    char found[400];
+    if (chance.term.empty())
+      std::snprintf(found, sizeof(found),
+                    "the search accepts no term of the recorded states read shifted in time, and "
+                    "it must explain more than nothing");
+    else
+      std::snprintf(found, sizeof(found),
+                    "the search finds %.1f%% among the recorded states read shifted in time (%s "
+                    "shifted by %.0f%% of the flight), and it must leave at most what two such "
+                    "draws in turn leave",
+                    100 * chance.share, chance.term.c_str(), 100 * chance.fraction);
+    char why[800];
     std::snprintf(why, sizeof(why),
                   "a drift one flight cannot tell from chance: with every other term in place it "
-                  "explains %.1f%% of the held-out variance (the smaller half's), where the "
-                  "search finds %.1f%% among the recorded states read shifted in time (%s "
-                  "shifted by %.0f%% of the flight), and it must leave at most what two such "
-                  "draws in turn leave: without it the held-out error %.4f -> %.4f nT; a second "
-                  "flight (--data A.h5,B.h5 or --validate) tells whether %s carries it",
-                  100 * share, 100 * chance.share, chance.term.c_str(), 100 * chance.fraction,
-                  now.heldout_std_nT, lw.heldout_std_nT, t.text().c_str());
+                  "explains %.1f%% of the held-out variance (the smaller half's), where %s: "
+                  "without it the held-out error %.4f -> %.4f nT; a second flight (--data "
+                  "A.h5,B.h5 or --validate) tells whether %s carries it",
+                  100 * share, found, now.heldout_std_nT, lw.heldout_std_nT, t.text().c_str());
     LoopRound& last = r_->rounds.back();
     last.removed.emplace_back(t.text(), why);
     take_scores(lw, &last);
