@@ -206,6 +206,7 @@ struct DiagnoseArgs {
   double min_share = 0.05;
   bool apply = false, quick = false, choose_lambda = false, no_exchange = false;
   bool no_chance_control = false;
+  bool no_look_ahead = false;
   bool no_refine = false;
   bool keep_factors = false;
   bool no_steady_factors = false;
@@ -245,6 +246,7 @@ void run_diagnose(const DiagnoseArgs& a) {
   if (a.choose_lambda && !a.apply) throw Error("--choose-lambda: only with --apply");
   if (a.no_exchange && !a.apply) throw Error("--no-exchange: only with --apply");
   if (a.no_chance_control && !a.apply) throw Error("--no-chance-control: only with --apply");
+  if (a.no_look_ahead && !a.apply) throw Error("--no-look-ahead: only with --apply");
   if (a.no_refine && !a.apply) throw Error("--no-refine: only with --apply");
   if (a.keep_factors && !a.apply) throw Error("--keep-factors: only with --apply");
   if (a.no_steady_factors && !a.apply) throw Error("--no-steady-factors: only with --apply");
@@ -271,6 +273,7 @@ void run_diagnose(const DiagnoseArgs& a) {
   options.choose_lambda = a.choose_lambda;
   options.exchange_terms = !a.no_exchange;
   options.chance_control = !a.no_chance_control;
+  options.look_ahead = !a.no_look_ahead;
   options.refine_parameters = !a.no_refine;
   options.drop_idle_factors = !a.keep_factors;
   options.steady_factor_products = !a.no_steady_factors;
@@ -387,6 +390,11 @@ void add_diagnose(CLI::App& app) {
                 "leaves when, with every other term in place, it leaves more than two draws of "
                 "the best term of the recorded states read shifted in time leave in turn: a "
                 "trend that follows the residual by chance)");
+  cmd->add_flag("--no-look-ahead", a->no_look_ahead,
+                "with --apply: keep each round's first term that passes (by default, the "
+                "runner-up of other channels is looked at one round ahead, and kept when it and "
+                "the term that follows it leave less than the first and the term that follows "
+                "it)");
   cmd->add_flag("--no-refine", a->no_refine,
                 "with --apply: when no term passes, keep the kept terms' parameters (by default "
                 "they are estimated again with every other term in place, alone and beside each "

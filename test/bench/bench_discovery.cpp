@@ -28,6 +28,7 @@
 // raising the error on the calibration rows); no-exchange (a kept term is never replaced by what
 // the model without it ranks first, DiagnoseOptions::exchange_terms); no-chance-control (a kept
 // drift one flight cannot tell from chance stays, DiagnoseOptions::chance_control false);
+// no-look-ahead (each round keeps its first term that passes, DiagnoseOptions::look_ahead false);
 // keep-redundant (a kept
 // term stays where another kept term, its parameters estimated again, makes it redundant,
 // DiagnoseOptions::redundant_once_refined false); lenient-backward (the
@@ -96,6 +97,8 @@ int main(int argc, char** argv) {
         options.exchange_terms = false;
       } else if (opt == "no-chance-control") {
         options.chance_control = false;
+      } else if (opt == "no-look-ahead") {
+        options.look_ahead = false;
       } else if (opt == "no-refine") {
         options.refine_parameters = false;
       } else if (opt == "line-jackknife") {
@@ -148,7 +151,8 @@ int main(int argc, char** argv) {
         std::fprintf(
             stderr,
             "error: option '%s': one-at-a-time, choose-lambda, no-span-ridge, span-terms, "
-            "no-joint, no-calibration-check, no-exchange, no-chance-control, no-refine, "
+            "no-joint, no-calibration-check, no-exchange, no-chance-control, no-look-ahead, "
+            "no-refine, "
             "lenient-backward, "
             "backward-after-adds, "
             "slow-on-calibration, thresholds-on-selection, thresholds-on-calibration, "

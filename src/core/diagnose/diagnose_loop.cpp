@@ -306,7 +306,7 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
     const auto attempt = [&](loop_steps::Round& step, const std::vector<Eligible>& el) {
       bool kept = options.joint_steps && step.lag_with_partner(dxs, el);
       kept = kept || (options.joint_steps && step.joint_set(dxs, el));
-      kept = kept || step.first_single(el);
+      kept = kept || step.first_single(step.looking_ahead(el, round_options));
       // Pairs only while some flight's residual stays predictable (the learned law checks its
       // own flight).
       const bool predictable = std::any_of(

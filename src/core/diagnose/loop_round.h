@@ -19,6 +19,11 @@ namespace magcomp::loop_steps {
 
 // Eligible candidates tried per round, in rank order.
 constexpr size_t kTriesPerRound = 3;
+/// Round::looking_ahead looks one round ahead only at a runner-up whose held-out error alone is
+/// at most this many times the first term's (nT over nT): a cost bound, two diagnoses more per
+/// round where it acts. A term that leaves more still has to have its next term explain most of
+/// the difference.
+constexpr double kLookAheadRatio = 1.5;
 /// Exchanges (Round::exchange) made at most over one loop.
 constexpr int kExchanges = 3;
 /// Eligible candidates (in rank order, after the kept one) tried as look-alikes of a kept term.
@@ -136,6 +141,18 @@ class Round {
   // of channels): the first that passes every check is kept, with its look-alikes
   // (look_alikes()).
   bool first_single(const std::vector<Eligible>& eligible);
+  // Before first_single (DiagnoseOptions::look_ahead): of the eligible candidates as
+  // first_single tries them, the first two that pass refusal() alone (the first and the runner-up,
+  // of other channels; a lag is its own) are each fitted, the model with it diagnosed with
+  // `options` and its first candidate that then passes refusal() fitted beside it (at most
+  // kTriesPerRound, the best ranked of each set of channels). When the runner-up leaves at most
+  // kLookAheadRatio times the first's held-out error alone, and its two rounds improve_on the
+  // first's two rounds, the candidates come back with the runner-up first and the first left
+  // out (this round's refusals say why); else as they are. One term may stand in for several
+  // effects and win its round, while the term of one of them wins the two rounds (a field decay
+  // for a scalar lag and an inductive pick-up together).
+  std::vector<Eligible> looking_ahead(const std::vector<Eligible>& eligible,
+                                      const DiagnoseOptions& options);
   // Effects that act together: when no term passes alone while the residual stays predictable,
   // pairs of terms of distinct channels, fitted together; the best pair by held-out error that
   // passes a pair's checks, of which at least one term fails alone.

@@ -217,6 +217,16 @@ struct DiagnoseOptions {
   /// one flight, a trend of minutes matches another by chance, and the search tries thousands
   /// (false: the held-out halves alone decide).
   bool chance_control = true;
+  /// diagnose_loop: before a round keeps its first single term, the runner-up of other channels
+  /// (the next that passes alone, leaving at most loop_steps::kLookAheadRatio times the first's
+  /// held-out error) is looked at one round ahead: each of the two is fitted, the model with it
+  /// diagnosed again, and the first term that then passes added. When the runner-up's two
+  /// rounds lower the first's two rounds' held-out error by the accepted share and the
+  /// resolution and raise neither half, the runner-up is kept (the round's refusals say why).
+  /// One term may stand in for several effects at once (a field decay for a scalar lag plus an
+  /// inductive pick-up) and win its round, while the term of one of them wins the next two
+  /// (loop_steps::Round::looking_ahead; false: the round's first term that passes is kept).
+  bool look_ahead = true;
   /// diagnose_loop: when no term passes, before any exchange, the kept terms' parameters (a
   /// step's threshold, a time constant, a saturation level, a delay) are estimated again with
   /// every other term of the model in place: each term's alone, and all of them beside each of

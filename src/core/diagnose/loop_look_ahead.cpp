@@ -1,0 +1,94 @@
+// magcomp: a round of diagnose_loop looking one round ahead before it keeps its first term
+// (loop_round.h, Round::looking_ahead).
+#include <cmath>
+#include <cstdio>
+#include <optional>
+#include <utility>
+#include <vector>
+
+#include "loop_round.h"
+#include "magcomp/core/error.h"
+
+namespace magcomp::loop_steps {
+
+namespace {
+
+// One way the round may go: its term fitted alone, and the best next term the model with it
+// diagnosed again lets pass (scored with both; the term alone when none passes).
+struct Path {
+  size_t index = 0;  // in the round's eligible candidates
+  std::pair<Model, LoopRound> alone;
+  LoopRound two;
+  std::string next;  // the next term ("" when none passes)
+};
+
+}  // namespace
+
+std::vector<Eligible> Round::looking_ahead(const std::vector<Eligible>& eligible,
+                                           const DiagnoseOptions& options) {
+  if (!c_.options.look_ahead) return eligible;
+  const LoopRound& now = r_->rounds.back();
+  // The first two single tries that pass alone: the term first_single would keep, and the
+  // runner-up of other channels.
+  std::vector<Path> paths;
+  for (size_t k : single_tries(eligible)) {
+    try {
+      Model m = r_->model;
+      add_candidate_term(eligible[k].term, eligible[k].slow, c_.truth, &m);
+      auto fitted = fit_score(std::move(m));
+      if (!refusal(fitted.second, now, c_.options).empty()) continue;
+      Path p;
+      p.index = k;
+      p.alone = std::move(fitted);
+      paths.push_back(std::move(p));
+    } catch (const Error&) {
+    }
+    if (paths.size() == 2) break;
+  }
+  if (paths.size() < 2) return eligible;
+  const double first_nT = paths[0].alone.second.heldout_std_nT;
+  const double runner_up_nT = paths[1].alone.second.heldout_std_nT;
+  if (!(runner_up_nT <= kLookAheadRatio * first_nT)) return eligible;
+  // Each one round ahead: the model with it diagnosed again, and the first of that diagnosis's
+  // single tries that passes beside it.
+  for (Path& p : paths) {
+    p.two = p.alone.second;
+    std::vector<Diagnosis> dxs;
+    for (const FlightData* f : c_.flights)
+      dxs.push_back(diagnose(p.alone.first, *f, c_.truth, options));
+    const std::vector<Eligible> next =
+        eligible_candidates(dxs, c_.min_share, !c_.options.refuse_within_span_terms);
+    for (size_t j : single_tries(next)) {
+      try {
+        Model m = p.alone.first;
+        add_candidate_term(next[j].term, next[j].slow, c_.truth, &m);
+        const LoopRound lr = fit_score(std::move(m)).second;
+        if (!refusal(lr, p.alone.second, c_.options).empty()) continue;
+        p.two = lr;
+        p.next = next[j].term.text();
+        break;
+      } catch (const Error&) {
+      }
+    }
+  }
+  if (!improves_on(paths[1].two, paths[0].two)) return eligible;
+  const Eligible& first = eligible[paths[0].index];
+  const Eligible& runner_up = eligible[paths[1].index];
+  const auto two_rounds = [](const Path& p, const Eligible& e) {
+    return p.next.empty() ? e.term.text() + " alone" : e.term.text() + " then " + p.next;
+  };
+  char why[600];
+  std::snprintf(why, sizeof(why),
+                "looked at one round ahead, %s leaves %.4f nT held out (alone %.4f), where %s "
+                "leaves %.4f nT (alone %.4f): it stands in for what two terms of other effects "
+                "write",
+                two_rounds(paths[0], first).c_str(), paths[0].two.heldout_std_nT, first_nT,
+                two_rounds(paths[1], runner_up).c_str(), paths[1].two.heldout_std_nT, runner_up_nT);
+  rejected_.emplace_back(first.term.text(), why);
+  std::vector<Eligible> out{runner_up};
+  for (size_t k = 0; k < eligible.size(); ++k)
+    if (k != paths[0].index && k != paths[1].index) out.push_back(eligible[k]);
+  return out;
+}
+
+}  // namespace magcomp::loop_steps
