@@ -13,8 +13,9 @@ namespace magcomp::loop_steps {
 
 namespace {
 
-// One way the round may go: its term fitted alone, and the best next term the model with it
-// diagnosed again lets pass (scored with both; the term alone when none passes).
+// One way the round may go: its term fitted alone, and the best next term (by held-out error) of
+// those the model with it, diagnosed again, lets pass (scored with both; the term alone when
+// none passes).
 struct Path {
   size_t index = 0;  // in the round's eligible candidates
   std::pair<Model, LoopRound> alone;
@@ -49,8 +50,9 @@ std::vector<Eligible> Round::looking_ahead(const std::vector<Eligible>& eligible
   const double first_nT = paths[0].alone.second.heldout_std_nT;
   const double runner_up_nT = paths[1].alone.second.heldout_std_nT;
   if (!(runner_up_nT <= kLookAheadRatio * first_nT)) return eligible;
-  // Each one round ahead: the model with it diagnosed again, and the first of that diagnosis's
-  // single tries that passes beside it.
+  // Each one round ahead: the model with it diagnosed again, and the best of that diagnosis's
+  // single tries that pass beside it (a first try may be a term's own parameter estimated
+  // again, which the round after would write anyway).
   for (Path& p : paths) {
     p.two = p.alone.second;
     std::vector<Diagnosis> dxs;
@@ -64,9 +66,9 @@ std::vector<Eligible> Round::looking_ahead(const std::vector<Eligible>& eligible
         add_candidate_term(next[j].term, next[j].slow, c_.truth, &m);
         const LoopRound lr = fit_score(std::move(m)).second;
         if (!refusal(lr, p.alone.second, c_.options).empty()) continue;
+        if (!p.next.empty() && !(lr.heldout_std_nT < p.two.heldout_std_nT)) continue;
         p.two = lr;
         p.next = next[j].term.text();
-        break;
       } catch (const Error&) {
       }
     }

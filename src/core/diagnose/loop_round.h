@@ -144,13 +144,13 @@ class Round {
   // Before first_single (DiagnoseOptions::look_ahead): of the eligible candidates as
   // first_single tries them, the first two that pass refusal() alone (the first and the runner-up,
   // of other channels; a lag is its own) are each fitted, the model with it diagnosed with
-  // `options` and its first candidate that then passes refusal() fitted beside it (at most
-  // kTriesPerRound, the best ranked of each set of channels). When the runner-up leaves at most
-  // kLookAheadRatio times the first's held-out error alone, and its two rounds improve_on the
-  // first's two rounds, the candidates come back with the runner-up first and the first left
-  // out (this round's refusals say why); else as they are. One term may stand in for several
-  // effects and win its round, while the term of one of them wins the two rounds (a field decay
-  // for a scalar lag and an inductive pick-up together).
+  // `options`, and the best by held-out error of its single tries that then pass refusal()
+  // fitted beside it (at most kTriesPerRound, the best ranked of each set of channels). When the
+  // runner-up leaves at most kLookAheadRatio times the first's held-out error alone, and its two
+  // rounds improve_on the first's two rounds, the candidates come back with the runner-up first and
+  // the first left out (this round's refusals say why); else as they are. One term may stand in for
+  // several effects and win its round, while the term of one of them wins the two rounds (a field
+  // decay for a scalar lag and an inductive pick-up together).
   std::vector<Eligible> looking_ahead(const std::vector<Eligible>& eligible,
                                       const DiagnoseOptions& options);
   // Effects that act together: when no term passes alone while the residual stays predictable,

@@ -220,8 +220,8 @@ struct DiagnoseOptions {
   /// diagnose_loop: before a round keeps its first single term, the runner-up of other channels
   /// (the next that passes alone, leaving at most loop_steps::kLookAheadRatio times the first's
   /// held-out error) is looked at one round ahead: each of the two is fitted, the model with it
-  /// diagnosed again, and the first term that then passes added. When the runner-up's two
-  /// rounds lower the first's two rounds' held-out error by the accepted share and the
+  /// diagnosed again, and the best of its first terms that then pass added. When the runner-up's
+  /// two rounds lower the first's two rounds' held-out error by the accepted share and the
   /// resolution and raise neither half, the runner-up is kept (the round's refusals say why).
   /// One term may stand in for several effects at once (a field decay for a scalar lag plus an
   /// inductive pick-up) and win its round, while the term of one of them wins the next two
