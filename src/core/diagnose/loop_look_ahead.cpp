@@ -76,16 +76,23 @@ std::vector<Eligible> Round::looking_ahead(const std::vector<Eligible>& eligible
   if (!improves_on(paths[1].two, paths[0].two)) return eligible;
   const Eligible& first = eligible[paths[0].index];
   const Eligible& runner_up = eligible[paths[1].index];
+  // "X then Y leaves a nT held out (X alone b)", or "X leaves b nT held out and no term passes
+  // after it".
   const auto two_rounds = [](const Path& p, const Eligible& e) {
-    return p.next.empty() ? e.term.text() + " alone" : e.term.text() + " then " + p.next;
+    const auto nT = [](double v) {
+      char buf[32];
+      std::snprintf(buf, sizeof(buf), "%.4f", v);
+      return std::string(buf);
+    };
+    const std::string x = e.term.text();
+    if (p.next.empty())
+      return x + " leaves " + nT(p.two.heldout_std_nT) + " nT held out and no term passes after it";
+    return x + " then " + p.next + " leaves " + nT(p.two.heldout_std_nT) + " nT held out (" + x +
+           " alone " + nT(p.alone.second.heldout_std_nT) + ")";
   };
-  char why[600];
-  std::snprintf(why, sizeof(why),
-                "looked at one round ahead, %s leaves %.4f nT held out (alone %.4f), where %s "
-                "leaves %.4f nT (alone %.4f): it stands in for what two terms of other effects "
-                "write",
-                two_rounds(paths[0], first).c_str(), paths[0].two.heldout_std_nT, first_nT,
-                two_rounds(paths[1], runner_up).c_str(), paths[1].two.heldout_std_nT, runner_up_nT);
+  const std::string why = "looked at one round ahead, " + two_rounds(paths[0], first) + ", where " +
+                          two_rounds(paths[1], runner_up) +
+                          ": it stands in for effects that other terms write";
   rejected_.emplace_back(first.term.text(), why);
   std::vector<Eligible> out{runner_up};
   for (size_t k = 0; k < eligible.size(); ++k)
