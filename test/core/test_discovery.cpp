@@ -951,6 +951,39 @@ TEST(Discovery, ATermThatStandsInForTwoEffectsGivesWayLookingOneRoundAhead) {
   EXPECT_EQ(as_ranked.looking_ahead(eligible, round_options).front().term, eligible.front().term);
 }
 
+TEST(Discovery, LookingAheadAPathsNextTermReadsOtherChannels) {
+  // Run 143, second aircraft, its states recorded: a drift of cur_bat_2, the product
+  // cur_ac_hi*sw_pitot_heat and a ripple of cur_outpwr. Round 1 ranks the true product first
+  // (0.888 -> 0.777 nT held out); the runner-up cur_ac_hi*cur_bat_1 leaves 0.781 nT. Followed by
+  // scalar:cur_bat_1|lp(2.88), a second term of its own channel, the runner-up left 0.711 nT
+  // and took the round: the next flight went from 0.676 to 0.874 nT (TL 1.063). A term of the
+  // path's own channel writes that channel's shape, not another effect: the look-ahead does not
+  // count it, and the true product stays (scripts/bench_discovery 1 143 half-several states
+  // draws=2).
+  std::vector<sim::HiddenEffect> effects;
+  const sim::Scenario a = test::discovery_scenario(143, 3, base_with_states(), 1, &effects);
+  ASSERT_EQ(effects.size(), 3u);
+  RoundAtTheEnd end(a, base_lambda(), {});
+  LoopResult& r = end.r;
+  DiagnoseOptions round_options = end.options;  // as the loop diagnoses a round
+  round_options.slow_terms_on_lines = false;
+  const Diagnosis dx = diagnose(r.model, *end.flights[0], end.truth, round_options);
+  const std::vector<loop_steps::Eligible> eligible =
+      loop_steps::eligible_candidates({dx}, 0.05, false);
+  ASSERT_GE(eligible.size(), 2u);
+  EXPECT_EQ(eligible.front().term.text().rfind("field:cur_ac_hi*sw_pitot_heat", 0), 0u)
+      << eligible.front().term.text();
+  loop_steps::Round round(end.context, 1, &r);
+  const std::vector<loop_steps::Eligible> ahead = round.looking_ahead(eligible, round_options);
+  ASSERT_EQ(ahead.size(), eligible.size());
+  EXPECT_EQ(ahead.front().term, eligible.front().term);
+  for (const auto& [term, why] : round.rejected()) ADD_FAILURE() << term << ": " << why;
+  ASSERT_TRUE(round.first_single(ahead));
+  EXPECT_EQ(r.rounds.back().added.rfind("field:cur_ac_hi*sw_pitot_heat", 0), 0u)
+      << r.rounds.back().added;
+  EXPECT_NEAR(r.rounds.back().heldout_std_nT, 0.777, 0.01);
+}
+
 TEST(Discovery, AProductsFactorThatEarnsNoPlaceIsDropped) {
   // Run 128, third aircraft: the wire of cur_com_1. The first round takes its field times
   // cur_outpwr, low-passed, which ranks first; no term passes after it and the loop ended there,

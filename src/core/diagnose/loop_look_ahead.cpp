@@ -1,8 +1,11 @@
 // magcomp: a round of diagnose_loop looking one round ahead before it keeps its first term
 // (loop_round.h, Round::looking_ahead).
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <optional>
+#include <set>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -52,8 +55,12 @@ std::vector<Eligible> Round::looking_ahead(const std::vector<Eligible>& eligible
   if (!(runner_up_nT <= kLookAheadRatio * first_nT)) return eligible;
   // Each one round ahead: the model with it diagnosed again, and the best of that diagnosis's
   // single tries that pass beside it (a first try may be a term's own parameter estimated
-  // again, which the round after would write anyway).
+  // again, which the round after would write anyway). The next term must read none of the
+  // path's term's channels: the look-ahead asks whether a term stands in for effects that other
+  // terms write, and a second term of its own channel writes that channel's shape, not another
+  // effect.
   for (Path& p : paths) {
+    const std::set<std::string> own = fields_of(eligible[p.index].term);
     p.two = p.alone.second;
     std::vector<Diagnosis> dxs;
     for (const FlightData* f : c_.flights)
@@ -61,6 +68,10 @@ std::vector<Eligible> Round::looking_ahead(const std::vector<Eligible>& eligible
     const std::vector<Eligible> next =
         eligible_candidates(dxs, c_.min_share, !c_.options.refuse_within_span_terms);
     for (size_t j : single_tries(next)) {
+      const std::set<std::string> reads = fields_of(next[j].term);
+      if (std::any_of(reads.begin(), reads.end(),
+                      [&](const std::string& x) { return own.count(x) > 0; }))
+        continue;
       try {
         Model m = p.alone.first;
         add_candidate_term(next[j].term, next[j].slow, c_.truth, &m);
