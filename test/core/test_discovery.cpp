@@ -640,6 +640,18 @@ struct RoundAtTheEnd {
     fit_model(m, flights);
     return m;
   }
+  // The options a round of the loop diagnoses with (slow terms sized on the calibration rows).
+  DiagnoseOptions round_options() const {
+    DiagnoseOptions o = options;
+    o.slow_terms_on_lines = false;
+    return o;
+  }
+  // The candidates a round may add to the loop's model, in rank order: its diagnosis on the
+  // first flight with round_options(), eligible as the loop takes them (min_share 0.05).
+  std::vector<loop_steps::Eligible> round_candidates() const {
+    return loop_steps::eligible_candidates({diagnose(r.model, *flights[0], truth, round_options())},
+                                           0.05, false);
+  }
   // The std of `m`'s error on the aircraft's next flight, nT.
   double next_nT(const Model& m) const {
     return evaluate_model(m, fb.flight, "mag_1_c", false).std_nT;
@@ -689,8 +701,7 @@ TEST(Discovery, AnExchangeGivesAFirstTermsPlaceToWhatTheModelWithoutItRanksFirst
   std::set<std::string> taken_out;
   std::printf("  kept: held out %.4f nT (halves %.4f, %.4f)\n", now.heldout_std_nT,
               now.selection_std_nT, now.confirmation_std_nT);
-  DiagnoseOptions round_options = end.options;  // as the loop diagnoses a round
-  round_options.slow_terms_on_lines = false;
+  const DiagnoseOptions round_options = end.round_options();
   ASSERT_TRUE(round.exchange(round_options, &taken_out));
   const LoopRound& after = r.rounds.back();
   ASSERT_EQ(after.replaced.size(), 1u);
@@ -756,8 +767,7 @@ TEST(Discovery, ATermChosenBeforeTheNormWasWrittenIsExchangedWithTheNormInPlace)
   r.rounds.push_back(lr);
   r.model = norm;
   const LoopRound now = r.rounds.back();
-  DiagnoseOptions round_options = end.options;  // as the loop diagnoses a round
-  round_options.slow_terms_on_lines = false;
+  const DiagnoseOptions round_options = end.round_options();
   loop_steps::Round round(end.context, 2, &r);
   std::set<std::string> taken_out;
   ASSERT_TRUE(round.exchange(round_options, &taken_out));
@@ -847,8 +857,7 @@ TEST(Discovery, ADriftOneFlightCannotTellFromChanceIsTakenOut) {
   add_slow_round(end, end.start, stand_in, 1, &r);
   const Model with_stand_in = r.model;
   const LoopRound now = r.rounds.back();
-  DiagnoseOptions round_options = end.options;  // as the loop diagnoses a round
-  round_options.slow_terms_on_lines = false;
+  const DiagnoseOptions round_options = end.round_options();
   loop_steps::Round audit(end.context, 1, &r);
   std::set<std::string> audited;
   ASSERT_TRUE(audit.drop_chance_slow_term(round_options, &audited));
@@ -887,8 +896,7 @@ TEST(Discovery, ADriftThatExplainsWhatRemainsBeyondChanceStays) {
   LoopResult& r = end.r;
   Model norm = end.exact_norm_with({"bias", "norm"});
   add_slow_round(end, norm, drift, 1, &r);
-  DiagnoseOptions round_options = end.options;
-  round_options.slow_terms_on_lines = false;
+  const DiagnoseOptions round_options = end.round_options();
   const LoopRound now = r.rounds.back();
   const size_t terms = r.model.terms.size();
   loop_steps::Round audit(end.context, 1, &r);
@@ -916,11 +924,8 @@ TEST(Discovery, ATermThatStandsInForTwoEffectsGivesWayLookingOneRoundAhead) {
   ASSERT_EQ(effects.size(), 3u);
   RoundAtTheEnd end(a, base_lambda(), {});
   LoopResult& r = end.r;
-  DiagnoseOptions round_options = end.options;  // as the loop diagnoses a round
-  round_options.slow_terms_on_lines = false;
-  const Diagnosis dx = diagnose(r.model, *end.flights[0], end.truth, round_options);
-  const std::vector<loop_steps::Eligible> eligible =
-      loop_steps::eligible_candidates({dx}, 0.05, false);
+  const DiagnoseOptions round_options = end.round_options();
+  const std::vector<loop_steps::Eligible> eligible = end.round_candidates();
   ASSERT_GE(eligible.size(), 2u);
   EXPECT_EQ(eligible.front().term.text().rfind("field:B|decay(", 0), 0u)
       << eligible.front().term.text();
@@ -965,11 +970,8 @@ TEST(Discovery, LookingAheadAPathsNextTermReadsOtherChannels) {
   ASSERT_EQ(effects.size(), 3u);
   RoundAtTheEnd end(a, base_lambda(), {});
   LoopResult& r = end.r;
-  DiagnoseOptions round_options = end.options;  // as the loop diagnoses a round
-  round_options.slow_terms_on_lines = false;
-  const Diagnosis dx = diagnose(r.model, *end.flights[0], end.truth, round_options);
-  const std::vector<loop_steps::Eligible> eligible =
-      loop_steps::eligible_candidates({dx}, 0.05, false);
+  const DiagnoseOptions round_options = end.round_options();
+  const std::vector<loop_steps::Eligible> eligible = end.round_candidates();
   ASSERT_GE(eligible.size(), 2u);
   EXPECT_EQ(eligible.front().term.text().rfind("field:cur_ac_hi*sw_pitot_heat", 0), 0u)
       << eligible.front().term.text();
