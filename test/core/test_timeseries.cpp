@@ -1,9 +1,10 @@
 // Time-series helpers: Catmull-Rom interpolation is exact for quadratics (central differences
 // are their exact slopes), whole-sample shifts move samples exactly, and the ends are NaN or
-// held as documented; Pearson's r and ranks match their closed forms.
+// held as documented; Pearson's r, ranks and the correlation time match their closed forms.
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <random>
 
 #include "magcomp/core/math/correlation.h"
 #include "magcomp/core/math/timeseries.h"
@@ -182,4 +183,33 @@ TEST(Correlation, PearsonWhereFiniteLeavesOutTheRowsWhereEitherIsNaN) {
   EXPECT_TRUE(std::isnan(magcomp::pearson_where_finite(a, b, 4)));  // three rows, four asked
   b[3] = 8.0;                                                       // now the wild row counts
   EXPECT_LT(magcomp::pearson_where_finite(a, b, 3), 0.9);
+}
+
+TEST(Correlation, TheCorrelationTimeOfASineAndOfLowPassedNoiseInClosedForm) {
+  // A sine of period P: its autocorrelation is cos(2 pi lag / P), whose integral up to the first
+  // zero (P / 4) is P / (2 pi). Sampled at 10 Hz over 10 h (the estimate's end effect, 1 - lag/N,
+  // is below 1e-4 there).
+  const double dt_s = 0.1, period_s = 120.0;
+  const Eigen::Index n = 360000;
+  Eigen::VectorXd sine(n);
+  for (Eigen::Index i = 0; i < n; ++i)
+    sine[i] = 3.0 * std::sin(2 * M_PI * static_cast<double>(i) * dt_s / period_s) + 7.0;
+  EXPECT_NEAR(magcomp::correlation_time_s(sine, dt_s), period_s / (2 * M_PI),
+              0.02 * period_s / (2 * M_PI));
+  // A first-order low-pass of white noise with time constant tau: exp(-lag / tau), integral tau.
+  // 10 h hold 600 such times: the estimate's own scatter is a few per cent.
+  std::mt19937 rng(7);
+  std::normal_distribution<double> white(0.0, 1.0);
+  const double tau_s = 30.0, a = std::exp(-dt_s / tau_s);
+  Eigen::VectorXd noise(n);
+  double y = 0;
+  for (Eigen::Index i = 0; i < n; ++i) noise[i] = y = a * y + (1 - a) * white(rng);
+  EXPECT_NEAR(magcomp::correlation_time_s(noise, dt_s), tau_s, 0.15 * tau_s);
+  // Every tenth sample missing: the same within the scatter; a constant has none.
+  for (Eigen::Index i = 0; i < n; i += 10) noise[i] = NAN;
+  EXPECT_NEAR(magcomp::correlation_time_s(noise, dt_s), tau_s, 0.15 * tau_s);
+  EXPECT_EQ(magcomp::correlation_time_s(Eigen::VectorXd::Constant(100, 4.0), dt_s), 0.0);
+  // A ramp's autocorrelation never falls to 0 before half its length: it is as slow as it can be.
+  const Eigen::VectorXd ramp = Eigen::VectorXd::LinSpaced(1000, 0.0, 1.0);
+  EXPECT_GT(magcomp::correlation_time_s(ramp, dt_s), 0.15 * 1000 * dt_s);
 }

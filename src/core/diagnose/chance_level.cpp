@@ -4,13 +4,20 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 
 #include "loop_round.h"
 #include "loop_steps.h"
 #include "magcomp/core/error.h"
 #include "magcomp/core/io/channel_kinds.h"
+#include "magcomp/core/math/correlation.h"
+#include "magcomp/core/model/terms_expr.h"
 
 namespace magcomp::loop_steps {
+
+namespace {
+constexpr double kInf = std::numeric_limits<double>::infinity();
+}  // namespace
 
 bool shiftable_channel(const std::string& name, const Model& model, const std::string& truth) {
   return is_aircraft_state(name) && name != truth && name != model.scalar &&
@@ -43,8 +50,17 @@ FlightData with_states_shifted(const FlightData& data, const Model& model, const
   return out;
 }
 
+double term_correlation_time_s(const TermSpec& t, const Model& model, const FlightData& data) {
+  const ExprTerm* e = t.expr();
+  if (!e) return std::numeric_limits<double>::quiet_NaN();
+  const TermInputs in = make_term_inputs(data, model.vector, model.bt_scale_nT);
+  const Eigen::MatrixXd signal = e->signal_values(in);
+  return correlation_time_s(signal.col(0), in.dt_s);
+}
+
 ChanceLevel chance_level(const Model& model, const std::vector<const FlightData*>& flights,
-                         const std::string& truth, const DiagnoseOptions& options) {
+                         const std::string& truth, const DiagnoseOptions& options,
+                         double slowest_s) {
   ChanceLevel out;
   DiagnoseOptions quiet = options;
   // The single terms of the aircraft's states are what a round compares with: no joint set, no
@@ -64,11 +80,23 @@ ChanceLevel chance_level(const Model& model, const std::vector<const FlightData*
       }
       for (const Candidate& c : d.candidates) {
         if (!c.accepted || !reads_shiftable_channels_only(c.term, model, truth)) continue;
-        if (c.explained_fraction > out.share) {
-          out.share = c.explained_fraction;
-          out.term = c.term.text();
-          out.fraction = fraction;
+        if (c.explained_fraction <= std::min(out.share, out.slower_share)) continue;
+        double pace_s = 0;
+        if (std::isfinite(slowest_s)) {
+          pace_s = term_correlation_time_s(c.term, model, shifted);
+          if (!(pace_s <= slowest_s)) {  // slower (or of no signal): another pace's chance
+            if (c.explained_fraction > out.slower_share) {
+              out.slower_share = c.explained_fraction;
+              out.slower_term = c.term.text();
+            }
+            continue;
+          }
         }
+        if (c.explained_fraction <= out.share) continue;
+        out.share = c.explained_fraction;
+        out.term = c.term.text();
+        out.fraction = fraction;
+        out.correlation_s = pace_s;
       }
     }
   }
@@ -101,20 +129,26 @@ bool Round::drop_chance_slow_term(const DiagnoseOptions& options, std::set<std::
     const double share = std::min(variance_share(now.selection_std_nT, lw.selection_std_nT),
                                   variance_share(now.confirmation_std_nT, lw.confirmation_std_nT));
     if (!std::isfinite(share)) continue;
-    const ChanceLevel chance = chance_level(w.first, c_.flights, c_.truth, options);
+    // Compared with chance terms of its own pace or faster: its signal's correlation time.
+    const double pace_s = term_correlation_time_s(t, model, *c_.flights.front());
+    const ChanceLevel chance =
+        chance_level(w.first, c_.flights, c_.truth, options, std::isfinite(pace_s) ? pace_s : kInf);
     if (beyond_chance(share, chance)) continue;
-    char found[400];
+    char found[600];
     if (chance.term.empty())
       std::snprintf(found, sizeof(found),
-                    "the search accepts no term of the recorded states read shifted in time, and "
-                    "it must explain more than nothing");
+                    "the search accepts no term of the recorded states read shifted in time "
+                    "with a correlation time of at most its own %.0f s, and it must explain more "
+                    "than nothing",
+                    pace_s);
     else
       std::snprintf(found, sizeof(found),
                     "the search finds %.1f%% among the recorded states read shifted in time (%s "
-                    "shifted by %.0f%% of the flight), and it must leave at most what two such "
-                    "draws in turn leave",
-                    100 * chance.share, chance.term.c_str(), 100 * chance.fraction);
-    char why[800];
+                    "shifted by %.0f%% of the flight; correlation time %.0f s, its own %.0f s), "
+                    "and it must leave at most what two such draws in turn leave",
+                    100 * chance.share, chance.term.c_str(), 100 * chance.fraction,
+                    chance.correlation_s, pace_s);
+    char why[1000];
     std::snprintf(why, sizeof(why),
                   "a drift one flight cannot tell from chance: with every other term in place it "
                   "explains %.1f%% of the held-out variance (the smaller half's), where %s: "

@@ -275,7 +275,8 @@ class Round {
   // (a low-pass of kSlowOnLinesMin_s or slower) of recorded states no other kept term reads,
   // not in `audited`, leaves when, with every other term in place, its share of the held-out
   // variance (the smaller half's) is not beyond_chance of what the search finds with those
-  // states read shifted in time (chance_level of the model without it, with `options`), and the
+  // states read shifted in time (chance_level of the model without it, with `options`, among
+  // the shifted terms no slower than it: term_correlation_time_s at most its own), and the
   // model without it leaves no more on the held-out lines than the loop's start model (the
   // first round's score): a drift the rest of the model was fitted around stays. Over
   // one flight, a trend of minutes has few independent values, and the search tries thousands

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cmath>
+#include <limits>
 #include <optional>
 #include <set>
 #include <string>
@@ -121,13 +122,23 @@ FlightData with_states_shifted(const FlightData& data, const Model& model, const
 /// Rotated, a state has nothing to do with the residual, yet keeps its own spectrum: a slow
 /// trend of minutes matches another over a flight of an hour by chance, and the search tries
 /// thousands of them. 0 when no such candidate is accepted.
+/// Only candidates whose signal is no slower than `slowest_s` count (its correlation time,
+/// term_correlation_time_s, on the shifted flight): a slower trend has fewer independent values
+/// and matches by chance more often, so a term is compared with chance terms of its own pace.
 struct ChanceLevel {
-  double share = 0.0;     ///< the largest share explained (dimensionless, 0..1)
-  std::string term;       ///< the term that explains it, as read shifted
-  double fraction = 0.0;  ///< its shift, a fraction of the flight's length
+  double share = 0.0;          ///< the largest share explained (dimensionless, 0..1)
+  std::string term;            ///< the term that explains it, as read shifted
+  double fraction = 0.0;       ///< its shift, a fraction of the flight's length
+  double correlation_s = 0.0;  ///< its signal's correlation time on the shifted flight, s
+  std::string slower_term;     ///< the best slower candidate left out ("" when none beat it)
+  double slower_share = 0.0;   ///< its share (dimensionless)
 };
 ChanceLevel chance_level(const Model& model, const std::vector<const FlightData*>& flights,
-                         const std::string& truth, const DiagnoseOptions& options);
+                         const std::string& truth, const DiagnoseOptions& options,
+                         double slowest_s = std::numeric_limits<double>::infinity());
+/// The correlation time (correlation_time_s) of the signal of term `t` of the language on
+/// `data`, s (the first component of a vector signal); NaN for a fixed term.
+double term_correlation_time_s(const TermSpec& t, const Model& model, const FlightData& data);
 /// Whether a share `explained` of the held-out variance (0..1) is beyond `chance`: what it
 /// leaves, 1 - explained, is at most what two draws of chance in turn leave, (1 - chance)^2 (the
 /// chance level's term on the residual, and another on what that term leaves). Three shifts

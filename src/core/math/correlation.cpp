@@ -49,4 +49,51 @@ Eigen::VectorXd ranks(const Eigen::Ref<const Eigen::VectorXd>& x) {
   return r;
 }
 
+double correlation_time_s(const Eigen::Ref<const Eigen::VectorXd>& x, double dt_s) {
+  const Eigen::Index n = x.size();
+  Eigen::Index finite = 0;
+  double sum = 0;
+  for (Eigen::Index i = 0; i < n; ++i)
+    if (std::isfinite(x[i])) {
+      ++finite;
+      sum += x[i];
+    }
+  if (finite < 2) return 0.0;
+  const double mean = sum / static_cast<double>(finite);
+  // Deviations from the mean, 0 where the sample is not finite (so a pair with one leaves no sum),
+  // and which samples are finite.
+  Eigen::VectorXd d(n), held(n);
+  for (Eigen::Index i = 0; i < n; ++i) {
+    held[i] = std::isfinite(x[i]) ? 1.0 : 0.0;
+    d[i] = held[i] > 0 ? x[i] - mean : 0.0;
+  }
+  const double variance = d.squaredNorm() / static_cast<double>(finite);  // per sample
+  if (!(variance > 0)) return 0.0;
+  // The biased estimate (the mean product over the pairs both hold, times the share (n - lag) / n
+  // of the series a lag pairs): it goes to 0 at long lags rather than wandering, as the unbiased
+  // one does where few pairs are left.
+  const auto rho = [&](Eigen::Index lag) {
+    const double pairs = held.head(n - lag).dot(held.tail(n - lag));
+    if (pairs < 1) return 0.0;
+    return d.head(n - lag).dot(d.tail(n - lag)) / (pairs * variance) *
+           static_cast<double>(n - lag) / static_cast<double>(n);
+  };
+  double integral = 0, lag_prev = 0, rho_prev = 1;
+  const Eigen::Index last = n / 2;
+  for (double step = 1; step <= static_cast<double>(last); step *= 1.189207115002721) {
+    const auto lag = static_cast<Eigen::Index>(std::llround(step));
+    if (static_cast<double>(lag) <= lag_prev) continue;
+    const double r = rho(lag);
+    if (r <= 0) {  // crosses 0 between the two lags: the triangle up to the crossing
+      const double crossing =
+          lag_prev + (static_cast<double>(lag) - lag_prev) * rho_prev / (rho_prev - r);
+      return dt_s * (integral + 0.5 * rho_prev * (crossing - lag_prev));
+    }
+    integral += 0.5 * (rho_prev + r) * (static_cast<double>(lag) - lag_prev);
+    lag_prev = static_cast<double>(lag);
+    rho_prev = r;
+  }
+  return dt_s * integral;
+}
+
 }  // namespace magcomp

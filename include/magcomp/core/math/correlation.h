@@ -25,4 +25,13 @@ double pearson_where_finite(const Eigen::Ref<const Eigen::VectorXd>& a,
 /// series is pearson() of their ranks.
 Eigen::VectorXd ranks(const Eigen::Ref<const Eigen::VectorXd>& x);
 
+/// The integrated correlation time of `x` (uniformly sampled `dt_s` apart, any unit), s: the
+/// integral over the lag of its autocorrelation, from 0 to the first lag where that falls to 0,
+/// its non-finite samples left out. A series T s long holds about T / (2 tau) independent values;
+/// a first-order low-pass of white noise with time constant tau has tau, a sine of period P has
+/// P / (2 pi). The autocorrelation is read at lags spaced by a quarter of an octave (from one
+/// sample to half the series) and integrated piecewise linearly, up to half the series when it
+/// never falls to 0. 0 for a constant or empty series.
+double correlation_time_s(const Eigen::Ref<const Eigen::VectorXd>& x, double dt_s);
+
 }  // namespace magcomp
