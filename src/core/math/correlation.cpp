@@ -80,7 +80,8 @@ double correlation_time_s(const Eigen::Ref<const Eigen::VectorXd>& x, double dt_
   };
   double integral = 0, lag_prev = 0, rho_prev = 1;
   const Eigen::Index last = n / 2;
-  for (double step = 1; step <= static_cast<double>(last); step *= 1.189207115002721) {
+  const double quarter_octave = std::pow(2.0, 0.25);
+  for (double step = 1; step <= static_cast<double>(last); step *= quarter_octave) {
     const auto lag = static_cast<Eigen::Index>(std::llround(step));
     if (static_cast<double>(lag) <= lag_prev) continue;
     const double r = rho(lag);
