@@ -931,7 +931,7 @@ TEST(Discovery, AThermalIsComparedWithChanceAtItsOwnPace) {
   add_slow_round(end, end.exact_norm_with({"current:cur_flap", "bias", "norm"}), thermal, 1, &r);
   const Model with_thermal = r.model;
   const DiagnoseOptions round_options = end.round_options();
-  // Its pace: the correlation time of its signal, far below the 665 s trend's.
+  // Its pace: the correlation time of its signal.
   const double pace_s =
       loop_steps::term_correlation_time_s(TermSpec(thermal), with_thermal, *end.flights[0]);
   Model without = loop_steps::without_term(with_thermal, TermSpec(thermal));

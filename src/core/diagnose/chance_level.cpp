@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <optional>
 
 #include "loop_round.h"
 #include "loop_steps.h"
@@ -50,12 +51,19 @@ FlightData with_states_shifted(const FlightData& data, const Model& model, const
   return out;
 }
 
-double term_correlation_time_s(const TermSpec& t, const Model& model, const FlightData& data) {
+namespace {
+// term_correlation_time_s on inputs already built (a chance level reads many terms of a flight).
+double correlation_time_on(const TermSpec& t, const TermInputs& in) {
   const ExprTerm* e = t.expr();
   if (!e) return std::numeric_limits<double>::quiet_NaN();
-  const TermInputs in = make_term_inputs(data, model.vector, model.bt_scale_nT);
   const Eigen::MatrixXd signal = e->signal_values(in);
   return correlation_time_s(signal.col(0), in.dt_s);
+}
+}  // namespace
+
+double term_correlation_time_s(const TermSpec& t, const Model& model, const FlightData& data) {
+  if (!t.expr()) return std::numeric_limits<double>::quiet_NaN();
+  return correlation_time_on(t, make_term_inputs(data, model.vector, model.bt_scale_nT));
 }
 
 ChanceLevel chance_level(const Model& model, const std::vector<const FlightData*>& flights,
@@ -78,12 +86,14 @@ ChanceLevel chance_level(const Model& model, const std::vector<const FlightData*
       } catch (const Error&) {
         continue;  // a shifted flight the search cannot read gives no chance level
       }
+      std::optional<TermInputs> inputs;  // built once per shifted flight, when a pace is read
       for (const Candidate& c : d.candidates) {
         if (!c.accepted || !reads_shiftable_channels_only(c.term, model, truth)) continue;
         if (c.explained_fraction <= std::min(out.share, out.slower_share)) continue;
         double pace_s = 0;
         if (std::isfinite(slowest_s)) {
-          pace_s = term_correlation_time_s(c.term, model, shifted);
+          if (!inputs) inputs = make_term_inputs(shifted, model.vector, model.bt_scale_nT);
+          pace_s = correlation_time_on(c.term, *inputs);
           if (!(pace_s <= slowest_s)) {  // slower (or of no signal): another pace's chance
             if (c.explained_fraction > out.slower_share) {
               out.slower_share = c.explained_fraction;
