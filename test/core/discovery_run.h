@@ -250,16 +250,27 @@ inline DiscoveryRun discovery_run(unsigned r, int count, const sim::Scenario& ba
     // Each term of the step (" + " joins a pair or a law) in force unless a later round removed
     // or replaced it, or its own round removed it (a drift the loop's end takes out as chance is
     // recorded in the last round, which may be the one that added it).
+    // A removed entry may name a set (" + ": TL's exact norm, bias + norm).
+    const auto names = [](const std::string& entry, const std::string& t) {
+      if (entry == t) return true;
+      for (size_t from = 0; from != std::string::npos;) {
+        const size_t to = entry.find(" + ", from);
+        if (entry.substr(from, to == std::string::npos ? std::string::npos : to - from) == t)
+          return true;
+        from = to == std::string::npos ? to : to + 3;
+      }
+      return false;
+    };
     std::string kept;
     for (size_t from = 0; from != std::string::npos;) {
       const size_t to = a.find(" + ", from);
       const std::string t = a.substr(from, to == std::string::npos ? std::string::npos : to - from);
       from = to == std::string::npos ? to : to + 3;
       bool gone = false;
-      for (const auto& [term, why] : loop.rounds[k].removed) gone = gone || term == t;
+      for (const auto& [term, why] : loop.rounds[k].removed) gone = gone || names(term, t);
       for (size_t j = k + 1; j < loop.rounds.size(); ++j) {
         for (const auto& [term, why] : loop.rounds[j].removed)
-          gone = gone || term == t || term == a;
+          gone = gone || names(term, t) || term == a;
         for (const auto& [term, why] : loop.rounds[j].replaced)
           gone = gone || term == t || term == a;
       }
