@@ -64,9 +64,9 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
                                         validation, options, min_share};
   const bool backward_after_revisits = options.joint_steps && options.backward_after_revisits;
   // Over one flight without a validation flight, as the loop ends: each kept drift that a
-  // channel shifted in time matches as well leaves (Round::drop_chance_slow_term), and what a
-  // round took in together with it leaves where the held-out lines do better without it too
-  // (Round::shed_beside_chance_drift). The drifts taken out, joined by ", " ("" when none).
+  // channel shifted in time matches as well leaves (Round::drop_chance_slow_term), and what the
+  // model took in with it or after it leaves where the held-out lines do better without it too
+  // (Round::shed_after_chance_drift). The drifts taken out, joined by ", " ("" when none).
   const auto chance_drifts_dropped = [&] {
     std::string out;
     if (!options.chance_control || flights.size() != 1 || validation) return out;
@@ -77,8 +77,8 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
       if (!audit.drop_chance_slow_term(round_options, &audited)) break;
       const std::string drift = r.rounds.back().removed[removed_before].first;
       out += (out.empty() ? "" : ", ") + drift;
-      // What was taken in together with it is judged again without it.
-      audit.shed_beside_chance_drift(drift);
+      // What was taken in with it or after it, sized with it in place, is judged again.
+      audit.shed_after_chance_drift(drift);
     }
     return out;
   };

@@ -1,9 +1,10 @@
-// magcomp: what a set accepted together keeps once the chance control takes its drift out
-// (loop_round.h: Round::shed_beside_chance_drift).
+// magcomp: what the model took in with or after a drift the chance control takes out, judged
+// again without it (loop_round.h: Round::shed_after_chance_drift).
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <optional>
+#include <set>
 
 #include "loop_round.h"
 #include "magcomp/core/error.h"
@@ -18,17 +19,28 @@ bool has_term(const Model& m, const std::string& text) {
 
 }  // namespace
 
-int Round::shed_beside_chance_drift(const std::string& drift) {
-  // The round that took the drift in, and the one before it (the model it was added to).
-  std::vector<std::string> beside;
+int Round::shed_after_chance_drift(const std::string& drift) {
+  // The round that took the drift in.
   size_t k = r_->rounds.size();
-  while (k-- > 1) {
-    beside = step_terms(r_->rounds[k].added);
-    if (std::find(beside.begin(), beside.end(), drift) != beside.end()) break;
+  for (bool found = false; !found && k-- > 1;) {
+    const std::vector<std::string> added = step_terms(r_->rounds[k].added);
+    found = std::find(added.begin(), added.end(), drift) != added.end();
   }
   if (k == 0 || k >= r_->rounds.size()) return 0;
-  if (beside.size() < 2) return 0;  // taken in alone: nothing came with it
-  const double lambda_before = r_->rounds[k - 1].lambda;
+  // What that round took in beside it, and what later rounds took in: each was sized with the
+  // drift in place. The round that wrote TL as the exact norm, if one of these.
+  const std::vector<std::string> beside_list = step_terms(r_->rounds[k].added);
+  const std::set<std::string> beside(beside_list.begin(), beside_list.end());
+  std::vector<std::string> sized_with;  // in the order taken in
+  size_t norm_round = 0;
+  for (size_t j = k; j < r_->rounds.size(); ++j)
+    for (const std::string& t : step_terms(r_->rounds[j].added)) {
+      if (t == drift || t.empty()) continue;
+      if (t == "norm") norm_round = j;
+      if (std::find(sized_with.begin(), sized_with.end(), t) == sized_with.end())
+        sized_with.push_back(t);
+    }
+  if (sized_with.empty()) return 0;
   int shed = 0;
   for (;;) {
     const LoopRound& now = r_->rounds.back();
@@ -47,16 +59,14 @@ int Round::shed_beside_chance_drift(const std::string& drift) {
         // the model without it does not fit: it stays
       }
     };
-    // TL's exact norm taken in with the drift: the norm (and the bias of its fit against the
-    // reference) out, the fit's method and ridge strength as before that round.
-    const bool norm_beside =
-        std::find(beside.begin(), beside.end(), "norm") != beside.end() && has_term(model, "norm");
-    if (norm_beside) {
+    // TL's exact norm taken in with or after the drift: the norm (and the bias of its fit
+    // against the reference) out, the fit's method and ridge strength as before that round.
+    if (norm_round > 0 && has_term(model, "norm") && !has_term(c_.start, "norm")) {
       Model m = model;
       std::string what;
       for (const std::string t : {"bias", "norm"}) {
         if (!has_term(model, t) || has_term(c_.start, t) ||
-            std::find(beside.begin(), beside.end(), t) == beside.end())
+            std::find(sized_with.begin(), sized_with.end(), t) == sized_with.end())
           continue;
         m.terms.erase(std::remove(m.terms.begin(), m.terms.end(), t), m.terms.end());
         what += (what.empty() ? "" : " + ") + t;
@@ -64,23 +74,26 @@ int Round::shed_beside_chance_drift(const std::string& drift) {
       m.fit.method = c_.start.fit.method;
       // The slow stage is still fitted against the reference (Model::slow_terms).
       if (m.slow_terms.empty()) m.fit.reference = c_.start.fit.reference;
+      const double lambda_before = r_->rounds[norm_round - 1].lambda;
       if (std::isfinite(lambda_before)) m.fit.lambda = lambda_before;
       m.coefficients.resize(0);
       consider(std::move(m), what);
     }
-    // Each other term taken in with it.
-    for (const std::string& t : beside) {
-      if (t == drift || t == "norm" || t == "bias" || !has_term(model, t) ||
-          !removable(c_.start, TermSpec(t)))
+    // Each other term so taken in.
+    for (const std::string& t : sized_with) {
+      if (t == "norm" || t == "bias" || !has_term(model, t) || !removable(c_.start, TermSpec(t)))
         continue;
       consider(without_term(model, TermSpec(t)), t);
     }
     if (!best) return shed;
+    const bool together = beside.count(best_what) > 0 ||
+                          (best_what.find("norm") != std::string::npos && norm_round == k);
     char why[400];
     std::snprintf(why, sizeof(why),
-                  "taken in together with %s, which the flight cannot tell from chance; "
-                  "without it too the held-out error %.4f -> %.4f nT",
-                  drift.c_str(), now.heldout_std_nT, best->second.heldout_std_nT);
+                  "taken in %s %s, which the flight cannot tell from chance, and sized with it "
+                  "in place; without it too the held-out error %.4f -> %.4f nT",
+                  together ? "together with" : "after", drift.c_str(), now.heldout_std_nT,
+                  best->second.heldout_std_nT);
     LoopRound& last = r_->rounds.back();
     last.removed.emplace_back(best_what, why);
     take_scores(best->second, &last);

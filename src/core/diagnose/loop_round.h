@@ -284,14 +284,15 @@ class Round {
   // does not. The first such term in the model's order, one per call (its removal is said in the
   // last round's LoopRound::removed); each term tried joins `audited`.
   bool drop_chance_slow_term(const DiagnoseOptions& options, std::set<std::string>* audited);
-  // Once drop_chance_slow_term has taken `drift` out: what a round took in together with it
-  // (LoopRound::added) leaves, one at a time, while the model without it leaves less on the
-  // held-out lines: another term of the set, or TL's exact norm (its bias and norm out, the
-  // fit's method, reference and ridge strength as the model before that round had them). A
-  // set is accepted for what it does together; its members were sized with the drift in place,
-  // and without the drift one may only fit what the drift explained. Each is said in the last
-  // round's LoopRound::removed; the count that left.
-  int shed_beside_chance_drift(const std::string& drift);
+  // Once drop_chance_slow_term has taken `drift` out: what the model took in together with it
+  // (its round's LoopRound::added) or after it leaves, one at a time, while the model without it
+  // leaves less on the held-out lines: a term, or TL's exact norm (its bias and norm out, the
+  // fit's method and ridge strength as the model before that round had them). Each was sized
+  // with the drift in place, and without the drift one may only fit what the drift explained
+  // (a set is accepted for what it does together; the exact norm fitted against the reference
+  // absorbs what it leaves). Each is said in the last round's LoopRound::removed; the count
+  // that left.
+  int shed_after_chance_drift(const std::string& drift);
   // An earlier round's term that the model no longer needs leaves (the least needed first, one
   // at a time), so long as the round still lowers the error of the round before it.
   void backward_pass();

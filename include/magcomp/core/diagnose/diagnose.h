@@ -212,9 +212,9 @@ struct DiagnoseOptions {
   /// when, with every other term in place, it explains no more of the held-out variance than the
   /// search finds with those states read shifted in time by a quarter, a half and three quarters
   /// of the flight, by a margin, and the model without it leaves no more on the held-out lines
-  /// than the loop's start model (loop_steps::Round::drop_chance_slow_term). What its round took
-  /// in together with it (another term, TL's exact norm) leaves too where the held-out lines do
-  /// better without it (loop_steps::Round::shed_beside_chance_drift). The loop stops
+  /// than the loop's start model (loop_steps::Round::drop_chance_slow_term). What the model took
+  /// in with it or after it (another term, TL's exact norm) leaves too where the held-out lines
+  /// do better without it (loop_steps::Round::shed_after_chance_drift). The loop stops
   /// there ("structure remains: X taken out: a drift this flight cannot tell from chance …"). Over
   /// one flight, a trend of minutes matches another by chance, and the search tries thousands
   /// (false: the held-out halves alone decide).
