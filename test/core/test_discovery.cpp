@@ -807,6 +807,17 @@ void add_slow_round(const RoundAtTheEnd& end, const Model& m, const std::string&
   r->rounds.push_back(lr);
 }
 
+// `drift` taken out of the loop's model as Round::drop_chance_slow_term takes it out: the model
+// without it fitted and scored, the removal said in the last round.
+void take_out_as_chance(const RoundAtTheEnd& end, const std::string& drift, LoopResult* r) {
+  Model without = loop_steps::without_term(r->model, TermSpec(drift));
+  fit_model(without, end.flights);
+  r->rounds.back().removed.emplace_back(drift, "a drift one flight cannot tell from chance");
+  loop_steps::take_scores(loop_steps::score(without, end.flights, end.truth, end.held, nullptr),
+                          &r->rounds.back());
+  r->model = std::move(without);
+}
+
 TEST(Discovery, TheChanceLevelReadsOnlyTheStatesTheModelDoesNotReadShiftedInTime) {
   // Ten samples: two states, one of them read by the model, and channels that are no state.
   FlightData data;
@@ -929,12 +940,7 @@ TEST(Discovery, WhatARoundTookInWithADriftTakenOutAsChanceIsJudgedAgain) {
   // The trend taken out as the chance control takes it out (Round::drop_chance_slow_term; its
   // decision is the subject of the tests around this one): the model without it, fitted and
   // scored, the removal said in the last round.
-  Model without = loop_steps::without_term(with_trend, TermSpec(trend));
-  fit_model(without, end.flights);
-  r.rounds.back().removed.emplace_back(trend, "a drift one flight cannot tell from chance");
-  loop_steps::take_scores(loop_steps::score(without, end.flights, end.truth, end.held, nullptr),
-                          &r.rounds.back());
-  r.model = without;
+  take_out_as_chance(end, trend, &r);
   loop_steps::Round audit(end.context, 1, &r);
   const Model without_trend = r.model;
   const double without_trend_nT = r.rounds.back().heldout_std_nT;
@@ -1011,13 +1017,8 @@ TEST(Discovery, TheExactNormTakenInAfterADriftTakenOutAsChanceIsJudgedAgain) {
   ASSERT_TRUE(norm.has_value());
   r.model = norm->first;
   push_round(norm->second.empty() ? "norm" : "bias + norm");
-  const Model with_drift = r.model;
-  Model without = loop_steps::without_term(with_drift, TermSpec(drift));
-  fit_model(without, end.flights);
-  r.rounds.back().removed.emplace_back(drift, "a drift one flight cannot tell from chance");
-  loop_steps::take_scores(loop_steps::score(without, end.flights, end.truth, end.held, nullptr),
-                          &r.rounds.back());
-  r.model = without;
+  take_out_as_chance(end, drift, &r);
+  const Model without = r.model;
   const double without_drift_nT = r.rounds.back().heldout_std_nT;
   loop_steps::Round audit(end.context, 1, &r);
   EXPECT_GE(audit.shed_after_chance_drift(drift), 1);

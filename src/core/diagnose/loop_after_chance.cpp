@@ -4,7 +4,6 @@
 #include <cmath>
 #include <cstdio>
 #include <optional>
-#include <set>
 
 #include "loop_round.h"
 #include "magcomp/core/error.h"
@@ -29,8 +28,7 @@ int Round::shed_after_chance_drift(const std::string& drift) {
   if (k == 0 || k >= r_->rounds.size()) return 0;
   // What that round took in beside it, and what later rounds took in: each was sized with the
   // drift in place. The round that wrote TL as the exact norm, if one of these.
-  const std::vector<std::string> beside_list = step_terms(r_->rounds[k].added);
-  const std::set<std::string> beside(beside_list.begin(), beside_list.end());
+  const std::vector<std::string> beside = step_terms(r_->rounds[k].added);
   std::vector<std::string> sized_with;  // in the order taken in
   size_t norm_round = 0;
   for (size_t j = k; j < r_->rounds.size(); ++j)
@@ -86,7 +84,7 @@ int Round::shed_after_chance_drift(const std::string& drift) {
       consider(without_term(model, TermSpec(t)), t);
     }
     if (!best) return shed;
-    const bool together = beside.count(best_what) > 0 ||
+    const bool together = std::find(beside.begin(), beside.end(), best_what) != beside.end() ||
                           (best_what.find("norm") != std::string::npos && norm_round == k);
     char why[400];
     std::snprintf(why, sizeof(why),
