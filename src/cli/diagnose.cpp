@@ -211,6 +211,7 @@ struct DiagnoseArgs {
   bool keep_factors = false;
   bool no_steady_factors = false;
   bool norm_alone = false;
+  bool slow_lines_last = false;
   bool tl_as_given = false;
 };
 
@@ -251,6 +252,7 @@ void run_diagnose(const DiagnoseArgs& a) {
   if (a.keep_factors && !a.apply) throw Error("--keep-factors: only with --apply");
   if (a.no_steady_factors && !a.apply) throw Error("--no-steady-factors: only with --apply");
   if (a.norm_alone && !a.apply) throw Error("--norm-alone: only with --apply");
+  if (a.slow_lines_last && !a.apply) throw Error("--slow-lines-last: only with --apply");
   if (a.tl_as_given && !a.apply) throw Error("--tl-as-given: only with --apply");
   const std::vector<std::string> paths = flight_paths("--data", a.data);
   std::vector<OutputGuard::File> others = {
@@ -278,6 +280,7 @@ void run_diagnose(const DiagnoseArgs& a) {
   options.drop_idle_factors = !a.keep_factors;
   options.steady_factor_products = !a.no_steady_factors;
   options.norm_with_a_term = !a.norm_alone;
+  options.slow_lines_first = !a.slow_lines_last;
   options.exact_norm = !a.tl_as_given;
   if (!a.attribution.empty()) options.network_channels = read_network_attribution(a.attribution);
   if (paths.size() > 1 && !a.apply) {
@@ -412,6 +415,11 @@ void add_diagnose(CLI::App& app) {
                 "with --apply: try TL as the exact norm alone only (by default, when no term "
                 "passes and the exact norm is refused alone, it is diagnosed and kept together "
                 "with the term its diagnosis ranks first if each is needed)");
+  cmd->add_flag("--slow-lines-last", a->slow_lines_last,
+                "with --apply: size slow terms on the held-out lines only once a round keeps "
+                "nothing with them sized on the calibration rows (by default a round whose slow "
+                "candidate sized on the lines explains half the held-out error and twice what the "
+                "calibration rows' first candidate does tries it first)");
   cmd->add_option("--attribution", a->attribution,
                   "a trained network's attribution (magcomp evaluate --explain --json on a "
                   "flight it never saw): the channels it leans on (10 % or more, at most 3) are "

@@ -35,7 +35,9 @@
 // DiagnoseOptions::redundant_once_refined false); lenient-backward (the
 // backward pass drops a term only when it explains under a quarter of the accepted share,
 // DiagnoseOptions::backward_at_acceptance false); slow-on-calibration (a slow
-// term sized on the calibration rows alone, not on the held-out lines too);
+// term sized on the calibration rows alone, not on the held-out lines too); slow-lines-last (a
+// round tries the slow terms sized on the held-out lines only once the calibration rows keep
+// nothing, DiagnoseOptions::slow_lines_first false);
 // thresholds-on-selection (every step candidate's threshold moved by the selection lines within
 // the calibration rows' tie, DiagnoseOptions::thresholds_on_selection); thresholds-on-calibration
 // (a kept step's threshold never placed again by the held-out lines,
@@ -122,6 +124,8 @@ int main(int argc, char** argv) {
         options.backward_after_revisits = false;
       } else if (opt == "slow-on-calibration") {
         options.slow_terms_on_lines = false;
+      } else if (opt == "slow-lines-last") {
+        options.slow_lines_first = false;
       } else if (opt == "thresholds-on-selection") {
         options.thresholds_on_selection = true;
       } else if (opt == "second-order-on-calibration") {
@@ -156,7 +160,8 @@ int main(int argc, char** argv) {
             "no-refine, "
             "lenient-backward, "
             "backward-after-adds, "
-            "slow-on-calibration, thresholds-on-selection, thresholds-on-calibration, "
+            "slow-on-calibration, slow-lines-last, thresholds-on-selection, "
+            "thresholds-on-calibration, "
             "second-order-on-calibration, tl-as-given, "
             "keep-factors, no-steady-factors, norm-alone, halves-within-flights, keep-redundant, "
             "first-kept, "

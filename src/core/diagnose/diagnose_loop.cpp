@@ -335,50 +335,82 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
                     100 * e.base_span_share);
       step.refuse(e.term.text(), why);
     }
-    bool kept = attempt(step, eligible);
-    if (!kept && lines_fallback && !round_options.slow_terms_on_lines && !lines.empty()) {
-      // Nothing kept with slow terms sized on the calibration rows: the same round with them
-      // sized on the held-out lines too. The model it starts from keeps its round's scores; a
-      // step is judged against them as any other.
-      const Model before = r.model;
-      const std::vector<Diagnosis> dxs_before = dxs;
-      const std::set<std::string> learned_before = learned_channels;
-      round_options.slow_terms_on_lines = true;
-      r.model.fit.slow_lines = lines;
-      diagnose_all();
-      loop_steps::Round on_lines(context, round, &r);
-      // The candidates of the diagnosis with slow terms sized on the lines, then the slow ones
-      // the calibration-sized round could not keep: the screen sizes a slow candidate on the
-      // lines, which the fit now does too (a heater the calibration rows barely show, sized
-      // there, can raise the held-out error its screen said it lowers). Not a channel a kept
-      // slow term reads: a second time constant of it is the kept term's shape, which
-      // Round::retimed_slow_term estimates.
-      std::set<std::string> slow_channels;
-      for (const std::string& t : r.model.slow_terms)
-        for (const std::string& c : loop_steps::fields_of(TermSpec(t))) slow_channels.insert(c);
-      std::vector<Eligible> on_lines_eligible = eligible_candidates(dxs, min_share, span_too);
-      for (const Eligible& e : eligible) {
-        const bool listed = std::any_of(on_lines_eligible.begin(), on_lines_eligible.end(),
-                                        [&](const Eligible& o) { return o.term == e.term; });
-        const std::set<std::string> channels = loop_steps::fields_of(e.term);
-        const bool slow_channel =
-            std::any_of(channels.begin(), channels.end(),
-                        [&](const std::string& c) { return slow_channels.count(c) > 0; });
-        if (e.slow && !listed && !slow_channel) on_lines_eligible.push_back(e);
-      }
-      kept = attempt(on_lines, on_lines_eligible);
-      if (kept) {
-        LoopRound& kept_round = r.rounds.back();
-        kept_round.slow_on_lines = true;
-        kept_round.rejected.insert(kept_round.rejected.begin(), step.rejected().begin(),
-                                   step.rejected().end());
-      } else {
-        round_options.slow_terms_on_lines = false;
-        r.model = before;
-        dxs = dxs_before;
-        learned_channels = learned_before;
-      }
-    }
+    // The same round with the slow terms sized on the held-out lines too (lines_fallback): the
+    // model it starts from keeps its round's scores; a step is judged against them as any other.
+    // With `first`, only when a slow candidate there dominates (DiagnoseOptions::
+    // slow_lines_first); else after the calibration rows keep nothing. Kept, the lines size the
+    // slow terms from then on.
+    std::optional<std::vector<Diagnosis>> dxs_on_lines;  // diagnosed once per round: the
+    std::vector<TermSpec> terms_on_lines;                // model with these terms
+    bool on_lines_refused = false;
+    const auto on_lines_round =
+        [&](bool first, const std::vector<std::pair<std::string, std::string>>& refused_before) {
+          const Model before = r.model;
+          const std::vector<Diagnosis> dxs_before = dxs;
+          const std::set<std::string> learned_before = learned_channels;
+          round_options.slow_terms_on_lines = true;
+          r.model.fit.slow_lines = lines;
+          if (dxs_on_lines && terms_on_lines == r.model.terms) {
+            dxs = *dxs_on_lines;
+          } else {
+            diagnose_all();
+            dxs_on_lines = dxs;
+            terms_on_lines = r.model.terms;
+          }
+          const auto restore = [&] {
+            round_options.slow_terms_on_lines = false;
+            r.model = before;
+            dxs = dxs_before;
+            learned_channels = learned_before;
+            return false;
+          };
+          if (first) {
+            double slow_share = 0.0;
+            for (const Eligible& e : eligible_candidates(dxs, min_share, span_too))
+              if (e.slow) slow_share = std::max(slow_share, e.explained);
+            const double rows_share = eligible.empty() ? 0.0 : eligible.front().explained;
+            if (slow_share < kSlowLinesFirstShare || slow_share < kSlowLinesFirstRatio * rows_share)
+              return restore();
+          }
+          loop_steps::Round on_lines(context, round, &r);
+          // The candidates of the diagnosis with slow terms sized on the lines, then the slow ones
+          // the calibration-sized round could not keep: the screen sizes a slow candidate on the
+          // lines, which the fit now does too (a heater the calibration rows barely show, sized
+          // there, can raise the held-out error its screen said it lowers). Not a channel a kept
+          // slow term reads: a second time constant of it is the kept term's shape, which
+          // Round::retimed_slow_term estimates.
+          std::set<std::string> slow_channels;
+          for (const std::string& t : r.model.slow_terms)
+            for (const std::string& c : loop_steps::fields_of(TermSpec(t))) slow_channels.insert(c);
+          std::vector<Eligible> on_lines_eligible = eligible_candidates(dxs, min_share, span_too);
+          for (const Eligible& e : eligible) {
+            const bool listed = std::any_of(on_lines_eligible.begin(), on_lines_eligible.end(),
+                                            [&](const Eligible& o) { return o.term == e.term; });
+            const std::set<std::string> channels = loop_steps::fields_of(e.term);
+            const bool slow_channel =
+                std::any_of(channels.begin(), channels.end(),
+                            [&](const std::string& c) { return slow_channels.count(c) > 0; });
+            if (e.slow && !listed && !slow_channel) on_lines_eligible.push_back(e);
+          }
+          if (!attempt(on_lines, on_lines_eligible)) {
+            on_lines_refused = true;  // the same attempt would refuse it again
+            return restore();
+          }
+          LoopRound& kept_round = r.rounds.back();
+          kept_round.slow_on_lines = true;
+          kept_round.rejected.insert(kept_round.rejected.begin(), refused_before.begin(),
+                                     refused_before.end());
+          return true;
+        };
+    const bool lines_open = lines_fallback && !round_options.slow_terms_on_lines && !lines.empty();
+    // Slow candidates on the lines first: only where no candidate the calibration rows size
+    // explains enough that a slow one could dominate it.
+    bool kept = lines_open && options.slow_lines_first &&
+                (eligible.empty() || eligible.front().explained < kSlowLinesFirstShare) &&
+                on_lines_round(true, step.rejected());
+    if (!kept) kept = attempt(step, eligible);
+    if (!kept && lines_open && !round_options.slow_terms_on_lines && !on_lines_refused)
+      kept = on_lines_round(false, step.rejected());
     // Nothing passes and TL as the exact norm was refused alone: the exact norm together with
     // what its diagnosis ranks first (Round::exact_norm_with_a_term), once per loop.
     if (!kept && options.exact_norm && options.norm_with_a_term && options.joint_steps &&

@@ -105,6 +105,12 @@ struct NetworkChannel {
 constexpr size_t kNetworkChannels = 3;
 constexpr double kNetworkMinShare = 0.10;
 
+/// DiagnoseOptions::slow_lines_first: a slow candidate sized on the held-out lines is tried
+/// first when it explains this share of the held-out error (conservative, 0..1) and this many
+/// times the share of the first candidate the calibration rows size.
+constexpr double kSlowLinesFirstShare = 0.5;
+constexpr double kSlowLinesFirstRatio = 2.0;
+
 /// What diagnose found of a channel the network leans on (Diagnosis::network).
 struct NetworkCheck {
   std::string channel;
@@ -165,6 +171,13 @@ struct DiagnoseOptions {
   /// and diagnose_loop's model carries those lines as fit.slow_lines (false: the calibration
   /// rows alone size it).
   bool slow_terms_on_lines = true;
+  /// diagnose_loop, with slow_terms_on_lines: while the model's slow terms are sized on the
+  /// calibration rows, each round also diagnoses them sized on the held-out lines, and tries
+  /// that round first when a slow candidate there explains kSlowLinesFirstShare of the held-out
+  /// error and kSlowLinesFirstRatio times the share of the calibration rows' first candidate: a
+  /// drift that dominates the flight goes in before the small terms that would otherwise stand in
+  /// for parts of it (false: the lines only when the calibration rows keep nothing).
+  bool slow_lines_first = true;
   /// Every step candidate's threshold, scanned on the calibration rows, is moved within the
   /// thresholds those rows cannot tell apart (the 95 % profile-likelihood interval) to the one
   /// that leaves the selection lines the lowest error (false: the calibration rows alone place
