@@ -212,6 +212,7 @@ struct DiagnoseArgs {
   bool no_steady_factors = false;
   bool norm_alone = false;
   bool slow_lines_last = false;
+  bool slow_names_kept = false;
   bool tl_as_given = false;
 };
 
@@ -253,6 +254,7 @@ void run_diagnose(const DiagnoseArgs& a) {
   if (a.no_steady_factors && !a.apply) throw Error("--no-steady-factors: only with --apply");
   if (a.norm_alone && !a.apply) throw Error("--norm-alone: only with --apply");
   if (a.slow_lines_last && !a.apply) throw Error("--slow-lines-last: only with --apply");
+  if (a.slow_names_kept && !a.apply) throw Error("--slow-names-kept: only with --apply");
   if (a.tl_as_given && !a.apply) throw Error("--tl-as-given: only with --apply");
   const std::vector<std::string> paths = flight_paths("--data", a.data);
   std::vector<OutputGuard::File> others = {
@@ -281,6 +283,7 @@ void run_diagnose(const DiagnoseArgs& a) {
   options.steady_factor_products = !a.no_steady_factors;
   options.norm_with_a_term = !a.norm_alone;
   options.slow_lines_first = !a.slow_lines_last;
+  options.slow_look_alikes = !a.slow_names_kept;
   options.exact_norm = !a.tl_as_given;
   if (!a.attribution.empty()) options.network_channels = read_network_attribution(a.attribution);
   if (paths.size() > 1 && !a.apply) {
@@ -420,6 +423,10 @@ void add_diagnose(CLI::App& app) {
                 "nothing with them sized on the calibration rows (by default a round whose slow "
                 "candidate sized on the lines explains half the held-out error and twice what the "
                 "calibration rows' first candidate does tries it first)");
+  cmd->add_flag("--slow-names-kept", a->slow_names_kept,
+                "with --apply: a kept slow term (a heater, a drift) keeps its channel (by "
+                "default, when no term passes, it gives way to a look-alike that leaves less on "
+                "the held-out lines with every other term in place, as any kept term does)");
   cmd->add_option("--attribution", a->attribution,
                   "a trained network's attribution (magcomp evaluate --explain --json on a "
                   "flight it never saw): the channels it leans on (10 % or more, at most 3) are "

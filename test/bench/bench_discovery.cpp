@@ -37,7 +37,8 @@
 // DiagnoseOptions::backward_at_acceptance false); slow-on-calibration (a slow
 // term sized on the calibration rows alone, not on the held-out lines too); slow-lines-last (a
 // round tries the slow terms sized on the held-out lines only once the calibration rows keep
-// nothing, DiagnoseOptions::slow_lines_first false);
+// nothing, DiagnoseOptions::slow_lines_first false); slow-names-kept (a kept slow term never
+// gives way to a look-alike, DiagnoseOptions::slow_look_alikes false);
 // thresholds-on-selection (every step candidate's threshold moved by the selection lines within
 // the calibration rows' tie, DiagnoseOptions::thresholds_on_selection); thresholds-on-calibration
 // (a kept step's threshold never placed again by the held-out lines,
@@ -108,6 +109,8 @@ int main(int argc, char** argv) {
         options.line_jackknife = true;
       } else if (opt == "first-kept") {
         options.better_look_alike = false;
+      } else if (opt == "slow-names-kept") {
+        options.slow_look_alikes = false;
       } else if (opt == "keep-redundant") {
         options.redundant_once_refined = false;
       } else if (opt == "keep-factors") {
@@ -164,7 +167,7 @@ int main(int argc, char** argv) {
             "thresholds-on-calibration, "
             "second-order-on-calibration, tl-as-given, "
             "keep-factors, no-steady-factors, norm-alone, halves-within-flights, keep-redundant, "
-            "first-kept, "
+            "first-kept, slow-names-kept, "
             "line-jackknife, "
             "validate, two-flights, states, half-several, verbose, why, rounds=N or draws=N\n",
             opt.c_str());

@@ -215,7 +215,8 @@ TEST(HostileOutputs, AnUnknownTransformListsEveryKnownOne) {
 
 TEST(HostileOutputs, LoopOnlyFlagsWithoutTheLoopAreRefused) {
   // --choose-lambda, --validate, --no-exchange, --no-chance-control, --no-look-ahead,
-  // --no-refine, --keep-factors, --no-steady-factors and --norm-alone change the loop
+  // --no-refine, --keep-factors, --no-steady-factors, --norm-alone, --slow-lines-last and
+  // --slow-names-kept change the loop
   // (--apply); without it they would be ignored.
   expect_refusal(
       "diagnose --data " + files().flight + " --model " + files().model + " --choose-lambda",
@@ -226,8 +227,9 @@ TEST(HostileOutputs, LoopOnlyFlagsWithoutTheLoopAreRefused) {
   expect_refusal(
       "diagnose --data " + files().flight + " --model " + files().model + " --no-exchange",
       {"--no-exchange: only with --apply"});
-  for (const std::string flag : {"--no-chance-control", "--no-look-ahead", "--no-refine",
-                                 "--keep-factors", "--no-steady-factors", "--norm-alone"})
+  for (const std::string flag :
+       {"--no-chance-control", "--no-look-ahead", "--no-refine", "--keep-factors",
+        "--no-steady-factors", "--norm-alone", "--slow-lines-last", "--slow-names-kept"})
     expect_refusal("diagnose --data " + files().flight + " --model " + files().model + " " + flag,
                    {flag + ": only with --apply"});
 }

@@ -1707,6 +1707,68 @@ TEST(Discovery, ALookAlikeThatFitsTheRowsItIsSizedOnWorseKeepsOutOfTheKeptTermsP
   EXPECT_GT(voltage_next_nT, kept_next_nT);
 }
 
+TEST(Discovery, AKeptSlowTermGivesWayToTheDriftsOwnChannel) {
+  // Run 1, first aircraft: a heater of cur_outpwr (50.7 s) and a 751 s drift of cur_srvo_m. With
+  // TL as given and the ridge chosen (fit.lambda 1e-5), the loop keeps the heater, then
+  // scalar:vol_bat_1|lp(7.06), a battery voltage that charges over the flight and follows the
+  // drift there, and names the drift's own scalar:cur_srvo_m|lp(665) among its look-alikes
+  // (magcomp diagnose --apply --tl-as-given on the run's first flight). Both are slow terms, sized
+  // by the slow stage. Once the rounds are spent, the drift's channel takes the voltage's place
+  // with every other term in place, and carries to the next flight, where the voltage does not.
+  const sim::Scenario base =
+      sim::load_scenario(test::source_dir() + "/config/scenarios/random_base.yaml");
+  std::vector<sim::HiddenEffect> effects;
+  const sim::Scenario a = test::discovery_scenario(1, 2, base, 0, &effects);
+  ASSERT_TRUE(drawn(effects, "drift", "cur_srvo_m")) << "run 1 draws no drift of cur_srvo_m";
+  RoundAtTheEnd end(a, 1e-5, {});
+  const std::string heater = "scalar:cur_outpwr|lp(53)";
+  const std::string voltage = "scalar:vol_bat_1|lp(7.06)";
+  const std::string drift = "scalar:cur_srvo_m|lp(665)";
+  LoopResult r = end.with_slow_term(heater);
+  loop_steps::add_candidate_term(TermSpec(voltage), true, end.truth, &r.model);
+  fit_model(r.model, end.flights);
+  LoopRound kept = loop_steps::score(r.model, end.flights, end.truth, end.held, nullptr);
+  kept.round = 2;
+  kept.added = voltage;
+  kept.look_alikes = {{drift, NAN}};  // as the round that kept the voltage lists it
+  r.rounds.push_back(kept);
+  ASSERT_EQ(r.model.slow_terms, (std::vector<std::string>{heater, voltage}));
+  // Without slow look-alikes, a slow term keeps its name.
+  LoopResult as_kept = r;
+  DiagnoseOptions names_kept;
+  names_kept.slow_look_alikes = false;
+  const loop_steps::LoopContext kept_context{end.start, end.flights, end.truth, end.held,
+                                             nullptr,   names_kept,  0.05};
+  loop_steps::Round keep(kept_context, 3, &as_kept);
+  EXPECT_FALSE(keep.better_look_alike_in_place());
+
+  loop_steps::Round rename(end.context, 3, &r);
+  ASSERT_TRUE(rename.better_look_alike_in_place());
+  const LoopRound& after = r.rounds.back();
+  ASSERT_EQ(after.replaced.size(), 1u);
+  EXPECT_EQ(after.replaced[0].first, voltage);
+  EXPECT_EQ(after.added, drift);
+  EXPECT_EQ(r.model.slow_terms, (std::vector<std::string>{heater, drift}));
+  const double tl_next_nT = end.next_nT(end.start);
+  const double voltage_next_nT = end.next_nT(as_kept.model);
+  const double drift_next_nT = end.next_nT(r.model);
+  std::printf(
+      "  held out %.4f -> %.4f nT (halves %.4f -> %.4f, %.4f -> %.4f); next flight TL %.3f, "
+      "%s %.3f, %s %.3f nT\n",
+      kept.heldout_std_nT, after.heldout_std_nT, kept.selection_std_nT, after.selection_std_nT,
+      kept.confirmation_std_nT, after.confirmation_std_nT, tl_next_nT, voltage.c_str(),
+      voltage_next_nT, drift.c_str(), drift_next_nT);
+  // It lowers the held-out error by the accepted share, neither half rises, and the next
+  // flight falls to well below TL.
+  const DiagnoseOptions defaults;
+  EXPECT_LE(std::pow(after.heldout_std_nT / kept.heldout_std_nT, 2),
+            1.0 - defaults.accept_fraction);
+  EXPECT_LE(after.selection_std_nT, kept.selection_std_nT);
+  EXPECT_LE(after.confirmation_std_nT, kept.confirmation_std_nT);
+  EXPECT_GT(voltage_next_nT, tl_next_nT);
+  EXPECT_LT(drift_next_nT, 0.5 * tl_next_nT);
+}
+
 TEST(Discovery, ASlowTermsTimeConstantIsEstimatedAgainWithTheOtherTermsInPlace) {
   // Run 111, second aircraft, its states recorded: heaters of cur_strb (I², 60.5 s) and of
   // cur_srvo_o (I², 48.6 s), and a pick-up of cur_heat. The first round writes the strobes'

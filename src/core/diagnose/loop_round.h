@@ -244,7 +244,8 @@ class Round {
   // (LoopRound::replaced says why), and drop_idle_factors keeps it by the same test.
   bool steady_factor_in_place();
   // When nothing else passes or changes (and when the loop's rounds are spent): a kept term of
-  // recorded channels (not a learned law's hinge nor a slow term) gives way to one of its
+  // recorded channels (not a learned law's hinge; a slow term with
+  // DiagnoseOptions::slow_look_alikes, sized as a slow term in its place) gives way to one of its
   // look-alikes (look_alikes_of) when, with every other term in place, the look-alike lowers the
   // held-out error as a parameter estimated again must (improves_in_place: the accepted share of
   // its variance, neither half worse): once the other effects are written, what the two channels

@@ -291,6 +291,12 @@ struct DiagnoseOptions {
   /// every other term in place (loop_steps::Round::better_look_alike_in_place). False: the first
   /// term that passes stays.
   bool better_look_alike = true;
+  /// With better_look_alike: a kept slow term (Model::slow_terms: a heater, a drift, a trend
+  /// sized by the slow stage) gives way to a look-alike too, the look-alike sized as a slow term
+  /// where it was. A drift's stand-in that follows it on one flight (a battery voltage that
+  /// charges over the flight) is replaced by the drift's own channel where that does better
+  /// with every other term in place (false: slow terms keep the channel their round chose).
+  bool slow_look_alikes = true;
   /// When nothing else passes: a kept term that another kept term makes redundant once that
   /// term's parameters are estimated again without it leaves
   /// (loop_steps::Round::redundant_once_refined).
