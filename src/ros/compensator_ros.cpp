@@ -126,15 +126,15 @@ bool CompensatorRos::load_model(const std::string& why) {
         return false;
       }
       // Swap without losing a sample: the new model re-reads the recent samples (with its own
-      // channels) and takes over at the first stamp not yet published.
-      for (StreamSample s : history_) {
-        s.channels.clear();
-        for (const auto& c : next->required_channels())
-          s.channels.push_back(input_->aligner().channel_at(s.t_s, c));
-        if (next->needs_igrf()) s.igrf_nT = igrf_at(s.t_s);
-        for (const auto& o : next->push(s)) {
-          if (o.t_s > last_published_t_) publish(o);
-        }
+      // channels) and takes over at the first stamp not yet published. Samples its inputs do not
+      // cover yet (the old model did not wait for its channels or the fix) are re-read once
+      // they are, before any later sample.
+      swap_backlog_.clear();
+      for (const StreamSample& s : history_) {
+        if (swap_backlog_.empty() && inputs_cover(*next, s.t_s))
+          refeed(*next, s);
+        else
+          swap_backlog_.push_back(s);
       }
       ++n_reloads_;
       ROS_INFO("magcomp: model reloaded (%s): terms now %zu, takes effect after t = %.3f",
@@ -169,6 +169,7 @@ void CompensatorRos::on_timer() {
       ROS_ERROR("magcomp: %s", model_error_.c_str());
     }
   }
+  drain_swap_backlog(false);
   process(false);  // inputs that never came: hold the latest once max_wait_s has passed
   // No scalar for flush_after_s of wall time (sensor stopped, bag finished without an end
   // message): emit what is pending. Remembered: if the stream goes on, those were premature.
@@ -201,8 +202,34 @@ void CompensatorRos::restart(const char* why) {
   ROS_WARN("magcomp: %s: compensator restarted", why);
 }
 
+bool CompensatorRos::inputs_cover(const StreamingCompensator& c, double t_s) const {
+  const StreamAligner& al = input_->aligner();
+  return (c.required_channels().empty() || al.last_aux_t() >= t_s) &&
+         (!c.needs_igrf() || al.last_fix_t() >= t_s);
+}
+
+void CompensatorRos::refeed(StreamingCompensator& c, StreamSample s) {
+  s.channels.clear();
+  for (const auto& name : c.required_channels())
+    s.channels.push_back(input_->aligner().channel_at(s.t_s, name));
+  if (c.needs_igrf()) s.igrf_nT = igrf_at(s.t_s);
+  for (const auto& o : c.push(s)) {
+    if (o.t_s > last_published_t_) publish(o);
+  }
+}
+
+void CompensatorRos::drain_swap_backlog(bool force) {
+  while (comp_ && !swap_backlog_.empty() &&
+         (force || inputs_cover(*comp_, swap_backlog_.front().t_s))) {
+    const StreamSample s = swap_backlog_.front();
+    swap_backlog_.pop_front();
+    refeed(*comp_, s);
+  }
+}
+
 void CompensatorRos::flush_compensator() {
   if (!comp_) return;
+  drain_swap_backlog(true);
   for (const auto& o : comp_->flush()) publish(o);
   history_.clear();
 }
@@ -220,6 +247,7 @@ void CompensatorRos::feed(const AlignedSample& a) {
     flushed_at_t_ = NAN;
   }
   if (a.starts_stream && !history_.empty()) restart("gap in the scalar stamps");
+  drain_swap_backlog(true);  // the samples before it first, in time order
   StreamSample s;
   s.t_s = a.t_s;
   s.scalar_nT = a.scalar_nT;

@@ -39,6 +39,14 @@ class CompensatorRos {
   /// Emits the compensator's look-ahead: the end of a stream.
   void flush_compensator();
   void restart(const char* why);
+  /// Whether the buffered inputs cover data time t_s (s) for `c`'s channels and IGRF.
+  bool inputs_cover(const StreamingCompensator& c, double t_s) const;
+  /// Fills `s`'s channels and IGRF for `c` from the buffered inputs, feeds it, and publishes
+  /// what comes out after the last published stamp.
+  void refeed(StreamingCompensator& c, StreamSample s);
+  /// Feeds the swapped-in model the samples its inputs did not cover at the swap: those now
+  /// covered (all of them with `force`, held inputs as the aligner holds them).
+  void drain_swap_backlog(bool force);
   /// IGRF total field (nT) at data time t from the interpolated fix; NaN without a fix.
   double igrf_at(double t);
   void diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat);
@@ -53,6 +61,9 @@ class CompensatorRos {
   std::unique_ptr<StreamingCompensator> comp_;
   std::unique_ptr<const Igrf> igrf_;  ///< the main field, loaded at start-up (anomaly output)
   std::deque<StreamSample> history_;  // recent samples, re-fed to a swapped-in model
+  // Samples a swapped-in model re-reads once its inputs cover them: a model swap may come while
+  // the aux messages or the fix lag the scalar, which the old model did not wait for.
+  std::deque<StreamSample> swap_backlog_;
   std::string model_error_;
   double model_mtime_ = 0.0;
   double last_published_t_ = -1e300;

@@ -87,6 +87,9 @@ class StreamAligner {
   size_t pending() const { return pending_.size(); }
   double last_scalar_t() const { return last_scalar_t_; }
   double last_vector_t() const { return vectors_.empty() ? NAN : vectors_.back().t; }
+  /// Data time (s) of the latest aux message and fix (NaN before the first).
+  double last_aux_t() const { return aux_.empty() ? NAN : aux_.back().t; }
+  double last_fix_t() const { return fixes_.empty() ? NAN : fixes_.back().t; }
   const AlignerCounts& counts() const { return counts_; }
   /// Forgets every buffered input and pending sample (the counts stay).
   void clear();
