@@ -93,14 +93,8 @@ bool Round::better_look_alike_in_place() {
   for (const TermSpec& t : model.terms) {
     // A slow term's look-alike takes its place in the slow list (with_term_as): the slow stage
     // sizes it where it sized the kept term.
-    const bool slow = std::find(model.slow_terms.begin(), model.slow_terms.end(), t.text()) !=
-                      model.slow_terms.end();
-    const bool black_box = std::find(model.black_box_terms.begin(), model.black_box_terms.end(),
-                                     t.text()) != model.black_box_terms.end();
-    const bool may_swap =
-        revisable(c_.start, model, t) ||
-        (slow && !black_box && c_.options.slow_look_alikes && removable(c_.start, t));
-    if (!may_swap || fields_of(t).empty()) continue;
+    if (!revisable(c_.start, model, t, c_.options.slow_look_alikes) || fields_of(t).empty())
+      continue;
     for (const std::string& a : look_alikes_of(t, model_fields)) {
       try {
         const std::set<std::string> fields = fields_of(TermSpec(a));

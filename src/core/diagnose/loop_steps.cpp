@@ -494,11 +494,12 @@ bool removable(const Model& start, const TermSpec& term) {
   return probe.terms.size() == start.terms.size() + 1;
 }
 
-bool revisable(const Model& start, const Model& model, const TermSpec& term) {
+bool revisable(const Model& start, const Model& model, const TermSpec& term, bool slow_too) {
   const auto listed = [&](const std::vector<std::string>& list) {
     return std::find(list.begin(), list.end(), term.text()) != list.end();
   };
-  return removable(start, term) && !listed(model.black_box_terms) && !listed(model.slow_terms);
+  return removable(start, term) && !listed(model.black_box_terms) &&
+         (slow_too || !listed(model.slow_terms));
 }
 
 // The share of `with`'s error variance that a change to `without` would add (negative when the

@@ -157,9 +157,10 @@ bool removable(const Model& start, const TermSpec& term);
 
 /// True when kept term `term` of `model` may be written again by a step that revisits the kept
 /// terms: added to `start` purely (removable), and neither a learned law's hinge
-/// (Model::black_box_terms) nor a slow term (Model::slow_terms: its stage and lines are sized for
-/// the term as it is).
-bool revisable(const Model& start, const Model& model, const TermSpec& term);
+/// (Model::black_box_terms) nor, unless `slow_too`, a slow term (Model::slow_terms: its stage and
+/// lines are sized for the term as it is; a step that writes another term in its place in the
+/// slow list passes `slow_too`).
+bool revisable(const Model& start, const Model& model, const TermSpec& term, bool slow_too = false);
 
 /// The share of `with`'s error variance that a change to `without` would add (negative when the
 /// change lowers the error).
