@@ -394,8 +394,9 @@ void add_diagnose(CLI::App& app) {
                 "with --apply over one flight: keep every kept drift (by default, as the loop "
                 "ends, a kept low-pass of 30 s or slower of channels no other term reads "
                 "leaves when, with every other term in place, it leaves more than two draws of "
-                "the best term of the recorded states read shifted in time leave in turn: a "
-                "trend that follows the residual by chance)");
+                "the best term of the recorded states read shifted in time leave in turn, "
+                "unless it leaves at most the resolution held out and that term the resolution "
+                "more: a trend that follows the residual by chance)");
   cmd->add_flag("--no-look-ahead", a->no_look_ahead,
                 "with --apply: keep each round's first term that passes (by default, the "
                 "runner-up of other channels is looked at one round ahead, and kept when it and "

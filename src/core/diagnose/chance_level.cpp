@@ -143,7 +143,10 @@ bool Round::drop_chance_slow_term(const DiagnoseOptions& options, std::set<std::
     const double pace_s = term_correlation_time_s(t, model, *c_.flights.front());
     const ChanceLevel chance =
         chance_level(w.first, c_.flights, c_.truth, options, std::isfinite(pace_s) ? pace_s : kInf);
-    if (beyond_chance(share, chance)) continue;
+    if (beyond_chance(share, chance) ||
+        beyond_chance_to_the_resolution(now.heldout_std_nT, lw.heldout_std_nT, chance,
+                                        options.resolution_nT))
+      continue;
     char found[600];
     if (chance.term.empty())
       std::snprintf(found, sizeof(found),

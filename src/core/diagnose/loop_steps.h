@@ -3,6 +3,7 @@
 // and the candidates a round may add. diagnose_loop.cpp runs them.
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <optional>
@@ -147,6 +148,17 @@ double term_correlation_time_s(const TermSpec& t, const Model& model, const Flig
 /// shifted states accepted).
 inline bool beyond_chance(double explained, const ChanceLevel& chance) {
   return 1.0 - explained <= (1.0 - chance.share) * (1.0 - chance.share);
+}
+/// Whether a drift is beyond `chance` down to the resolution: with every other term in place the
+/// model leaves `left_nT` held out (nT), at most `resolution_nT`, nothing the search resolves,
+/// while the chance level's term would leave at least `resolution_nT` more of `without_nT` (the
+/// held-out error without the drift): sqrt(1 - share) without_nT. Where chance explains nearly
+/// everything, the second draw of beyond_chance asks the drift to leave less than the search can
+/// resolve (chance 96.9 % asks for 99.9 %); this asks what the search can tell.
+inline bool beyond_chance_to_the_resolution(double left_nT, double without_nT,
+                                            const ChanceLevel& chance, double resolution_nT) {
+  return left_nT <= resolution_nT &&
+         std::sqrt(std::max(1.0 - chance.share, 0.0)) * without_nT >= left_nT + resolution_nT;
 }
 
 /// `m` without `term` (and out of its slow and black-box lists), unfitted.
