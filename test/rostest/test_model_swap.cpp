@@ -1,12 +1,15 @@
 // rostest: swapping the model file mid-replay switches the live output from the old model's
-// offline values to the new model's at one stamp, with no sample lost.
+// offline values to the new model's at one stamp, with no sample lost; also with the aux
+// channels relayed late (model_swap_delayed.test).
 #include <gtest/gtest.h>
+#include <magcomp/AuxChannels.h>
 #include <magcomp/CompensatedField.h>
 #include <ros/ros.h>
 
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <memory>
 #include <mutex>
 
 #include "magcomp/core/apply/apply.h"
@@ -36,6 +39,19 @@ TEST(ModelSwap, TakesEffectAtOneStampWithNoSampleLost) {
   const Eigen::VectorXd off_old = magcomp::compensate(magcomp::load_model_yaml(old_path), f);
   const Eigen::VectorXd off_new = magcomp::compensate(magcomp::load_model_yaml(new_path), f);
   const auto ref = f.column("mag_1_c");
+  // Fault injection (model_swap_delayed.test): the aux channels reach the compensator through
+  // this node, each after a random wall delay of up to relay_max_delay_s, in order. The new
+  // model reads an aux channel and the old one none, so at the swap the aux messages lag the
+  // scalar samples the old model has already compensated.
+  std::string relay_in, relay_out;
+  double relay_max_delay_s = 0.0;
+  pnh.param<std::string>("relay_in", relay_in, "");
+  pnh.param<std::string>("relay_out", relay_out, "");
+  pnh.param("relay_max_delay_s", relay_max_delay_s, 0.0);
+  using AuxRelay = magcomp::rostest_util::DelayRelay<magcomp::AuxChannels>;
+  std::unique_ptr<AuxRelay> relay;
+  if (!relay_in.empty())
+    relay = std::make_unique<AuxRelay>(nh, relay_in, relay_out, relay_max_delay_s, 11u);
   // Start every run from the TL-only model (the node picks the file up within 0.25 s, before the
   // bag starts playing 4 s after launch).
   copy_atomically(old_path, live);
@@ -56,6 +72,11 @@ TEST(ModelSwap, TakesEffectAtOneStampWithNoSampleLost) {
                                      static_cast<int>(f.column("doy")[0]), f.tt()[f.size() - 1]));
       });
   const std::vector<magcomp::CompensatedField> g_out = collector.outputs();
+  if (relay) {
+    std::printf("  relayed %ld aux messages with delays up to %.2f s\n", relay->relayed(),
+                relay_max_delay_s);
+    EXPECT_EQ(relay->relayed(), static_cast<long>(f.size()));
+  }
   ASSERT_TRUE(swapped);
   ASSERT_EQ(g_out.size(), static_cast<size_t>(f.size())) << "samples lost or duplicated";
   // Each output equals the old model's offline value, then (from one index on) the new model's.
