@@ -331,6 +331,8 @@ void run_diagnose(const DiagnoseArgs& a) {
     if (!twins.empty()) std::printf("note: %s: %s\n", s.term.c_str(), twins.c_str());
     const std::string slow = slow_edge_note(s);
     if (!slow.empty()) std::printf("note: %s: %s\n", s.term.c_str(), slow.c_str());
+    const std::string trend = time_trend_note(s);
+    if (!trend.empty()) std::printf("note: %s: %s\n", s.term.c_str(), trend.c_str());
   }
   print_network_checks(r.last.network, " (checked against the final model)", &r.model);
   write_final_model(r, flights, a.truth, a.out, inputs);

@@ -122,6 +122,12 @@ nlohmann::json twins_json(const std::vector<ChannelTwin>& twins) {
   return out;
 }
 
+nlohmann::json time_trends_json(const std::vector<TimeTrend>& trends) {
+  nlohmann::json out = nlohmann::json::array();
+  for (const TimeTrend& t : trends) out.push_back({{"channel", t.channel}, {"share", t.share}});
+  return out;
+}
+
 nlohmann::json loop_json(const LoopResult& r, const std::vector<TermSupport>& support) {
   nlohmann::json j;
   j["rounds"] = nlohmann::json::array();
@@ -190,7 +196,9 @@ nlohmann::json loop_json(const LoopResult& r, const std::vector<TermSupport>& su
                             {"note", support_note(s)},
                             {"slowest_time_constant_s", json_figure(s.slowest_time_constant_s)},
                             {"slow_edge_note", slow_edge_note(s)},
-                            {"twins", twins_json(s.twins)}});
+                            {"twins", twins_json(s.twins)},
+                            {"time_trends", time_trends_json(s.time_trends)},
+                            {"time_trend_note", time_trend_note(s)}});
   }
   j["last_diagnosis"] = to_json(r.last);
   if (!r.last.network.empty()) j["network"] = network_json(r.last.network, &r.model);

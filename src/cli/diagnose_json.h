@@ -16,6 +16,8 @@ namespace magcomp::cli {
 nlohmann::json to_json(const Diagnosis& dx);
 /// Each channel of a term with one it cannot be told from: [{channel, twin, correlation}].
 nlohmann::json twins_json(const std::vector<ChannelTwin>& twins);
+/// Each channel of a term that follows the flights' time: [{channel, share}] (share 0..1).
+nlohmann::json time_trends_json(const std::vector<TimeTrend>& trends);
 /// The loop's JSON: its rounds, its stop, the added terms' `support` and its last diagnosis.
 nlohmann::json loop_json(const LoopResult& r, const std::vector<TermSupport>& support);
 

@@ -164,6 +164,9 @@ TEST(Cli, DiagnoseWritesTheContractJsonAndTheLoop) {
     // No low-pass: not a drift at the longest time constant the flight tells apart.
     EXPECT_TRUE(s["slowest_time_constant_s"].is_null()) << s.dump();
     EXPECT_EQ(s["slow_edge_note"], "");
+    // A thermostat's current switches: it follows no curve of time.
+    EXPECT_EQ(s["time_trends"], nlohmann::json::array()) << s.dump();
+    EXPECT_EQ(s["time_trend_note"], "");
   }
   EXPECT_TRUE(heater) << loop["support"].dump();
   // The network's channels: the heater's named by the final model, the load's searched, the

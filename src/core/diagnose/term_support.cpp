@@ -94,6 +94,10 @@ std::vector<TermSupport> term_support(const Model& model, const Model& start,
     if (e)
       for (const std::string& x : e->required_fields())
         for (ChannelTwin& t : channel_twins(x, flights)) s.twins.push_back(std::move(t));
+    // Each recorded channel of the term that follows the flights' time.
+    if (e)
+      for (const std::string& x : e->required_fields())
+        for (TimeTrend& t : time_trend(x, flights)) s.time_trends.push_back(std::move(t));
     // A low-pass at the top of the scan the longest flight allows: a drift, not a response.
     if (const double tau_s = slowest_low_pass_s(spec); tau_s > 0) {
       double top_s = 0;
@@ -159,6 +163,29 @@ std::vector<TermSupport> term_support(const Model& model, const Model& start,
     if (has_cov && !m.slow) out[k].size_sigma_nT = std::sqrt(m.var / m.count);
   }
   return out;
+}
+
+std::string time_trend_note(const TermSupport& s) {
+  if (s.time_trends.empty()) return "";
+  std::string names, shares;
+  for (size_t k = 0; k < s.time_trends.size(); ++k) {
+    const char* sep = k == 0 ? "" : k + 1 == s.time_trends.size() ? " and " : ", ";
+    names += sep + s.time_trends[k].channel;
+    char buf[32];
+    std::snprintf(buf, sizeof(buf), "%s%.2f %%", k == 0 ? "" : ", ", 100 * s.time_trends[k].share);
+    shares += buf;
+  }
+  const bool one = s.time_trends.size() == 1;
+  char buf[900];
+  std::snprintf(buf, sizeof(buf),
+                "%s %s a smooth curve of time on these flights (a cubic in time gives %s of the "
+                "variance of %s %.0f s means): a term of %s writes any effect of that shape (a "
+                "charge, a warm-up, another source's drift), and these flights cannot say that "
+                "%s %s it; a flight on which %s another course tells",
+                names.c_str(), one ? "follows" : "follow", shares.c_str(), one ? "its" : "their",
+                kTimeTrendBlock_s, one ? "it" : "them", names.c_str(), one ? "carries" : "carry",
+                one ? "it runs" : "they run");
+  return buf;
 }
 
 std::string slow_edge_note(const TermSupport& s) {

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "magcomp/core/diagnose/channel_twins.h"
+#include "magcomp/core/diagnose/time_trend.h"
 #include "magcomp/core/io/flight_data.h"
 #include "magcomp/core/model/model.h"
 
@@ -38,6 +39,10 @@ struct TermSupport {
   /// Each recorded channel of the term with the channels the flights cannot tell it from
   /// (channel_twins), in the order of the term's sources: the term names one of each set.
   std::vector<ChannelTwin> twins;
+  /// Each recorded channel of the term that follows a smooth curve of time on every flight
+  /// (time_trend: a charging battery, a warm-up), in the order of the term's sources. A term of
+  /// it writes any effect of that shape; the flights cannot say that this channel carries it.
+  std::vector<TimeTrend> time_trends;
   /// When the term's longest low-pass sits at the longest time constant the flights tell apart
   /// (within 1 % of the top of parameter_grid's low-pass scan for the longest flight: a third of
   /// it, at most 3000 s): that time constant, s. The flights cannot tell the term's response from a
@@ -68,6 +73,13 @@ std::string support_note(const TermSupport& s, int few_switches = 10,
 /// cannot tell vol_acpwr from vol_outpwr (r 0.99956), smoothed over 5 s: the effect may be
 /// either's"; "" without twins.
 std::string twins_note(const TermSupport& s);
+
+/// The words a user reads of a term whose channel follows the flights' time
+/// (TermSupport::time_trends): "cur_bat_2 follows a smooth curve of time on these flights (a
+/// cubic in time gives 99.9 % of the variance of its 5 s means): a term of it writes any effect
+/// of that shape (a charge, a warm-up, another source's drift), and these flights cannot say
+/// that cur_bat_2 carries it; a flight on which it runs another course tells"; "" otherwise.
+std::string time_trend_note(const TermSupport& s);
 
 /// The words a user reads of a term at the longest time constant the flights tell apart
 /// (TermSupport::slowest_time_constant_s): "its time constant is the longest these flights tell
