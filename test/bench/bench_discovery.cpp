@@ -186,6 +186,9 @@ int main(int argc, char** argv) {
     int runs_all_draws_near = 0, runs_predictable = 0;  // runs near the true terms on every draw
     int named_among_look_alikes = 0;  // predictable runs naming the truth among the look-alikes
     int named_up_to_twins = 0;  // predictable runs naming the truth, a twin counted as its channel
+    // Predictable runs whose final model names a channel that follows the flight's time, and of
+    // those, the runs not named exactly (the output's note says the flight cannot name it).
+    int named_time_trend = 0, named_time_trend_not_exact = 0;
     // Predictable runs naming every effect's channel and a channel more, and those of them whose
     // next flight is below the oracle's (what the term more writes carries over).
     int named_and_more = 0, named_and_more_below_oracle = 0;
@@ -250,6 +253,10 @@ int main(int argc, char** argv) {
           named[d.kind].second += 1;
           named_among_look_alikes += d.names_truth_among_look_alikes();
           named_up_to_twins += d.names_truth_up_to_twins();
+          if (!d.named_time_trends.empty()) {
+            ++named_time_trend;
+            named_time_trend_not_exact += !d.names_truth();
+          }
           named_and_more += d.names_truth_and_more();
           named_and_more_below_oracle +=
               d.names_truth_and_more() && d.loop_next_nT < d.oracle_next_nT;
@@ -356,6 +363,10 @@ int main(int argc, char** argv) {
         "names them exactly or by a twin (a channel the flight cannot tell from an effect's: "
         "channel_twins): %d/%d (%.0f %%)\n",
         named_up_to_twins, named_runs, named_runs ? 100.0 * named_up_to_twins / named_runs : 0.0);
+    std::printf(
+        "names a channel that follows the flight's time (a charging battery: time_trend), which "
+        "the output says the flight cannot name: %d/%d, %d of them not named exactly\n",
+        named_time_trend, named_runs, named_time_trend_not_exact);
     std::printf("names the effects' channels among the look-alikes it reports: %d/%d (%.0f %%)\n",
                 named_among_look_alikes, named_runs,
                 named_runs ? 100.0 * named_among_look_alikes / named_runs : 0.0);

@@ -16,6 +16,7 @@
 
 #include "magcomp/core/diagnose/channel_twins.h"
 #include "magcomp/core/diagnose/diagnose_loop.h"
+#include "magcomp/core/diagnose/time_trend.h"
 #include "magcomp/core/evaluate/evaluation.h"
 #include "magcomp/core/fit/model_fit.h"
 #include "magcomp/core/geo/igrf.h"
@@ -108,6 +109,9 @@ struct DiscoveryRun {
   /// Each effect's and each named channel's twins on the flight the loop learns from
   /// (channel_twins: 5 s averages at |r| >= 0.999): no flight the loop saw tells them apart.
   std::map<std::string, std::set<std::string>> twins;
+  /// The named channels that follow a smooth curve of time on the flight the loop learns from
+  /// (time_trend: a charging battery); the loop's output says so of each term of them.
+  std::set<std::string> named_time_trends;
   /// The final model names the truth up to twins: with each channel taken as itself or any of
   /// its twins, its added terms read exactly the effects' channels.
   bool names_truth_up_to_twins() const {
@@ -337,6 +341,8 @@ inline DiscoveryRun discovery_run(unsigned r, int count, const sim::Scenario& ba
   for (const std::set<std::string>* set : {&out.true_channels, &out.named_channels})
     for (const std::string& c : *set)
       for (const ChannelTwin& t : channel_twins(c, {&fa.flight})) out.twins[c].insert(t.twin);
+  for (const std::string& c : out.named_channels)
+    if (!time_trend(c, {&fa.flight}).empty()) out.named_time_trends.insert(c);
   out.verdict = loop.last.verdict;
   out.residual_nT = loop.last.floor.residual_std_nT;
   out.floor_nT = loop.last.floor.floor_nT;
