@@ -818,6 +818,26 @@ void take_out_as_chance(const RoundAtTheEnd& end, const std::string& drift, Loop
   r->model = std::move(without);
 }
 
+// TL written as the exact norm on `m`, as exact_norm_step takes it: of loop_steps::
+// exact_norm_forms, the one that, fitted on the flights, leaves the least held out (its fit's
+// change in words second; "" when the fit stays). Nullopt when there is none.
+std::optional<std::pair<Model, std::string>> best_exact_norm_form(const RoundAtTheEnd& end,
+                                                                  const Model& m) {
+  std::optional<std::pair<Model, std::string>> best;
+  double best_nT = INFINITY;
+  for (auto& form : loop_steps::exact_norm_forms(m, end.flights, end.truth)) {
+    form.first.coefficients.resize(0);
+    fit_model(form.first, end.flights);
+    const double nT =
+        loop_steps::score(form.first, end.flights, end.truth, end.held, nullptr).heldout_std_nT;
+    if (nT < best_nT) {
+      best_nT = nT;
+      best = std::move(form);
+    }
+  }
+  return best;
+}
+
 TEST(Discovery, TheChanceLevelReadsOnlyTheStatesTheModelDoesNotReadShiftedInTime) {
   // Ten samples: two states, one of them read by the model, and channels that are no state.
   FlightData data;
@@ -1008,18 +1028,7 @@ TEST(Discovery, TheExactNormTakenInAfterADriftTakenOutAsChanceIsJudgedAgain) {
   const std::string drift = "scalar:cur_heat|lp(365)";
   add_slow_round(end, r.model, drift, 3, &r);
   // TL as the exact norm: the form that leaves the least held out, as exact_norm_step takes it.
-  std::optional<std::pair<Model, std::string>> norm;
-  double norm_nT = INFINITY;
-  for (auto& form : loop_steps::exact_norm_forms(r.model, end.flights, end.truth)) {
-    form.first.coefficients.resize(0);
-    fit_model(form.first, end.flights);
-    const double nT =
-        loop_steps::score(form.first, end.flights, end.truth, end.held, nullptr).heldout_std_nT;
-    if (nT < norm_nT) {
-      norm_nT = nT;
-      norm = form;
-    }
-  }
+  const std::optional<std::pair<Model, std::string>> norm = best_exact_norm_form(end, r.model);
   ASSERT_TRUE(norm.has_value());
   r.model = norm->first;
   push_round(norm->second.empty() ? "norm" : "bias + norm");
@@ -1036,7 +1045,8 @@ TEST(Discovery, TheExactNormTakenInAfterADriftTakenOutAsChanceIsJudgedAgain) {
       "  run 137/1: held out %.4f nT with the relay, %.4f with the drift and the norm, %.4f "
       "without the drift, %.4f once judged again\n  %s: %s\n  next flight: TL %.3f nT, the "
       "norm left without the drift %.3f nT, judged again %.3f nT\n",
-      loop_steps::score(relay, end.flights, end.truth, end.held, nullptr).heldout_std_nT, norm_nT,
+      loop_steps::score(relay, end.flights, end.truth, end.held, nullptr).heldout_std_nT,
+      loop_steps::score(norm->first, end.flights, end.truth, end.held, nullptr).heldout_std_nT,
       without_drift_nT, after.heldout_std_nT, after.removed[1].first.c_str(),
       after.removed[1].second.c_str(), tl_next_nT, left_next_nT, next_nT);
   EXPECT_NE(after.removed[1].first.find("norm"), std::string::npos);
@@ -1094,22 +1104,11 @@ TEST(Discovery, ADriftThatLeavesNothingToResolveIsBeyondAChanceThatLeavesMore) {
   relay.add_term(TermSpec("field:cur_outpwr|step(14.4804)"));
   const std::string drift = "scalar:cur_heat|lp(365)";
   // TL as the exact norm beside the drift: the form that leaves the least held out.
-  std::optional<Model> best;
-  double best_nT = INFINITY;
   Model with_drift = relay;
   loop_steps::add_candidate_term(TermSpec(drift), true, end.truth, &with_drift);
-  for (auto& form : loop_steps::exact_norm_forms(with_drift, end.flights, end.truth)) {
-    form.first.coefficients.resize(0);
-    fit_model(form.first, end.flights);
-    const double nT =
-        loop_steps::score(form.first, end.flights, end.truth, end.held, nullptr).heldout_std_nT;
-    if (nT < best_nT) {
-      best_nT = nT;
-      best = form.first;
-    }
-  }
+  const std::optional<std::pair<Model, std::string>> best = best_exact_norm_form(end, with_drift);
   ASSERT_TRUE(best.has_value());
-  r.model = *best;
+  r.model = best->first;
   LoopRound lr = loop_steps::score(r.model, end.flights, end.truth, end.held, nullptr);
   lr.round = 1;
   lr.added = drift;
