@@ -14,6 +14,7 @@
 #include <functional>
 #include <limits>
 #include <map>
+#include <memory>
 #include <mutex>
 #include <random>
 #include <string>
@@ -135,6 +136,7 @@ class DelayRelay {
     thread_.join();
   }
   long relayed() const { return relayed_; }
+  double max_delay_s() const { return max_delay_s_; }
 
  private:
   using Clock = std::chrono::steady_clock;
@@ -176,6 +178,20 @@ class DelayRelay {
   std::atomic<long> relayed_{0};
   std::thread thread_;
 };
+
+/// The DelayRelay of M that the test node's private parameters ask for: relay_in republished on
+/// relay_out after a random wall delay of up to relay_max_delay_s (s); none without relay_in.
+template <typename M>
+std::unique_ptr<DelayRelay<M>> relay_from_params(ros::NodeHandle& nh, const ros::NodeHandle& pnh,
+                                                 unsigned seed) {
+  std::string in, out;
+  double max_delay_s = 0.0;
+  pnh.param<std::string>("relay_in", in, "");
+  pnh.param<std::string>("relay_out", out, "");
+  pnh.param("relay_max_delay_s", max_delay_s, 0.0);
+  if (in.empty()) return nullptr;
+  return std::make_unique<DelayRelay<M>>(nh, in, out, max_delay_s, seed);
+}
 
 /// Polls count() every poll_s (wall time) until it reaches `expected`, or it has not grown for
 /// quiet_s after it first became non-zero and stream_ended() (when given) holds, or limit_s has

@@ -43,15 +43,7 @@ TEST(ModelSwap, TakesEffectAtOneStampWithNoSampleLost) {
   // this node, each after a random wall delay of up to relay_max_delay_s, in order. The new
   // model reads an aux channel and the old one none, so at the swap the aux messages lag the
   // scalar samples the old model has already compensated.
-  std::string relay_in, relay_out;
-  double relay_max_delay_s = 0.0;
-  pnh.param<std::string>("relay_in", relay_in, "");
-  pnh.param<std::string>("relay_out", relay_out, "");
-  pnh.param("relay_max_delay_s", relay_max_delay_s, 0.0);
-  using AuxRelay = magcomp::rostest_util::DelayRelay<magcomp::AuxChannels>;
-  std::unique_ptr<AuxRelay> relay;
-  if (!relay_in.empty())
-    relay = std::make_unique<AuxRelay>(nh, relay_in, relay_out, relay_max_delay_s, 11u);
+  const auto relay = magcomp::rostest_util::relay_from_params<magcomp::AuxChannels>(nh, pnh, 11u);
   // Start every run from the TL-only model (the node picks the file up within 0.25 s, before the
   // bag starts playing 4 s after launch).
   copy_atomically(old_path, live);
@@ -74,7 +66,7 @@ TEST(ModelSwap, TakesEffectAtOneStampWithNoSampleLost) {
   const std::vector<magcomp::CompensatedField> g_out = collector.outputs();
   if (relay) {
     std::printf("  relayed %ld aux messages with delays up to %.2f s\n", relay->relayed(),
-                relay_max_delay_s);
+                relay->max_delay_s());
     EXPECT_EQ(relay->relayed(), static_cast<long>(f.size()));
   }
   ASSERT_TRUE(swapped);

@@ -35,16 +35,8 @@ TEST(OnlineOffline, WholeReplayedFlightEqualsOfflineWithNoSampleLost) {
   magcomp::rostest_util::OutputCollector collector(nh);
   magcomp::rostest_util::DiagnosticsCollector diagnostics(nh);
   // Fault injection: one input relayed with random wall delays (its order kept).
-  std::string relay_in, relay_out;
-  double relay_max_delay_s = 0.0;
-  pnh.param<std::string>("relay_in", relay_in, "");
-  pnh.param<std::string>("relay_out", relay_out, "");
-  pnh.param("relay_max_delay_s", relay_max_delay_s, 0.0);
-  using FluxgateRelay = magcomp::rostest_util::DelayRelay<sensor_msgs::MagneticField>;
-  std::unique_ptr<FluxgateRelay> relay;
-  if (!relay_in.empty()) {
-    relay = std::make_unique<FluxgateRelay>(nh, relay_in, relay_out, relay_max_delay_s, 7u);
-  }
+  const auto relay =
+      magcomp::rostest_util::relay_from_params<sensor_msgs::MagneticField>(nh, pnh, 7u);
   // A `rosbag play --pause` player (param player_paused): the replay begins once the node's
   // output reaches this test. (The Player nodelet waits for the compensator by itself.)
   bool player_paused = false;
@@ -71,7 +63,7 @@ TEST(OnlineOffline, WholeReplayedFlightEqualsOfflineWithNoSampleLost) {
   }
   if (relay)
     std::printf("  relayed %ld messages with delays up to %.2f s\n", relay->relayed(),
-                relay_max_delay_s);
+                relay->max_delay_s());
   // Every fluxgate message reached the relay (in another process): the player's publishers
   // outlive the bag, so none queued for TCP is lost at its end.
   if (relay) {
