@@ -90,14 +90,13 @@ std::vector<TermSupport> term_support(const Model& model, const Model& start,
     s.term = spec;
     const ExprTerm* e = spec.expr();
     if (e && !e->signal().sources.empty()) s.channel = e->signal().sources.front();
-    // The twins of each recorded channel of the term, as the flights show them.
+    // The twins of each recorded channel of the term, as the flights show them, and whether it
+    // follows the flights' time.
     if (e)
-      for (const std::string& x : e->required_fields())
+      for (const std::string& x : e->required_fields()) {
         for (ChannelTwin& t : channel_twins(x, flights)) s.twins.push_back(std::move(t));
-    // Each recorded channel of the term that follows the flights' time.
-    if (e)
-      for (const std::string& x : e->required_fields())
         for (TimeTrend& t : time_trend(x, flights)) s.time_trends.push_back(std::move(t));
+      }
     // A low-pass at the top of the scan the longest flight allows: a drift, not a response.
     if (const double tau_s = slowest_low_pass_s(spec); tau_s > 0) {
       double top_s = 0;

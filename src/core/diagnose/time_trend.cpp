@@ -24,7 +24,7 @@ double time_trend_share(const Eigen::Ref<const Eigen::VectorXd>& x, double dt_s,
   const double mean = y.mean();
   const double total = (y.array() - mean).square().sum();
   if (!(total > 0)) return NAN;
-  // Legendre-like conditioning: time mapped onto [-1, 1].
+  // Time mapped onto [-1, 1]: its powers stay well conditioned.
   const double t0 = t.front(), t1 = t.back();
   Eigen::MatrixXd a(n, degree + 1);
   for (Eigen::Index i = 0; i < n; ++i) {
