@@ -112,6 +112,9 @@ struct DiscoveryRun {
   /// The named channels that follow a smooth curve of time on the flight the loop learns from
   /// (time_trend: a charging battery); the loop's output says so of each term of them.
   std::set<std::string> named_time_trends;
+  /// The effects' channels that follow such a curve on that flight: a term of any channel that
+  /// follows the same curve writes their effect there as well.
+  std::set<std::string> true_time_trends;
   /// The final model names the truth up to twins: with each channel taken as itself or any of
   /// its twins, its added terms read exactly the effects' channels.
   bool names_truth_up_to_twins() const {
@@ -343,6 +346,8 @@ inline DiscoveryRun discovery_run(unsigned r, int count, const sim::Scenario& ba
       for (const ChannelTwin& t : channel_twins(c, {&fa.flight})) out.twins[c].insert(t.twin);
   for (const std::string& c : out.named_channels)
     if (!time_trend(c, {&fa.flight}).empty()) out.named_time_trends.insert(c);
+  for (const std::string& c : out.true_channels)
+    if (!time_trend(c, {&fa.flight}).empty()) out.true_time_trends.insert(c);
   out.verdict = loop.last.verdict;
   out.residual_nT = loop.last.floor.residual_std_nT;
   out.floor_nT = loop.last.floor.floor_nT;
