@@ -439,6 +439,42 @@ TEST(Discovery, ARefusalNamesTheFlightsOnceTheFlightsAreTheHalves) {
   EXPECT_EQ(loop_steps::half_name(r, 1, 1), "the confirmation half");  // one flight: its own lines
 }
 
+TEST(Discovery, ALagThatTakesAnotherLagsPlaceIsRecordedAsReplacingIt) {
+  // A model has one lag (Model::add_term): a step that adds lag:0.272 where lag:0.349 is in
+  // force takes its place, whatever the step names as replaced (an exchange names the term the
+  // model was diagnosed without). The rounds say so, so that what they list in force is what
+  // the model holds.
+  const auto row = [](const char* added) {
+    LoopRound lr;
+    lr.added = added;
+    return lr;
+  };
+  Model start;
+  start.terms = {TermSpec("permanent")};
+  std::vector<LoopRound> rounds = {row(""), row("lag:0.349"), row("field:ins_vn"), row("lag:0.272"),
+                                   row("lag:0.28")};
+  rounds[3].replaced.emplace_back("field:ins_vn", "the model without it, diagnosed again, takes");
+  // The last row: the lag's value estimated again once the rounds are spent, which names the
+  // old lag itself; nothing is added to it.
+  rounds[4].replaced.emplace_back("lag:0.272", "its value estimated again");
+  loop_steps::record_displaced_lags(start, &rounds);
+  ASSERT_EQ(rounds[3].replaced.size(), 2u);
+  EXPECT_EQ(rounds[3].replaced[1].first, "lag:0.349");
+  EXPECT_NE(rounds[3].replaced[1].second.find("lag:0.272 in its place"), std::string::npos);
+  EXPECT_EQ(rounds[4].replaced.size(), 1u);
+  EXPECT_TRUE(rounds[1].replaced.empty());
+  EXPECT_TRUE(rounds[2].replaced.empty());
+  // A lag of the starting model is displaced the same way; a lag removed earlier is not.
+  start.terms.push_back(TermSpec("lag:0.2"));
+  std::vector<LoopRound> from_start = {row(""), row("lag:0.3"), row("current:cur_strb"),
+                                       row("lag:0.31")};
+  from_start[2].removed.emplace_back("lag:0.3", "made redundant by later terms");
+  loop_steps::record_displaced_lags(start, &from_start);
+  ASSERT_EQ(from_start[1].replaced.size(), 1u);
+  EXPECT_EQ(from_start[1].replaced[0].first, "lag:0.2");
+  EXPECT_TRUE(from_start[3].replaced.empty());
+}
+
 TEST(DiscoveryLong, ATermWithinTheModelsOwnSpanIsNeverAdded) {
   // Run 1, first aircraft: a heater of cur_outpwr (50.7 s) and a 751 s drift of cur_srvo_m.
   // The field of a bus voltage held near its level (vol_block, vol_acpwr: a few tens of mV std
@@ -2852,11 +2888,12 @@ TEST(DiscoveryLong, TheKeptTermsParametersAreEstimatedAgainOnceTheRoundsAreSpent
 
 TEST(DiscoveryLong, TheModelsLagIsEstimatedAgainOnceTheRoundsAreSpent) {
   // Run 117, second aircraft: a 0.271 s lag of the scalar and a flex of the roll rate through
-  // 0.825 s. The lag is written in round 3 (0.284 s) beside a stand-in of the flex; the flex's
-  // own term and Bt's fill rounds 4 and 5, and with them in place the diagnosis ranks the lag
-  // again at 0.273 s, explaining over half the held-out error on both halves. A lag found before
-  // the other effects were written is a correction, not an added term: taken once the rounds
-  // are spent, in place of the old value.
+  // 0.825 s. The lag is written in round 1 (0.349 s) beside the flex still in the residual;
+  // stand-ins of the flex fill rounds 2 to 5. Once the rounds are spent, the model without one
+  // of them (field:ins_vn), diagnosed again, ranks the lag again at 0.272 s: held out 0.6831 ->
+  // 0.4652 nT, next flight 1.778 -> 0.331 nT. A lag found before the other effects were written
+  // is a correction, not an added term: a model has one lag, so the new value takes the old
+  // one's place, and the rounds say so (record_displaced_lags).
   std::vector<sim::HiddenEffect> effects;
   const WholeLoop w = whole_loop(117, 2, 1, &effects);
   const sim::HiddenEffect* lag = drawn(effects, "lag");

@@ -154,6 +154,34 @@ TEST(Model, ALearnedLawIsMarkedAsABlackBoxInTheFile) {
   }
 }
 
+TEST(Model, AFileWithTwoLagsIsRefusedNotReadAsOne) {
+  // A model has one lag of its scalar: a second added in code replaces the first
+  // (Model::add_term), so a file listing two would be read as a model other than the one whose
+  // coefficients it holds (0.35 + 0.27 s of lag applied where they were fitted, 0.27 s read).
+  Model m;
+  ASSERT_TRUE(m.add_term("lag:0.35"));
+  ASSERT_TRUE(m.add_term("lag:0.27"));
+  ASSERT_EQ(std::count_if(m.terms.begin(), m.terms.end(),
+                          [](const TermSpec& t) { return t.text().rfind("lag:", 0) == 0; }),
+            1);
+  EXPECT_DOUBLE_EQ(m.scalar_lag_s(), 0.27);
+  const std::string dir = test::temp_dir("model");
+  std::ofstream(dir + "/one_lag.yaml")
+      << "scalar: a\nvector: b\nterms: [permanent, lag:0.27, current:cur_strb]\n";
+  EXPECT_DOUBLE_EQ(load_model_yaml(dir + "/one_lag.yaml").scalar_lag_s(), 0.27);
+  std::ofstream(dir + "/two_lags.yaml")
+      << "scalar: a\nvector: b\nterms: [permanent, lag:0.35, current:cur_strb, lag:0.27]\n";
+  try {
+    load_model_yaml(dir + "/two_lags.yaml");
+    ADD_FAILURE() << "a file with two lags was read";
+  } catch (const Error& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("two_lags.yaml"), std::string::npos) << what;
+    EXPECT_NE(what.find("key 'terms'"), std::string::npos) << what;
+    EXPECT_NE(what.find("lag:0.35, lag:0.27"), std::string::npos) << what;
+  }
+}
+
 TEST(Model, ASlowTermIsFittedAfterTheBandPassAgainstTheReference) {
   // A heater: 2 nT per A of the fuel pump's current through a 150 s first-order lag (computed
   // here by its exact discrete recursion), added to the scalar of a flight without hidden

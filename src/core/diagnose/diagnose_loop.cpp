@@ -500,6 +500,7 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
   }
   // The lines size nothing in a model without slow terms: its file does not list them.
   if (lines_fallback && r.model.slow_terms.empty()) r.model.fit.slow_lines.clear();
+  loop_steps::record_displaced_lags(start, &r.rounds);
   return r;
 }
 

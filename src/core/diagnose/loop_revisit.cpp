@@ -118,6 +118,12 @@ bool differs_in_thresholds_only(const TermSpec& a, const TermSpec& b) {
 
 Model with_term_as(const Model& model, const std::string& old_text, const std::string& spec) {
   Model m = model;
+  if (spec.rfind("lag:", 0) == 0)  // one lag per model (Model::add_term)
+    m.terms.erase(std::remove_if(m.terms.begin(), m.terms.end(),
+                                 [&](const TermSpec& t) {
+                                   return t.text() != old_text && t.text().rfind("lag:", 0) == 0;
+                                 }),
+                  m.terms.end());
   for (TermSpec& x : m.terms)
     if (x.text() == old_text) x = TermSpec(spec);
   for (std::string& x : m.slow_terms)

@@ -41,8 +41,8 @@ constexpr double kSlowRetimeTolerance = 0.01;
 /// halves (Eligible::explained), in rank order; empty when the kept term reads other than one
 /// channel (LoopRound::paired_factors; loop_round.cpp).
 std::vector<std::string> paired_factors(const std::vector<Eligible>& eligible, size_t kept);
-/// `model` with its term `old_text` written as `spec` (a slow term stays one), unfitted
-/// (loop_revisit.cpp).
+/// `model` with its term `old_text` written as `spec` (a slow term stays one; a lag written so
+/// is the model's only lag), unfitted (loop_revisit.cpp).
 Model with_term_as(const Model& model, const std::string& old_text, const std::string& spec);
 /// An expression term written with its other projection: "field:S" (a body-fixed field projected
 /// on the Earth's field) for "scalar:S" (a reading added to the scalar, nT) and the other way

@@ -564,4 +564,32 @@ std::vector<std::string> step_terms(const std::string& added) {
   }
 }
 
+void record_displaced_lags(const Model& start, std::vector<LoopRound>* rounds) {
+  const auto is_lag = [](const std::string& t) { return t.rfind("lag:", 0) == 0; };
+  std::string in_force;  // the lag the model holds after each step
+  for (const TermSpec& t : start.terms)
+    if (is_lag(t.text())) in_force = t.text();
+  for (LoopRound& lr : *rounds) {
+    const auto names = [&](const std::vector<std::pair<std::string, std::string>>& list) {
+      return std::any_of(list.begin(), list.end(), [&](const auto& e) {
+        const std::vector<std::string> terms = step_terms(e.first);
+        return std::find(terms.begin(), terms.end(), in_force) != terms.end();
+      });
+    };
+    if (!in_force.empty() && (names(lr.removed) || names(lr.replaced))) in_force.clear();
+    if (lr.added.empty()) continue;
+    for (const std::string& t : step_terms(lr.added)) {
+      if (!is_lag(t)) continue;
+      if (!in_force.empty() && in_force != t) {
+        lr.replaced.emplace_back(in_force,
+                                 "its value estimated again with every other term in place (a "
+                                 "model has one lag): " +
+                                     t + " in its place");
+      }
+      in_force = t;
+    }
+    if (names(lr.removed)) in_force.clear();  // a drift the loop's end took out in its own row
+  }
+}
+
 }  // namespace magcomp::loop_steps

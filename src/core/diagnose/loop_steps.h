@@ -103,6 +103,12 @@ std::set<std::string> fields_of(const Model& model);
 /// The terms of a round's step as LoopRound::added writes them (" + " joins a pair or a law).
 std::vector<std::string> step_terms(const std::string& added);
 
+/// The rounds with each lag a later lag displaced written as replaced: a model has one lag
+/// (Model::add_term), so a step adding lag:T while `start` or an earlier step holds another
+/// lag takes that lag's place, whatever else the step's own replaced list names. Each such
+/// entry is appended to that step's replaced list, so the rounds read what the model holds.
+void record_displaced_lags(const Model& start, std::vector<LoopRound>* rounds);
+
 /// The shifts of the chance level (chance_level): a quarter, a half and three quarters of each
 /// flight's length.
 constexpr double kChanceShifts[] = {0.25, 0.5, 0.75};

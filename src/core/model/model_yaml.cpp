@@ -233,12 +233,19 @@ namespace {
 void parse_terms(const YAML::Node& node, const std::string& path, Model* m) {
   if (!node.IsSequence()) throw Error(path + ": key 'terms' must be a list");
   m->terms.clear();
+  std::string lag;  // a model has one lag (Model::add_term): a second would silently replace it
   for (const auto& t : node) {
     const std::string spec = get<std::string>(t, path, "terms");
     try {
       make_term(spec);
     } catch (const Error& e) {
       throw Error(path + ": key 'terms': " + e.what());
+    }
+    if (spec.rfind("lag:", 0) == 0) {
+      if (!lag.empty())
+        throw Error(path + ": key 'terms': two lags (" + lag + ", " + spec +
+                    "): a model has one lag of its scalar");
+      lag = spec;
     }
     m->add_term(spec);
   }
