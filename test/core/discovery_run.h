@@ -130,6 +130,19 @@ struct DiscoveryRun {
     };
     return classes(named_channels) == classes(true_channels);
   }
+  /// The final model names the truth up to the channels that follow the flight's time: with
+  /// every such channel among the named and the effects' taken as one (time_trend: the flight
+  /// cannot say which of them carries an effect of that shape, and the output says so), its
+  /// added terms read exactly the effects' channels.
+  bool names_truth_up_to_time_trends() const {
+    const auto classes = [&](const std::set<std::string>& channels) {
+      std::set<std::string> out;
+      for (const std::string& c : channels)
+        out.insert(named_time_trends.count(c) || true_time_trends.count(c) ? "(time)" : c);
+      return out;
+    };
+    return classes(named_channels) == classes(true_channels);
+  }
   /// Within 1.5x the oracle (+0.05 nT) on the next flight.
   bool near_oracle() const { return loop_next_nT <= 1.5 * oracle_next_nT + 0.05; }
   /// Within 1.5x TL plus the effects' own terms (+0.05 nT) on the next flight (issue 20's rule);

@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <random>
 
+#include "discovery_run.h"
 #include "magcomp/core/diagnose/term_support.h"
 #include "magcomp/core/diagnose/time_trend.h"
 #include "magcomp/core/fit/model_fit.h"
@@ -122,6 +123,29 @@ TEST(TimeTrend, ATermOnAChannelThatFollowsTimeSaysSoInItsSupport) {
       EXPECT_EQ(time_trend_note(s[0]), "");
     }
   }
+}
+
+// The benchmark's "named up to time trends": channels that follow the flight's time (among the
+// named and the effects') are one class, so a battery's term in place of another battery's
+// drift names it; a channel that does not follow time in an effect's place, or a class more,
+// does not.
+TEST(TimeTrend, TheBenchmarkCountsAChannelThatFollowsTimeInATrendsPlaceAsNamingIt) {
+  test::DiscoveryRun d;
+  d.true_channels = {"vol_bat_1", "cur_srvo_i"};
+  d.named_channels = {"cur_bat_2", "cur_srvo_i"};
+  EXPECT_FALSE(d.names_truth_up_to_time_trends());
+  d.true_time_trends = {"vol_bat_1"};
+  d.named_time_trends = {"cur_bat_2"};
+  EXPECT_TRUE(d.names_truth_up_to_time_trends());
+  d.named_channels = {"cur_bat_2", "vol_bat_2", "cur_srvo_i"};  // two of them: one class
+  d.named_time_trends = {"cur_bat_2", "vol_bat_2"};
+  EXPECT_TRUE(d.names_truth_up_to_time_trends());
+  d.named_channels = {"cur_bat_2", "cur_srvo_i", "cur_strb"};  // a channel more
+  d.named_time_trends = {"cur_bat_2"};
+  EXPECT_FALSE(d.names_truth_up_to_time_trends());
+  d.true_time_trends.clear();  // the drift's channel does not follow time: a battery is no name
+  d.named_channels = {"cur_bat_2", "cur_srvo_i"};
+  EXPECT_FALSE(d.names_truth_up_to_time_trends());
 }
 
 }  // namespace
