@@ -92,7 +92,12 @@ void run_calibrate(const CalibrateArgs& a) {
   for (FlightData& f : flights)
     add_map_references(&f, {model.fit.reference, holdout}, a.track, &model);
   std::vector<const FlightData*> ptrs;
-  for (const auto& f : flights) ptrs.push_back(&f);
+  std::vector<std::pair<std::string, const FlightData*>> named;
+  for (const auto& f : flights) {
+    ptrs.push_back(&f);
+    named.emplace_back("--data", &f);
+  }
+  require_distinct_flights(named, model.scalar);
   fit_model(model, ptrs);
   const std::string holdout_note = measure_holdout(&model, ptrs, holdout);
   if (!std::isfinite(model.report.holdout_error_variance_nT2))

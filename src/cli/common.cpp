@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <iostream>
 
 #include "magcomp/core/error.h"
@@ -137,6 +138,29 @@ std::vector<FlightData> read_flights(const std::vector<std::string>& paths) {
   std::vector<FlightData> flights;
   for (const std::string& path : paths) flights.push_back(read_flight(path));
   return flights;
+}
+
+namespace {
+// Whether two columns hold the same values bit for bit (NaN equal to NaN).
+bool same_values(const FlightData::Column& a, const FlightData::Column& b) {
+  return a.size() == b.size() &&
+         std::memcmp(a.data(), b.data(), static_cast<size_t>(a.size()) * sizeof(double)) == 0;
+}
+}  // namespace
+
+void require_distinct_flights(const std::vector<std::pair<std::string, const FlightData*>>& flights,
+                              const std::string& scalar) {
+  for (size_t i = 0; i < flights.size(); ++i)
+    for (size_t j = i + 1; j < flights.size(); ++j) {
+      const FlightData& a = *flights[i].second;
+      const FlightData& b = *flights[j].second;
+      if (a.size() != b.size() || a.size() == 0 || !same_values(a.tt(), b.tt())) continue;
+      if (a.has(scalar) && b.has(scalar) && !same_values(a.column(scalar), b.column(scalar)))
+        continue;
+      throw Error(flights[j].first + ": " + b.source() + " is the flight " + flights[i].first +
+                  " already gives (" + a.source() + ": the same time stamps and " + scalar +
+                  " readings): give another flight of the aircraft");
+    }
 }
 
 OutputGuard guard_for(const std::vector<std::string>& flights,

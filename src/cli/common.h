@@ -25,6 +25,13 @@ std::vector<std::string> flight_paths(const std::string& option, const std::stri
 /// Reads HDF5 flight files (read_flight each).
 std::vector<FlightData> read_flights(const std::vector<std::string>& paths);
 
+/// Throws magcomp::Error when two of `flights` (each with the option and path that named it) are
+/// one flight: the same time stamps and the same readings of `scalar` (nT), sample for sample
+/// (one file named twice, a link or a copy). A command that learns from several flights of an
+/// aircraft, or checks a model on another, would count the one flight's evidence twice.
+void require_distinct_flights(const std::vector<std::pair<std::string, const FlightData*>>& flights,
+                              const std::string& scalar);
+
 /// The output guard of a command that reads `flights` (each under --data) and `others`.
 OutputGuard guard_for(const std::vector<std::string>& flights,
                       const std::vector<OutputGuard::File>& others);

@@ -126,6 +126,13 @@ void diagnose_several(const Model& model_in, const std::vector<std::string>& pat
                       const OutputGuard& guard,
                       const std::function<FlightData(const std::string&)>& read) {
   Model model = model_in;
+  {  // one flight named twice would be ranked twice (columns are read on first use: tt, scalar)
+    std::vector<FlightData> flights;
+    for (const auto& p : paths) flights.push_back(read_flight(p));
+    std::vector<std::pair<std::string, const FlightData*>> named;
+    for (const auto& f : flights) named.emplace_back("--data", &f);
+    require_distinct_flights(named, model.scalar);
+  }
   if (!model.fitted()) {  // fitted on every flight's calibration segments
     std::vector<FlightData> flights;
     for (const auto& p : paths) flights.push_back(read(p));
@@ -312,6 +319,10 @@ void run_diagnose(const DiagnoseArgs& a) {
   }
   std::unique_ptr<FlightData> validation;
   if (!a.validate.empty()) validation = std::make_unique<FlightData>(read(a.validate));
+  std::vector<std::pair<std::string, const FlightData*>> named;
+  for (const FlightData* f : flights) named.emplace_back("--data", f);
+  if (validation) named.emplace_back("--validate", validation.get());
+  require_distinct_flights(named, model.scalar);
   const LoopResult r = diagnose_loop(
       model, flights, a.truth, a.rounds, a.min_share, options,
       [&](int round, size_t f, const Diagnosis& dx) {

@@ -7,6 +7,7 @@
 #include <nlohmann/json.hpp>
 #include <set>
 
+#include "hostile_util.h"
 #include "magcomp/core/model/model.h"
 #include "magcomp/core/sim/simulator.h"
 #include "scenario_cache.h"
@@ -172,6 +173,37 @@ TEST(SeveralFlights, DiagnoseTakesEachFlightInTurnAndRanksTheSeason) {
     EXPECT_LT(rounds.back()["flights_heldout_std_nT"][f].get<double>(),
               0.2 * rounds.front()["flights_heldout_std_nT"][f].get<double>())
         << out;
+}
+
+TEST(SeveralFlights, OneFlightGivenTwiceIsRefusedAnotherOfTheSameRouteIsNot) {
+  // Two flights of one scenario (seeds 31 and 32) share their time stamps and differ in their
+  // readings: calibrate takes both (calibrated_flights). The same flight named twice, by its path,
+  // another spelling of it or a copy, would count its evidence twice: a term "confirmed" on a
+  // second flight that is the first. Each command that learns from several flights, or checks a
+  // model on another, refuses it in one line naming the option and both files, and writes nothing.
+  const std::string dir = test::temp_dir("several_flights_twice");
+  const std::vector<std::string> flights = calibrated_flights(dir, {31u, 32u});
+  const std::string copy = dir + "/copy_of_f31.h5";
+  {
+    std::ifstream in(flights[0], std::ios::binary);
+    std::ofstream out(copy, std::ios::binary);
+    out << in.rdbuf();
+  }
+  const std::string model = test::source_dir() + "/config/models/tl_sim.yaml";
+  const std::string out_yaml = dir + "/twice.yaml";
+  test::expect_refusal(
+      "calibrate --data " + flights[0] + "," + copy + " --model " + model + " --out " + out_yaml,
+      {"--data: ", "copy_of_f31.h5", "f31.h5: the same time stamps and mag_5_uc",
+       "give another flight"});
+  test::expect_refusal("calibrate --data " + flights[0] + "," + dir + "/./f31.h5 --model " + model +
+                           " --out " + out_yaml,
+                       {"--data: ", "is the flight --data already gives"});
+  test::expect_refusal("diagnose --data " + flights[0] + "," + copy + " --model " + dir + "/m.yaml",
+                       {"--data: ", "copy_of_f31.h5"});
+  test::expect_refusal("diagnose --data " + flights[0] + " --model " + model + " --apply --out " +
+                           out_yaml + " --validate " + copy,
+                       {"--validate: ", "copy_of_f31.h5", "is the flight --data already gives"});
+  EXPECT_FALSE(test::exists(out_yaml));
 }
 
 }  // namespace
