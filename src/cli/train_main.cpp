@@ -186,6 +186,12 @@ int run(int argc, char** argv) {
   std::vector<FlightData> train_flights, val_flights;
   for (const auto& p : a.data) train_flights.push_back(cli::read_flight(p));
   for (const auto& p : a.validation) val_flights.push_back(cli::read_flight(p));
+  {  // a copy or another spelling of a flight is that flight: leakage, or its windows twice
+    std::vector<std::pair<std::string, const FlightData*>> named;
+    for (const auto& f : train_flights) named.emplace_back("--data", &f);
+    for (const auto& f : val_flights) named.emplace_back("--validation", &f);
+    cli::require_distinct_flights(named, model.scalar);
+  }
   if (val_flights.empty())
     std::cout << "warning: no validation flight: no early stopping, the last epoch is kept\n";
   const NeuralSpec& spec = *model.neural;

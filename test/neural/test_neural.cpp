@@ -1105,6 +1105,24 @@ TEST(Neural, TrainPrintsWhatTheNetworkLeansOnOnTheValidationFlight) {
                 "share of the correction, fitted on the validation flight(s): %.3f",
                 trained.neural->output_gain);
   EXPECT_NE(out.find(said), std::string::npos) << out;
+  // A copy of the training flight as the validation flight: leakage, refused in one line before
+  // any training (the path check alone would take it as another flight).
+  {
+    std::ifstream in(dir + "/f11.h5", std::ios::binary);
+    std::ofstream copy(dir + "/copy_of_f11.h5", std::ios::binary);
+    copy << in.rdbuf();
+  }
+  out.clear();
+  EXPECT_EQ(test::run(std::string(MAGCOMP_TRAIN) + " --quiet --data " + dir + "/f11.h5" +
+                          " --validation " + dir + "/copy_of_f11.h5 --model " + dir +
+                          "/m.yaml --out " + dir + "/leak",
+                      &out),
+            2)
+      << out;
+  EXPECT_NE(out.find("error: --validation: " + dir + "/copy_of_f11.h5 is the flight --data"),
+            std::string::npos)
+      << out;
+  EXPECT_EQ(out.find("training windows"), std::string::npos) << out;
 }
 
 TEST(Neural, TrainTakesTheNetworkFromAnotherFileOnTheModelsOwnTerms) {
