@@ -126,9 +126,10 @@ void diagnose_several(const Model& model_in, const std::vector<std::string>& pat
                       const OutputGuard& guard,
                       const std::function<FlightData(const std::string&)>& read) {
   Model model = model_in;
-  {  // one flight named twice would be ranked twice (columns are read on first use: tt, scalar)
+  {  // one flight named twice would be ranked twice (columns are read on first use: tt, scalar;
+     // the reader's notes are printed where each flight is read for its diagnosis)
     std::vector<FlightData> flights;
-    for (const auto& p : paths) flights.push_back(read_flight(p));
+    for (const auto& p : paths) flights.push_back(read_flight_h5(p));
     std::vector<std::pair<std::string, const FlightData*>> named;
     for (const auto& f : flights) named.emplace_back("--data", &f);
     require_distinct_flights(named, model.scalar);

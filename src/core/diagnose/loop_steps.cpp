@@ -588,7 +588,7 @@ void record_displaced_lags(const Model& start, std::vector<LoopRound>* rounds) {
       }
       in_force = t;
     }
-    if (names(lr.removed)) in_force.clear();  // a drift the loop's end took out in its own row
+    if (names(lr.removed)) in_force.clear();  // a step's own term may leave in its own row
   }
 }
 
