@@ -195,10 +195,11 @@ TEST(HostileInput, InfoReadsEveryFieldAndACorruptOneIsOneLine) {
     }
   }
   EXPECT_EQ(rows, static_cast<int>(f.names().size())) << out;
-  // A file (found by fuzzing) whose flux_c_z data cannot be read: its structure is sound, so the
-  // other commands would meet it only when they need that field; info reads every one.
+  // A file (found by fuzzing) whose flux_c_z data cannot be read (its number type, corrupt, is
+  // 4 GB wide): its structure is sound, so the other commands would meet it only when they need
+  // that field; info reads every one.
   expect_refusal("info --data " + test::source_dir() + "/test/cli/data/corrupt_flux_c_z_data.h5",
-                 {"corrupt_flux_c_z_data.h5", "field 'flux_c_z'", "corrupt data"});
+                 {"corrupt_flux_c_z_data.h5", "field 'flux_c_z'", "(corrupt type)"});
 }
 
 TEST(HostileInput, AScenarioWithNonFiniteOrHugeNumbersIsRefused) {

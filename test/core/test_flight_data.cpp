@@ -5,7 +5,9 @@
 
 #include <cmath>
 #include <cstring>
+#include <fstream>
 #include <functional>
+#include <iterator>
 #include <limits>
 
 #include "magcomp/core/error.h"
@@ -139,6 +141,51 @@ TEST(FlightData, BadInputsNameFileAndField) {
   write_raw(dir + "/rank.h5", {{"tt", {1, 2}}}, false, true);
   EXPECT_NE(expect_error([&] { read_flight_h5(dir + "/rank.h5"); }).find("'matrix'"),
             std::string::npos);
+}
+
+// Replaces every occurrence of the bytes `from` in the file at `path` by `to` (same length);
+// returns how many there were.
+int patch_bytes(const std::string& path, const std::string& from, const std::string& to) {
+  std::ifstream in(path, std::ios::binary);
+  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  in.close();
+  int hits = 0;
+  for (size_t at = bytes.find(from); at != std::string::npos; at = bytes.find(from, at + 1)) {
+    bytes.replace(at, to.size(), to);
+    ++hits;
+  }
+  std::ofstream(path, std::ios::binary) << bytes;
+  return hits;
+}
+
+std::string le64(unsigned long long v) { return std::string(reinterpret_cast<char*>(&v), 8); }
+
+TEST(FlightData, AFieldDeclaringMoreThanTheFileHoldsIsRefusedBeforeAnyAllocation) {
+  const std::string dir = test::temp_dir("fd");
+  std::vector<double> tt(37), mag(37);
+  for (int i = 0; i < 37; ++i) tt[i] = 0.1 * i, mag[i] = 50000.0 + i;
+  // A plain (contiguous) field whose shape says 300 values where 37 are stored: the dims and
+  // max dims of both datasets, the only 8-byte words equal to 37 in the file.
+  write_raw(dir + "/dims.h5", {{"tt", tt}, {"mag_1_uc", mag}});
+  ASSERT_EQ(patch_bytes(dir + "/dims.h5", le64(37), le64(300)), 4);
+  std::string e = expect_error([&] { read_flight_h5(dir + "/dims.h5"); });
+  EXPECT_NE(e.find("dims.h5: field 'tt' declares 300 values (2400 bytes) but the file stores 296"),
+            std::string::npos)
+      << e;
+  EXPECT_EQ(e.find('\n'), std::string::npos) << e;
+  // A float type 2 GiB wide (a file the fuzzer wrote: converting it allocated count × its size):
+  // the type message of an IEEE little-endian float64 (class 1 version 1, bit field 20 3f 00,
+  // size 8) with its size set to 2^31 + 8.
+  write_raw(dir + "/type.h5", {{"tt", tt}, {"mag_1_uc", mag}});
+  const std::string f64("\x11\x20\x3f\x00\x08\x00\x00\x00", 8);
+  const std::string wide("\x11\x20\x3f\x00\x08\x00\x00\x80", 8);
+  ASSERT_EQ(patch_bytes(dir + "/type.h5", f64, wide), 2);
+  e = expect_error([&] {
+    const FlightData d = read_flight_h5(dir + "/type.h5");
+    (void)d.column("mag_1_uc");
+  });
+  EXPECT_NE(e.find("type.h5: field '"), std::string::npos) << e;
+  EXPECT_NE(e.find("has a 2147483656-byte number type (corrupt type)"), std::string::npos) << e;
 }
 
 TEST(FlightDataDeathTest, AFileTruncatedWhileReadInPlaceEndsInOneLine) {

@@ -17,6 +17,7 @@
 #include <numeric>
 
 #include "h5_link_names.h"
+#include "h5_stored_values.h"
 #include "magcomp/core/error.h"
 #include "magcomp/core/io/file_io.h"
 #include "magcomp/core/io/flight_data.h"
@@ -100,12 +101,8 @@ void read_values(hid_t file, const std::string& path, Dataset& d, hsize_t count,
                  hsize_t file_bytes) {
   H5Handle ds(H5Dopen2(file, d.name.c_str(), H5P_DEFAULT), H5Dclose);
   if (ds.id < 0) throw Error(path + ": field '" + d.name + "' cannot be opened (corrupt object)");
-  const hsize_t stored = H5Dget_storage_size(ds.id);
-  // Stored bytes bound what can be real data: 1000x is beyond any compression of float samples.
-  if (count > 0 && (stored == 0 || count > stored * 1000 || count > file_bytes * 1000)) {
-    throw Error(path + ": field '" + d.name + "' declares " + std::to_string(count) +
-                " values but the file stores " + std::to_string(stored) + " bytes of it");
-  }
+  const std::string problem = h5_stored_values_problem(ds.id, count, file_bytes);
+  if (!problem.empty()) throw Error(path + ": field '" + d.name + "' " + problem);
   try {
     d.values.resize(static_cast<Eigen::Index>(count));
   } catch (const std::bad_alloc&) {
@@ -217,11 +214,8 @@ class H5ColumnLoader : public ColumnLoader {
   void read_rows(const std::string& name, hsize_t first, hsize_t count, double* out) const {
     H5Handle ds(H5Dopen2(file_, name.c_str(), H5P_DEFAULT), H5Dclose);
     if (ds.id < 0) throw Error(path_ + ": field '" + name + "' cannot be opened (corrupt object)");
-    const hsize_t stored = H5Dget_storage_size(ds.id);
-    if (n_ > 0 && (stored == 0 || n_ > stored * 1000 || n_ > file_bytes_ * 1000)) {
-      throw Error(path_ + ": field '" + name + "' declares " + std::to_string(n_) +
-                  " values but the file stores " + std::to_string(stored) + " bytes of it");
-    }
+    const std::string problem = h5_stored_values_problem(ds.id, n_, file_bytes_);
+    if (!problem.empty()) throw Error(path_ + ": field '" + name + "' " + problem);
     if (count == 0) return;
     H5Handle file_space(H5Dget_space(ds.id), H5Sclose);
     H5Handle memory_space(H5Screate_simple(1, &count, nullptr), H5Sclose);

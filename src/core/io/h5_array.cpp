@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <mutex>
 
+#include "h5_stored_values.h"
 #include "magcomp/core/error.h"
 #include "magcomp/core/io/file_io.h"
 #include "magcomp/core/io/h5_probe.h"
@@ -140,12 +141,9 @@ H5Array read_h5_array(const std::string& path, const std::string& name) {
       n *= static_cast<size_t>(d);
     }
     if (n > (size_t{1} << 31)) throw Error(path + ": dataset '" + name + "' is too large");
-    // The declared size against the bytes the file stores for it, before any allocation: 1000x
-    // is beyond any compression of float samples.
-    const hsize_t stored = H5Dget_storage_size(ds.id);
-    if (n > 0 && (stored == 0 || n > stored * 1000 || n > file_bytes * 1000))
-      throw Error(path + ": dataset '" + name + "' declares " + std::to_string(n) +
-                  " values but the file stores " + std::to_string(stored) + " bytes of it");
+    // The declared size against the bytes the file stores for it, before any allocation.
+    const std::string problem = h5_stored_values_problem(ds.id, n, file_bytes);
+    if (!problem.empty()) throw Error(path + ": dataset '" + name + "' " + problem);
     try {
       out.values.resize(n);
     } catch (const std::bad_alloc&) {
