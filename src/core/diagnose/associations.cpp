@@ -12,11 +12,11 @@
 namespace magcomp {
 namespace {
 
-// Mutual information in bits with equal-frequency bins on both variables.
-double mutual_information(const Eigen::VectorXd& a, const Eigen::VectorXd& b, int bins) {
-  const Eigen::Index n = a.size();
+// Mutual information in bits with equal-frequency bins on both variables, from their ranks
+// (ranks(): 0 .. n - 1, ties averaged).
+double mutual_information_of_ranks(const Eigen::VectorXd& ra, const Eigen::VectorXd& rb, int bins) {
+  const Eigen::Index n = ra.size();
   if (n < bins * 4) return 0.0;
-  const Eigen::VectorXd ra = ranks(a), rb = ranks(b);
   Eigen::MatrixXd joint = Eigen::MatrixXd::Zero(bins, bins);
   for (Eigen::Index i = 0; i < n; ++i) {
     const int ia = std::min(bins - 1, static_cast<int>(ra[i] * bins / static_cast<double>(n)));
@@ -70,8 +70,9 @@ std::vector<ChannelAssociation> residual_associations(const FlightData& data,
     ChannelAssociation a;
     a.channel = name;
     a.pearson = pearson(r, v);
-    a.spearman = pearson(rr, ranks(v));
-    a.mutual_information_bits = mutual_information(r, v, 16);
+    const Eigen::VectorXd rv = ranks(v);  // once per channel: Spearman and the bins share it
+    a.spearman = pearson(rr, rv);
+    a.mutual_information_bits = mutual_information_of_ranks(rr, rv, 16);
     associations.push_back(a);
   }
   std::sort(associations.begin(), associations.end(),
