@@ -911,7 +911,7 @@ std::set<std::string> channels_of(const Model& m) {
   return out;
 }
 
-TEST(Diagnose, TheLoadsOfABusAreChosenTogetherOverTheBus) {
+TEST(DiagnoseLong, TheLoadsOfABusAreChosenTogetherOverTheBus) {
   const BusFlight& b = bus_flight();
   const FlightData& f = b.flight;
   const Model& start = b.start;
@@ -986,7 +986,7 @@ TEST(DiagnoseLong, OneTermAtATimeTakesTheBusFirst) {
 // alike, so the loop keeps one and names the other as its look-alike (rounds table and JSON); a
 // pump switched on its own pattern, which carries no effect, is not named. (A channel told apart
 // has no look-alike: DiagnoseLong.TwoHiddenEffectsAreFoundInTwoRoundsAndReachTheFloor.)
-TEST(Diagnose, AChannelTheFlightCannotTellApartIsNamedAsALookAlike) {
+TEST(DiagnoseLong, AChannelTheFlightCannotTellApartIsNamedAsALookAlike) {
   FlightData f = test::scenario("tl_only").flight;
   const Eigen::VectorXd t = f.tt();
   std::mt19937 rng(11);
