@@ -40,7 +40,8 @@ std::string family_of_tl(const std::string& spec) {
 }
 
 // Candidate jobs for the sources and the model.
-std::vector<Job> make_jobs(const Model& model, const std::vector<std::string>& sources) {
+std::vector<Job> make_jobs(const Model& model, const std::vector<std::string>& sources,
+                           const std::set<std::string>& rate_recorded) {
   std::vector<Job> jobs;
   std::set<std::string> have(model.terms.begin(), model.terms.end());
   std::set<std::string> shapes;  // a term of the model is re-estimated with ?, not searched again
@@ -64,7 +65,8 @@ std::vector<Job> make_jobs(const Model& model, const std::vector<std::string>& s
   add("scalar:" + model.scalar + "|d", "scalar sensor response", model.scalar);
   for (const std::string& x : sources) {
     add(plain_spec(x), is_rate(x) ? "attitude rate" : "field of a channel", x);
-    add(is_electrical(x) ? "dcurrent:" + x : "field:" + x + "|d", "rate of change", x);
+    if (!rate_recorded.count(x))
+      add(is_electrical(x) ? "dcurrent:" + x : "field:" + x + "|d", "rate of change", x);
     add("field:" + x + "|lp(?)", "slow response (thermal)", x);
     add("field:" + x + "|delay(?)", "delayed response", x);
     add("scalar:" + x + "|lp(?)", "drift of the reading", x);

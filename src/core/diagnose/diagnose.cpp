@@ -10,6 +10,8 @@
 #include <vector>
 
 #include "magcomp/core/diagnose/channel_noise.h"
+#include "magcomp/core/diagnose/channel_twins.h"
+#include "magcomp/core/diagnose/recorded_rates.h"
 #include "magcomp/core/diagnose/residual_floor.h"
 #include "magcomp/core/error.h"
 #include "magcomp/core/evaluate/evaluation.h"
@@ -189,7 +191,17 @@ Diagnosis diagnose(const Model& model_in, const FlightData& data, const std::str
     all_sources =
         options.full_search ? sources : source_fields(model, data, truth_name, true, nullptr);
   add_network_sources(all_sources, leads, &aircraft_sources);
-  std::vector<Job> jobs = make_jobs(model, aircraft_sources);
+  std::set<std::string> rate_recorded;
+  for (const RecordedRate& r : recorded_rates(data, aircraft_sources)) {
+    rate_recorded.insert(r.channel);
+    char line[300];
+    std::snprintf(line, sizeof(line),
+                  "the rate of change of '%s' is recorded as '%s' (r = %.4f over %.0f s means): "
+                  "searched as '%s'",
+                  r.channel.c_str(), r.rate.c_str(), r.correlation, kTwinWindow_s, r.rate.c_str());
+    dx.notes.push_back(line);
+  }
+  std::vector<Job> jobs = make_jobs(model, aircraft_sources, rate_recorded);
   std::vector<Scored> scored = run_jobs(search, jobs, options.threads);
   add_strong_rail_jobs(model, search, rails, options.threads, &jobs, &scored, &dx);
   std::vector<Job> products = product_jobs(model, search, jobs, scored, options.accept_fraction);
@@ -213,14 +225,15 @@ Diagnosis diagnose(const Model& model_in, const FlightData& data, const std::str
     for (const auto& j : jobs) seen.insert(j.term.text());
     for (const auto& x : scored)
       if (x.term) seen.insert(x.term->spec());
-    std::vector<Job> grown = refined_jobs(model, search, jobs, scored, &seen);
+    std::vector<Job> grown = refined_jobs(model, search, jobs, scored, &seen, rate_recorded);
     for (int level = 0; level < 2 && !grown.empty(); ++level) {
       std::vector<Scored> more = run_jobs(search, grown, options.threads);
       for (auto& x : more)
         if (x.ok && at_slow_edge(*x.term, search)) x.ok = false;
       jobs.insert(jobs.end(), grown.begin(), grown.end());
       scored.insert(scored.end(), more.begin(), more.end());
-      grown = level == 0 ? refined_jobs(model, search, grown, more, &seen) : std::vector<Job>{};
+      grown = level == 0 ? refined_jobs(model, search, grown, more, &seen, rate_recorded)
+                         : std::vector<Job>{};
     }
   }
   data.drop_mapped_pages();

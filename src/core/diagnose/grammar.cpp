@@ -43,7 +43,8 @@ bool at_slow_edge(const Term& term, const Search& search) {
 
 std::vector<Job> refined_jobs(const Model& model, const Search& search,
                               const std::vector<Job>& jobs, const std::vector<Scored>& scored,
-                              std::set<std::string>* seen) {
+                              std::set<std::string>* seen,
+                              const std::set<std::string>& rate_recorded) {
   std::vector<std::pair<double, size_t>> order;
   for (size_t k = 0; k < jobs.size(); ++k) {
     // Chains are the laws of the aircraft's loads and states (heating, saturation, switching):
@@ -88,7 +89,14 @@ std::vector<Job> refined_jobs(const Model& model, const Search& search,
       out.push_back({TermSpec(std::move(term)), "chain (grammar search)", jobs[k].channel});
     };
     child({TransformKind::LowPass, 0.0, true}, false);
-    child({TransformKind::Derivative, 0.0, false}, false);
+    // d commutes with low-passes and delays: such a chain of a source whose rate is recorded,
+    // differentiated, is the recorded rate's chain.
+    const bool rate_is_recorded =
+        sig.sources.size() == 1 && rate_recorded.count(sig.sources[0]) &&
+        std::all_of(sig.transforms.begin(), sig.transforms.end(), [](const Transform& t) {
+          return t.kind == TransformKind::LowPass || t.kind == TransformKind::Delay;
+        });
+    if (!rate_is_recorded) child({TransformKind::Derivative, 0.0, false}, false);
     bool level_units = true;  // sat(?) is scanned over the source's range: not after d or int
     for (const auto& t : sig.transforms) {
       if (t.kind == TransformKind::Derivative || t.kind == TransformKind::Integral ||

@@ -257,8 +257,11 @@ double share(double after, double before);
 
 // --- the steps of a round ---
 
-// Candidate jobs for the sources and the model (candidates.cpp).
-std::vector<Job> make_jobs(const Model& model, const std::vector<std::string>& sources);
+// Candidate jobs for the sources and the model (candidates.cpp). A source in `rate_recorded`
+// (recorded_rates: another source records its rate of change) has no rate-of-change term: the
+// recorded rate's own terms name that effect.
+std::vector<Job> make_jobs(const Model& model, const std::vector<std::string>& sources,
+                           const std::set<std::string>& rate_recorded = {});
 // Runs jobs on `threads` workers (candidates.cpp).
 std::vector<Scored> run_jobs(const Search& search, const std::vector<Job>& jobs, int threads);
 // Products of the strongest sources (candidates.cpp).
@@ -300,9 +303,12 @@ std::vector<NetworkCheck> network_checks(const FlightData& data,
 // The grammar growth (grammar.cpp): whether a term's time constant sits at the top of its scan,
 // and the children of the best electrical terms.
 bool at_slow_edge(const Term& term, const Search& search);
+// A chain of one source in `rate_recorded` through low-passes and delays only is not grown into
+// its derivative (the recorded rate's chain).
 std::vector<Job> refined_jobs(const Model& model, const Search& search,
                               const std::vector<Job>& jobs, const std::vector<Scored>& scored,
-                              std::set<std::string>* seen);
+                              std::set<std::string>* seen,
+                              const std::set<std::string>& rate_recorded = {});
 // Every scored job becomes a candidate (candidates.cpp).
 void add_candidates(const std::vector<Job>& jobs, const std::vector<Scored>& scored,
                     const Search& search, Diagnosis* dx);
