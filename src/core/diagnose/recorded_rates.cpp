@@ -6,6 +6,7 @@
 
 #include "magcomp/core/diagnose/channel_twins.h"
 #include "magcomp/core/math/correlation.h"
+#include "magcomp/core/math/timeseries.h"
 
 namespace magcomp {
 
@@ -33,19 +34,6 @@ Eigen::VectorXd block_means(const Eigen::Ref<const Eigen::VectorXd>& x, Eigen::I
   return out;
 }
 
-// x's rate (its unit per s), samples dt_s apart, by central differences (one-sided at the ends);
-// NaN where a difference reads a non-finite sample.
-Eigen::VectorXd rate_of(const Eigen::Ref<const Eigen::VectorXd>& x, double dt_s) {
-  const Eigen::Index n = x.size();
-  Eigen::VectorXd out(n);
-  for (Eigen::Index k = 0; k < n; ++k) {
-    const Eigen::Index lo = k > 0 ? k - 1 : k, hi = k + 1 < n ? k + 1 : k;
-    out[k] = hi > lo ? (x[hi] - x[lo]) / (static_cast<double>(hi - lo) * dt_s)
-                     : std::numeric_limits<double>::quiet_NaN();
-  }
-  return out;
-}
-
 }  // namespace
 
 std::vector<RecordedRate> recorded_rates(const FlightData& data,
@@ -59,7 +47,7 @@ std::vector<RecordedRate> recorded_rates(const FlightData& data,
   for (size_t k = 0; k < sources.size(); ++k)
     level[k] = block_means(data.column(sources[k]), block);
   for (size_t k = 0; k < sources.size(); ++k) {
-    const Eigen::VectorXd rate = block_means(rate_of(data.column(sources[k]), dt_s), block);
+    const Eigen::VectorXd rate = block_means(central_rate(data.column(sources[k]), dt_s), block);
     RecordedRate best{sources[k], "", 0.0};
     for (size_t j = 0; j < sources.size(); ++j) {
       if (j == k) continue;
