@@ -37,9 +37,12 @@ bool Round::exchange(const DiagnoseOptions& options, std::set<std::string>* take
   }
   for (const TermSpec& t : r_->model.terms) {
     const auto in = added_in.find(t.text());
-    if (!removable(c_.start, t) || fields_of(t).empty() || taken_out->count(t.text()) ||
-        std::find(laws.begin(), laws.end(), t.text()) != laws.end() || in == added_in.end() ||
-        in->second >= last_adding)
+    // A term of recorded channels, or a signal of the Earth's field alone (an eddy decay of B,
+    // which the rates of the attitude drive): either may have stood in for effects the later
+    // rounds wrote. Not the lag, which every term reads through.
+    if (!removable(c_.start, t) || (fields_of(t).empty() && !t.expr()) ||
+        taken_out->count(t.text()) || std::find(laws.begin(), laws.end(), t.text()) != laws.end() ||
+        in == added_in.end() || in->second >= last_adding)
       continue;
     const auto [without, without_lr] = fit_score(without_term(r_->model, t));
     std::vector<Diagnosis> dxs;

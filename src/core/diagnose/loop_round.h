@@ -184,10 +184,11 @@ class Round {
   // the channel that predicts most of it (one per channel over the loop: `learned_channels`).
   bool learned_law_of_channel(const std::vector<Diagnosis>& dxs,
                               std::set<std::string>* learned_channels);
-  // When nothing else passes: each kept term of a recorded channel (not a learned law's, not one
-  // in `taken_out`, not one of the last round that changed the model -- added terms, wrote TL as
-  // the exact norm or chose the ridge strength: that round's diagnosis already saw the model as it
-  // is) is taken out in turn, the model without it diagnosed with `options`, and
+  // When nothing else passes: each kept term of a recorded channel or of the Earth's field alone
+  // (an eddy decay of B; not the lag; not a learned law's, not one in `taken_out`, not one of the
+  // last round that changed the model -- added terms, wrote TL as the exact norm or chose the
+  // ridge strength: that round's diagnosis already saw the model as it is) is taken out in turn,
+  // the model without it diagnosed with `options`, and
   // the best of that diagnosis's first eligible candidates (at most kTriesPerRound, not the term
   // itself) takes its place if it lowers the held-out error of the model with the term by the
   // accepted share and the resolution, raises neither half and passes refusal(). One exchange

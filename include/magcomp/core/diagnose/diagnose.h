@@ -213,8 +213,9 @@ struct DiagnoseOptions {
   /// channel that moves on the same survey line of every flight, which each flight's halves put
   /// on one side, is then confirmed by the flights together (false: each flight's halves only).
   bool across_flights = true;
-  /// diagnose_loop: when no term passes, each kept term of a recorded channel is taken out in
-  /// turn and the model without it diagnosed; the best of that diagnosis's first candidates takes
+  /// diagnose_loop: when no term passes, each kept term of a recorded channel or of the Earth's
+  /// field alone (an eddy decay of B; not the lag) is taken out in turn and the model without it
+  /// diagnosed; the best of that diagnosis's first candidates takes
   /// its place when it lowers the held-out error by the accepted share and the resolution and
   /// raises neither half, and the loop goes on (LoopRound::replaced). A term chosen while other
   /// effects were still in the residual is chosen again once they are written (false: a kept
