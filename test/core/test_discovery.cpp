@@ -140,7 +140,7 @@ TEST(DiscoveryLong, ASlowHeaterIsSizedByTheSlowStageAndCarriesOver) {
 // accepted by kQuietHalfShare of that half with the resolution gained over all held-out lines.
 // Which channel it names is the look-alikes' question: on this flight the cabin temperature
 // through 166 s ranks first, the battery channels through 8-53 s within 2 points.
-TEST(Discovery, AProductTheBaseSpansIsScreenedAndADriftOnAQuietHalfIsAccepted) {
+TEST(DiscoveryLong, AProductTheBaseSpansIsScreenedAndADriftOnAQuietHalfIsAccepted) {
   std::vector<sim::HiddenEffect> effects;
   const sim::Scenario a = test::discovery_scenario(
       3, 3, sim::load_scenario(test::source_dir() + "/config/scenarios/random_base.yaml"), 1,
@@ -1219,7 +1219,7 @@ TEST(Discovery, ADriftThatExplainsWhatRemainsBeyondChanceStays) {
   EXPECT_LT(next_nT, 0.25 * tl_next_nT);
 }
 
-TEST(Discovery, ADriftThatLeavesNothingToResolveIsBeyondAChanceThatLeavesMore) {
+TEST(DiscoveryLong, ADriftThatLeavesNothingToResolveIsBeyondAChanceThatLeavesMore) {
   // Run 137, second aircraft, its states recorded: a relay of cur_outpwr and a 363 s drift of
   // cur_heat. With the relay, the drift's own term scalar:cur_heat|lp(365) and TL as the exact
   // norm, 0.027 nT is left held out (the resolution: 0.03 nT); without the drift 0.658 nT. The
@@ -1385,7 +1385,7 @@ TEST(Discovery, ATermThatStandsInForTwoEffectsGivesWayLookingOneRoundAhead) {
   EXPECT_EQ(as_ranked.looking_ahead(eligible, round_options).front().term, eligible.front().term);
 }
 
-TEST(Discovery, LookingAheadAPathsNextTermReadsOtherChannels) {
+TEST(DiscoveryLong, LookingAheadAPathsNextTermReadsOtherChannels) {
   // Run 143, second aircraft, its states recorded: a drift of cur_bat_2, the product
   // cur_ac_hi*sw_pitot_heat and a ripple of cur_outpwr. Round 1 ranks the true product first
   // (0.888 -> 0.777 nT held out); the runner-up cur_ac_hi*cur_bat_1 leaves 0.781 nT. Followed by
@@ -2454,7 +2454,7 @@ TEST(Discovery, ATermAnotherMakesRedundantOnceItsParametersAreEstimatedAgainLeav
   EXPECT_FALSE(again.redundant_once_refined(&dropped)) << end.r.rounds.back().added;
 }
 
-TEST(Discovery, AThresholdEstimatedBeforeTheOtherTermsIsEstimatedAgainWithThem) {
+TEST(DiscoveryLong, AThresholdEstimatedBeforeTheOtherTermsIsEstimatedAgainWithThem) {
   // Run 101, second aircraft, its states recorded: a relay of cur_outpwr above 13.9 A and a
   // product yaw_rate*vol_outpwr. The loop's first round takes the relay's step together with
   // field:ins_acc_y (which moves with the yaw rate), its threshold estimated at 14 A at the
@@ -2784,7 +2784,7 @@ TEST(Discovery, ASlowCandidateTheCalibrationRowsCannotSizeIsTriedSizedOnTheLines
   EXPECT_LT(next_now_nT, 0.85 * next_before_nT);
 }
 
-TEST(Discovery, ADriftThatDominatesTheFlightIsSizedOnTheLinesBeforeSmallerTerms) {
+TEST(DiscoveryLong, ADriftThatDominatesTheFlightIsSizedOnTheLinesBeforeSmallerTerms) {
   // Run 229, second aircraft, its states recorded: an 848 s drift of cur_tank and a hysteresis
   // of cur_outpwr (play 0.746). Sized on the lines, the drift alone explains four fifths of the
   // held-out error; the calibration rows, where it barely moves, rank a product of the outside

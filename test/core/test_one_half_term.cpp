@@ -119,7 +119,7 @@ TEST(OneHalfTerm, AChannelThatMovesOnOneHalfsLinesAloneIsNamedAndTheVerdictSaysS
   EXPECT_NE(dx.verdict.find("--data A.h5,B.h5"), std::string::npos);
 }
 
-TEST(OneHalfTerm, TheLoopEndsSayingWhatASecondFlightWouldConfirm) {
+TEST(OneHalfTermLong, TheLoopEndsSayingWhatASecondFlightWouldConfirm) {
   // The benchmark's run 159 on its third aircraft (scripts/bench_discovery … states): a 43.7 s
   // heater of the flap motor's current, whose flaps run out on survey line 1001.13 alone, beside
   // a pick-up of cur_heat and a product the confirmation lines hold. The loop's rounds size the
