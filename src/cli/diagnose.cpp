@@ -215,6 +215,7 @@ struct DiagnoseArgs {
   bool apply = false, quick = false, choose_lambda = false, no_exchange = false;
   bool no_chance_control = false;
   bool no_look_ahead = false;
+  bool no_named_channel = false;
   bool no_refine = false;
   bool keep_factors = false;
   bool no_steady_factors = false;
@@ -257,6 +258,7 @@ void run_diagnose(const DiagnoseArgs& a) {
   if (a.no_exchange && !a.apply) throw Error("--no-exchange: only with --apply");
   if (a.no_chance_control && !a.apply) throw Error("--no-chance-control: only with --apply");
   if (a.no_look_ahead && !a.apply) throw Error("--no-look-ahead: only with --apply");
+  if (a.no_named_channel && !a.apply) throw Error("--no-named-channel: only with --apply");
   if (a.no_refine && !a.apply) throw Error("--no-refine: only with --apply");
   if (a.keep_factors && !a.apply) throw Error("--keep-factors: only with --apply");
   if (a.no_steady_factors && !a.apply) throw Error("--no-steady-factors: only with --apply");
@@ -286,6 +288,7 @@ void run_diagnose(const DiagnoseArgs& a) {
   options.exchange_terms = !a.no_exchange;
   options.chance_control = !a.no_chance_control;
   options.look_ahead = !a.no_look_ahead;
+  options.named_channel_term = !a.no_named_channel;
   options.refine_parameters = !a.no_refine;
   options.drop_idle_factors = !a.keep_factors;
   options.steady_factor_products = !a.no_steady_factors;
@@ -416,6 +419,12 @@ void add_diagnose(CLI::App& app) {
                 "runner-up of other channels is looked at one round ahead, and kept when it and "
                 "the term that follows it leave less than the first and the term that follows "
                 "it)");
+  cmd->add_flag("--no-named-channel", a->no_named_channel,
+                "with --apply: try the recorded state that predicts most of what remains only as "
+                "a learned law (by default, when no term passes, its plain field term is tried "
+                "first with the whole model fitted again: the search scores a candidate beside "
+                "TL's exact-norm column as the model left it, which hides a channel whose field "
+                "TL's coefficients partly took)");
   cmd->add_flag("--no-refine", a->no_refine,
                 "with --apply: when no term passes, keep the kept terms' parameters (by default "
                 "they are estimated again with every other term in place, alone and beside each "

@@ -31,6 +31,8 @@
 // the model without it ranks first, DiagnoseOptions::exchange_terms); no-chance-control (a kept
 // drift one flight cannot tell from chance stays, DiagnoseOptions::chance_control false);
 // no-look-ahead (each round keeps its first term that passes, DiagnoseOptions::look_ahead false);
+// no-named-channel (the channel that predicts most of the residual is tried only as a learned
+// law, DiagnoseOptions::named_channel_term false);
 // keep-redundant (a kept
 // term stays where another kept term, its parameters estimated again, makes it redundant,
 // DiagnoseOptions::redundant_once_refined false); lenient-backward (the
@@ -104,6 +106,8 @@ int main(int argc, char** argv) {
         options.chance_control = false;
       } else if (opt == "no-look-ahead") {
         options.look_ahead = false;
+      } else if (opt == "no-named-channel") {
+        options.named_channel_term = false;
       } else if (opt == "no-refine") {
         options.refine_parameters = false;
       } else if (opt == "line-jackknife") {
@@ -161,6 +165,7 @@ int main(int argc, char** argv) {
             stderr,
             "error: option '%s': one-at-a-time, choose-lambda, no-span-ridge, span-terms, "
             "no-joint, no-calibration-check, no-exchange, no-chance-control, no-look-ahead, "
+            "no-named-channel, "
             "no-refine, "
             "lenient-backward, "
             "backward-after-adds, "

@@ -40,6 +40,7 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
                          const FlightData* validation) {
   if (flights.empty()) throw Error("diagnose: no flight given");
   std::set<std::string> learned_channels;  // one learned law per channel
+  std::set<std::string> named_channels;    // one plain term tried per channel
   std::set<std::string> taken_out;         // terms an exchange took out (never put back by one)
   std::set<std::string> dropped_refined;   // terms Round::redundant_once_refined dropped
   int exchanges = 0;
@@ -317,6 +318,7 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
       const bool predictable = std::any_of(
           dxs.begin(), dxs.end(), [](const Diagnosis& d) { return !d.explainable.within_noise; });
       kept = kept || (options.joint_steps && predictable && step.pair_acting_together(dxs));
+      kept = kept || step.named_channel_term(dxs, &named_channels);
       kept = kept || step.learned_law_of_channel(dxs, &learned_channels);
       kept = kept || (options.joint_steps && step.size_following_a_state());
       if (options.joint_steps && kept) step.backward_pass();
@@ -348,6 +350,7 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
           const Model before = r.model;
           const std::vector<Diagnosis> dxs_before = dxs;
           const std::set<std::string> learned_before = learned_channels;
+          const std::set<std::string> named_before = named_channels;
           round_options.slow_terms_on_lines = true;
           r.model.fit.slow_lines = lines;
           if (dxs_on_lines && terms_on_lines == r.model.terms) {
@@ -362,6 +365,7 @@ LoopResult diagnose_loop(const Model& start, const std::vector<const FlightData*
             r.model = before;
             dxs = dxs_before;
             learned_channels = learned_before;
+            named_channels = named_before;
             return false;
           };
           if (first) {

@@ -180,6 +180,13 @@ class Round {
   // alone holds on lines flown at another value of it, and the band-pass sizes only their sum
   // there.
   bool size_following_a_state();
+  // When no term of the language passes while the residual stays predictable: the plain field
+  // term of the recorded state that predicts most of it (ExplainableShare::channels), the model
+  // fitted again with it at its ridge strength and with the ridge weakened (better_lambda), the
+  // better kept if it lowers the held-out error by the accepted share and the resolution and
+  // raises neither half (one try per channel over the loop: `named_channels`;
+  // DiagnoseOptions::named_channel_term).
+  bool named_channel_term(const std::vector<Diagnosis>& dxs, std::set<std::string>* named_channels);
   // When no term of the language passes while the residual stays predictable: a learned law of
   // the channel that predicts most of it (one per channel over the loop: `learned_channels`).
   bool learned_law_of_channel(const std::vector<Diagnosis>& dxs,

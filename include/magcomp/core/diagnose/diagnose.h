@@ -243,6 +243,18 @@ struct DiagnoseOptions {
   /// inductive pick-up) and win its round, while the term of one of them wins the next two
   /// (loop_steps::Round::looking_ahead; false: the round's first term that passes is kept).
   bool look_ahead = true;
+  /// diagnose_loop: when no term passes while the residual stays predictable, before a learned
+  /// law of it, the recorded state of the aircraft that predicts most of the residual
+  /// (ExplainableShare::channels) is tried as its plain field term (`field:X`) with the whole
+  /// model fitted again, at the model's ridge strength and with the ridge weakened as
+  /// choose_lambda weakens it, and the better kept if it lowers the held-out error by
+  /// accept_fraction of its variance and resolution_nT and raises neither half (once per
+  /// channel). The search scores each candidate beside TL's exact-norm column as the base's
+  /// coefficients left it, at the model's ridge; a channel whose field those coefficients
+  /// partly took ranks low there however much it explains once TL is fitted again with it
+  /// (loop_steps::Round::named_channel_term; false: the learned law is the only try of that
+  /// channel).
+  bool named_channel_term = true;
   /// diagnose_loop: when no term passes, before any exchange, the kept terms' parameters (a
   /// step's threshold, a time constant, a saturation level, a delay) are estimated again with
   /// every other term of the model in place: each term's alone, and all of them beside each of
