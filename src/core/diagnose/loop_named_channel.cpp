@@ -78,10 +78,7 @@ bool Round::named_channel_term(const std::vector<Diagnosis>& dxs,
                   best->first.fit.lambda, r_->model.fit.lambda);
     lr.model_change = change;
   }
-  lr.rejected = std::move(rejected_);
-  rejected_.clear();
-  r_->rounds.push_back(std::move(lr));
-  r_->model = std::move(best->first);
+  keep(std::move(best->first), std::move(lr));
   return true;
 }
 

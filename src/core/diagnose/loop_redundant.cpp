@@ -80,11 +80,8 @@ bool Round::redundant_once_refined(std::set<std::string>* dropped) {
                 "error %.4f -> %.4f nT",
                 best->new_text.c_str(), now.heldout_std_nT, lr.heldout_std_nT);
   lr.removed.emplace_back(best->dropped_text, why);
-  lr.rejected = std::move(rejected_);
-  rejected_.clear();
   dropped->insert(best->dropped_text);
-  r_->rounds.push_back(std::move(lr));
-  r_->model = std::move(best->fitted.first);
+  keep(std::move(best->fitted.first), std::move(lr));
   return true;
 }
 

@@ -78,11 +78,8 @@ bool Round::exchange(const DiagnoseOptions& options, std::set<std::string>* take
                   lr.added.c_str(), now.heldout_std_nT, lr.heldout_std_nT,
                   without_lr.heldout_std_nT);
     lr.replaced.emplace_back(t.text(), why);
-    lr.rejected = std::move(rejected_);
-    rejected_.clear();
     taken_out->insert(t.text());
-    r_->rounds.push_back(std::move(lr));
-    r_->model = std::move(best->first);
+    keep(std::move(best->first), std::move(lr));
     return true;
   }
   return false;
@@ -215,10 +212,7 @@ void Round::replaced_as_round(std::pair<Model, LoopRound> fitted, const std::str
   // simpler term costs, less than a term must gain).
   lr.explained = variance_share(lr.heldout_std_nT, r_->rounds.back().heldout_std_nT);
   lr.replaced.emplace_back(old_text, why);
-  lr.rejected = std::move(rejected_);
-  rejected_.clear();
-  r_->rounds.push_back(std::move(lr));
-  r_->model = std::move(fitted.first);
+  keep(std::move(fitted.first), std::move(lr));
 }
 
 bool Round::refine_parameters(const std::vector<Diagnosis>& dxs,
@@ -449,10 +443,7 @@ bool Round::refine_parameters(const std::vector<Diagnosis>& dxs,
                     lr.heldout_std_nT);
     lr.replaced.emplace_back(from, why);
   }
-  lr.rejected = std::move(rejected_);
-  rejected_.clear();
-  r_->rounds.push_back(std::move(lr));
-  r_->model = std::move(best->first);
+  keep(std::move(best->first), std::move(lr));
   return true;
 }
 

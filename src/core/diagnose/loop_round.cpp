@@ -82,11 +82,15 @@ bool Round::try_model(Model next, const std::string& added, double explained, bo
   lr.added = added;
   lr.explained = explained;
   lr.black_box = black_box;
+  keep(std::move(next), std::move(lr));
+  return true;
+}
+
+void Round::keep(Model next, LoopRound lr) {
   lr.rejected = std::move(rejected_);
   rejected_.clear();
   r_->rounds.push_back(std::move(lr));
   r_->model = std::move(next);
-  return true;
 }
 
 std::pair<Model, LoopRound> Round::fit_score(Model m) const {
@@ -150,10 +154,7 @@ void Round::keep_together(std::pair<Model, LoopRound> fitted, const std::vector<
   lr.explained = variance_share(lr.heldout_std_nT, r_->rounds.back().heldout_std_nT);
   lr.together = true;
   lr.alone_std_nT = alone_nT;
-  lr.rejected = std::move(rejected_);
-  rejected_.clear();
-  r_->rounds.push_back(std::move(lr));
-  r_->model = std::move(fitted.first);
+  keep(std::move(fitted.first), std::move(lr));
 }
 
 double Round::first_single_nT(const std::vector<Eligible>& eligible) const {

@@ -313,6 +313,9 @@ class Round {
   }
 
  private:
+  // The round's change kept: `lr` (its scores and reasons) takes the refusals recorded so far
+  // and becomes the loop's last round, `next` its model.
+  void keep(Model next, LoopRound lr);
   // Fits `next` and keeps it if it passes every check; else records why in rejected_.
   bool try_model(Model next, const std::string& added, double explained, bool black_box);
   // `m` fitted on the flights and scored.
